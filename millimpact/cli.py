@@ -1,0 +1,299 @@
+"""The ``millimpact`` command line.
+
+Bad input ends in one line on stderr naming the field and its allowed range, and exit status 2.
+PETSc options (``-impact_ksp_type gmres`` ...) may follow any run command and reach PETSc.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+import logging
+import os
+import sys
+from pathlib import Path
+from typing import Optional
+
+from .errors import InputError, MillimpactError
+
+EXIT_INPUT = 2
+EXIT_FAILURE = 1
+EXIT_NOT_AVAILABLE = 3
+
+DESCRIPTION = """\
+millimpact: 3D impact dynamics of a grinding ball on a SAG mill liner (DOLFINx).
+
+Typical use:
+  millimpact run                        the default scene (paper-rig) -> out/paper-rig/
+  millimpact run hertz-halfspace --method hertz --out out/hh
+  millimpact hertz                      Hertz values of the default scene
+  millimpact scene export paper-rig > my.toml   (edit, then: millimpact run my.toml)
+"""
+
+
+def _rank() -> int:
+    if "OMPI_COMM_WORLD_RANK" in os.environ or "PMI_RANK" in os.environ:
+        from mpi4py import MPI
+
+        return MPI.COMM_WORLD.rank
+    return 0
+
+
+def _say(*args, **kw) -> None:
+    """Print on rank 0 only."""
+    if _rank() == 0:
+        print(*args, **kw)
+
+
+_PETSC_OPTION = re.compile(r"^-[A-Za-z][A-Za-z0-9_]+$")
+
+
+def split_petsc_options(argv: list[str]) -> tuple[list[str], dict[str, str]]:
+    """Separate PETSc-style options (``-impact_ksp_type gmres``, ``-log_view``: one dash, a name
+    of two or more characters, an optional value) from the arguments argparse reads."""
+    rest: list[str] = []
+    opts: dict[str, str] = {}
+    i = 0
+    while i < len(argv):
+        tok = argv[i]
+        if _PETSC_OPTION.match(tok):
+            nxt = argv[i + 1] if i + 1 < len(argv) else None
+            if nxt is not None and not nxt.startswith("-") or (nxt is not None and _is_number(nxt)):
+                opts[tok[1:]] = nxt
+                i += 2
+                continue
+            opts[tok[1:]] = ""
+        else:
+            rest.append(tok)
+        i += 1
+    return rest, opts
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+# --- commands ---------------------------------------------------------------------------------
+def cmd_hertz(args: argparse.Namespace) -> int:
+    from .hertz import scene_hertz
+    from .scene import resolve_scene
+
+    scene = resolve_scene(args.scene)
+    h = scene_hertz(scene)
+    _say(f"Hertz impact of scene '{scene.name}' (ball on a half-space of the block's material)")
+    for name, value, unit, _ in h.table():
+        _say(f"  {name:<26s} {value:12.5g} {unit}")
+    return 0
+
+
+def cmd_scene(args: argparse.Namespace) -> int:
+    from .plan import make_plan
+    from .scene import BUILTIN_SCENES, BUILTIN_STUDIES, DEFAULT_SCENE, dump_scene, resolve_scene
+
+    if args.action == "list":
+        _say("built-in scenes:")
+        for name in BUILTIN_SCENES:
+            s = resolve_scene(name)
+            _say(f"  {name:<16s}{' (default)' if name == DEFAULT_SCENE else ''}  {s.description}")
+        _say("built-in studies (millimpact study NAME):")
+        for name, st in BUILTIN_STUDIES.items():
+            _say(f"  {name:<16s} {st.label} = {', '.join(f'{v:g}' for v in st.display)} {st.unit} on {st.base}")
+        return 0
+    scene = resolve_scene(args.name)
+    if args.action == "export":
+        sys.stdout.write(dump_scene(scene))
+        return 0
+    # show: resolved scene with units, and the plan
+    plan = make_plan(scene)
+    b, k, i = scene.ball, scene.block, scene.impact
+    _say(f"scene '{scene.name}': {scene.description}")
+    _say(f"  ball    radius {b.radius*1e3:g} mm, mass {b.mass*1e3:.4g} g, rho {b.material.density:g} kg/m^3, "
+         f"G {b.material.shear_modulus/1e9:g} GPa, nu {b.material.poisson:g} (E {b.material.youngs_modulus/1e9:.4g} GPa)")
+    _say(f"  block   {k.length*1e3:g} x {k.thickness*1e3:g} x {k.height*1e3:g} mm (length x thickness x height), "
+         f"support '{k.support}', rho {k.material.density:g} kg/m^3, G {k.material.shear_modulus/1e9:g} GPa, "
+         f"nu {k.material.poisson:g}")
+    x, _, z = scene.impact_point
+    _say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, "
+         f"point (x {x*1e3:g} mm, z {z*1e3:g} mm) on face y = 0")
+    for g in scene.gauges:
+        _say(f"  gauge {g.name}  at ({', '.join(f'{c*1e3:g}' for c in g.position)}) mm, "
+             f"direction ({', '.join(f'{c:g}' for c in g.direction)})")
+    _say(f"  time    end {scene.time.end*1e3:g} ms")
+    _say("plan (derived from the Hertz estimate; override in [model], [time], impact.gap):")
+    for name, value, why in plan.table():
+        _say(f"  {name:<12s} {value:<28s} {why}")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
+    from .runner import run_scene
+    from .scene import DEFAULT_SCENE, resolve_scene
+
+    scene = resolve_scene(args.scene)
+    for assignment in args.set or []:
+        key, _, value = assignment.partition("=")
+        scene = scene.with_value(key.strip(), _parse_value(value))
+    out = Path(args.out) if args.out else Path("out") / (scene.name if args.scene else DEFAULT_SCENE)
+    comm = _comm()
+    if args.method == "hertz":
+        _say("note: --method hertz is the quasi-static Hertz model (1 DOF), the lightest method.")
+    summary = run_scene(scene, args.method, out, options=petsc, progress=not args.quiet, comm=comm)
+    h = summary["hertz"]
+    rel = summary["relative_to_hertz"]
+    _say(f"scene {scene.name}, method {args.method}: wall time {summary['wall_time_s']:.3g} s")
+    _say(f"  peak contact force  {summary['peak_contact_force_N']/1e3:10.4g} kN   (Hertz {h['F_max_N']/1e3:.4g} kN, "
+         f"{100*rel['peak_contact_force']:+.2f} %)")
+    _say(f"  contact duration    {summary['contact_duration_s']*1e6:10.4g} us   (Hertz {h['t_c_s']*1e6:.4g} us, "
+         f"{100*rel['contact_duration']:+.2f} %)")
+    if summary.get("max_approach_m"):
+        _say(f"  max approach        {summary['max_approach_m']*1e6:10.4g} um   (Hertz {h['delta_max_m']*1e6:.4g} um)")
+    if summary.get("restitution") is not None:
+        _say(f"  restitution         {summary['restitution']:10.4f}")
+    for note in summary.get("notes", []):
+        _say(f"  note: {note}")
+    _say(f"  results in {out}/ ({', '.join(summary.get('files', []))})")
+    return 0
+
+
+def cmd_mesh(args: argparse.Namespace) -> int:
+    from .mesh import create_mesh, mesh_report, write_mesh_xdmf
+    from .plan import make_plan
+    from .scene import resolve_scene
+
+    scene = resolve_scene(args.scene)
+    for assignment in args.set or []:
+        key, _, value = assignment.partition("=")
+        scene = scene.with_value(key.strip(), _parse_value(value))
+    plan = make_plan(scene)
+    md = create_mesh(scene, plan, _comm())
+    out = Path(args.out) if args.out else Path("out") / f"{scene.name}-mesh"
+    if _rank() == 0:
+        out.mkdir(parents=True, exist_ok=True)
+    write_mesh_xdmf(md, out / "mesh.xdmf")
+    _say(f"mesh of scene '{scene.name}' -> {out}/mesh.xdmf")
+    for name, value in mesh_report(md):
+        _say(f"  {name:<28s} {value}")
+    return 0
+
+
+def cmd_not_yet(args: argparse.Namespace) -> int:
+    _say(f"millimpact {args.command}: not available in this version yet.", file=sys.stderr)
+    return EXIT_NOT_AVAILABLE
+
+
+def _parse_value(text: str):
+    import tomllib
+
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _comm():
+    from mpi4py import MPI
+
+    return MPI.COMM_WORLD
+
+
+# --- parser -----------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    from .runner import METHODS
+
+    p = argparse.ArgumentParser(prog="millimpact", description=DESCRIPTION,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    r = sub.add_parser("run", help="simulate a scene and write summary, time series, fields and figures",
+                       description="Simulate SCENE (a built-in name or a .toml file; default paper-rig) and "
+                                   "write DIR/summary.json, timeseries.csv/.h5, scene.toml, figures and fields. "
+                                   "PETSc options such as -impact_ksp_type may follow.")
+    r.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
+    r.add_argument("--method", default=None,
+                   help="solution method: " + "; ".join(f"{k}: {v}" for k, v in METHODS.items())
+                   + " (FE methods: full, ... when available)")
+    r.add_argument("--out", help="output folder (default out/SCENE)")
+    r.add_argument("--set", action="append", metavar="FIELD=VALUE",
+                   help="override a scene field, e.g. --set ball.radius=0.02 --set model.h_contact=2e-4")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+    h = sub.add_parser("hertz", help="print the Hertz impact values of a scene",
+                       description="Closed-form Hertz impact of the scene's ball on a half-space of the "
+                                   "block's material: delta_max, F_max, t_c, a_max, p0, max shear and depth.")
+    h.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
+
+    s = sub.add_parser("scene", help="list, show or export scenes",
+                       description="list: built-in scenes and studies; show NAME|FILE: the resolved scene "
+                                   "with units and the plan; export NAME|FILE: TOML to stdout, to edit.")
+    s.add_argument("action", choices=["list", "show", "export"])
+    s.add_argument("name", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
+
+    m = sub.add_parser("mesh", help="mesh a scene (gmsh) and write it as XDMF with its tags",
+                       description="Build (or take from the cache in meshes/) the graded two-body mesh of "
+                                   "SCENE and write DIR/mesh.xdmf; prints element counts, h_c, zone sizes, quality.")
+    m.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
+    m.add_argument("--out", help="output folder (default out/SCENE-mesh)")
+    m.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
+
+    for name, text in (("study", "run one of the paper's parameter studies"),
+                       ("bench", "chart speed against accuracy for every method"),
+                       ("stability", "map where each time integrator fails"),
+                       ("compare", "score another implementation's CSV against a reference run")):
+        q = sub.add_parser(name, help=f"{text} (not available yet)", description=text)
+        q.add_argument("rest", nargs="*")
+        q.add_argument("--out")
+    return p
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    try:
+        parser = build_parser()
+        argv, petsc = split_petsc_options(argv)
+        args, rest = parser.parse_known_args(argv)
+        logging.basicConfig(level=logging.INFO if args.verbose and _rank() == 0 else logging.WARNING,
+                            format="%(name)s: %(message)s")
+        if args.command is None:
+            parser.print_help()
+            return 0
+        if rest:
+            raise InputError(f"unrecognised arguments {' '.join(rest)!r} for 'millimpact {args.command}': "
+                             f"see 'millimpact {args.command} --help'")
+        if petsc and args.command != "run":
+            raise InputError(f"PETSc options {sorted(petsc)} only apply to 'millimpact run'")
+        if args.command == "run":
+            if args.method is None:
+                args.method = _default_method()
+            return cmd_run(args, petsc)
+        if args.command == "hertz":
+            return cmd_hertz(args)
+        if args.command == "scene":
+            return cmd_scene(args)
+        if args.command == "mesh":
+            return cmd_mesh(args)
+        return cmd_not_yet(args)
+    except InputError as exc:
+        if _rank() == 0:
+            print(f"millimpact: error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except MillimpactError as exc:
+        if _rank() == 0:
+            print(f"millimpact: failed: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
+    except KeyboardInterrupt:
+        return 130
+
+
+def _default_method() -> str:
+    """The most faithful method available: the FE solver once it exists, else Hertz."""
+    from .runner import load_fe_methods
+
+    return "full" if load_fe_methods() else "hertz"
+
+
+if __name__ == "__main__":
+    sys.exit(main())

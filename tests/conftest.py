@@ -1,0 +1,35 @@
+"""Shared test helpers: the CLI as a subprocess, and mpirun."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def mpi_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", MPLBACKEND="Agg")
+    return env
+
+
+def run_cli(*args: str, np: int = 1, timeout: float = 600) -> subprocess.CompletedProcess:
+    """``millimpact ARGS`` (under ``mpirun -n np`` when np > 1), captured."""
+    cmd = [sys.executable, "-m", "millimpact.cli", *args]
+    if np > 1:
+        cmd = ["mpirun", "-n", str(np), *cmd]
+    return subprocess.run(cmd, capture_output=True, text=True, env=mpi_env(), cwd=ROOT, timeout=timeout)
+
+
+def run_mpi_script(code: str, np: int = 2, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run a python snippet under ``mpirun -n np``."""
+    if shutil.which("mpirun") is None:
+        pytest.skip("mpirun not installed")
+    return subprocess.run(["mpirun", "-n", str(np), sys.executable, "-c", code], capture_output=True,
+                          text=True, env=mpi_env(), cwd=ROOT, timeout=timeout)

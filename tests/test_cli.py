@@ -1,0 +1,78 @@
+"""The command line: output contract, one-line errors with exit status 2, PETSc options."""
+import json
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from millimpact.results import TimeSeries
+
+
+def test_hertz_command_prints_the_default_values():
+    r = run_cli("hertz")
+    assert r.returncode == 0, r.stderr
+    # DESIGN.md section 3: F_max 13.85 kN, t_c 87.9 us
+    assert "13.847 kN" in r.stdout and "87.894 us" in r.stdout
+
+
+def test_run_hertz_writes_the_output_contract(tmp_path):
+    out = tmp_path / "run"
+    r = run_cli("run", "paper-rig", "--method", "hertz", "--out", str(out), "-q")
+    assert r.returncode == 0, r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    for key in ("scene", "method", "peak_contact_force_N", "contact_duration_s", "max_approach_m",
+                "restitution", "hertz", "wall_time_s", "model"):
+        assert key in s
+    # the Hertz run reproduces its own closed form: duration from F^(2/3) edge extrapolation
+    assert s["peak_contact_force_N"] == pytest.approx(s["hertz"]["F_max_N"], rel=1e-4)
+    assert s["contact_duration_s"] == pytest.approx(s["hertz"]["t_c_s"], rel=1e-4)
+    header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
+    assert header[0] == "time_s" and "contact_force_N" in header
+    ts = TimeSeries.read_csv(out / "timeseries.csv")
+    # impulse of an elastic rebound = 2 m v
+    assert np.trapz(ts["contact_force_N"], ts.time) == pytest.approx(2 * s["hertz"]["mass_kg"] * 3.0, rel=1e-3)
+    for f in ("contact_force.png", "contact_point.png", "energy.png", "timeseries.h5", "scene.toml"):
+        assert (out / f).stat().st_size > 0
+
+
+@pytest.mark.parametrize("args,field", [
+    (["run", "--method", "hertz", "--set", "ball.radius=-0.01"], "ball.radius"),
+    (["run", "--method", "hertz", "--set", "block.material.poisson=0.5"], "block.material.poisson"),
+    (["run", "--method", "hertz", "--set", "impact.gap=-1e-4"], "impact.gap"),
+    (["run", "--method", "hertz", "--set", "impact.velocity=[0.0, 3.0, 0.0]"], "impact.velocity"),
+    (["run", "no-such-scene", "--method", "hertz"], "scene"),
+    (["run", "--method", "teleport"], "--method"),
+    (["hertz", "--bogus"], "--bogus"),
+])
+def test_bad_input_one_line_exit_2(args, field, tmp_path):
+    out = tmp_path / "never"
+    r = run_cli(*args, "--out", str(out)) if args[0] == "run" else run_cli(*args)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and field in lines[0] and "Traceback" not in r.stderr
+    assert not out.exists()  # nothing half-written
+
+
+def test_unknown_key_in_scene_file(tmp_path):
+    p = tmp_path / "s.toml"
+    p.write_text("[ball]\nradius = 0.01\ncolour = 'red'\n")
+    r = run_cli("run", str(p), "--method", "hertz", "--out", str(tmp_path / "o"))
+    assert r.returncode == 2 and "ball.colour" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_scene_export_and_show(tmp_path):
+    r = run_cli("scene", "export", "paper-rig")
+    assert r.returncode == 0
+    p = tmp_path / "my.toml"
+    p.write_text(r.stdout.replace("radius = 0.015", "radius = 0.02"))
+    r = run_cli("scene", "show", str(p))
+    assert r.returncode == 0 and "radius 20 mm" in r.stdout and "h_contact" in r.stdout
+
+
+def test_petsc_options_are_separated():
+    from millimpact.cli import split_petsc_options
+
+    rest, opts = split_petsc_options(["run", "-impact_ksp_type", "gmres", "--out", "x", "-log_view", "-q",
+                                      "-impact_ksp_rtol", "1e-10"])
+    assert rest == ["run", "--out", "x", "-q"]
+    assert opts == {"impact_ksp_type": "gmres", "log_view": "", "impact_ksp_rtol": "1e-10"}
