@@ -140,7 +140,12 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
     comm = _comm()
     if args.method == "hertz":
         _say("note: --method hertz is the quasi-static Hertz model (1 DOF), the lightest method.")
-    summary = run_scene(scene, args.method, out, options=petsc, progress=not args.quiet, comm=comm)
+    options = dict(petsc)
+    if args.degree:
+        options["degree"] = args.degree
+    if args.integrator:
+        options["integrator"] = args.integrator
+    summary = run_scene(scene, args.method, out, options=options, progress=not args.quiet, comm=comm)
     h = summary["hertz"]
     rel = summary["relative_to_hertz"]
     _say(f"scene {scene.name}, method {args.method}: wall time {summary['wall_time_s']:.3g} s")
@@ -219,6 +224,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", help="output folder (default out/SCENE)")
     r.add_argument("--set", action="append", metavar="FIELD=VALUE",
                    help="override a scene field, e.g. --set ball.radius=0.02 --set model.h_contact=2e-4")
+    r.add_argument("--degree", type=int, choices=[1, 2], help="Lagrange degree of FE methods (default: the plan's, P1)")
+    r.add_argument("--integrator", choices=["newmark-mr", "newmark", "central-penalty"],
+                   help="time integrator of FE methods: newmark-mr (default: Newmark average acceleration with "
+                        "mass redistribution), newmark (plain, chatters), central-penalty (explicit)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
     h = sub.add_parser("hertz", help="print the Hertz impact values of a scene",

@@ -147,23 +147,31 @@ def _jsonable(obj: Any) -> Any:
 
 
 @contextmanager
-def staged_output(out: Path, rank: int = 0) -> Iterator[Path | None]:
+def staged_output(out: Path, comm=None) -> Iterator[Path]:
     """Write a run's files into a hidden staging folder and move it to ``out`` only on success.
 
-    Yields the staging folder on rank 0 (``None`` elsewhere). An exception leaves ``out`` untouched
+    Collective when ``comm`` is given: rank 0 makes the folder and every rank gets its path (for
+    collective writers such as XDMF); only rank 0 moves it. An exception leaves ``out`` untouched
     (a previous complete result stays) and removes the staging folder.
     """
-    if rank != 0:
-        yield None
-        return
+    rank = comm.rank if comm is not None else 0
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    stage = None
+    if rank == 0:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    if comm is not None:
+        stage = Path(comm.bcast(str(stage) if stage else None, root=0))
     try:
         yield stage
     except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
+        if rank == 0:
+            shutil.rmtree(stage, ignore_errors=True)
         raise
+    if comm is not None:
+        comm.barrier()
+    if rank != 0:
+        return
     if out.exists():
         old = out.parent / f".{out.name}.old-{os.getpid()}"
         out.rename(old)

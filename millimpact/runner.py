@@ -156,10 +156,17 @@ def build_summary(scene: Scene, plan: Plan, out: RunOutput, wall: float) -> dict
     return summary
 
 
-def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: dict, figures: bool = True) -> list[str]:
-    """Write the output contract into ``folder`` (rank 0). Returns the file names written."""
+def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: dict, figures: bool = True,
+              comm=None) -> list[str]:
+    """Write the output contract into ``folder``: rank 0 writes the files, every rank joins the
+    collective writers (XDMF). Returns the file names written."""
     from . import plots
 
+    rank = comm.rank if comm is not None else 0
+    for writer in out.extra_writers:
+        writer(folder)
+    if rank != 0:
+        return []
     out.series.write_csv(folder / "timeseries.csv")
     scene_toml = dump_scene(scene)
     (folder / "scene.toml").write_text(scene_toml)
@@ -173,8 +180,6 @@ def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: d
                                  title=f"{title}: liner contact point (normal components)")
         plots.plot_gauges(out.series, folder / "gauges.png", title=f"{title}: strain gauges")
         plots.plot_energy(out.series, folder / "energy.png", title=f"{title}: energy")
-    for writer in out.extra_writers:
-        writer(folder)
     write_summary(folder, summary)  # last: its presence marks a complete run
     return sorted(p.name for p in folder.iterdir())
 
@@ -182,13 +187,11 @@ def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: d
 def run_scene(scene: Scene, method: str, out_dir: Optional[Path], options: Optional[dict] = None,
               progress: bool = False, comm=None) -> dict[str, Any]:
     """Compute and (if ``out_dir``) write a run; returns the summary. Only rank 0 writes."""
-    rank = comm.rank if comm is not None else 0
     t0 = time.perf_counter()
     out, plan = compute(scene, method, options, progress)
     wall = time.perf_counter() - t0
     summary = build_summary(scene, plan, out, wall)
     if out_dir is not None:
-        with staged_output(Path(out_dir), rank) as stage:
-            if stage is not None:
-                summary["files"] = write_run(stage, scene, plan, out, summary)
+        with staged_output(Path(out_dir), comm) as stage:
+            summary["files"] = write_run(stage, scene, plan, out, summary, comm=comm)
     return summary

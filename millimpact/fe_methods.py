@@ -1,0 +1,257 @@
+"""Finite-element methods as named run methods (``--method full``).
+
+``full``: the unreduced reference. Both bodies elastic (P1 or P2), the block clamped, the ball free
+with its arrival velocity a small gap before contact; node-to-surface Lagrange-multiplier contact
+(:mod:`millimpact.contact`), time integration by :mod:`millimpact.integrators` (default Newmark
+with mass redistribution), linear solves by PETSc (:mod:`millimpact.solvers`).
+"""
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+from mpi4py import MPI
+
+from . import integrators
+from .contact import ContactSet, create_contact
+from .mesh import create_mesh
+from .model import BLOCK_CELLS, FEModel, _cells_of, create_fe_model, create_probe, stress_from_gradient, von_mises
+from .plan import Plan
+from .results import TimeSeries
+from .runner import RunOutput, register_method
+from .scene import Scene
+
+log = logging.getLogger(__name__)
+
+
+def _mirror_into_model(point: np.ndarray, direction: np.ndarray, plan: Plan, scene: Scene):
+    """Map a point (and a direction) on the full body into the kept part of a symmetric model."""
+    x_p, _, z_p = scene.impact_point
+    p, d = np.array(point, float), np.array(direction, float)
+    if "x" in plan.symmetry_planes and p[0] < x_p:
+        p[0], d[0] = 2 * x_p - p[0], -d[0]
+    if "z" in plan.symmetry_planes and p[2] < z_p:
+        p[2], d[2] = 2 * z_p - p[2], -d[2]
+    return p, d
+
+
+def _inward(point: np.ndarray, plan: Plan, scene: Scene) -> np.ndarray:
+    """A point nudged just inside the block (and off the symmetry planes) so one cell holds it."""
+    eps = 1e-6 * plan.h_contact
+    p = np.array(point, float)
+    blk = scene.block
+    p[1] = min(p[1], -eps)
+    p[1] = max(p[1], -blk.thickness + eps)
+    p[0] = np.clip(p[0], -blk.length / 2 + eps, blk.length / 2 - eps)
+    p[2] = np.clip(p[2], eps, blk.height - eps)
+    x_p, _, z_p = scene.impact_point
+    if "x" in plan.symmetry_planes:
+        p[0] = max(p[0], x_p + eps)
+    if "z" in plan.symmetry_planes:
+        p[2] = max(p[2], z_p + eps)
+    return p
+
+
+class Recorder:
+    """Observer of the time loop: turns each step's state into the run's time-series rows."""
+
+    def __init__(self, model: FEModel, contact: ContactSet, field_times: tuple[float, ...]):
+        scene, plan = model.scene, model.plan
+        self.model, self.contact = model, contact
+        V = model.V
+        self.u_fn = model.function("u")
+        self.sym = model.sym_factor
+        self.x_p, _, self.z_p = scene.impact_point
+        # ball centre-of-mass velocity along y: c . v with c = M e_y(ball) / m_ball
+        ey = model.M.createVecRight()
+        ey.set(0.0)
+        ball_y = model.ball_dofs[model.ball_dofs % 3 == 1]
+        ey.array[ball_y] = 1.0
+        self.c_y = model.M.createVecLeft()
+        model.M.mult(ey, self.c_y)
+        self.ball_mass_model = self.c_y.sum()
+        self.c_y.scale(1.0 / self.ball_mass_model)
+        self.ball_mask = model.M.createVecRight()
+        self.ball_mask.set(0.0)
+        self.ball_mask.array[model.ball_dofs] = 1.0
+        self.tmp = model.M.createVecLeft()
+        self.tmp2 = model.M.createVecLeft()
+        self.gap0 = plan.gap
+        # probes: contact point (surface value and just-inside gradient) and gauges
+        blk_cells = _cells_of(model.meshdata, BLOCK_CELLS)
+        cp = _inward(np.array(scene.impact_point), plan, scene)
+        pts = [cp]
+        self.gauge_dirs = []
+        for g in scene.gauges:
+            p, d = _mirror_into_model(np.array(g.position), np.array(g.direction), plan, scene)
+            pts.append(_inward(p, plan, scene))
+            self.gauge_dirs.append(d / np.linalg.norm(d))
+        self.probe = create_probe(V, np.array(pts), blk_cells)
+        if not np.all(self.probe.found):
+            raise RuntimeError("a probe point (contact point or gauge) lies outside the block mesh")
+        mat = scene.block.material
+        self.mu, self.lmbda, self.E = mat.shear_modulus, mat.lame_lambda, mat.youngs_modulus
+        self.rows: list[list[float]] = []
+        self.field_times = sorted(field_times)
+        self.fields: list[tuple[float, np.ndarray]] = []
+        self._next_field = 0
+        self.e0: Optional[float] = None
+
+    names_base = ["time_s", "contact_force_N", "approach_m", "contact_radius_m", "ball_velocity_m_s",
+                  "contact_point_displacement_m", "contact_point_velocity_m_s", "contact_point_acceleration_m_s2",
+                  "contact_point_stress_Pa", "contact_point_von_mises_Pa"]
+
+    @property
+    def names(self) -> list[str]:
+        return (self.names_base + [f"gauge_{g.name}_stress_Pa" for g in self.model.scene.gauges]
+                + ["ball_kinetic_energy_J", "kinetic_energy_J", "strain_energy_J", "total_energy_J"])
+
+    def _local(self, vec) -> np.ndarray:
+        self.u_fn.vector.array[:] = vec.array_r
+        self.u_fn.x.scatter_forward()
+        return self.u_fn.x.array
+
+    def __call__(self, st) -> None:
+        m = self.model
+        lam = np.asarray(st.lam)
+        force = self.sym * float(lam.sum()) if lam.size else 0.0
+        active = lam > 0
+        if np.any(active):
+            pts = self.contact.points[active]
+            a = float(np.max(np.hypot(pts[:, 0] - self.x_p, pts[:, 2] - self.z_p)))
+        else:
+            a = 0.0
+        approach = -self.c_y.dot(st.u) - self.gap0
+        vball = -self.c_y.dot(st.v)
+        u_loc = self._local(st.u).copy()
+        vals_u = self.probe.values(u_loc)
+        grads = self.probe.gradients(u_loc)
+        vals_v = self.probe.values(self._local(st.v).copy())
+        vals_a = self.probe.values(self._local(st.a).copy())
+        s = stress_from_gradient(grads, self.mu, self.lmbda)
+        gauges = [self.E * d @ (0.5 * (gr + gr.T)) @ d for d, gr in zip(self.gauge_dirs, grads[1:])]
+        # energies: kinetic with the consistent mass, strain 1/2 u.K u (clamped rows carry u = 0)
+        m.M.mult(st.v, self.tmp)
+        ke = 0.5 * self.tmp.dot(st.v)
+        self.tmp2.pointwiseMult(st.v, self.ball_mask)
+        m.M.mult(self.tmp2, self.tmp)
+        ke_ball = 0.5 * self.tmp.dot(self.tmp2)
+        se = integrators.strain_energy(m.K, st.u, m.fixed_dofs)
+        row = [st.t, force, approach, a, vball, -vals_u[0, 1], -vals_v[0, 1], -vals_a[0, 1], s[0, 1, 1],
+               float(von_mises(s[0])), *gauges, self.sym * ke_ball, self.sym * ke, self.sym * se,
+               self.sym * (ke + se)]
+        self.rows.append([float(x) for x in row])
+        while self._next_field < len(self.field_times) and st.t >= self.field_times[self._next_field] - 1e-15:
+            self.fields.append((st.t, st.u.array_r.copy()))
+            self._next_field += 1
+
+    def series(self) -> TimeSeries:
+        return TimeSeries.from_rows(self.names, self.rows)
+
+
+def write_fields(model: FEModel, fields: list[tuple[float, np.ndarray]], path: Path) -> None:
+    """XDMF of the displacement (m) at the recorded times, with cell tags (collective)."""
+    from dolfinx.io import XDMFFile
+
+    mesh = model.V.mesh
+    u = model.function("displacement_m")
+    # XDMF in DOLFINx 0.5 writes P1 geometry: interpolate P2 fields to P1
+    from dolfinx import fem
+
+    out_fn = u
+    if model.degree != 1:
+        V1 = fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
+        out_fn = fem.Function(V1)
+        out_fn.name = "displacement_m"
+    with XDMFFile(mesh.comm, str(path), "w") as xdmf:
+        xdmf.write_mesh(mesh)
+        xdmf.write_meshtags(model.meshdata.cell_tags)
+        for t, arr in fields:
+            u.vector.array[:] = arr
+            u.x.scatter_forward()
+            if out_fn is not u:
+                out_fn.interpolate(u)
+            xdmf.write_function(out_fn, t)
+
+
+def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str = "full") -> RunOutput:
+    """The full FE model of a scene, integrated over the scene's time span."""
+    comm = MPI.COMM_WORLD
+    t0 = time.perf_counter()
+    degree = int(options.pop("degree", None) or plan.degree)
+    integrator = options.pop("integrator", None) or "newmark-mr"
+    t_end = float(options.pop("t_end", None) or scene.time.end)
+    md = create_mesh(scene, plan, comm)
+    t_mesh = time.perf_counter() - t0
+    model = create_fe_model(scene, plan, md, degree)
+    contact = create_contact(model)
+    t_assemble = time.perf_counter() - t0 - t_mesh
+    system = integrators.LinearDynamics(M=model.M, K=model.K, B=contact.B, g0=contact.g0,
+                                        fixed_dofs=model.fixed_dofs, contact_dofs=contact.contact_dofs)
+    u0 = model.M.createVecRight()
+    u0.set(0.0)
+    v0 = model.M.createVecRight()
+    v0.set(0.0)
+    vel = scene.impact.velocity
+    for comp in range(3):
+        dofs = model.ball_dofs[model.ball_dofs % 3 == comp]
+        v0.array[dofs] = vel[comp]
+    v0.array[model.fixed_dofs] = 0.0  # symmetry planes: no normal velocity there
+    rec = Recorder(model, contact, scene.outputs.field_times if scene.outputs.xdmf else ())
+    schedule = integrators.TimeSchedule(t_end, plan.dt_contact, plan.dt_free)
+    stats = integrators.integrate(system, u0, v0, schedule, method=integrator, observer=rec,
+                                  options=options, progress=progress)
+    ts = rec.series()
+    wall = time.perf_counter() - t0
+
+    # restitution: ball centre-of-mass velocity after the first contact over the arrival speed
+    f = ts["contact_force_N"]
+    after = np.nonzero(f > 0)[0]
+    if len(after):
+        last = after[-1] if not np.any(np.diff(after) > 1) else after[np.argmax(np.diff(after) > 1)]
+        i_out = min(last + 2, len(f) - 1)
+        restitution = -ts["ball_velocity_m_s"][i_out] / scene.impact.normal_speed
+    else:
+        restitution = float("nan")
+    e = ts["total_energy_J"]
+    e_in = e[0]
+    i_peak = int(np.argmax(f))
+    results = {
+        "restitution": restitution,
+        "energy_initial_J": e_in,
+        "energy_final_J": float(e[-1]),
+        "energy_drift_max_rel": float(np.max(np.abs(e - e_in)) / e_in),
+        "energy_drift_over_impact_rel": float(np.max(np.abs(e[: min(len(e), i_out + 1 if len(after) else len(e))] - e_in)) / e_in),
+        "ball_kinetic_energy_after_J": float(ts["ball_kinetic_energy_J"][-1]),
+        "vibration_energy_share_end": float(1.0 - ts["ball_kinetic_energy_J"][-1] / e_in),
+        "peak_contact_point_stress_Pa": float(np.min(ts["contact_point_stress_Pa"])),
+        "peak_contact_point_von_mises_Pa": float(np.max(ts["contact_point_von_mises_Pa"])),
+        "peak_gauge_stress_Pa": {g.name: float(ts[f"gauge_{g.name}_stress_Pa"][np.argmax(np.abs(ts[f"gauge_{g.name}_stress_Pa"]))])
+                                 for g in scene.gauges},
+        "time_of_peak_force_s": float(ts.time[i_peak]),
+        "integrator": integrator,
+        "integration": stats._asdict() if hasattr(stats, "_asdict") else getattr(stats, "__dict__", str(stats)),
+        "timings_s": {"mesh": t_mesh, "assemble": t_assemble, "integrate": wall - t_mesh - t_assemble},
+    }
+    info = md.info
+    model_info = {
+        "method": method, "degree": degree, "dofs": model.n_dofs_global, "contact_candidates": contact.n,
+        "symmetry": plan.symmetry, "symmetry_factor": model.sym_factor,
+        "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model, "ball_mass_exact_kg": scene.ball.mass,
+        "ball_density_scale": model.extra["ball_density_scale"],
+        "mesh": info.__dict__ if hasattr(info, "__dict__") else str(info),
+        "mpi_ranks": comm.size,
+    }
+    notes = [f"full FE, P{degree}, {model.n_dofs_global} dofs, {plan.symmetry} model, integrator {integrator}"]
+    fields = rec.fields
+    writers = []
+    if fields:
+        writers.append(lambda folder: write_fields(model, fields, folder / "fields.xdmf"))
+    return RunOutput(method, ts, results, model_info, extra_writers=writers, notes=notes)
+
+
+register_method("full", "unreduced finite elements of ball and block (P1/P2), Lagrange-multiplier contact: "
+                "the reference", lambda scene, plan, options, progress: run_fe(scene, plan, dict(options), progress))
