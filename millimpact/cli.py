@@ -295,6 +295,17 @@ def main(argv: Optional[list[str]] = None) -> int:
         return EXIT_FAILURE
     except KeyboardInterrupt:
         return 130
+    except Exception:
+        # an unexpected failure on one rank must not leave the others waiting forever
+        if "OMPI_COMM_WORLD_SIZE" in os.environ and int(os.environ["OMPI_COMM_WORLD_SIZE"]) > 1:
+            import traceback
+
+            traceback.print_exc()
+            sys.stderr.flush()
+            from mpi4py import MPI
+
+            MPI.COMM_WORLD.Abort(1)
+        raise
 
 
 def _default_method() -> str:

@@ -200,8 +200,9 @@ def locate_points(V: fem.FunctionSpace, points: np.ndarray, cells_allowed: np.nd
             if best >= 0 and best_lam > -1e-8:
                 cell_of[i] = best
     comm = mesh.comm
-    me = np.where(cell_of >= 0, comm.rank, comm.size)
-    owner = comm.allreduce(me, op=MPI.MIN)
+    me = np.where(cell_of >= 0, comm.rank, comm.size).astype(np.int32)
+    owner = np.empty_like(me)
+    comm.Allreduce(me, owner, op=MPI.MIN)
     cell_of[owner != comm.rank] = -1
     return cell_of
 
