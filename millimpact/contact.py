@@ -36,8 +36,9 @@ class ContactSet:
     """Constraint rows gap = g0 + B u >= 0 for the candidate slave nodes (SI units).
 
     ``points`` (n_c, 3) slave-node coordinates (replicated), ``B`` PETSc (n_c x n), ``g0`` initial
-    gaps (m), ``contact_dofs`` local owned dofs whose mass mass-redistribution removes (the y
-    components of the slave nodes and of the block-face nodes they touch), ``radius`` the candidate
+    gaps (m), ``contact_dofs`` local owned dofs whose mass mass-redistribution removes
+    all three components of the slave nodes and of the block-face nodes they touch, less clamped
+    or symmetry dofs), ``radius`` the candidate
     radius around the axis (m).
     """
 
@@ -110,15 +111,18 @@ def create_contact(model: FEModel, radius: float | None = None) -> ContactSet:
         for w, gn in zip(N, gcn):
             if abs(w) > 1e-9:  # nodes off the face have weight 0 up to round-off
                 B.setValue(i, int(gn) * bs + 1, -float(w), addv=PETSc.InsertMode.ADD_VALUES)
-                block_face_dofs.append(int(gn) * bs + 1)
+                block_face_dofs.append(int(gn))
     found = comm.allreduce((cells >= 0).astype(np.int32), op=MPI.SUM)
     if np.any(found == 0):
         raise RuntimeError(f"{int(np.sum(found == 0))} contact points have no block face below them")
     B.assemble()
     # the block-face dofs may be owned by another rank than the one that found them
-    face_global = np.unique(np.concatenate(comm.allgather(np.asarray(block_face_dofs, dtype=np.int64))))
-    lo = imap.local_range[0] * bs
-    face_local = face_global[(face_global >= lo) & (face_global < lo + n_local)] - lo
-    contact_dofs = np.unique(np.concatenate([nodes * bs + 1, face_local])).astype(np.int32)
+    face_nodes = np.unique(np.concatenate(comm.allgather(np.asarray(block_face_dofs, dtype=np.int64))))
+    lo = imap.local_range[0]
+    face_local = face_nodes[(face_nodes >= lo) & (face_nodes < lo + n_owned_nodes)] - lo
+    # all components of the slave nodes and of the block-face nodes they touch lose their mass
+    contact_nodes = np.unique(np.concatenate([nodes.astype(np.int64), face_local]))
+    contact_dofs = (contact_nodes[:, None] * bs + np.arange(bs)[None, :]).ravel().astype(np.int32)
+    contact_dofs = np.setdiff1d(contact_dofs, model.fixed_dofs).astype(np.int32)
     log.info("contact: %d slave nodes within %.3g mm of the axis", n_c, radius * 1e3)
     return ContactSet(points, B, g0, contact_dofs, radius)

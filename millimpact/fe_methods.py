@@ -133,11 +133,13 @@ class Recorder:
         vals_a = self.probe.values(self._local(st.a).copy())
         s = stress_from_gradient(grads, self.mu, self.lmbda)
         gauges = [self.E * d @ (0.5 * (gr + gr.T)) @ d for d, gr in zip(self.gauge_dirs, grads[1:])]
-        # energies: kinetic with the consistent mass, strain 1/2 u.K u (clamped rows carry u = 0)
-        m.M.mult(st.v, self.tmp)
+        # energies: kinetic with the mass the scheme integrates (st.mass: redistributed for
+        # newmark-mr, whose massless contact dofs carry no momentum), strain 1/2 u.K u
+        mass = st.mass if getattr(st, "mass", None) is not None else m.M
+        mass.mult(st.v, self.tmp)
         ke = 0.5 * self.tmp.dot(st.v)
         self.tmp2.pointwiseMult(st.v, self.ball_mask)
-        m.M.mult(self.tmp2, self.tmp)
+        mass.mult(self.tmp2, self.tmp)
         ke_ball = 0.5 * self.tmp.dot(self.tmp2)
         se = integrators.strain_energy(m.K, st.u, m.fixed_dofs)
         row = [st.t, force, approach, a, vball, -vals_u[0, 1], -vals_v[0, 1], -vals_a[0, 1], s[0, 1, 1],

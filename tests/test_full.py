@@ -18,7 +18,7 @@ HALFSPACE = ["run", "hertz-halfspace", "--method", "full", "--set", "time.end=1.
 @pytest.fixture(scope="module")
 def halfspace_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("hh") / "run"
-    r = run_cli(*HALFSPACE, "--set", "model.h_far=6e-3", "--out", str(out))
+    r = run_cli(*HALFSPACE, "--out", str(out))
     assert r.returncode == 0, r.stderr[-2000:]
     return json.loads((out / "summary.json").read_text()), TimeSeries.read_csv(out / "timeseries.csv"), out
 
