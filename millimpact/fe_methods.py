@@ -257,3 +257,6 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
 
 register_method("full", "unreduced finite elements of ball and block (P1/P2), Lagrange-multiplier contact: "
                 "the reference", lambda scene, plan, options, progress: run_fe(scene, plan, dict(options), progress))
+
+
+from . import reduced_methods  # noqa: E402,F401  (registers traditional, improved, modal-p2)

@@ -1,0 +1,501 @@
+"""Reduced run methods: ``traditional``, ``modal-p2`` and ``improved`` (DESIGN.md section 4).
+
+Each is a Galerkin projection ``u = T q`` of the full finite-element model of the same mesh
+(:mod:`millimpact.reduction`), integrated by the same integrator with the same contact rows:
+``LinearDynamics(T^T M T, T^T K T, B T, g0, [], contact coordinates)``.
+
+``traditional``
+    The traditional multivariable method: whole mesh P1, contact-zone dofs kept physical, each
+    body's non-contact region reduced by Craig-Bampton (constraint modes + fixed-interface modes up
+    to the cutoff).
+``modal-p2``
+    The same on the whole-mesh P2 model.
+``improved``
+    The paper's improved multivariable method: whole mesh P2, the contact zone described by
+    first-order manifold covers (:mod:`millimpact.enrichment`; default null-space remedy: no
+    gradient enrichment at the zone/region interface vertices), the region by Craig-Bampton.
+
+Options (``options`` keys, also ``-modes 20`` etc. on the command line):
+``modes`` (modes kept per body; wins over the cutoff), ``f_cut`` (Hz; default the plan's
+``f_cut = 4 / t_c`` or ``scene.model.f_cut``), ``nmm_remedy`` (improved: interface | anchors),
+``free_phase`` (modal | step, below), ``free_modes_factor`` (the free phase keeps the
+free-vibration modes up to this many f_cut, default 4), ``integrator`` (default newmark-mr),
+``t_end`` (s). The rest goes to the integrator.
+
+The free phase. The contact lasts ~0.1 ms of the 40 ms run; with the zone kept physical the
+reduced model is still thousands of coordinates, so stepping the free vibration would cost nearly
+as much as the full model. With ``free_phase = "modal"`` (default) the integrator runs while the
+bodies touch (from the start to ``gap / v + 2 t_c``, then in chunks of 2 t_c while a contact is
+active); once they are apart, the motion is the closed-form sum of the free-vibration modes of the
+reduced system up to ``free_modes_factor * f_cut`` (with the integrator's mass matrix), recorded
+on the integrator's free-step grid. A gap predicted to come back below the plan's initial gap
+(a second impact) hands the state back to the integrator. The energy above the modal cutoff at
+the switch is dropped and reported (``results["free_phase"]["energy_dropped_J"]``; 2e-5
+(traditional) and 3e-6 (improved) of the impact energy at the default scene).
+``free_phase = "step"`` integrates all the way.
+
+Observables: the time series are the full method's (:class:`millimpact.fe_methods.Recorder`),
+computed from rows precomputed once per projection (probe rows P T, the ball's centre-of-mass
+row T^T c), energies as ``q . M_r q / 2`` and ``q . K_r q / 2``; u = T q is expanded only for
+the XDMF fields.
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any, Optional
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import integrators
+from .contact import ContactSet, create_contact
+from .enrichment import create_nmm_zone
+from .errors import InputError
+from .fe_methods import Recorder, write_fields
+from .mesh import create_mesh
+from .model import FEModel, PointProbe, create_fe_model
+from .plan import Plan
+from .reduction import (ModalProjection, ReducedModel, compute_free_modes, create_nodal_zone_basis,
+                        local_rows_to_aij, partition_dofs, reduce_model)
+from .runner import RunOutput, register_method
+from .scene import Scene
+
+log = logging.getLogger(__name__)
+
+#: the closed-form free phase keeps the free-vibration modes up to this many f_cut: its outputs
+#: are sampled every dt_free = 1 / (10 f_cut) (plan.py), whose Nyquist frequency is 5 f_cut
+FREE_MODES_FACTOR = 4.0
+
+#: method name -> (degree, zone description, description)
+REDUCED_METHODS = {
+    "traditional": (1, "nodal", "traditional multivariable method: P1, contact zone physical, non-contact "
+                                "region by Craig-Bampton modes up to f_cut"),
+    "modal-p2": (2, "nodal", "as traditional on the whole-mesh P2 model"),
+    "improved": (2, "nmm", "improved multivariable method (the paper's): P2, contact zone by first-order "
+                           "manifold covers, non-contact region by Craig-Bampton modes up to f_cut"),
+}
+
+
+# --- observables ---------------------------------------------------------------------------------
+def _reduced_probe(probe: PointProbe, red: ReducedModel) -> PointProbe:
+    """The probe's rows P T, restricted on each rank to its owned reduced columns (so that
+    ``values(q_owned)`` sums the ranks' parts exactly as :class:`PointProbe` does)."""
+    q0, q1 = red.M.getOwnershipRange()
+    mats = []
+    for P in (probe.P_val, probe.P_grad):
+        PT = red.project_rows(local_rows_to_aij(P, red.model.V))
+        r0, r1 = PT.getOwnershipRange()
+        indptr, indices, data = PT.getValuesCSR()
+        local = sp.csr_matrix((data, indices, indptr), shape=(r1 - r0, red.n_global))
+        full = sp.vstack(red.comm.allgather(local)).tocsc()
+        mats.append(full[:, q0:q1].tocsr())
+    return PointProbe(probe.comm, probe.n_points, mats[0], mats[1], probe.found)
+
+
+class ReducedRecorder(Recorder):
+    """The full method's :class:`Recorder` on a reduced model: same rows, from reduced maps.
+
+    Replaces the recorder's full-space maps by their images under the current projection (a
+    :class:`ReducedModel` ``u = T q`` or a :class:`ModalProjection` ``u = T Phi eta``, switched
+    with :meth:`set_projection`): the ball's centre-of-mass row ``c`` by ``T^T c``, the probes
+    by ``P T``, the ball mask by the ball's coordinates, the energies' M and K by the projected
+    ones (no fixed coordinates: T is zero on clamped dofs). ``time_offset`` (s) is added to the
+    states' times (restarted integrations). XDMF states are expanded to model vectors at once.
+    """
+
+    def __init__(self, red: ReducedModel, contact: ContactSet, field_times: tuple[float, ...]):
+        super().__init__(red.model, contact, field_times)
+        self._c_full = self.c_y
+        self._probe_full = self.probe
+        self.time_offset = 0.0
+        self.proj = None
+        self._maps: dict[int, tuple] = {}
+        self.set_projection(red)
+
+    def set_projection(self, proj) -> None:
+        """Observe states of ``proj`` (a ReducedModel or a ModalProjection) from now on."""
+        self.proj = proj
+        key = id(proj)
+        if key not in self._maps:
+            mask = proj.create_vector()
+            mask.array[proj.ball_coords] = 1.0
+            view = SimpleNamespace(M=proj.M, K=proj.K, fixed_dofs=np.zeros(0, dtype=np.int32),
+                                   scene=proj.model.scene, sym_factor=proj.model.sym_factor)
+            self._maps[key] = (proj.restrict(self._c_full), mask, proj.create_vector(), proj.create_vector(),
+                               _reduced_probe(self._probe_full, proj), view)
+        self.c_y, self.ball_mask, self.tmp, self.tmp2, self.probe, self.model = self._maps[key]
+
+    def _local(self, vec) -> np.ndarray:
+        return vec.array_r
+
+    def __call__(self, st) -> None:
+        if self.time_offset:
+            st = dataclasses.replace(st, t=st.t + self.time_offset)
+        n = len(self.fields)
+        super().__call__(st)
+        for i in range(n, len(self.fields)):
+            t, arr = self.fields[i]
+            x = self.proj.create_vector()
+            x.array[:] = arr
+            u = self.proj.expand(x)
+            self.fields[i] = (t, u.array_r.copy())
+            u.destroy()
+            x.destroy()
+
+
+# --- the run -------------------------------------------------------------------------------------
+def _int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]:
+    value = options.pop(key, None)
+    if value is None or value == "":
+        return default
+    try:
+        return int(value)
+    except (TypeError, ValueError):
+        raise InputError(f"option {key} = {value!r}: must be an integer") from None
+
+
+def _float_option(options: dict, key: str, default: Optional[float]) -> Optional[float]:
+    value = options.pop(key, None)
+    if value is None or value == "":
+        return default
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"option {key} = {value!r}: must be a number") from None
+
+
+def build_reduced_model(model: FEModel, kind: str, *, f_cut: Optional[float], n_modes: Optional[int],
+                        remedy: str = "interface") -> ReducedModel:
+    """The reduced model of ``model`` for a zone description ``kind`` ("nodal" or "nmm")."""
+    part = partition_dofs(model)
+    if kind == "nmm":
+        zone = create_nmm_zone(model, part, remedy=remedy).basis
+    else:
+        zone = create_nodal_zone_basis(model, part)
+    return reduce_model(model, zone, f_cut=f_cut, n_modes=n_modes, partition=part)
+
+
+def reduced_system(red: ReducedModel, contact: ContactSet) -> integrators.LinearDynamics:
+    """The contact dynamics of a reduced model: ``(M_r, K_r, B T, g0)``; the contact coordinates
+    (made massless by mass redistribution) are those whose basis vectors touch the contact dofs."""
+    B_r = red.project_rows(contact.B)
+    contact_coords = red.reduced_dofs(contact.contact_dofs)
+    q0 = red.M.getOwnershipRange()[0]
+    boundary = np.concatenate([b.qb for b in red.bodies]) if red.bodies else np.zeros(0, np.int64)
+    n_shared = red.comm.allreduce(int(np.count_nonzero(np.isin(contact_coords + q0, boundary))))
+    if n_shared and red.comm.rank == 0:
+        # their mass rows carry the dense Craig-Bampton couplings: mass redistribution would
+        # spread their mass over the interface and the modes
+        log.warning("%d contact coordinates lie on the zone/region interface: the contact candidates "
+                    "reach the zone boundary; enlarge model.zone_radius", n_shared)
+    return integrators.LinearDynamics(M=red.M, K=red.K, B=B_r, g0=contact.g0,
+                                      fixed_dofs=np.zeros(0, dtype=np.int32), contact_dofs=contact_coords)
+
+
+def initial_state(red: ReducedModel, scene: Scene) -> tuple[PETSc.Vec, PETSc.Vec]:
+    """(q0, qdot0): at rest except the ball's arrival velocity (projected exactly: a rigid motion
+    lies in range(T))."""
+    model = red.model
+    v0 = model.M.createVecRight()
+    v0.set(0.0)
+    vel = scene.impact.velocity
+    for comp in range(3):
+        dofs = model.ball_dofs[model.ball_dofs % 3 == comp]
+        v0.array[dofs] = vel[comp]
+    v0.array[model.fixed_dofs] = 0.0
+    qd0 = red.project_state(v0)
+    v0.destroy()
+    return red.create_vector(), qd0
+
+
+def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0: PETSc.Vec, qd0: PETSc.Vec,
+                      contact: ContactSet, plan: Plan, t_end: float, rec: ReducedRecorder, *,
+                      integrator: str = "newmark-mr", options: Optional[dict] = None, progress: bool = False,
+                      free_phase: str = "modal", f_free: Optional[float] = None) -> dict[str, Any]:
+    """Integrate a reduced model over [0, t_end], feeding ``rec``.
+
+    ``free_phase = "step"``: the integrator all the way. ``"modal"`` (default): the integrator
+    while the bodies touch; once they have separated, the free vibration is the closed-form sum
+    of the free-vibration modes up to ``f_free`` (Hz; :func:`compute_free_modes`), sampled on the
+    integrator's free-step grid; if a gap is predicted to come back within the plan's initial gap
+    (a second impact), the modal state at the grid point before is handed back to the integrator.
+    The energy of the state above ``f_free`` at each switch is reported (it is dropped).
+    Returns a dict: ``stats`` (summed integrator statistics), ``segments`` [(kind, t0, t1)], the
+    modal energy dropped (J), modal rows, free-mode count and their offline time (s).
+    """
+    options = dict(options or {})
+    t_c = plan.hertz.contact_time
+    chunk = max(2.0 * t_c, 20.0 * plan.dt_contact)
+    t_first = min(t_end, plan.gap / plan.hertz.speed + 2.0 * t_c)
+    q, qd = q0, qd0
+    t = 0.0
+    stats_sum: dict[str, Any] = {}
+    segments: list[tuple[str, float, float]] = []
+    out: dict[str, Any] = {"modal_rows": 0, "energy_dropped_J": 0.0, "free_modes": 0, "free_modes_time": 0.0,
+                           "free_modes_f_max_Hz": f_free, "mode": free_phase}
+    modal: Optional[ModalProjection] = None
+    comm = red.comm
+    while t < t_end * (1 - 1e-12):
+        t_stop = t_end if free_phase == "step" else min(t_end, t_first if not segments else t + chunk)
+        q, qd, lam, st, mass = _run_steps(system, q, qd, t, t_stop, plan, rec, integrator, options, progress)
+        _add_stats(stats_sum, st)
+        segments.append(("step", t, t_stop))
+        t = t_stop
+        if t >= t_end * (1 - 1e-12) or np.any(lam > 0):
+            continue
+        if modal is None:
+            t0 = time.perf_counter()
+            modal = compute_free_modes(red, f_free, mass=mass)
+            out["free_modes_time"] = time.perf_counter() - t0
+            out["free_modes"] = modal.n_global
+            gap_rows = modal.rows_dense(contact.B)
+        res = _free_vibration(modal, gap_rows, contact.g0, q, qd, t, t_end, plan, rec, chunk)
+        if res is None:          # a gap closes soon: keep stepping
+            continue
+        t_new, q_new, qd_new, n_rows, dropped = res
+        out["modal_rows"] += n_rows
+        out["energy_dropped_J"] += dropped * red.model.sym_factor
+        segments.append(("modal", t, t_new))
+        t = t_new
+        if q_new is not None:
+            q, qd = q_new, qd_new
+            rec.set_projection(red)
+    out["segments"] = segments
+    stats_sum["t_end"] = t_end
+    out["stats"] = stats_sum
+    if comm.rank == 0 and modal is not None:
+        log.info("free phase: %d modal rows, %d modes up to %.4g kHz, %.3g J dropped at the switches",
+                 out["modal_rows"], out["free_modes"], f_free / 1e3, out["energy_dropped_J"])
+    return out
+
+
+def _add_stats(total: dict, stats) -> None:
+    """Accumulate the integrator statistics of one segment: counts and wall time add up, maxima
+    take the maximum, the rest keeps the first segment's value."""
+    d = stats._asdict() if hasattr(stats, "_asdict") else dict(vars(stats))
+    for k, v in d.items():
+        if isinstance(v, bool):
+            total[k] = bool(total.get(k, False) or v)
+        elif not isinstance(v, (int, float)):
+            total.setdefault(k, v)
+        elif k.startswith("max_"):
+            total[k] = max(total.get(k, v), v)
+        elif k.startswith("n_") or k == "wall_time":
+            total[k] = total.get(k, 0) + v
+        else:
+            total.setdefault(k, v)
+    total["n_segments"] = total.get("n_segments", 0) + 1
+
+
+def _run_steps(system, q, qd, t0: float, t1: float, plan: Plan, rec: ReducedRecorder, integrator: str,
+               options: dict, progress: bool):
+    """The integrator from (q, qd) at t0 to t1; returns the final (q, qd, lambda, stats)."""
+    schedule = integrators.TimeSchedule(t1 - t0, plan.dt_contact, plan.dt_free)
+    rec.time_offset = t0
+    last = {}
+
+    def observe(st) -> None:
+        last["st"] = st
+        if st.step == 0 and t0 > 0:
+            return          # the state at t0 is already recorded
+        rec(st)
+
+    stats = integrators.integrate(system, q, qd, schedule, method=integrator, observer=observe,
+                                  options=dict(options), progress=progress)
+    st = last["st"]
+    rec.time_offset = 0.0
+    return st.u.copy(), st.v.copy(), np.array(st.lam, copy=True), stats, st.mass
+
+
+def _free_vibration(modal: ModalProjection, gap_rows: np.ndarray, g0: np.ndarray, q: PETSc.Vec, qd: PETSc.Vec,
+                    t0: float, t_end: float, plan: Plan, rec: ReducedRecorder, min_span: float):
+    """Closed-form free vibration from (q, qd) at t0, recorded on the free-step grid until t_end or
+    until a gap is predicted below the plan's initial gap. None if that happens within
+    ``min_span`` (stay with the integrator); else (t_stop, q, qd at t_stop or None at t_end, rows,
+    energy dropped at the switch in J)."""
+    comm = modal.comm
+    eta_v, etad_v = modal.project(q), modal.project(qd)
+    eta0 = np.concatenate(comm.allgather(eta_v.array_r.copy()))
+    etad0 = np.concatenate(comm.allgather(etad_v.array_r.copy()))
+    red = modal.red
+    e_red = 0.5 * (qd.dot(_mult(modal.mass, qd)) + q.dot(_mult(red.K, q)))
+    e_mod = 0.5 * (float(etad0 @ etad0) + float(np.sum(modal.omega2 * eta0 * eta0)))
+    sched = integrators.TimeSchedule(t_end - t0, plan.dt_contact, plan.dt_free)
+    dt_out = sched.free_ratio * sched.dt_grid
+    n = max(1, int(math.floor((t_end - t0) / dt_out * (1 + 1e-12))))
+    times = t0 + dt_out * np.arange(1, n + 1)
+    if times[-1] < t_end * (1 - 1e-12):
+        times = np.append(times, t_end)
+    times[-1] = min(times[-1], t_end)
+    omega = np.sqrt(modal.omega2)
+    span = max(t_end - t0, 1e-300)
+    rigid = omega * span < 1e-6
+    w = np.where(rigid, 1.0, omega)
+    g_thr = plan.gap
+
+    def state(tau: np.ndarray):
+        c, s_ = np.cos(np.outer(omega, tau)), np.sin(np.outer(omega, tau))
+        eta = eta0[:, None] * c + (etad0 / w)[:, None] * s_
+        etad = -(eta0 * omega)[:, None] * s_ + etad0[:, None] * c
+        if np.any(rigid):
+            eta[rigid] = eta0[rigid, None] + etad0[rigid, None] * tau[None, :]
+            etad[rigid] = etad0[rigid, None]
+        return eta, etad, -modal.omega2[:, None] * eta
+
+    # first grid time with a gap below the threshold (gaps in closed form, in chunks of times)
+    k_stop = None
+    for k0 in range(0, len(times), 2048):
+        tau = times[k0:k0 + 2048] - t0
+        eta, _, _ = state(tau)
+        gaps = g0[:, None] + gap_rows @ eta
+        bad = np.nonzero(gaps.min(axis=0) < g_thr)[0]
+        if len(bad):
+            k_stop = k0 + int(bad[0])
+            break
+    if k_stop is not None and times[k_stop] - t0 < min_span:
+        return None
+    last = len(times) if k_stop is None else k_stop        # rows 0 .. last-1
+    rec.set_projection(modal)
+    lo, hi = eta_v.getOwnershipRange()
+    u, v, a = modal.create_vector(), modal.create_vector(), modal.create_vector()
+    lam0 = np.zeros(len(g0))
+    for k0 in range(0, last, 2048):
+        idx = np.arange(k0, min(last, k0 + 2048))
+        tau = times[idx] - t0
+        eta, etad, etadd = state(tau)
+        gaps = g0[:, None] + gap_rows @ eta
+        for j, k in enumerate(idx):
+            u.array[:] = eta[lo:hi, j]
+            v.array[:] = etad[lo:hi, j]
+            a.array[:] = etadd[lo:hi, j]
+            dt = times[k] - (times[k - 1] if k else t0)
+            rec(integrators.StepState(t=float(times[k]), dt=float(dt), u=u, v=v, a=a, lam=lam0, gap=gaps[:, j],
+                                      n_active=0, n_newton=0, step=int(k + 1), mass=modal.M_scheme))
+    if k_stop is None:
+        return t_end, None, None, last, e_red - e_mod
+    # hand the state at the last recorded time back to the integrator
+    tau = np.array([times[last - 1] - t0]) if last else np.array([0.0])
+    eta, etad, _ = state(tau)
+    u.array[:] = eta[lo:hi, 0]
+    v.array[:] = etad[lo:hi, 0]
+    t_stop = float(times[last - 1]) if last else t0
+    return t_stop, modal.lift(u), modal.lift(v), last, e_red - e_mod
+
+
+def _mult(A: PETSc.Mat, x: PETSc.Vec) -> PETSc.Vec:
+    y = A.createVecLeft()
+    A.mult(x, y)
+    return y
+
+
+def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str) -> RunOutput:
+    """One reduced run of a scene (``method`` in :data:`REDUCED_METHODS`)."""
+    comm = MPI.COMM_WORLD
+    options = dict(options)
+    degree, kind, _ = REDUCED_METHODS[method]
+    asked = options.pop("degree", None)
+    if asked not in (None, "", degree, str(degree)):
+        raise InputError(f"--degree {asked}: method {method} uses P{degree}")
+    integrator = options.pop("integrator", None) or "newmark-mr"
+    t_end = _float_option(options, "t_end", scene.time.end)
+    n_modes = _int_option(options, "modes", scene.model.modes)
+    f_cut = _float_option(options, "f_cut", plan.f_cut)
+    remedy = str(options.pop("nmm_remedy", None) or "interface")
+    free_phase = str(options.pop("free_phase", None) or "modal")
+    if free_phase not in ("modal", "step"):
+        raise InputError(f"option free_phase = {free_phase!r}: choose modal or step")
+    free_factor = _float_option(options, "free_modes_factor", FREE_MODES_FACTOR)
+
+    t0 = time.perf_counter()
+    md = create_mesh(scene, plan, comm)
+    t_mesh = time.perf_counter() - t0
+    model = create_fe_model(scene, plan, md, degree)
+    contact = create_contact(model)
+    t_assemble = time.perf_counter() - t0 - t_mesh
+    red = build_reduced_model(model, kind, f_cut=f_cut, n_modes=n_modes, remedy=remedy)
+    system = reduced_system(red, contact)
+    q0, qd0 = initial_state(red, scene)
+    t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
+
+    rec = ReducedRecorder(red, contact, scene.outputs.field_times if scene.outputs.xdmf else ())
+    t1 = time.perf_counter()
+    run = integrate_reduced(red, system, q0, qd0, contact, plan, t_end, rec, integrator=integrator,
+                            options=options, progress=progress, free_phase=free_phase,
+                            f_free=free_factor * f_cut)
+    t_integrate = time.perf_counter() - t1
+    stats = run["stats"]
+    ts = rec.series()
+    results = _results(ts, scene, stats, integrator)
+    results["timings_s"] = {"mesh": t_mesh, "assemble": t_assemble, "reduction_offline": t_reduce,
+                            "free_modes_offline": run["free_modes_time"], "integrate": t_integrate,
+                            "reduction_detail": dict(red.timings)}
+    results["free_phase"] = {k: v for k, v in run.items() if k not in ("stats",)}
+    rep = red.report()
+    model_info = {
+        "method": method, "degree": degree, "dofs": model.n_dofs_global, "reduced_dofs": red.n_global,
+        "reduction": rep, "contact_candidates": contact.n, "symmetry": plan.symmetry,
+        "symmetry_factor": model.sym_factor, "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model,
+        "ball_mass_exact_kg": scene.ball.mass, "mesh": md.info.to_json(), "mpi_ranks": comm.size,
+    }
+    notes = [f"{method}: P{degree}, {model.n_dofs_global} dofs -> {red.n_global} reduced "
+             f"({red.n_zone} zone, {red.n_modes} modal), f_cut {f_cut / 1e3:.4g} kHz"
+             + (f", {n_modes} modes per body" if n_modes is not None else "")]
+    for b in red.bodies:
+        f = b.frequencies_hz
+        notes.append(f"  {b.name}: {b.n_modes} modes" + (f", {f[0] / 1e3:.4g}-{f[-1] / 1e3:.4g} kHz" if len(f) else ""))
+    writers = []
+    if rec.fields:
+        fields = list(rec.fields)
+        writers.append(lambda folder: write_fields(model, fields, Path(folder) / "fields.xdmf"))
+    return RunOutput(method, ts, results, model_info, extra_writers=writers, notes=notes)
+
+
+def _results(ts, scene: Scene, stats, integrator: str) -> dict[str, Any]:
+    """Scalar results of a run (the same quantities as the full method's)."""
+    f = ts["contact_force_N"]
+    after = np.nonzero(f > 0)[0]
+    if len(after):
+        last = after[-1] if not np.any(np.diff(after) > 1) else after[np.argmax(np.diff(after) > 1)]
+        i_out = min(last + 2, len(f) - 1)
+        restitution = -ts["ball_velocity_m_s"][i_out] / scene.impact.normal_speed
+    else:
+        i_out = len(f) - 1
+        restitution = float("nan")
+    e = ts["total_energy_J"]
+    e_in = e[0]
+    i_peak = int(np.argmax(f))
+    return {
+        "restitution": restitution,
+        "energy_initial_J": float(e_in),
+        "energy_final_J": float(e[-1]),
+        "energy_drift_max_rel": float(np.max(np.abs(e - e_in)) / e_in),
+        "energy_drift_over_impact_rel": float(np.max(np.abs(e[: i_out + 1] - e_in)) / e_in),
+        "ball_kinetic_energy_after_J": float(ts["ball_kinetic_energy_J"][-1]),
+        "vibration_energy_share_end": float(1.0 - ts["ball_kinetic_energy_J"][-1] / e_in),
+        "peak_contact_point_stress_Pa": float(np.min(ts["contact_point_stress_Pa"])),
+        "peak_contact_point_von_mises_Pa": float(np.max(ts["contact_point_von_mises_Pa"])),
+        "peak_gauge_stress_Pa": {g.name: _signed_peak(ts[f"gauge_{g.name}_stress_Pa"]) for g in scene.gauges},
+        "time_of_peak_force_s": float(ts.time[i_peak]),
+        "integrator": integrator,
+        "integration": stats,
+    }
+
+
+def _signed_peak(x: np.ndarray) -> float:
+    """The value of largest magnitude, with its sign."""
+    return float(x[np.argmax(np.abs(x))])
+
+
+def _runner(method: str):
+    return lambda scene, plan, options, progress: run_reduced(scene, plan, dict(options), progress, method)
+
+
+for _name, (_deg, _kind, _desc) in REDUCED_METHODS.items():
+    register_method(_name, _desc, _runner(_name))
