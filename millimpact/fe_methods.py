@@ -179,6 +179,43 @@ def write_fields(model: FEModel, fields: list[tuple[float, np.ndarray]], path: P
             xdmf.write_function(out_fn, t)
 
 
+def impact_results(ts: TimeSeries, scene: Scene, stats, integrator: str) -> dict[str, Any]:
+    """Scalar results of an FE run (full or reduced): restitution from the ball's centre-of-mass
+    velocity just after the first contact, energy balance, peak stresses, integrator statistics."""
+    f = ts["contact_force_N"]
+    after = np.nonzero(f > 0)[0]
+    if len(after):
+        last = after[-1] if not np.any(np.diff(after) > 1) else after[np.argmax(np.diff(after) > 1)]
+        i_out = min(last + 2, len(f) - 1)
+        restitution = -ts["ball_velocity_m_s"][i_out] / scene.impact.normal_speed
+    else:
+        i_out = len(f) - 1
+        restitution = float("nan")
+    e = ts["total_energy_J"]
+    e_in = e[0]
+    i_peak = int(np.argmax(f))
+    return {
+        "restitution": restitution,
+        "energy_initial_J": float(e_in),
+        "energy_final_J": float(e[-1]),
+        "energy_drift_max_rel": float(np.max(np.abs(e - e_in)) / e_in),
+        "energy_drift_over_impact_rel": float(np.max(np.abs(e[: i_out + 1] - e_in)) / e_in),
+        "ball_kinetic_energy_after_J": float(ts["ball_kinetic_energy_J"][-1]),
+        "vibration_energy_share_end": float(1.0 - ts["ball_kinetic_energy_J"][-1] / e_in),
+        "peak_contact_point_stress_Pa": float(np.min(ts["contact_point_stress_Pa"])),
+        "peak_contact_point_von_mises_Pa": float(np.max(ts["contact_point_von_mises_Pa"])),
+        "peak_gauge_stress_Pa": {g.name: _signed_peak(ts[f"gauge_{g.name}_stress_Pa"]) for g in scene.gauges},
+        "time_of_peak_force_s": float(ts.time[i_peak]),
+        "integrator": integrator,
+        "integration": stats._asdict() if hasattr(stats, "_asdict") else stats,
+    }
+
+
+def _signed_peak(x: np.ndarray) -> float:
+    """The value of largest magnitude, with its sign."""
+    return float(x[np.argmax(np.abs(x))])
+
+
 def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str = "full") -> RunOutput:
     """The full FE model of a scene, integrated over the scene's time span."""
     comm = MPI.COMM_WORLD
@@ -209,35 +246,8 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
     ts = rec.series()
     wall = time.perf_counter() - t0
 
-    # restitution: ball centre-of-mass velocity after the first contact over the arrival speed
-    f = ts["contact_force_N"]
-    after = np.nonzero(f > 0)[0]
-    if len(after):
-        last = after[-1] if not np.any(np.diff(after) > 1) else after[np.argmax(np.diff(after) > 1)]
-        i_out = min(last + 2, len(f) - 1)
-        restitution = -ts["ball_velocity_m_s"][i_out] / scene.impact.normal_speed
-    else:
-        restitution = float("nan")
-    e = ts["total_energy_J"]
-    e_in = e[0]
-    i_peak = int(np.argmax(f))
-    results = {
-        "restitution": restitution,
-        "energy_initial_J": e_in,
-        "energy_final_J": float(e[-1]),
-        "energy_drift_max_rel": float(np.max(np.abs(e - e_in)) / e_in),
-        "energy_drift_over_impact_rel": float(np.max(np.abs(e[: min(len(e), i_out + 1 if len(after) else len(e))] - e_in)) / e_in),
-        "ball_kinetic_energy_after_J": float(ts["ball_kinetic_energy_J"][-1]),
-        "vibration_energy_share_end": float(1.0 - ts["ball_kinetic_energy_J"][-1] / e_in),
-        "peak_contact_point_stress_Pa": float(np.min(ts["contact_point_stress_Pa"])),
-        "peak_contact_point_von_mises_Pa": float(np.max(ts["contact_point_von_mises_Pa"])),
-        "peak_gauge_stress_Pa": {g.name: float(ts[f"gauge_{g.name}_stress_Pa"][np.argmax(np.abs(ts[f"gauge_{g.name}_stress_Pa"]))])
-                                 for g in scene.gauges},
-        "time_of_peak_force_s": float(ts.time[i_peak]),
-        "integrator": integrator,
-        "integration": stats._asdict() if hasattr(stats, "_asdict") else getattr(stats, "__dict__", str(stats)),
-        "timings_s": {"mesh": t_mesh, "assemble": t_assemble, "integrate": wall - t_mesh - t_assemble},
-    }
+    results = impact_results(ts, scene, stats, integrator)
+    results["timings_s"] = {"mesh": t_mesh, "assemble": t_assemble, "integrate": wall - t_mesh - t_assemble}
     info = md.info
     model_info = {
         "method": method, "degree": degree, "dofs": model.n_dofs_global, "contact_candidates": contact.n,

@@ -58,7 +58,7 @@ from . import integrators
 from .contact import ContactSet, create_contact
 from .enrichment import create_nmm_zone
 from .errors import InputError
-from .fe_methods import Recorder, write_fields
+from .fe_methods import Recorder, impact_results, write_fields
 from .mesh import create_mesh
 from .model import FEModel, PointProbe, create_fe_model
 from .plan import Plan
@@ -432,7 +432,7 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     t_integrate = time.perf_counter() - t1
     stats = run["stats"]
     ts = rec.series()
-    results = _results(ts, scene, stats, integrator)
+    results = impact_results(ts, scene, stats, integrator)
     results["timings_s"] = {"mesh": t_mesh, "assemble": t_assemble, "reduction_offline": t_reduce,
                             "free_modes_offline": run["free_modes_time"], "integrate": t_integrate,
                             "reduction_detail": dict(red.timings)}
@@ -455,42 +455,6 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
         fields = list(rec.fields)
         writers.append(lambda folder: write_fields(model, fields, Path(folder) / "fields.xdmf"))
     return RunOutput(method, ts, results, model_info, extra_writers=writers, notes=notes)
-
-
-def _results(ts, scene: Scene, stats, integrator: str) -> dict[str, Any]:
-    """Scalar results of a run (the same quantities as the full method's)."""
-    f = ts["contact_force_N"]
-    after = np.nonzero(f > 0)[0]
-    if len(after):
-        last = after[-1] if not np.any(np.diff(after) > 1) else after[np.argmax(np.diff(after) > 1)]
-        i_out = min(last + 2, len(f) - 1)
-        restitution = -ts["ball_velocity_m_s"][i_out] / scene.impact.normal_speed
-    else:
-        i_out = len(f) - 1
-        restitution = float("nan")
-    e = ts["total_energy_J"]
-    e_in = e[0]
-    i_peak = int(np.argmax(f))
-    return {
-        "restitution": restitution,
-        "energy_initial_J": float(e_in),
-        "energy_final_J": float(e[-1]),
-        "energy_drift_max_rel": float(np.max(np.abs(e - e_in)) / e_in),
-        "energy_drift_over_impact_rel": float(np.max(np.abs(e[: i_out + 1] - e_in)) / e_in),
-        "ball_kinetic_energy_after_J": float(ts["ball_kinetic_energy_J"][-1]),
-        "vibration_energy_share_end": float(1.0 - ts["ball_kinetic_energy_J"][-1] / e_in),
-        "peak_contact_point_stress_Pa": float(np.min(ts["contact_point_stress_Pa"])),
-        "peak_contact_point_von_mises_Pa": float(np.max(ts["contact_point_von_mises_Pa"])),
-        "peak_gauge_stress_Pa": {g.name: _signed_peak(ts[f"gauge_{g.name}_stress_Pa"]) for g in scene.gauges},
-        "time_of_peak_force_s": float(ts.time[i_peak]),
-        "integrator": integrator,
-        "integration": stats,
-    }
-
-
-def _signed_peak(x: np.ndarray) -> float:
-    """The value of largest magnitude, with its sign."""
-    return float(x[np.argmax(np.abs(x))])
 
 
 def _runner(method: str):
