@@ -184,6 +184,15 @@ def cmd_mesh(args: argparse.Namespace) -> int:
     return 0
 
 
+EXTRA_COMMANDS = ("study", "bench", "stability", "compare")
+
+
+def _command_module(name: str):
+    import importlib
+
+    return importlib.import_module(f"millimpact.{name}")
+
+
 def cmd_not_yet(args: argparse.Namespace) -> int:
     _say(f"millimpact {args.command}: not available in this version yet.", file=sys.stderr)
     return EXIT_NOT_AVAILABLE
@@ -248,13 +257,13 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--out", help="output folder (default out/SCENE-mesh)")
     m.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
 
-    for name, text in (("study", "run one of the paper's parameter studies"),
-                       ("bench", "chart speed against accuracy for every method"),
-                       ("stability", "map where each time integrator fails"),
-                       ("compare", "score another implementation's CSV against a reference run")):
-        q = sub.add_parser(name, help=f"{text} (not available yet)", description=text)
-        q.add_argument("rest", nargs="*")
-        q.add_argument("--out")
+    # commands that live in their own modules (millimpact/<name>.py): each module has
+    # HELP (one line), add_arguments(parser) and main(args) -> exit status
+    for name in EXTRA_COMMANDS:
+        mod = _command_module(name)
+        q = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        mod.add_arguments(q)
     return p
 
 
@@ -284,6 +293,8 @@ def main(argv: Optional[list[str]] = None) -> int:
             return cmd_scene(args)
         if args.command == "mesh":
             return cmd_mesh(args)
+        if args.command in EXTRA_COMMANDS:
+            return _command_module(args.command).main(args)
         return cmd_not_yet(args)
     except InputError as exc:
         if _rank() == 0:
