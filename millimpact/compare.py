@@ -110,9 +110,19 @@ def _vertex(x: np.ndarray, y: np.ndarray, i: int) -> tuple[float, float]:
 def peak(t: np.ndarray, y: np.ndarray, sign: float) -> tuple[float, float]:
     """(time, value) of the extremum of ``sign * y`` (sign +1: maximum, -1: minimum): the extreme
     sample's value (never overshoots a staircase such as the contact radius) at the time of the
-    vertex of the parabola through that sample and its two neighbours (sub-step, within them)."""
-    i = int(np.argmax(sign * y))
-    tp, _ = _vertex(t, sign * y, i)
+    vertex of the parabola through that sample and its two neighbours (sub-step, within them);
+    on a plateau (neighbours equal to the extreme within 1e-9 of it) the plateau's middle."""
+    sy = sign * y
+    i = int(np.argmax(sy))
+    level = sy[i] - 1e-9 * abs(sy[i])
+    j0 = j1 = i
+    while j0 > 0 and sy[j0 - 1] >= level:
+        j0 -= 1
+    while j1 + 1 < len(sy) and sy[j1 + 1] >= level:
+        j1 += 1
+    if j1 > j0:
+        return 0.5 * float(t[j0] + t[j1]), float(y[i])
+    tp, _ = _vertex(t, sy, i)
     return tp, float(y[i])
 
 
