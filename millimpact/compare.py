@@ -26,8 +26,6 @@ import argparse
 import csv
 import json
 import math
-import re
-import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Optional
@@ -223,9 +221,6 @@ def default_max_shift(ref: TimeSeries) -> float:
         if d > 0:
             return d
     return 0.25 * float(ref.time[-1] - ref.time[0])
-
-
-_GAUGE = re.compile(r"^gauge_.+_stress_Pa$")
 
 
 def match_columns(ref: TimeSeries, other: TimeSeries) -> tuple[list[str], dict[str, list[str]]]:

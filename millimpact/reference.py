@@ -156,7 +156,7 @@ def read_history_csv(path: Path, what: str = "file") -> TimeSeries:
     """
     path = Path(path)
     try:
-        with open(path, newline="") as fh:
+        with open(path, newline="", encoding="utf-8-sig") as fh:  # -sig: a spreadsheet's BOM
             lines = [(i + 1, line) for i, line in enumerate(fh) if line.strip() and not line.lstrip().startswith("#")]
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{what} {path}: cannot read ({exc.__class__.__name__}: {exc})") from None

@@ -205,6 +205,24 @@ def test_unknown_columns_are_reported_and_ignored(runs, tmp_path, capsys):
     assert abs(res["scores"][0]["l2_error"]) < 1e-8
 
 
+def test_time_offset_aligns_a_code_that_starts_at_contact(runs, tmp_path, capsys):
+    """A code whose clock starts at first contact: its time + first_contact_s is the reference's
+    time, so with --time-offset first_contact_s the force scores at the CSV's rounding level."""
+    _, fe, _ = runs
+    ref = read_reference(fe / "reference.h5")
+    t0 = ref.meta["first_contact_s"]
+    keep = ref.series.time >= t0
+    rows = [f"{t - t0:.12g},{f:.12g}" for t, f in zip(ref.series.time[keep], ref.series["contact_force_N"][keep])]
+    other = _write(tmp_path / "from_contact.csv", "time_s,contact_force_N\n" + "\n".join(rows) + "\n")
+    status, _, err = _compare(capsys, str(fe / "reference.h5"), other, "--time-offset", repr(t0),
+                              "--out", str(tmp_path / "c"), "--no-plots")
+    assert status == 0, err
+    s = json.loads((tmp_path / "c" / "compare.json").read_text())["scores"][0]
+    assert s["l2_error"] < 1e-9 and abs(s["peak_error"]) < 1e-9 and abs(s["shift_s"]) < 1e-3 * t0
+    # only the reference's step straddling first_contact_s (force ~0 there) is not covered
+    assert 0.9999 < s["coverage"] < 1.0
+
+
 @pytest.mark.parametrize("case,text,words", [
     ("no time column", "t,contact_force_N\n0,1\n1,2\n", ["time_s"]),
     ("no common column", "time_s,foo_N\n0,1\n1e-5,2\n", ["no column in common"]),
