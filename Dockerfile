@@ -2,6 +2,9 @@
 #   docker build -t millimpact .
 #   docker run --rm -v $PWD/out:/out millimpact run --out /out/paper-rig
 #   docker run --rm -v $PWD/out:/out --entrypoint mpirun millimpact -n 2 millimpact run --out /out/np2
+#   docker run --rm -v $PWD/out:/out millimpact compare /out/ref/reference.h5 /out/dem.csv --out /out/cmp
+# (README.md, section Docker). Runs as root: the OMPI_* variables let mpirun start as root and put
+# more ranks than cores; openssh-client comes with openmpi-bin (mpirun's launcher checks for it).
 FROM debian:bookworm-slim
 WORKDIR /opt/millimpact
 COPY packages.txt dev pyproject.toml README.md ./

@@ -145,7 +145,8 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
         options["degree"] = args.degree
     if args.integrator:
         options["integrator"] = args.integrator
-    summary = run_scene(scene, args.method, out, options=options, progress=not args.quiet, comm=comm)
+    summary = run_scene(scene, args.method, out, options=options, progress=not args.quiet, comm=comm,
+                        reference=args.reference)
     h = summary["hertz"]
     rel = summary["relative_to_hertz"]
     _say(f"scene {scene.name}, method {args.method}: wall time {summary['wall_time_s']:.3g} s")
@@ -238,6 +239,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="time integrator of FE methods: newmark-mr (default: Newmark average acceleration with "
                         "mass redistribution), newmark (plain, chatters), central-penalty (explicit)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--reference", action="store_true",
+                   help="also write reference.h5 / reference.csv (+ .json): a versioned reference file other "
+                        "implementations are scored against with 'millimpact compare'")
 
     h = sub.add_parser("hertz", help="print the Hertz impact values of a scene",
                        description="Closed-form Hertz impact of the scene's ball on a half-space of the "

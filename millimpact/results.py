@@ -187,12 +187,13 @@ def write_summary(folder: Path, summary: dict) -> None:
     (folder / "summary.json").write_text(json.dumps(_jsonable(data), indent=2) + "\n")
 
 
-def write_hdf5(folder: Path, ts: TimeSeries, summary: dict, scene_toml: str) -> None:
+def write_hdf5(folder: Path, ts: TimeSeries, summary: dict, scene_toml: str,
+               filename: str = "timeseries.h5") -> Path:
     """``timeseries.h5``: one dataset per column with a ``unit`` attribute, the summary as JSON and
-    the scene as TOML text in the root attributes."""
+    the scene as TOML text in the root attributes. Returns the file's path."""
     import h5py
 
-    with h5py.File(folder / "timeseries.h5", "w") as h5:
+    with h5py.File(folder / filename, "w") as h5:
         h5.attrs["format"] = "millimpact-timeseries"
         h5.attrs["format_version"] = 1
         h5.attrs["millimpact_version"] = __version__
@@ -202,3 +203,4 @@ def write_hdf5(folder: Path, ts: TimeSeries, summary: dict, scene_toml: str) -> 
         for name, col in ts.columns.items():
             d = g.create_dataset(name, data=np.asarray(col, dtype=float))
             d.attrs["unit"] = unit_of(name)
+    return folder / filename

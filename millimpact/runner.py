@@ -157,7 +157,7 @@ def build_summary(scene: Scene, plan: Plan, out: RunOutput, wall: float) -> dict
 
 
 def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: dict, figures: bool = True,
-              comm=None) -> list[str]:
+              comm=None, reference: bool = False) -> list[str]:
     """Write the output contract into ``folder``: rank 0 writes the files, every rank joins the
     collective writers (XDMF). Returns the file names written."""
     from . import plots
@@ -180,18 +180,24 @@ def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: d
                                  title=f"{title}: liner contact point (normal components)")
         plots.plot_gauges(out.series, folder / "gauges.png", title=f"{title}: strain gauges")
         plots.plot_energy(out.series, folder / "energy.png", title=f"{title}: energy")
+    if reference:  # reference.h5/.csv/.json for millimpact compare (reference.py)
+        from .reference import write_reference
+
+        write_reference(folder, scene, plan, out, summary, scene_toml)
     write_summary(folder, summary)  # last: its presence marks a complete run
     return sorted(p.name for p in folder.iterdir())
 
 
 def run_scene(scene: Scene, method: str, out_dir: Optional[Path], options: Optional[dict] = None,
-              progress: bool = False, comm=None) -> dict[str, Any]:
-    """Compute and (if ``out_dir``) write a run; returns the summary. Only rank 0 writes."""
+              progress: bool = False, comm=None, reference: bool = False) -> dict[str, Any]:
+    """Compute and (if ``out_dir``) write a run (with ``reference``: also the reference files);
+    returns the summary. Only rank 0 writes."""
     t0 = time.perf_counter()
     out, plan = compute(scene, method, options, progress)
     wall = time.perf_counter() - t0
     summary = build_summary(scene, plan, out, wall)
     if out_dir is not None:
         with staged_output(Path(out_dir), comm) as stage:
-            summary["files"] = write_run(stage, scene, plan, out, summary, comm=comm)
+            summary["files"] = write_run(stage, scene, plan, out, summary, comm=comm,
+                                         reference=reference)
     return summary
