@@ -310,6 +310,13 @@ def main(argv: Optional[list[str]] = None) -> int:
         return EXIT_FAILURE
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:
+        # the reader went away (``millimpact ... | head``): not an error of ours, and no traceback
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 0
     except Exception:
         # an unexpected failure on one rank must not leave the others waiting forever
         if "OMPI_COMM_WORLD_SIZE" in os.environ and int(os.environ["OMPI_COMM_WORLD_SIZE"]) > 1:
