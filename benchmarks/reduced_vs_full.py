@@ -37,6 +37,8 @@ from millimpact.runner import compute
 from millimpact.scene import builtin_scene
 
 HERE = Path(__file__).resolve().parent
+LABELS = {"full": "full P1", "improved": "improved", "full_p2_first_contact": "full P2 (first contact)"}
+GAUGE_WINDOW = 1e-3   # s shown of the gauge signal (40 ms of ringing is a solid band)
 
 
 def _run(scene, method: str, options: dict, label: str, comm) -> dict:
@@ -162,9 +164,9 @@ def write(res: dict, out: Path, comm) -> None:
                 if key in A:
                     s = A[key]["series"]
                     t = np.asarray(s["time_s"])
-                    sel = t < 2.5 * A[key]["t_c_hertz_s"]
+                    sel = t < 1.3 * A[key]["t_c_hertz_s"]
                     ax.plot(t[sel] * 1e6, np.asarray(s["contact_force_N"])[sel] / 1e3, style,
-                            label=f"{key} ({A[key]['reduced_dofs']} coords)")
+                            label=f"{LABELS[key]} ({A[key]['reduced_dofs']} coords)")
             ax.set_xlabel("time (us)")
             ax.set_ylabel("contact force (kN)")
             ax.set_title("paper-rig: contact force")
@@ -173,11 +175,13 @@ def write(res: dict, out: Path, comm) -> None:
             for key, style in (("full", "-"), ("improved", "--")):
                 s = A[key]["series"]
                 if "gauge" in s:
-                    ax.plot(np.asarray(s["time_s"]) * 1e3, np.asarray(s["gauge"]) / 1e6, style, lw=0.8,
-                            label=f"{key}: {s['gauge_name']}")
+                    t = np.asarray(s["time_s"])
+                    sel = t <= GAUGE_WINDOW
+                    ax.plot(t[sel] * 1e3, np.asarray(s["gauge"])[sel] / 1e6, style, lw=0.9,
+                            label=f"{LABELS[key]}: {s['gauge_name'].replace('_stress_Pa', '')}")
             ax.set_xlabel("time (ms)")
             ax.set_ylabel("gauge stress (MPa)")
-            ax.set_title(f"gauge over {A['t_end_s'] * 1e3:g} ms")
+            ax.set_title(f"gauge, first {GAUGE_WINDOW * 1e3:g} ms of {A['t_end_s'] * 1e3:g} ms")
         else:
             B = res["b"]
             for method, mk in (("traditional", "o-"), ("improved", "s-"), ("modal-p2", "^-")):
@@ -202,9 +206,16 @@ def main() -> None:
     p.add_argument("--p2-ref", action="store_true", help="part A: also full P2 over the first contact")
     p.add_argument("--resolutions", default="2,3,4", help="part B: n of h_contact = a_max / n")
     p.add_argument("--out", default=str(HERE / "out"))
+    p.add_argument("--from-json", nargs="+", metavar="JSON",
+                   help="no runs: merge the parts of earlier reduced_vs_full.json files and rewrite table and figure")
     args = p.parse_args()
     comm = MPI.COMM_WORLD
     res = {}
+    if args.from_json:
+        for f in args.from_json:
+            res.update(json.loads(Path(f).read_text()))
+        write(res, Path(args.out), comm)
+        return
     if "a" in args.part:
         res["a"] = part_a(args.t_end, args.p2_ref, comm)
     if "b" in args.part:
