@@ -449,7 +449,7 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     degree, kind, _ = REDUCED_METHODS[method]
     asked = options.pop("degree", None)
     if asked not in (None, "", degree, str(degree)):
-        raise InputError(f"--degree {asked}: method {method} uses P{degree}")
+        raise InputError(f"--degree {asked}: method {method} uses P{degree} (P1: --method full or traditional)")
     integrator = options.pop("integrator", None) or "newmark-mr"
     t_end = _float_option(options, "t_end", scene.time.end)
     n_modes = _int_option(options, "modes", scene.model.modes)
