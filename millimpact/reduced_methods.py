@@ -18,14 +18,15 @@ Each is a Galerkin projection ``u = T q`` of the full finite-element model of th
 Options (``options`` keys, also ``-modes 20`` etc. on the command line):
 ``modes`` (modes kept per body; wins over the cutoff), ``f_cut`` (Hz; default the plan's
 ``f_cut = 4 / t_c`` or ``scene.model.f_cut``), ``nmm_remedy`` (improved: interface | anchors),
-``free_phase`` (modal | step, below), ``free_modes_factor`` (the free phase keeps the
+``free_phase`` (modal | step, below), ``modal_min_span`` (s: a modal phase is taken only if no
+gap closes within this span, default the stepping chunk max(2 t_c, 20 dt_contact)), ``free_modes_factor`` (the free phase keeps the
 free-vibration modes up to this many f_cut, default 4), ``integrator`` (default newmark-mr),
 ``t_end`` (s). The rest goes to the integrator.
 
 The free phase. The contact lasts ~0.1 ms of the 40 ms run; with the zone kept physical the
 reduced model is still thousands of coordinates, so stepping the free vibration would cost nearly
 as much as the full model. With ``free_phase = "modal"`` (default) the integrator runs while the
-bodies touch (from the start to ``gap / v + 2 t_c``, then in chunks of 2 t_c while a contact is
+bodies touch (from the start to ``gap / v + 1.5 t_c`` with the contact step only, then in chunks of 2 t_c while a contact is
 active); once they are apart, the motion is the closed-form sum of the free-vibration modes of the
 reduced system up to ``free_modes_factor * f_cut`` (with the integrator's mass matrix), recorded
 on the integrator's free-step grid. A gap predicted to come back below the plan's initial gap
@@ -61,7 +62,7 @@ from .errors import InputError
 from .fe_methods import Recorder, impact_results, write_fields
 from .mesh import create_mesh
 from .model import FEModel, PointProbe, create_fe_model
-from .plan import Plan
+from .plan import Plan, make_plan
 from .reduction import (ModalProjection, ReducedModel, compute_free_modes, create_nodal_zone_basis,
                         local_rows_to_aij, partition_dofs, reduce_model)
 from .runner import RunOutput, register_method
@@ -72,6 +73,23 @@ log = logging.getLogger(__name__)
 #: the closed-form free phase keeps the free-vibration modes up to this many f_cut: its outputs
 #: are sampled every dt_free = 1 / (10 f_cut) (plan.py), whose Nyquist frequency is 5 f_cut
 FREE_MODES_FACTOR = 4.0
+
+#: contact-zone radius of the reduced methods in units of a_max, unless the scene sets
+#: model.zone_radius: the zone only has to hold the contact candidates with a few elements to
+#: spare (the constraint modes make the reduction statically exact at any zone size; the modes
+#: carry the dynamics). The full method's 4 a_max (plan.py) would make the NMM zone 1.5k vertices,
+#: 15.6k coordinates at the default scene, and the time loop as dear as the full P1 model's.
+REDUCED_ZONE_FACTOR = 2.5
+#: contact candidates of the reduced methods within this many a_max of the contact axis: the
+#: Hertz patch is a_max (the finite block's patch is a little smaller); at least 2 h_contact
+#: inside the zone (mass redistribution must not reach the interface coordinates)
+REDUCED_CANDIDATE_FACTOR = 1.75
+
+#: the first integrator segment of the modal free phase lasts gap / v + this many t_c (Hertz):
+#: the contact lasts ~t_c (0.99 t_c at the default scene, a few % more on thin blocks), so the
+#: bodies are apart at its end and the switch to the modes needs no second segment (each segment
+#: costs a factorization and the contact operator W)
+FIRST_SPAN_CONTACTS = 1.5
 
 #: method name -> (degree, zone description, description)
 REDUCED_METHODS = {
@@ -171,6 +189,29 @@ def _float_option(options: dict, key: str, default: Optional[float]) -> Optional
         raise InputError(f"option {key} = {value!r}: must be a number") from None
 
 
+def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str]]:
+    """The scene and plan of a reduced run: the contact zone shrunk to ``REDUCED_ZONE_FACTOR``
+    a_max (unless the scene sets ``model.zone_radius``); the candidate radius (m); notes saying
+    so. A ``full`` run with ``--set model.zone_radius=<the same>`` meshes the same mesh."""
+    a = plan.hertz.a_max
+    notes = []
+    if scene.model.zone_radius is None:
+        zone = REDUCED_ZONE_FACTOR * a
+        scene = scene.with_value("model.zone_radius", zone)
+        plan = make_plan(scene)
+        notes.append(f"contact zone radius {zone * 1e3:.4g} mm = {REDUCED_ZONE_FACTOR:g} a_max (reduced methods' "
+                     f"default; full on the same mesh: --set model.zone_radius={zone:.6g})")
+    radius = min(REDUCED_CANDIDATE_FACTOR * a, plan.zone_radius - 2.0 * plan.h_contact)
+    if radius < 1.2 * a:
+        raise InputError(f"model.zone_radius = {plan.zone_radius:g} m: too small for the contact candidates "
+                         f"(needs at least {1.2 * a + 2.0 * plan.h_contact:g} m = 1.2 a_max + 2 h_contact)")
+    notes.append(f"contact candidates within {radius * 1e3:.4g} mm ({radius / a:.3g} a_max) of the contact axis; "
+                 f"f_cut {plan.f_cut / 1e3:.4g} kHz ({plan.f_cut * plan.hertz.contact_time:.3g} / t_c), "
+                 f"dt_contact {plan.dt_contact * 1e6:.4g} us (t_c / {plan.hertz.contact_time / plan.dt_contact:.3g}), "
+                 f"dt_free {plan.dt_free * 1e6:.4g} us")
+    return scene, plan, radius, notes
+
+
 def build_reduced_model(model: FEModel, kind: str, *, f_cut: Optional[float], n_modes: Optional[int],
                         remedy: str = "interface") -> ReducedModel:
     """The reduced model of ``model`` for a zone description ``kind`` ("nodal" or "nmm")."""
@@ -218,7 +259,8 @@ def initial_state(red: ReducedModel, scene: Scene) -> tuple[PETSc.Vec, PETSc.Vec
 def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0: PETSc.Vec, qd0: PETSc.Vec,
                       contact: ContactSet, plan: Plan, t_end: float, rec: ReducedRecorder, *,
                       integrator: str = "newmark-mr", options: Optional[dict] = None, progress: bool = False,
-                      free_phase: str = "modal", f_free: Optional[float] = None) -> dict[str, Any]:
+                      free_phase: str = "modal", f_free: Optional[float] = None,
+                      min_span: Optional[float] = None) -> dict[str, Any]:
     """Integrate a reduced model over [0, t_end], feeding ``rec``.
 
     ``free_phase = "step"``: the integrator all the way. ``"modal"`` (default): the integrator
@@ -233,7 +275,7 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
     options = dict(options or {})
     t_c = plan.hertz.contact_time
     chunk = max(2.0 * t_c, 20.0 * plan.dt_contact)
-    t_first = min(t_end, plan.gap / plan.hertz.speed + 2.0 * t_c)
+    t_first = min(t_end, plan.gap / plan.hertz.speed + FIRST_SPAN_CONTACTS * t_c)
     q, qd = q0, qd0
     t = 0.0
     stats_sum: dict[str, Any] = {}
@@ -244,7 +286,10 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
     comm = red.comm
     while t < t_end * (1 - 1e-12):
         t_stop = t_end if free_phase == "step" else min(t_end, t_first if not segments else t + chunk)
-        q, qd, lam, st, mass = _run_steps(system, q, qd, t, t_stop, plan, rec, integrator, options, progress)
+        # between modal phases the steps are short: one step size (one factorization and one
+        # contact operator W instead of two; the modal phase takes the free vibration)
+        q, qd, lam, st, mass = _run_steps(system, q, qd, t, t_stop, plan, rec, integrator, options, progress,
+                                          single_size=free_phase == "modal")
         _add_stats(stats_sum, st)
         segments.append(("step", t, t_stop))
         t = t_stop
@@ -256,7 +301,8 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
             out["free_modes_time"] = time.perf_counter() - t0
             out["free_modes"] = modal.n_global
             gap_rows = modal.rows_dense(contact.B)
-        res = _free_vibration(modal, gap_rows, contact.g0, q, qd, t, t_end, plan, rec, chunk)
+        res = _free_vibration(modal, gap_rows, contact.g0, q, qd, t, t_end, plan, rec,
+                              chunk if min_span is None else min_span)
         if res is None:          # a gap closes soon: keep stepping
             continue
         t_new, q_new, qd_new, n_rows, dropped = res
@@ -295,9 +341,10 @@ def _add_stats(total: dict, stats) -> None:
 
 
 def _run_steps(system, q, qd, t0: float, t1: float, plan: Plan, rec: ReducedRecorder, integrator: str,
-               options: dict, progress: bool):
-    """The integrator from (q, qd) at t0 to t1; returns the final (q, qd, lambda, stats)."""
-    schedule = integrators.TimeSchedule(t1 - t0, plan.dt_contact, plan.dt_free)
+               options: dict, progress: bool, single_size: bool = False):
+    """The integrator from (q, qd) at t0 to t1 (steps dt_contact, and dt_free out of contact unless
+    ``single_size``); returns the final (q, qd, lambda, stats, mass matrix of the scheme)."""
+    schedule = integrators.TimeSchedule(t1 - t0, plan.dt_contact, None if single_size else plan.dt_free)
     rec.time_offset = t0
     last = {}
 
@@ -402,7 +449,7 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     degree, kind, _ = REDUCED_METHODS[method]
     asked = options.pop("degree", None)
     if asked not in (None, "", degree, str(degree)):
-        raise InputError(f"--degree {asked}: method {method} uses P{degree}")
+        raise InputError(f"--degree {asked}: method {method} uses P{degree} (P1: --method full or traditional)")
     integrator = options.pop("integrator", None) or "newmark-mr"
     t_end = _float_option(options, "t_end", scene.time.end)
     n_modes = _int_option(options, "modes", scene.model.modes)
@@ -412,12 +459,14 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     if free_phase not in ("modal", "step"):
         raise InputError(f"option free_phase = {free_phase!r}: choose modal or step")
     free_factor = _float_option(options, "free_modes_factor", FREE_MODES_FACTOR)
+    min_span = _float_option(options, "modal_min_span", None)
 
+    scene, plan, cand_radius, plan_notes = reduced_plan(scene, plan)
     t0 = time.perf_counter()
     md = create_mesh(scene, plan, comm)
     t_mesh = time.perf_counter() - t0
     model = create_fe_model(scene, plan, md, degree)
-    contact = create_contact(model)
+    contact = create_contact(model, radius=cand_radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
     red = build_reduced_model(model, kind, f_cut=f_cut, n_modes=n_modes, remedy=remedy)
     system = reduced_system(red, contact)
@@ -428,7 +477,7 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     t1 = time.perf_counter()
     run = integrate_reduced(red, system, q0, qd0, contact, plan, t_end, rec, integrator=integrator,
                             options=options, progress=progress, free_phase=free_phase,
-                            f_free=free_factor * f_cut)
+                            f_free=free_factor * f_cut, min_span=min_span)
     t_integrate = time.perf_counter() - t1
     stats = run["stats"]
     ts = rec.series()
@@ -443,10 +492,12 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
         "reduction": rep, "contact_candidates": contact.n, "symmetry": plan.symmetry,
         "symmetry_factor": model.sym_factor, "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model,
         "ball_mass_exact_kg": scene.ball.mass, "mesh": md.info.to_json(), "mpi_ranks": comm.size,
+        "zone_radius_m": plan.zone_radius, "candidate_radius_m": cand_radius,
     }
     notes = [f"{method}: P{degree}, {model.n_dofs_global} dofs -> {red.n_global} reduced "
              f"({red.n_zone} zone, {red.n_modes} modal), f_cut {f_cut / 1e3:.4g} kHz"
              + (f", {n_modes} modes per body" if n_modes is not None else "")]
+    notes.extend(plan_notes)
     for b in red.bodies:
         f = b.frequencies_hz
         notes.append(f"  {b.name}: {b.n_modes} modes" + (f", {f[0] / 1e3:.4g}-{f[-1] / 1e3:.4g} kHz" if len(f) else ""))

