@@ -12,11 +12,12 @@ SMALL = dict(subset=(0, 2), end=2e-4, case_figures=False)
 def parse(name: str, doc: str, argv=None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=doc.splitlines()[0])
     p.add_argument("--small", action="store_true", help="reduced size: 2 cases, 0.2 ms impacts (~1 min)")
-    p.add_argument("--out", type=Path, help=f"output folder (default out/demo-study-{name}[-small])")
+    p.add_argument("--out", type=Path, help=f"output folder (default out/study-{name}[-small], as "
+                                            f"'millimpact study {name}': the two share the case cache)")
     p.add_argument("--jobs", type=int, default=1, help="cases computed at the same time (processes)")
     args = p.parse_args(argv)
     if args.out is None:
-        args.out = Path("out") / f"demo-study-{name}{'-small' if args.small else ''}"
+        args.out = Path("out") / f"study-{name}{'-small' if args.small else ''}"
     return args
 
 
