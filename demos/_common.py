@@ -1,0 +1,46 @@
+"""Shared command line of the study demos: full size by default, ``--small`` for a quick check."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+#: reduced size: the first and last value of the study, the impact only (the longest pulse, r = 25 mm
+#: at 3 m/s, lasts 0.15 ms), no per-case figures
+SMALL = dict(subset=(0, 2), end=2e-4, case_figures=False)
+
+
+def parse(name: str, doc: str, argv=None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
+    p.add_argument("--small", action="store_true", help="reduced size: 2 cases, 0.2 ms impacts (~1 min)")
+    p.add_argument("--out", type=Path, help=f"output folder (default out/study-{name}[-small], as "
+                                            f"'millimpact study {name}': the two share the case cache)")
+    p.add_argument("--jobs", type=int, default=1, help="cases computed at the same time (processes)")
+    args = p.parse_args(argv)
+    if args.out is None:
+        args.out = Path("out") / f"study-{name}{'-small' if args.small else ''}"
+    return args
+
+
+def run(name: str, args: argparse.Namespace):
+    """The built-in study ``name`` at full or reduced size; returns millimpact.study.StudyResult."""
+    from millimpact.study import run_study
+
+    res = run_study(name, out=args.out, jobs=args.jobs, **(SMALL if args.small else {}))
+    if res.failed:
+        raise SystemExit(f"{len(res.failed)} case(s) failed: {res.failed[0].error}")
+    return res
+
+
+def column(res, key: str):
+    """One peak (SI) over the cases, in parameter order, and the parameter values."""
+    import numpy as np
+
+    a = res.analysis
+    return a.x, np.array([p[key] for p in a.peaks])
+
+
+def exponent(x, y) -> float:
+    """k of y ~ x^k, least squares in log-log."""
+    import numpy as np
+
+    return float(np.polyfit(np.log(x), np.log(y), 1)[0])
