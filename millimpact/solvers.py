@@ -232,7 +232,15 @@ def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
     with petsc_options(mass_solver_defaults(), user, PREFIX + pre):
         ksp.setFromOptions()
         ksp.setUp()
-    solve_checked(ksp, rhs, x, "initial-acceleration mass solve", 0, 0.0)
+    try:
+        solve_checked(ksp, rhs, x, "initial-acceleration mass solve", 0, 0.0)
+    except SolverError:
+        # a reduced mass matrix (modal and enriched coordinates of very different scales) can be
+        # too ill-conditioned for Jacobi-CG: fall back to a factorization (used once per run)
+        log.warning("initial-acceleration mass solve: CG did not converge, factorizing M instead")
+        ksp.destroy()
+        ksp = create_effective_solver(Ms)
+        solve_checked(ksp, rhs, x, "initial-acceleration mass solve (direct)", 0, 0.0)
     ksp.destroy()
     Ms.destroy()
     rhs.destroy()
