@@ -261,6 +261,10 @@ def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: Option
         share = float(vals.sum() + vals[~in_c].sum())
         nb, w = cols[~in_c], np.abs(vals[~in_c])
         if w.sum() <= 0.0:
+            # every neighbour is a contact dof too (a node at the edge of a small contact zone):
+            # the next ring of non-contact dofs, reached through the contact neighbours, takes it
+            nb, w = _second_ring(M, cols[in_c & (cols != c)], all_c, bs, int(c % bs))
+        if w.sum() <= 0.0:
             raise MillimpactError(f"mass redistribution: contact dof {c} has no non-contact neighbour "
                                   "with mass to take its mass")
         add.setValues(nb.astype(PETSc.IntType), share * w / w.sum(), addv=PETSc.InsertMode.ADD_VALUES)
@@ -276,6 +280,23 @@ def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: Option
     add.destroy()
     d.destroy()
     return Mr
+
+
+def _second_ring(M: PETSc.Mat, via: np.ndarray, all_c: np.ndarray, bs: int, comp: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Non-contact dofs (same component) coupled to the dofs ``via`` (rows owned here), with the
+    sums of |M| entries as weights."""
+    r0, r1 = M.getOwnershipRange()
+    acc: dict[int, float] = {}
+    for j in via:
+        if not r0 <= j < r1:
+            continue
+        cols, vals = M.getRow(int(j))
+        keep = ((cols % bs) == comp) & ~np.isin(cols, all_c) & (vals != 0.0)
+        for k, v in zip(cols[keep], np.abs(vals[keep])):
+            acc[int(k)] = acc.get(int(k), 0.0) + float(v)
+    nb = np.array(sorted(acc), dtype=np.int64)
+    return nb, np.array([acc[k] for k in nb], dtype=float)
 
 
 def lumped_mass(M: PETSc.Mat, block_size: Optional[int] = None) -> PETSc.Vec:
