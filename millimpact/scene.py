@@ -408,12 +408,14 @@ class Scene:
             raise SceneError("impact.velocity", list(imp.velocity),
                              f"must point into the struck lifter face (v . n < 0 with its outward normal n = "
                              f"({n[0]:.4g}, {n[1]:.4g}, {n[2]:.4g}))")
-        if ln.mill_radius == 0.0:
-            c = self.ball_centre(0.0 if imp.gap is None else imp.gap)
-            if c[1] - self.ball.radius <= 0.0:
-                raise SceneError("liner.impact_height", ln.impact_height,
-                                 f"too low for a ball of radius {self.ball.radius:g} m: the ball would touch the "
-                                 f"plate (its centre would be {c[1]:.4g} m above it); choose a higher point")
+        c = self.ball_centre(0.0 if imp.gap is None else imp.gap)
+        Rm = ln.mill_radius
+        # clearance of the ball from the plate's inner face (y = 0, or the cylinder of radius Rm)
+        clear = c[1] - self.ball.radius if Rm == 0.0 else Rm - math.hypot(c[1] - Rm, c[2] - 0.5 * ln.width) - self.ball.radius
+        if clear <= 0.0:
+            raise SceneError("liner.impact_height", ln.impact_height,
+                             f"too low for a ball of radius {self.ball.radius:g} m: the ball would touch the "
+                             f"plate ({-clear:.4g} m into it); choose a higher point")
 
     def with_value(self, path: str, value: Any) -> "Scene":
         """A copy with the dotted field ``path`` (e.g. ``ball.radius``) set to ``value`` (validated)."""
