@@ -100,6 +100,7 @@ class Recorder:
             model.M.mult(et, self.c_t)
             self.c_t.scale(1.0 / self.ball_mass_model)
             self.t_proj = contact.tangents @ self.t_v    # components of t_v in the rows' basis (t1, t2)
+            self._fw_base, self._fw_last = 0.0, 0.0
         self.ball_mask = model.M.createVecRight()
         self.ball_mask.set(0.0)
         self.ball_mask.array[model.ball_dofs] = 1.0
@@ -188,7 +189,13 @@ class Recorder:
             tau = np.asarray(st.tau) if getattr(st, "tau", None) is not None else np.zeros(2 * lam.size)
             nc = lam.size
             ft = self.sym * float(self.t_proj[0] * tau[:nc].sum() + self.t_proj[1] * tau[nc:].sum())
-            row += [ft, self.c_t.dot(st.v), self.sym * getattr(st, "friction_work", 0.0)]
+            # friction work is cumulative per integrate() call: restarted segments (reduced
+            # methods) and modal free phases (no friction) continue the sum
+            fw = float(getattr(st, "friction_work", 0.0))
+            if fw < self._fw_last:
+                self._fw_base += self._fw_last
+            self._fw_last = fw
+            row += [ft, self.c_t.dot(st.v), self.sym * (self._fw_base + fw)]
         self.rows.append([float(x) for x in row])
         while self._next_field < len(self.field_times) and st.t >= self.field_times[self._next_field] - 1e-15:
             self.fields.append((st.t, st.u.array_r.copy()))

@@ -82,7 +82,8 @@ def decide_symmetry(scene: Scene) -> tuple[str, tuple[str, ...], str]:
     req = scene.model.symmetry
     if req == "auto":
         reason = f"{allowed}: " + ("; ".join(
-            {"x": "normal velocity in the x = 0 mid-plane", "z": "back-clamped block struck at mid-height"}[p]
+            {"x": ("velocity in the plane of incidence x = 0 (liner: prismatic along x)" if scene.liner is not None
+                   else "normal velocity in the x = 0 mid-plane"), "z": "back-clamped block struck at mid-height"}[p]
             for p in planes) or "no symmetry plane (oblique or off-centre impact)")
         return allowed, tuple(planes), reason
     order = ["full", "half", "quarter"]

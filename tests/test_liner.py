@@ -93,6 +93,7 @@ def test_liner_impact_against_hertz_and_energy(liner_runs):
     # the liner's contact point is pushed in along the face normal
     assert ts["contact_point_displacement_m"].max() > 0
     assert s["model"]["symmetry"] == "half"
+    assert "friction.png" in s["files"] and "contact_force.png" in s["files"]
 
 
 @pytest.mark.mpi
