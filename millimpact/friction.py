@@ -16,16 +16,18 @@ with ``S = C A^-1 C^T`` (dense, replicated). The discrete law:
     Coulomb:  |tau_i| <= mu lambda_i;  |tau_i| < mu lambda_i  =>  ds_i = 0 (stick);
               ds_i != 0  =>  tau_i = -mu lambda_i ds_i / |ds_i|  (slip opposes the ball's relative slip).
 
-Solution: a fixed point on the slip bounds (Panagiotopoulos' normal/tangential alternation):
-for the current tau solve the normal LCP exactly (:func:`millimpact.solvers.solve_lcp`); for the
-resulting bounds mu lambda solve the Tresca problem (fixed bounds) by a primal-dual active set on
-stick/slip with slip directions updated from the computed slip (each iteration is one linear solve
-on the sticking components); repeat until lambda and tau stop changing. For identical ball and
+Solution: a fixed point on the slip bounds (normal/tangential alternation, as in Panagiotopoulos'
+process): for the current tau solve the normal LCP exactly (:func:`millimpact.solvers.solve_lcp`);
+for the resulting bounds mu lambda solve the Tresca problem (fixed bounds) exactly by a semi-smooth
+Newton method on the Alart-Curnier projection equation: a stick/slip active set (nodes inside their
+friction disc stick, the others slide) with a consistent linearization of the slip direction, damped
+by a line search; repeat until lambda and tau stop changing (relative 1e-8). For identical ball and
 liner materials the normal-tangential coupling S_nt is small (Dundurs' beta = 0 for a half-space)
-and the alternation converges in 2-4 passes. If the active set does not settle (it can cycle for
-partial slip), the Tresca problem is finished by an accelerated projected gradient (FISTA with
-restart) on its convex dual-free form ``min 1/2 tau.S_tt tau + c.tau, |tau_i| <= b_i``, which
-converges for any SPD S_tt. mu = 0 gives tau = 0 and the frictionless solution.
+and the alternation converges in a few passes (measured: at most 7 on the liner scene). Should
+Newton stall, the Tresca problem is finished by an accelerated projected gradient (FISTA with
+restart) on ``min 1/2 tau.S_tt tau + c.tau, |tau_i| <= b_i``, which converges for any SPD S_tt.
+mu = 0 gives tau = 0 and the frictionless solution. The alternation itself has no general
+convergence proof (Coulomb friction is not a convex problem); a failure raises :class:`SolverError`.
 
 Units: S in m/N, gaps and slips in m, multipliers in N.
 """
@@ -79,6 +81,16 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
     on = bound > 0.0
     if not (np.concatenate([on, on]) & free).any():
         return np.zeros(2 * n), np.zeros(n, dtype=bool), True
+    if not on.all():
+        # nodes without normal force carry no friction: solve on the loaded nodes only
+        idx = np.flatnonzero(on)
+        sub = np.concatenate([idx, n + idx])
+        t_s, s_s, ok = solve_tresca(S_tt[np.ix_(sub, sub)], c[sub], bound[idx], None, free[sub])
+        tau = np.zeros(2 * n)
+        tau[sub] = t_s
+        slip = np.zeros(n, dtype=bool)
+        slip[idx] = s_s
+        return tau, slip, ok
     # node-major ordering: tau_i = x[2i:2i+2]
     perm = np.ravel(np.column_stack([np.arange(n), n + np.arange(n)]))
     S = S_tt[np.ix_(perm, perm)]

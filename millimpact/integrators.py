@@ -595,7 +595,10 @@ class _Newmark:
 
         self.tmp.waxpy(-1.0, self.u, self.u_pred)
         q_t = self.contact.slip(self.tmp)           # slip increment of the predictor, m
-        res = _bcast(self.comm, friction.solve_friction(C.S, q, q_t, self.mu, self.active, self.sliding, gap_tol))
+        # dense and small: solved on rank 0 only (the ranks share cores), the answer broadcast
+        res = (friction.solve_friction(C.S, q, q_t, self.mu, self.active, self.sliding, gap_tol)
+               if self.comm.rank == 0 else None)
+        res = _bcast(self.comm, res)
         n_c = q.size
         x = np.concatenate([res.lam, res.tau])
         solvers.scatter_into(self.contact._cc, x)

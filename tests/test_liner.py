@@ -75,12 +75,12 @@ def liner_runs(tmp_path_factory):
     assert r1.returncode == 0, r1.stderr[-2000:]
     r2 = run_cli(*args, "--out", str(base / "np2"), np=2)
     assert r2.returncode == 0, r2.stderr[-2000:]
-    return [(json.loads((base / d / "summary.json").read_text()), TimeSeries.read_csv(base / d / "timeseries.csv"))
-            for d in ("np1", "np2")]
+    return [(json.loads((base / d / "summary.json").read_text()), TimeSeries.read_csv(base / d / "timeseries.csv"),
+             base / d) for d in ("np1", "np2")]
 
 
 def test_liner_impact_against_hertz_and_energy(liner_runs):
-    s, ts = liner_runs[0]
+    s, ts, folder = liner_runs[0]
     h = s["hertz"]
     # coarse mesh (1.7 elements across a_max, DESIGN.md: ~4 give 1 %): 10 % on F_max and t_c
     assert s["peak_contact_force_N"] == pytest.approx(h["F_max_N"], rel=0.10)
@@ -93,12 +93,12 @@ def test_liner_impact_against_hertz_and_energy(liner_runs):
     # the liner's contact point is pushed in along the face normal
     assert ts["contact_point_displacement_m"].max() > 0
     assert s["model"]["symmetry"] == "half"
-    assert "friction.png" in s["files"] and "contact_force.png" in s["files"]
+    assert (folder / "friction.png").stat().st_size > 0 and (folder / "contact_force.png").stat().st_size > 0
 
 
 @pytest.mark.mpi
 def test_liner_mpi_equals_serial(liner_runs):
-    (s1, a), (s2, b) = liner_runs
+    (s1, a, _), (s2, b, _) = liner_runs
     assert s2["model"]["mpi_ranks"] == 2
     assert len(a.time) == len(b.time)
     # same numbers to solver tolerance (direct factorizations: round-off only), 1e-6 relative
