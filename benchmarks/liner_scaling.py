@@ -11,7 +11,8 @@ DOLFINx/PETSc is given beside it). The mesh is built once first (cached), so no 
     .venv/bin/python benchmarks/liner_scaling.py --h-far 0.015 --ranks 1,2
 
 Writes ``benchmarks/out/liner_scaling.csv`` and ``.md``. Wall times on a shared machine are noisy:
-compare the ratios of one invocation.
+compare the ratios of one invocation. A third run on 1 rank with MUMPS (the factorization the
+parallel runs use; CHOLMOD, the serial default, is serial only) separates the solver from the scaling.
 """
 from __future__ import annotations
 
@@ -57,7 +58,8 @@ def worker(args) -> None:
     base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     comm.barrier()
     t0 = time.perf_counter()
-    out, plan = compute(scene, "full", {}, False)
+    options = {"fieldsplit_u_pc_factor_mat_solver_type": args.solver} if args.solver else {}
+    out, plan = compute(scene, "full", options, False)
     comm.barrier()
     wall = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # kB on Linux
@@ -68,7 +70,8 @@ def worker(args) -> None:
         st = r["integration"]
         ts = out.series
         print("RESULT " + json.dumps({
-            "ranks": comm.size, "dofs": out.model["dofs"], "contact_candidates": out.model["contact_candidates"],
+            "ranks": comm.size, "solver": args.solver or ("cholmod" if comm.size == 1 else "mumps"),
+            "dofs": out.model["dofs"], "contact_candidates": out.model["contact_candidates"],
             "cells": out.model["mesh"]["n_cells"] and sum(out.model["mesh"]["n_cells"].values()),
             "steps": st["n_steps"], "wall_s": wall, "mesh_s": r["timings_s"]["mesh"],
             "assemble_s": r["timings_s"]["assemble"], "integrate_s": r["timings_s"]["integrate"],
@@ -100,6 +103,9 @@ def main() -> None:
     p.add_argument("--h-contact", type=float, default=None, help="contact element size, m (default: the plan's a_max/4)")
     p.add_argument("--t-end", type=float, default=4.0e-4, help="simulated time, s (contact lasts ~0.31 ms)")
     p.add_argument("--ranks", default="1,2")
+    p.add_argument("--solver", default=None, help=argparse.SUPPRESS)
+    p.add_argument("--no-serial-mumps", action="store_true",
+                   help="skip the extra 1-rank run with MUMPS (the parallel solver) instead of CHOLMOD")
     p.add_argument("--out", default="benchmarks/out")
     args = p.parse_args()
     if args.worker:
@@ -107,6 +113,8 @@ def main() -> None:
         return
     run(1, args, ["--mesh-only"])
     rows = [run(int(n), args) for n in args.ranks.split(",")]
+    if not args.no_serial_mumps:   # same solver as the parallel runs: separates solver from scaling
+        rows.append(run(1, args, ["--solver", "mumps"]))
     t1 = rows[0]["wall_s"]
     for r in rows:
         r["speedup"] = t1 / r["wall_s"]
@@ -123,11 +131,11 @@ def main() -> None:
                                               " ".join(f"{x:.0f}" for x in r["baseline_rss_MB_per_rank"])])
     lines = [f"machine: {platform.node()}, {os.cpu_count()} cores (shared); liner-segment, full FE P1, mu = 0.2, "
              f"h_far {args.h_far * 1e3:g} mm, t_end {args.t_end * 1e3:g} ms, {rows[0]['steps']} steps", "",
-             "| ranks | DOFs | wall s | mesh s | assembly s | integration s | speedup (wall / integration) | "
-             "peak RSS per rank MB (baseline) |", "|---|---|---|---|---|---|---|---|"]
+             "| ranks | factorization | DOFs | wall s | mesh s | assembly s | integration s | speedup (wall / integration) | "
+             "peak RSS per rank MB (baseline) |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         mem = ", ".join(f"{a:.0f} ({b:.0f})" for a, b in zip(r["peak_rss_MB_per_rank"], r["baseline_rss_MB_per_rank"]))
-        lines.append(f"| {r['ranks']} | {r['dofs']} | {r['wall_s']:.1f} | {r['mesh_s']:.1f} | {r['assemble_s']:.1f} | "
+        lines.append(f"| {r['ranks']} | {r['solver']} | {r['dofs']} | {r['wall_s']:.1f} | {r['mesh_s']:.1f} | {r['assemble_s']:.1f} | "
                      f"{r['integrate_s']:.1f} | {r['speedup']:.2f} / {r['speedup_integrate']:.2f} | {mem} |")
     (out / "liner_scaling.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
