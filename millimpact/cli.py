@@ -112,12 +112,24 @@ def cmd_scene(args: argparse.Namespace) -> int:
     _say(f"scene '{scene.name}': {scene.description}")
     _say(f"  ball    radius {b.radius*1e3:g} mm, mass {b.mass*1e3:.4g} g, rho {b.material.density:g} kg/m^3, "
          f"G {b.material.shear_modulus/1e9:g} GPa, nu {b.material.poisson:g} (E {b.material.youngs_modulus/1e9:.4g} GPa)")
-    _say(f"  block   {k.length*1e3:g} x {k.thickness*1e3:g} x {k.height*1e3:g} mm (length x thickness x height), "
-         f"support '{k.support}', rho {k.material.density:g} kg/m^3, G {k.material.shear_modulus/1e9:g} GPa, "
-         f"nu {k.material.poisson:g}")
-    x, _, z = scene.impact_point
-    _say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, "
-         f"point (x {x*1e3:g} mm, z {z*1e3:g} mm) on face y = 0")
+    if scene.liner is not None:
+        ln, p, n = scene.liner, scene.impact_point, scene.contact_normal
+        _say(f"  liner   plate {ln.length*1e3:g} x {ln.width*1e3:g} x {ln.thickness*1e3:g} mm, {ln.n_lifters} lifter(s) "
+             f"{ln.lifter_height*1e3:g} mm high, top {ln.lifter_top_width*1e3:g} mm, face angle {ln.lifter_face_angle:g} deg, "
+             f"mill radius {ln.mill_radius:g} m; rho {ln.material.density:g} kg/m^3, G {ln.material.shear_modulus/1e9:g} "
+             f"GPa, nu {ln.material.poisson:g}")
+        _say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, normal "
+             f"{scene.normal_speed:.4g} m/s; point ({', '.join(f'{c*1e3:.4g}' for c in p)}) mm on lifter "
+             f"{ln.impact_lifter} face {ln.impact_face}, normal ({', '.join(f'{c:.4g}' for c in n)})")
+    else:
+        _say(f"  block   {k.length*1e3:g} x {k.thickness*1e3:g} x {k.height*1e3:g} mm (length x thickness x height), "
+             f"support '{k.support}', rho {k.material.density:g} kg/m^3, G {k.material.shear_modulus/1e9:g} GPa, "
+             f"nu {k.material.poisson:g}")
+        x, _, z = scene.impact_point
+        _say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, "
+             f"point (x {x*1e3:g} mm, z {z*1e3:g} mm) on face y = 0")
+    if scene.contact.friction > 0:
+        _say(f"  contact Coulomb friction mu = {scene.contact.friction:g}")
     for g in scene.gauges:
         _say(f"  gauge {g.name}  at ({', '.join(f'{c*1e3:g}' for c in g.position)}) mm, "
              f"direction ({', '.join(f'{c:g}' for c in g.direction)})")

@@ -42,6 +42,11 @@ def _inward(point: np.ndarray, plan: Plan, scene: Scene) -> np.ndarray:
     """A point nudged just inside the block (and off the symmetry planes) so one cell holds it."""
     eps = 1e-6 * plan.h_contact
     p = np.array(point, float)
+    if scene.liner is not None:   # the liner's contact point: along -n into the lifter
+        p = p - eps * np.asarray(scene.contact_normal)
+        if "x" in plan.symmetry_planes:
+            p[0] = max(p[0], scene.impact_point[0] + eps)
+        return p
     blk = scene.block
     p[1] = min(p[1], -eps)
     p[1] = max(p[1], -blk.thickness + eps)
@@ -65,7 +70,9 @@ class Recorder:
         self.u_fn = model.function("u")
         self.sym = model.sym_factor
         self.x_p, _, self.z_p = scene.impact_point
-        # ball centre-of-mass velocity along y: c . v with c = M e_y(ball) / m_ball
+        self.p = np.array(scene.impact_point)
+        self.n = np.array(scene.contact_normal)     # e_y for the block
+        # ball centre-of-mass velocity along n: c . v with c = M e_n(ball) / m_ball
         ey = model.M.createVecRight()
         ey.set(0.0)
         ball_y = model.ball_dofs[model.ball_dofs % 3 == 1]
@@ -73,7 +80,27 @@ class Recorder:
         self.c_y = model.M.createVecLeft()
         model.M.mult(ey, self.c_y)
         self.ball_mass_model = self.c_y.sum()
+        if scene.liner is not None:
+            ey.set(0.0)
+            for comp in range(3):
+                ey.array[model.ball_dofs[model.ball_dofs % 3 == comp]] = self.n[comp]
+            model.M.mult(ey, self.c_y)
         self.c_y.scale(1.0 / self.ball_mass_model)
+        # friction: the ball's tangential velocity along the incoming tangential direction t_v
+        self.friction = contact.T is not None
+        if self.friction:
+            v = np.array(scene.impact.velocity)
+            vt = v - (v @ self.n) * self.n
+            self.t_v = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > 1e-12 * np.linalg.norm(v) else contact.tangents[0]
+            et = model.M.createVecRight()
+            et.set(0.0)
+            for comp in range(3):
+                et.array[model.ball_dofs[model.ball_dofs % 3 == comp]] = self.t_v[comp]
+            self.c_t = model.M.createVecLeft()
+            model.M.mult(et, self.c_t)
+            self.c_t.scale(1.0 / self.ball_mass_model)
+            self.t_proj = contact.tangents @ self.t_v    # components of t_v in the rows' basis (t1, t2)
+            self._fw_base, self._fw_last = 0.0, 0.0
         self.ball_mask = model.M.createVecRight()
         self.ball_mask.set(0.0)
         self.ball_mask.array[model.ball_dofs] = 1.0
@@ -92,7 +119,7 @@ class Recorder:
         self.probe = create_probe(V, np.array(pts), blk_cells)
         if not np.all(self.probe.found):
             raise RuntimeError("a probe point (contact point or gauge) lies outside the block mesh")
-        mat = scene.block.material
+        mat = scene.target_material
         self.mu, self.lmbda, self.E = mat.shear_modulus, mat.lame_lambda, mat.youngs_modulus
         self.rows: list[list[float]] = []
         self.field_times = sorted(field_times)
@@ -107,7 +134,9 @@ class Recorder:
     @property
     def names(self) -> list[str]:
         return (self.names_base + [f"gauge_{g.name}_stress_Pa" for g in self.model.scene.gauges]
-                + ["ball_kinetic_energy_J", "kinetic_energy_J", "strain_energy_J", "total_energy_J"])
+                + ["ball_kinetic_energy_J", "kinetic_energy_J", "strain_energy_J", "total_energy_J"]
+                + (["tangential_force_N", "ball_tangential_velocity_m_s", "friction_dissipation_J"]
+                   if self.friction else []))
 
     def _local(self, vec) -> np.ndarray:
         self.u_fn.vector.array[:] = vec.array_r
@@ -121,7 +150,11 @@ class Recorder:
         active = lam > 0
         if np.any(active):
             pts = self.contact.points[active]
-            a = float(np.max(np.hypot(pts[:, 0] - self.x_p, pts[:, 2] - self.z_p)))
+            if self.model.scene.liner is None:
+                a = float(np.max(np.hypot(pts[:, 0] - self.x_p, pts[:, 2] - self.z_p)))
+            else:   # distance from the contact axis p + s n
+                d = pts - self.p
+                a = float(np.max(np.linalg.norm(d - np.outer(d @ self.n, self.n), axis=1)))
         else:
             a = 0.0
         approach = -self.c_y.dot(st.u) - self.gap0
@@ -142,9 +175,27 @@ class Recorder:
         mass.mult(self.tmp2, self.tmp)
         ke_ball = 0.5 * self.tmp.dot(self.tmp2)
         se = integrators.strain_energy(m.K, st.u, m.fixed_dofs)
-        row = [st.t, force, approach, a, vball, -vals_u[0, 1], -vals_v[0, 1], -vals_a[0, 1], s[0, 1, 1],
+        if self.model.scene.liner is None:
+            normal = (-vals_u[0, 1], -vals_v[0, 1], -vals_a[0, 1], s[0, 1, 1])
+        else:   # along the contact normal n, into the liner positive
+            n = self.n
+            normal = (-vals_u[0] @ n, -vals_v[0] @ n, -vals_a[0] @ n, n @ s[0] @ n)
+        row = [st.t, force, approach, a, vball, *normal,
                float(von_mises(s[0])), *gauges, self.sym * ke_ball, self.sym * ke, self.sym * se,
                self.sym * (ke + se)]
+        if self.friction:
+            # tangential force on the ball along t_v (N, full body: the half model's mirror adds
+            # only the in-plane component, which is t_v's when the plane of incidence is the cut)
+            tau = np.asarray(st.tau) if getattr(st, "tau", None) is not None else np.zeros(2 * lam.size)
+            nc = lam.size
+            ft = self.sym * float(self.t_proj[0] * tau[:nc].sum() + self.t_proj[1] * tau[nc:].sum())
+            # friction work is cumulative per integrate() call: restarted segments (reduced
+            # methods) and modal free phases (no friction) continue the sum
+            fw = float(getattr(st, "friction_work", 0.0))
+            if fw < self._fw_last:
+                self._fw_base += self._fw_last
+            self._fw_last = fw
+            row += [ft, self.c_t.dot(st.v), self.sym * (self._fw_base + fw)]
         self.rows.append([float(x) for x in row])
         while self._next_field < len(self.field_times) and st.t >= self.field_times[self._next_field] - 1e-15:
             self.fields.append((st.t, st.u.array_r.copy()))
@@ -187,7 +238,7 @@ def impact_results(ts: TimeSeries, scene: Scene, stats, integrator: str) -> dict
     if len(after):
         last = after[-1] if not np.any(np.diff(after) > 1) else after[np.argmax(np.diff(after) > 1)]
         i_out = min(last + 2, len(f) - 1)
-        restitution = -ts["ball_velocity_m_s"][i_out] / scene.impact.normal_speed
+        restitution = -ts["ball_velocity_m_s"][i_out] / scene.normal_speed
     else:
         i_out = len(f) - 1
         restitution = float("nan")
@@ -229,7 +280,8 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
     contact = create_contact(model)
     t_assemble = time.perf_counter() - t0 - t_mesh
     system = integrators.LinearDynamics(M=model.M, K=model.K, B=contact.B, g0=contact.g0,
-                                        fixed_dofs=model.fixed_dofs, contact_dofs=contact.contact_dofs)
+                                        fixed_dofs=model.fixed_dofs, contact_dofs=contact.contact_dofs,
+                                        T=contact.T, friction=scene.contact.friction)
     u0 = model.M.createVecRight()
     u0.set(0.0)
     v0 = model.M.createVecRight()

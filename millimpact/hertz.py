@@ -106,9 +106,9 @@ def hertz_impact(radius: float, mass: float, speed: float, e_star: float, nu_tar
 def scene_hertz(scene: Scene) -> HertzImpact:
     """Hertz values of a scene: the ball on a half-space of the block's material (the block is
     clamped, so the impacting mass is the ball's), with the normal component of the velocity."""
-    e_star = effective_modulus(scene.ball.material, scene.block.material)
-    return hertz_impact(scene.ball.radius, scene.ball.mass, scene.impact.normal_speed, e_star,
-                        scene.block.material.poisson)
+    e_star = effective_modulus(scene.ball.material, scene.target_material)
+    return hertz_impact(scene.ball.radius, scene.ball.mass, scene.normal_speed, e_star,
+                        scene.target_material.poisson)
 
 
 class HertzHistory(NamedTuple):

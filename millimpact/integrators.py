@@ -83,6 +83,10 @@ class LinearDynamics:
     fixed_dofs: np.ndarray
     contact_dofs: np.ndarray
     f_ext: Optional[PETSc.Vec] = None
+    #: Coulomb friction (:mod:`millimpact.friction`): ``T`` (2 n_c x n) tangential rows [t1; t2]
+    #: (relative tangential displacement, m), ``friction`` the coefficient mu; None / 0: frictionless
+    T: Optional[PETSc.Mat] = None
+    friction: float = 0.0
 
 
 @dataclass
@@ -110,6 +114,8 @@ class StepState:
     step: int
     mass: PETSc.Mat
     penalty_energy: float = 0.0
+    tau: Optional[np.ndarray] = None     #: friction: tangential multipliers (N, 2 n_c: [t1; t2])
+    friction_work: float = 0.0           #: friction: energy dissipated by slip so far (J, >= 0)
 
 
 @dataclass
@@ -134,6 +140,11 @@ class IntegrationStats:
     n_newton: int = 0                #: LCP active-set iterations, summed
     max_newton: int = 0
     n_lcp_fallback: int = 0          #: LCPs solved by the NNLS fallback
+    friction: float = 0.0            #: Coulomb coefficient
+    max_friction_passes: int = 0     #: friction: normal/tangential fixed-point passes, maximum
+    n_friction_fallback: int = 0     #: friction: Tresca problems finished by projected gradient
+    friction_work_J: float = 0.0     #: friction: energy dissipated by slip (>= 0), J
+    max_sliding_nodes: int = 0
     dt_contact: float = 0.0
     dt_free: float = 0.0
     dt_critical: float = float("nan")   #: central differences: critical step, s
@@ -346,6 +357,7 @@ class _Contact:
         if self.g0.size != self.n_c:
             raise InputError(f"g0 has {self.g0.size} entries but B has {self.n_c} rows")
         n_fixed = comm.allreduce(len(system.fixed_dofs))
+        T = system.T
         if n_fixed:
             # clamped dofs cannot move: remove their columns so neither the gaps nor the forces
             # involve them (the saddle-point rows would otherwise move them)
@@ -354,10 +366,19 @@ class _Contact:
             mask.array[np.asarray(system.fixed_dofs, dtype=np.int64)] = 0.0
             B = B.copy()
             B.diagonalScale(R=mask)
+            if T is not None:
+                T = T.copy()
+                T.diagonalScale(R=mask)
             mask.destroy()
         self.B = B
         self._c = B.createVecLeft()
         self._f = B.createVecRight()
+        # friction: C = [B; T] (3 n_c rows), the rows whose multipliers the step solves for
+        self.T = T
+        self.C = solvers.stack_rows([B, T]) if T is not None else B
+        if T is not None:
+            self._t = T.createVecLeft()
+            self._cc = self.C.createVecLeft()
 
     def gap(self, u: PETSc.Vec) -> np.ndarray:
         """g0 + B u (m), replicated."""
@@ -368,6 +389,11 @@ class _Contact:
         """B v (m/s), replicated."""
         self.B.mult(v, self._c)
         return solvers.gather(self._c)
+
+    def slip(self, du: PETSc.Vec) -> np.ndarray:
+        """T du (m), replicated: relative tangential displacements [t1; t2]."""
+        self.T.mult(du, self._t)
+        return solvers.gather(self._t)
 
     def add_force(self, lam: np.ndarray, f: PETSc.Vec, scale: float = 1.0) -> None:
         """f += scale * B^T lam."""
@@ -410,6 +436,15 @@ class _Newmark:
         cs = str(solvers.get_option("contact_solve", options, "fieldsplit")).lower()
         if cs not in ("fieldsplit", "schur", "lu"):
             raise InputError(f"-impact_contact_solve {cs!r}: choose fieldsplit, schur or lu")
+        # friction: the step's multipliers come from the dense problem on S = C A^-1 C^T and the
+        # state from u = u_pred + W [lambda; tau] (the "schur" update, exact with the factorization)
+        self.mu = float(system.friction) if system.T is not None else 0.0
+        self.frictional = system.T is not None
+        stats.friction = self.mu
+        if self.frictional:
+            cs = "schur"
+        self.tau = np.zeros(2 * self.contact.n_c) if self.frictional else None
+        self.sliding = np.zeros(self.contact.n_c, dtype=bool)
         self.contact_solve = cs
         stats.contact_solve = cs
         self.petsc_options = dict(options)
@@ -483,7 +518,7 @@ class _Newmark:
     def _contact_operator(self, op: _StepOps) -> solvers.ContactOperator:
         if op.contact is None:
             t0 = time.perf_counter()
-            op.contact = solvers.compute_contact_operator(op.ksp_u, self.contact.B)
+            op.contact = solvers.compute_contact_operator(op.ksp_u, self.contact.C)
             self.stats.n_w_columns += op.contact.n_rhs
             if self.comm.rank == 0:
                 log.info("dt = %.4g s: W = A^-1 B^T for %d contact rows in %.2f s", op.dt, op.contact.n_rhs,
@@ -511,10 +546,15 @@ class _Newmark:
             lam = np.zeros(n_c)
             self.u_pred.copy(self.u_new)
             self.n_newton = 0
+            if self.frictional:
+                self.tau, self.sliding = np.zeros(2 * n_c), np.zeros(n_c, dtype=bool)
         else:
             if allow_reject:
                 return False
             C = self._contact_operator(op)
+        if n_c and not np.all(q >= -gap_tol) and self.frictional:
+            lam = self._friction_step(C, q, gap_tol, step)
+        elif n_c and not np.all(q >= -gap_tol):
             res = _bcast(self.comm, solvers.solve_lcp(C.S, q, self.active, gap_tol))
             self.n_newton = res.iterations
             self.stats.n_lcp_fallback += res.method != "active-set"
@@ -544,6 +584,8 @@ class _Newmark:
         if n_c and (np.min(lam) < -lam_tol or np.min(gap) < -max(gap_tol, 1e-8 * scale)):
             raise SolverError(f"contact conditions violated after the step: min lambda {np.min(lam):.3e} N, "
                               f"min gap {np.min(gap):.3e} m at step {step}, t = {t_new:.9g} s")
+        if self.frictional:
+            self.tau = np.where(np.concatenate([lam, lam]) > lam_tol, self.tau, 0.0)
         lam = np.where(lam > lam_tol, lam, 0.0)
         # Newmark update on the local arrays
         u, v, a, un = self.u.array, self.v.array, self.a.array, self.u_new.array_r
@@ -567,6 +609,33 @@ class _Newmark:
         self.lam, self.gap, self.active = lam, gap, lam > 0
         return True
 
+    def _friction_step(self, C: solvers.ContactOperator, q: np.ndarray, gap_tol: float, step: int) -> np.ndarray:
+        """Coulomb friction (:mod:`millimpact.friction`): lambda, tau from the dense problem on
+        S = C A^-1 C^T, then u_new = u_pred + W [lambda; tau]. Returns lambda (N); sets self.tau."""
+        from . import friction
+
+        self.tmp.waxpy(-1.0, self.u, self.u_pred)
+        q_t = self.contact.slip(self.tmp)           # slip increment of the predictor, m
+        # dense and small: solved on rank 0 only (the ranks share cores), the answer broadcast
+        res = (friction.solve_friction(C.S, q, q_t, self.mu, self.active, self.sliding, gap_tol)
+               if self.comm.rank == 0 else None)
+        res = _bcast(self.comm, res)
+        n_c = q.size
+        x = np.concatenate([res.lam, res.tau])
+        solvers.scatter_into(self.contact._cc, x)
+        C.W.mult(self.contact._cc, self.tmp)
+        self.u_new.waxpy(1.0, self.tmp, self.u_pred)
+        ds = q_t + C.S[n_c:, :] @ x                 # slip increments over the step, m
+        self.stats.friction_work_J += max(0.0, -float(res.tau @ ds))
+        self.stats.max_friction_passes = max(self.stats.max_friction_passes, res.iterations)
+        self.stats.n_friction_fallback += res.n_fallback
+        self.stats.max_sliding_nodes = max(self.stats.max_sliding_nodes, int(np.count_nonzero(res.slip)))
+        self.n_newton = res.iterations
+        self.stats.n_newton += res.iterations
+        self.stats.max_newton = max(self.stats.max_newton, res.iterations)
+        self.tau, self.sliding = res.tau, res.slip
+        return res.lam
+
     def rate(self) -> np.ndarray:
         return self.contact.rate(self.v)
 
@@ -586,6 +655,8 @@ class _CentralPenalty:
 
     def __init__(self, system: LinearDynamics, options: Mapping, stats: IntegrationStats, comm: MPI.Comm):
         self.sys, self.options, self.stats, self.comm = system, dict(options), stats, comm
+        if system.T is not None:
+            raise InputError("central-penalty has no friction: use --integrator newmark-mr (or set contact.friction = 0)")
         self.contact = _Contact(system, comm)
         self.fixed = np.asarray(system.fixed_dofs, dtype=np.int64)
         self.m = lumped_mass(system.M)
@@ -746,7 +817,8 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
         if observer is not None:
             observer(StepState(t=t, dt=dt, u=integ.u, v=integ.v, a=integ.a, lam=integ.lam, gap=integ.gap,
                                n_active=int(np.count_nonzero(integ.lam > 0)), n_newton=integ.n_newton,
-                               step=step, mass=integ.mass, penalty_energy=integ.penalty_energy))
+                               step=step, mass=integ.mass, penalty_energy=integ.penalty_energy,
+                               tau=getattr(integ, "tau", None), friction_work=stats.friction_work_J))
 
     notify(0.0, 0.0, 0)
     bar = None

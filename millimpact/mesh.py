@@ -165,6 +165,12 @@ def create_mesh(scene: Scene, plan: Plan, comm: MPI.Comm = MPI.COMM_WORLD,
     (see the module docstring for the directory; ``use_cache=False`` neither reads nor writes it).
     Raises :class:`MeshError` on every rank if the build fails.
     """
+    if scene.liner is not None:
+        ln = scene.liner
+        return create_liner_mesh(ln.geometry(), MeshSizes.from_plan(plan), comm, cache_dir, use_cache=use_cache,
+                                 lifter=ln.impact_lifter, face=ln.impact_face, height_fraction=ln.impact_height,
+                                 x=ln.impact_x, ball_radius=scene.ball.radius, gap=plan.gap,
+                                 symmetry_planes=tuple(plan.symmetry_planes))
     params = mesh_parameters(scene, plan)
     return _create(params, lambda: geo.build_impact_model(scene, plan), plan.symmetry, comm, cache_dir, use_cache)
 

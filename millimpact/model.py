@@ -93,7 +93,7 @@ def create_fe_model(scene: Scene, plan: Plan, md: MeshData, degree: Optional[int
     mesh = md.mesh
     V = fem.VectorFunctionSpace(mesh, ("Lagrange", degree))
     V0 = fem.FunctionSpace(mesh, ("DG", 0))
-    mb, mk = scene.ball.material, scene.block.material
+    mb, mk = scene.ball.material, scene.target_material
     mu = _cellwise(V0, md, mb.shear_modulus, mk.shear_modulus, "mu")
     lmbda = _cellwise(V0, md, mb.lame_lambda, mk.lame_lambda, "lambda")
     # The meshed ball is a polyhedron, a little smaller than the sphere (volume error ~ (h/R)^2):

@@ -74,15 +74,16 @@ def decide_symmetry(scene: Scene) -> tuple[str, tuple[str, ...], str]:
     tol = 1e-12
     planes = []
     if abs(x_p) < 1e-9 and abs(vx) <= tol * scene.impact.speed:
-        planes.append("x")
-    if (scene.block.support == "back" and abs(z_p - 0.5 * scene.block.height) < 1e-9
+        planes.append("x")   # a liner is prismatic along x and symmetric about x = 0 as well
+    if scene.liner is None and (scene.block.support == "back" and abs(z_p - 0.5 * scene.block.height) < 1e-9
             and abs(vz) <= tol * scene.impact.speed):
         planes.append("z")
     allowed = {0: "full", 1: "half", 2: "quarter"}[len(planes)]
     req = scene.model.symmetry
     if req == "auto":
         reason = f"{allowed}: " + ("; ".join(
-            {"x": "normal velocity in the x = 0 mid-plane", "z": "back-clamped block struck at mid-height"}[p]
+            {"x": ("velocity in the plane of incidence x = 0 (liner: prismatic along x)" if scene.liner is not None
+                   else "normal velocity in the x = 0 mid-plane"), "z": "back-clamped block struck at mid-height"}[p]
             for p in planes) or "no symmetry plane (oblique or off-centre impact)")
         return allowed, tuple(planes), reason
     order = ["full", "half", "quarter"]
@@ -104,12 +105,17 @@ def make_plan(scene: Scene) -> Plan:
 
     h_c = m.h_contact if m.h_contact is not None else h.a_max / ELEMENTS_ACROSS_CONTACT
     reasons["h_contact"] = "user" if m.h_contact is not None else f"a_max / {ELEMENTS_ACROSS_CONTACT:g} (~1 % on F_max)"
-    smallest = min(scene.ball.radius, scene.block.length, scene.block.thickness, scene.block.height)
+    if scene.liner is not None:   # the liner's smallest sizes: plate thickness, lifter top, length
+        ln = scene.liner
+        body = (ln.length, ln.thickness, ln.lifter_top_width)
+    else:
+        body = (scene.block.length, scene.block.thickness, scene.block.height)
+    smallest = min(scene.ball.radius, *body)
     h_far = m.h_far if m.h_far is not None else smallest / 4.0
     reasons["h_far"] = "user" if m.h_far is not None else "smallest body size / 4"
     zone = m.zone_radius if m.zone_radius is not None else ZONE_RADIUS_FACTOR * h.a_max
     reasons["zone_radius"] = "user" if m.zone_radius is not None else f"{ZONE_RADIUS_FACTOR:g} a_max (holds the contact patch)"
-    limit = 0.45 * min(scene.ball.radius, scene.block.length, scene.block.height, scene.block.thickness)
+    limit = 0.45 * smallest
     if zone >= limit:
         raise SceneError("model.zone_radius", zone, f"the contact zone must be smaller than {limit:g} m for this scene")
     fine = min(1.5 * h.a_max, zone)

@@ -133,3 +133,27 @@ def plot_energy(ts: TimeSeries, path: Path, title: str = "") -> bool:
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return True
+
+
+def plot_friction(ts: TimeSeries, path: Path, mu: float, title: str = "") -> None:
+    """Friction of an oblique impact: normal and tangential contact forces with the Coulomb bounds
+    +-mu F_n (kN), and the ball's tangential velocity (m/s), against time (us)."""
+    plt = _plt()
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(7, 6), sharex=True, constrained_layout=True)
+    t, fn, ft = ts.time, ts["contact_force_N"], ts["tangential_force_N"]
+    lo, hi = _contact_window(ts)
+    sel = (t >= lo) & (t <= hi)
+    us = t[sel] * 1e6
+    ax.plot(us, fn[sel] / 1e3, lw=2, label="normal force")
+    ax.plot(us, ft[sel] / 1e3, lw=2, label="tangential force (along the incoming tangential velocity)")
+    ax.fill_between(us, -mu * fn[sel] / 1e3, mu * fn[sel] / 1e3, color="0.85", label=f"Coulomb cone |F_t| <= {mu:g} F_n")
+    ax.set_ylabel("force on the ball [kN]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    bx.plot(us, ts["ball_tangential_velocity_m_s"][sel], lw=2, color="C2")
+    bx.set_xlabel("time [us]")
+    bx.set_ylabel("ball tangential velocity [m/s]")
+    bx.grid(alpha=0.3)
+    fig.suptitle(title or "Friction")
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

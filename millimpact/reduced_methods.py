@@ -135,6 +135,8 @@ class ReducedRecorder(Recorder):
         self.time_offset = 0.0
         self.proj = None
         self._maps: dict[int, tuple] = {}
+        self._ct_full = getattr(self, "c_t", None)     # friction: the ball's tangential row
+        self._ct_maps: dict[int, object] = {}
         self.set_projection(red)
 
     def set_projection(self, proj) -> None:
@@ -149,6 +151,10 @@ class ReducedRecorder(Recorder):
             self._maps[key] = (proj.restrict(self._c_full), mask, proj.create_vector(), proj.create_vector(),
                                _reduced_probe(self._probe_full, proj), view)
         self.c_y, self.ball_mask, self.tmp, self.tmp2, self.probe, self.model = self._maps[key]
+        if self._ct_full is not None:
+            if key not in self._ct_maps:
+                self._ct_maps[key] = proj.restrict(self._ct_full)
+            self.c_t = self._ct_maps[key]
 
     def _local(self, vec) -> np.ndarray:
         return vec.array_r
@@ -237,7 +243,9 @@ def reduced_system(red: ReducedModel, contact: ContactSet) -> integrators.Linear
         log.warning("%d contact coordinates lie on the zone/region interface: the contact candidates "
                     "reach the zone boundary; enlarge model.zone_radius", n_shared)
     return integrators.LinearDynamics(M=red.M, K=red.K, B=B_r, g0=contact.g0,
-                                      fixed_dofs=np.zeros(0, dtype=np.int32), contact_dofs=contact_coords)
+                                      fixed_dofs=np.zeros(0, dtype=np.int32), contact_dofs=contact_coords,
+                                      T=red.project_rows(contact.T) if contact.T is not None else None,
+                                      friction=red.model.scene.contact.friction)
 
 
 def initial_state(red: ReducedModel, scene: Scene) -> tuple[PETSc.Vec, PETSc.Vec]:

@@ -180,6 +180,9 @@ def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: d
                                  title=f"{title}: liner contact point (normal components)")
         plots.plot_gauges(out.series, folder / "gauges.png", title=f"{title}: strain gauges")
         plots.plot_energy(out.series, folder / "energy.png", title=f"{title}: energy")
+        if "tangential_force_N" in out.series:
+            plots.plot_friction(out.series, folder / "friction.png", scene.contact.friction,
+                                title=f"{title}: friction (mu = {scene.contact.friction:g})")
     if reference:  # reference.h5/.csv/.json for millimpact compare (reference.py)
         from .reference import write_reference
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import tomllib
 import typing
 from dataclasses import dataclass, field
@@ -102,6 +103,98 @@ class Block:
 
 
 @dataclass(frozen=True)
+class Liner:
+    """A SAG-mill liner segment: a shell plate with lifter bars, struck on a lifter face. When a
+    scene has a ``liner``, it replaces the block (whose fields are then unused).
+
+    Geometry (m, degrees) as :class:`millimpact.geometry.LinerGeometry`: the plate spans
+    ``x in [-length/2, length/2]`` (along the mill axis) and ``y in [-thickness, 0]``, its inner
+    face ``y = 0`` looks into the mill (``y > 0``); ``n_lifters`` bars run along x, ``lifter_spacing``
+    apart about ``z = width/2``, each ``lifter_height`` high with a ``lifter_top_width`` top and faces
+    inclined ``lifter_face_angle`` from the plate normal; ``mill_radius`` > 0 curves the plate about
+    the mill axis (0: flat). The back face (bolted to the mill shell) is clamped.
+
+    Impact placement: the ball first touches lifter ``impact_lifter`` (index from the lowest z) on
+    its ``impact_face`` (``"+z"`` or ``"-z"``, the side the face looks to) at ``impact_height`` (a
+    fraction in (0, 1) of the lifter height, measured along its centre line from the plate) and at
+    ``x = impact_x`` (m). The contact normal is that face's outward normal; the impact velocity
+    (``impact.velocity``, global x, y, z) must point into the face.
+    """
+
+    length: float = 0.40
+    width: float = 0.50
+    thickness: float = 0.075
+    n_lifters: int = 1
+    lifter_height: float = 0.20
+    lifter_top_width: float = 0.10
+    lifter_face_angle: float = 20.0
+    lifter_spacing: float = 0.30
+    mill_radius: float = 0.0
+    material: Material = field(default_factory=Material)
+    impact_lifter: int = 0
+    impact_face: str = "+z"
+    impact_height: float = 0.5
+    impact_x: float = 0.0
+
+    def geometry(self):
+        """The :class:`millimpact.geometry.LinerGeometry` of these sizes (validated)."""
+        from .errors import MeshError
+        from .geometry import LinerGeometry
+
+        try:
+            return LinerGeometry(length=self.length, width=self.width, thickness=self.thickness,
+                                 n_lifters=self.n_lifters, lifter_height=self.lifter_height,
+                                 lifter_top_width=self.lifter_top_width, lifter_face_angle=self.lifter_face_angle,
+                                 lifter_spacing=self.lifter_spacing, mill_radius=self.mill_radius)
+        except MeshError as exc:   # "liner.<name> = <value>: <range>" -> the same, as a SceneError
+            m = re.match(r"(liner\.\w+) = (.*?)(?: m| deg)?: (.*)$", str(exc))
+            if m:
+                raise SceneError(m.group(1), getattr(self, m.group(1)[6:], m.group(2)), m.group(3)) from None
+            raise SceneError("liner", "(geometry)", str(exc)) from None
+
+    def face_point(self) -> tuple[Vec3, Vec3]:
+        """The impact point on the lifter face and the face's outward unit normal (m)."""
+        from .geometry import liner_face_point
+
+        return liner_face_point(self.geometry(), self.impact_lifter, self.impact_face, self.impact_height,
+                                self.impact_x)
+
+    def validate(self) -> None:
+        self.material.validate("liner.material")
+        for name in ("length", "width", "thickness", "lifter_height", "lifter_top_width", "lifter_spacing"):
+            _positive(f"liner.{name}", getattr(self, name), "m")
+        _finite("liner.lifter_face_angle", self.lifter_face_angle, "deg")
+        _finite("liner.mill_radius", self.mill_radius, "m")
+        if isinstance(self.n_lifters, bool) or not isinstance(self.n_lifters, int) or self.n_lifters < 1:
+            raise SceneError("liner.n_lifters", self.n_lifters, "must be an integer >= 1 (the ball strikes a lifter)")
+        self.geometry()
+        if not (0 <= self.impact_lifter < self.n_lifters):
+            raise SceneError("liner.impact_lifter", self.impact_lifter, f"must index a lifter: 0 .. {self.n_lifters - 1}")
+        if self.impact_face not in ("+z", "-z"):
+            raise SceneError("liner.impact_face", self.impact_face, "must be '+z' or '-z'")
+        _finite("liner.impact_height", self.impact_height, "fraction of the lifter height")
+        if not (0.0 < self.impact_height < 1.0):
+            raise SceneError("liner.impact_height", self.impact_height,
+                             "must lie in (0, 1) (a fraction of the lifter height)")
+        _finite("liner.impact_x", self.impact_x, "m")
+        if not (-self.length / 2 < self.impact_x < self.length / 2):
+            raise SceneError("liner.impact_x", self.impact_x, f"must lie in (-{self.length/2:g}, {self.length/2:g}) m")
+
+
+@dataclass(frozen=True)
+class ContactOptions:
+    """Contact law. ``friction``: Coulomb coefficient mu >= 0 between ball and block/liner (0:
+    frictionless, the default; see :mod:`millimpact.friction` for the formulation)."""
+
+    friction: float = 0.0
+
+    def validate(self) -> None:
+        _finite("contact.friction", self.friction, "dimensionless")
+        if not (0.0 <= self.friction <= 2.0):
+            raise SceneError("contact.friction", self.friction, "must lie in [0, 2] (Coulomb coefficient)")
+
+
+@dataclass(frozen=True)
 class Impact:
     """Arrival state of the ball.
 
@@ -186,6 +279,8 @@ class Scene:
     time: TimeSpan = field(default_factory=TimeSpan)
     model: ModelOptions = field(default_factory=ModelOptions)
     outputs: Outputs = field(default_factory=Outputs)
+    liner: Optional[Liner] = None
+    contact: ContactOptions = field(default_factory=ContactOptions)
 
     def __post_init__(self) -> None:
         self.validate()
@@ -193,13 +288,40 @@ class Scene:
     # --- derived geometry -------------------------------------------------------------------
     @property
     def impact_point(self) -> Vec3:
-        """Point of first contact on the struck face y = 0 (m)."""
+        """Point of first contact on the struck face (m): on y = 0 for a block, on the lifter face
+        for a liner."""
+        if self.liner is not None:
+            return tuple(float(c) for c in self.liner.face_point()[0])
         if self.impact.point is None:
             return (0.0, 0.0, 0.5 * self.block.height)
         return (float(self.impact.point[0]), 0.0, float(self.impact.point[1]))
 
+    @property
+    def contact_normal(self) -> Vec3:
+        """Outward unit normal of the struck face at the impact point: +y for a block, the lifter
+        face's normal for a liner."""
+        if self.liner is not None:
+            return tuple(float(c) for c in self.liner.face_point()[1])
+        return (0.0, 1.0, 0.0)
+
+    @property
+    def normal_speed(self) -> float:
+        """Speed towards the struck face, -v . n (m/s); positive when approaching."""
+        if self.liner is None:
+            return self.impact.normal_speed
+        return -sum(v * n for v, n in zip(self.impact.velocity, self.contact_normal))
+
+    @property
+    def target_material(self) -> Material:
+        """The struck body's material (the liner's or the block's)."""
+        return self.liner.material if self.liner is not None else self.block.material
+
     def ball_centre(self, gap: float) -> Vec3:
-        """Initial ball centre for a given gap (m)."""
+        """Initial ball centre for a given gap (m): ``radius + gap`` off the impact point along
+        the contact normal."""
+        if self.liner is not None:
+            p, n = self.liner.face_point()
+            return tuple(float(pc + (self.ball.radius + gap) * nc) for pc, nc in zip(p, n))
         x, _, z = self.impact_point
         return (x, self.ball.radius + gap, z)
 
@@ -210,10 +332,13 @@ class Scene:
         imp, blk = self.impact, self.block
         for i, c in enumerate(imp.velocity):
             _finite(f"impact.velocity[{i}]", c, "m/s")
-        if imp.normal_speed <= 0.0:
+        self.contact.validate()
+        if self.liner is not None:
+            self._validate_liner()
+        elif imp.normal_speed <= 0.0:
             raise SceneError("impact.velocity", list(imp.velocity),
                              "its y component must be negative (towards the struck face y = 0)")
-        if imp.point is not None:
+        if imp.point is not None and self.liner is None:
             x, z = imp.point
             if not (-blk.length / 2 < x < blk.length / 2):
                 raise SceneError("impact.point[0]", x, f"must lie on the face: (-{blk.length/2:g}, {blk.length/2:g}) m")
@@ -226,6 +351,8 @@ class Scene:
                 raise SceneError("impact.gap", imp.gap, f"must be at most the ball radius ({self.ball.radius:g} m): "
                                  "the simulation starts just before contact")
         names = set()
+        if self.liner is not None and self.gauges:
+            raise SceneError("gauges", [g.name for g in self.gauges], "are not supported on a liner yet (leave empty)")
         for i, g in enumerate(self.gauges):
             where = f"gauges[{i}]"
             if g.name in names:
@@ -255,7 +382,7 @@ class Scene:
             v = getattr(m, name)
             if v is not None:
                 _positive(f"model.{name}", v, "Hz" if name == "f_cut" else "m")
-        if m.zone_radius is not None and m.zone_radius >= min(blk.length, blk.height) / 2:
+        if m.zone_radius is not None and self.liner is None and m.zone_radius >= min(blk.length, blk.height) / 2:
             raise SceneError("model.zone_radius", m.zone_radius,
                              f"must be smaller than half the struck face ({min(blk.length, blk.height)/2:g} m)")
         if m.symmetry not in ("auto", "full", "half", "quarter"):
@@ -267,6 +394,28 @@ class Scene:
         for i, ft in enumerate(self.outputs.field_times):
             if not (math.isfinite(ft) and ft >= 0.0):
                 raise SceneError(f"outputs.field_times[{i}]", ft, "must be >= 0 s (times after time.end are skipped)")
+
+    def _validate_liner(self) -> None:
+        """Liner scenes: the geometry, the placement, an approaching velocity, a ball clear of the plate."""
+        ln, imp = self.liner, self.impact
+        ln.validate()
+        if imp.point is not None:
+            raise SceneError("impact.point", list(imp.point), "is not used with a liner: place the impact with "
+                             "liner.impact_lifter / impact_face / impact_height / impact_x")
+        p, n = ln.face_point()
+        vn = sum(v * c for v, c in zip(imp.velocity, n))
+        if not vn < 0.0:
+            raise SceneError("impact.velocity", list(imp.velocity),
+                             f"must point into the struck lifter face (v . n < 0 with its outward normal n = "
+                             f"({n[0]:.4g}, {n[1]:.4g}, {n[2]:.4g}))")
+        c = self.ball_centre(0.0 if imp.gap is None else imp.gap)
+        Rm = ln.mill_radius
+        # clearance of the ball from the plate's inner face (y = 0, or the cylinder of radius Rm)
+        clear = c[1] - self.ball.radius if Rm == 0.0 else Rm - math.hypot(c[1] - Rm, c[2] - 0.5 * ln.width) - self.ball.radius
+        if clear <= 0.0:
+            raise SceneError("liner.impact_height", ln.impact_height,
+                             f"too low for a ball of radius {self.ball.radius:g} m: the ball would touch the "
+                             f"plate ({-clear:.4g} m into it); choose a higher point")
 
     def with_value(self, path: str, value: Any) -> "Scene":
         """A copy with the dotted field ``path`` (e.g. ``ball.radius``) set to ``value`` (validated)."""
@@ -366,7 +515,10 @@ def scene_to_dict(scene: Scene) -> dict:
         if isinstance(v, (list, tuple)):
             return [clean(x) for x in v]
         return v
-    return clean(dataclasses.asdict(scene))
+    d = clean(dataclasses.asdict(scene))
+    if scene.liner is not None and scene.block == Block():
+        d.pop("block", None)    # unused by a liner scene
+    return d
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -390,6 +542,7 @@ def dump_scene(scene: Scene) -> str:
 
     head = ("# millimpact scene. SI units: m, s, kg/m^3, Pa, m/s.\n"
             "# Block: x in [-length/2, length/2], y in [-thickness, 0], z in [0, height]; struck face y = 0.\n"
+            "# Liner scenes: the [liner] table replaces the block (struck lifter face, contact normal = its normal).\n"
             "# Omitted optional values (impact.point, impact.gap, time.dt_*, model.*) are chosen by the plan.\n")
     return head + tomli_w.dumps(scene_to_dict(scene))
 
@@ -445,10 +598,49 @@ def _study_base() -> Scene:
     )
 
 
+#: the liner-segment scene's impact: speed (m/s) and angle (deg) between the velocity and the lifter
+#: face's inward normal, in the plane of incidence x = 0 (the ball comes down along the face)
+LINER_IMPACT_SPEED = 8.0
+LINER_IMPACT_ANGLE = 30.0
+
+
+def _liner_segment() -> Scene:
+    """A large ball striking a SAG liner's lifter face obliquely (sizes and sources in the description)."""
+    liner = Liner(length=0.40, width=0.50, thickness=0.075, n_lifters=1, lifter_height=0.20,
+                  lifter_top_width=0.10, lifter_face_angle=20.0, lifter_spacing=0.30, mill_radius=5.5,
+                  impact_lifter=0, impact_face="+z", impact_height=0.5, impact_x=0.0)
+    # velocity: LINER_IMPACT_ANGLE from the face's inward normal -n, tilted towards the plate (down
+    # the face): v = V (-cos(a) n - sin(a) s), s the face's up-slope direction in the y-z plane
+    _, n = liner.face_point()
+    up = (0.0, n[2], -n[1]) if n[2] > 0 else (0.0, -n[2], n[1])    # in-face, pointing away from the plate
+    a = math.radians(LINER_IMPACT_ANGLE)
+    v = tuple(round(LINER_IMPACT_SPEED * (-math.cos(a) * nc - math.sin(a) * uc), 12) + 0.0 for nc, uc in zip(n, up))
+    return Scene(
+        name="liner-segment",
+        description=(
+            "A 125 mm steel ball at 8 m/s striking a lifter face of a SAG-mill liner segment 30 deg off the "
+            "face normal (towards the plate), Coulomb friction mu = 0.2 (steel on wet steel). Sizes of a "
+            "36-40 ft (11-12 m) SAG mill, typical values of the liner-design literature (e.g. D. Royston, "
+            "SAG mill liner design and development, Min. Metall. Process. 24 (2007) 121-132): shell plate "
+            "75 mm thick (typical 75-100 mm), lifter 200 mm high (150-250 mm), 100 mm top, 20 deg face angle "
+            "(15-30 deg), Cr-Mo steel (elastic here: E = 182 GPa, nu = 0.3 as the rig), plate curved to the "
+            "mill's 5.5 m radius, 400 mm along the axis x 500 mm of arc; balls 100-150 mm thrown at up to "
+            "~10 m/s. Elastic on purpose: Hertz p0 ~6.9 GPa, far above the yield of real liner steel. "
+            "Half model: the plane of incidence x = 0 is a symmetry plane."),
+        ball=Ball(radius=0.0625),
+        liner=liner,
+        impact=Impact(velocity=v),
+        contact=ContactOptions(friction=0.2),
+        time=TimeSpan(end=0.6e-3),
+        outputs=Outputs(field_times=(0.0, 2.0e-4, 4.0e-4)),
+    )
+
+
 BUILTIN_SCENES = {
     "paper-rig": _paper_rig,
     "hertz-halfspace": _hertz_halfspace,
     "study-base": _study_base,
+    "liner-segment": _liner_segment,
 }
 DEFAULT_SCENE = "paper-rig"
 

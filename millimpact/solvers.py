@@ -262,6 +262,27 @@ def scatter_into(vec: PETSc.Vec, values: np.ndarray) -> None:
     vec.array[:] = values[r0:r1]
 
 
+def stack_rows(mats: list[PETSc.Mat]) -> PETSc.Mat:
+    """The matrices (same column layout) stacked by rows, ``[A_0; A_1; ...]``, in global row order
+    (row r of A_k becomes row sum(rows of A_0..A_k-1) + r, whichever rank owns it). Collective."""
+    comm = mats[0].getComm()
+    n_loc, n = mats[0].getSizes()[1]
+    rows = [m.getSize()[0] for m in mats]
+    C = PETSc.Mat().createAIJ(((PETSc.DECIDE, sum(rows)), (n_loc, n)), comm=comm)
+    C.setPreallocationNNZ((60, 60))
+    C.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    off = 0
+    for m, nr in zip(mats, rows):
+        r0, r1 = m.getOwnershipRange()
+        for r in range(r0, r1):
+            cols, vals = m.getRow(r)
+            if len(cols):
+                C.setValues([off + r], cols, vals, addv=PETSc.InsertMode.INSERT_VALUES)
+        off += nr
+    C.assemble()
+    return C
+
+
 @dataclass
 class ContactOperator:
     """``W = A^-1 B^T`` (n x n_c, distributed MPIDENSE with A's row layout and B's row layout as
