@@ -83,7 +83,7 @@ REDUCED_ZONE_FACTOR = 2.5
 #: contact candidates of the reduced methods within this many a_max of the contact axis: the
 #: Hertz patch is a_max (the finite block's patch is a little smaller); at least 2 h_contact
 #: inside the zone (mass redistribution must not reach the interface coordinates)
-REDUCED_CANDIDATE_FACTOR = 1.5
+REDUCED_CANDIDATE_FACTOR = 1.75
 
 #: the first integrator segment of the modal free phase lasts gap / v + this many t_c (Hertz):
 #: the contact lasts ~t_c (0.99 t_c at the default scene, a few % more on thin blocks), so the
