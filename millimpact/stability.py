@@ -421,7 +421,7 @@ def plot_maps(cases: list[Case], folder: Path, crit: dict[str, Any]) -> list[str
     names = []
     for integ in sorted({c.integrator for c in cases}, key=INTEGRATORS.index):
         probs = [p for p in ("bar", "sphere") if any(c.problem == p and c.integrator == integ for c in cases)]
-        fig, axes = plt.subplots(1, len(probs), figsize=(6.2 * len(probs), 4.4), squeeze=False)
+        fig, axes = plt.subplots(1, len(probs), figsize=(max(7.5, 6.2 * len(probs)), 4.8), squeeze=False)
         for ax, prob in zip(axes[0], probs):
             cs = [c for c in cases if c.problem == prob and c.integrator == integ]
             xs = sorted({c.dt_rel for c in cs})
@@ -448,10 +448,9 @@ def plot_maps(cases: list[Case], folder: Path, crit: dict[str, Any]) -> list[str
                 title += f"\ntheory dt_crit: h/c free (--), {th.get('contact', math.nan):.3f} h/c in contact (:)"
             ax.set_title(title, fontsize=9)
         handles = [Patch(color=v, label=k) for k, v in STATUS_COLOURS.items()]
-        fig.legend(handles=handles, loc="upper right", ncol=3, fontsize=8)
-        fig.suptitle(f"{integ}: stability map (cell labels: energy drift, % of the impact energy)", fontsize=10,
-                     x=0.4)
-        fig.tight_layout(rect=(0, 0, 1, 0.93))
+        fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8)
+        fig.suptitle(f"{integ}: stability map (cell labels: energy drift, % of the impact energy)", fontsize=10)
+        fig.tight_layout(rect=(0, 0.05, 1, 0.95))
         name = f"map_{integ}.png"
         fig.savefig(folder / name, dpi=110)
         plt.close(fig)
