@@ -19,10 +19,12 @@ scheme's own mass + strain + penalty); penetration max(-gap) relative to the app
 force drops to zero and comes back within the first pulse); force roughness
 ||F - median5(F)|| / ||F|| (a 5-sample median filter keeps a smooth pulse and the bar's step
 edges but removes chatter); the contact duration and peak force errors (bar: exact; sphere:
-Hertz); failure (exception, NaN, the explicit method's divergence flag, energy growth > 50 %).
+the same mesh's newmark-mr run at the smallest step, so that the coarse mesh's own error against
+Hertz does not hide the integrators'; the Hertz error is in the CSV's note); failure (exception, NaN, the explicit method's divergence flag, energy growth > 50 %).
 
 Status: ``failed`` as above; ``degraded`` if energy drift > 5 %, any pulse break, roughness > 5 %,
 penetration > 5 %, or the duration (bar) / peak force (sphere) off by > 10 % / 15 %; else ``pass``.
+Under the step limit the explicit method's runs are sub-stepped: the sweep turns the limit off.
 
 Theory of the explicit critical step (central differences, lumped mass): dt_crit = 2 / omega_max.
 Bar P1 with lumped mass: omega_max = 2 c / h without contact, so dt_crit = h / c (Courant 1); in
@@ -51,7 +53,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, MillimpactError
 
 log = logging.getLogger(__name__)
 
@@ -138,7 +140,7 @@ def classify(c: Case) -> None:
     if c.problem == "bar" and abs(c.duration_rel_error) > DEGRADED["bar_duration"]:
         why.append(f"duration {100 * c.duration_rel_error:+.2g} %")
     if c.problem == "sphere" and abs(c.peak_force_rel_error) > DEGRADED["sphere_force"]:
-        why.append(f"F_max {100 * c.peak_force_rel_error:+.2g} % vs Hertz")
+        why.append(f"F_max {100 * c.peak_force_rel_error:+.2g} % vs newmark-mr at the smallest step")
     c.status, c.reason = ("degraded", "; ".join(why)) if why else ("pass", "")
 
 
@@ -208,6 +210,10 @@ def sphere_scene(scene, v: float):
     a_max = scene_hertz(sc).a_max
     sc = sc.with_value("model.h_contact", a_max / 3.0)
     far = min(8e-3, sc.ball.radius / 2)
+    # the plan's zone (4 a_max) outgrows the ball at high speed (a_max ~ v^0.4): cap it below the
+    # plan's limit (0.45 x the smallest body size); the contact candidates (2.5 a_max) stay inside
+    smallest = min(sc.ball.radius, sc.block.length, sc.block.height, sc.block.thickness)
+    sc = sc.with_value("model.zone_radius", min(4.0 * a_max, 0.44 * smallest))
     return sc.with_value("model.h_far", far)
 
 
@@ -286,13 +292,36 @@ def run_sphere_case(setup: _SphereSetup, integrator: str, dt: float, dt_rel: flo
         m = contact_metrics(TimeSeries({"time_s": r["t"], "contact_force_N": f}))
         c.duration_rel_error = m["contact_duration_s"] / h.contact_time - 1.0
         c.peak_force_rel_error = m["peak_contact_force_N"] / h.force_max - 1.0
+        c.extra.update(F_max_N=m["peak_contact_force_N"], t_c_s=m["contact_duration_s"],
+                       F_max_vs_hertz=c.peak_force_rel_error)
     c.steps = int(st.n_steps)
     c.dt_critical_s = float(st.dt_critical)
     c.extra = {"max_active": int(st.max_active), "dofs": int(setup.model.n_dofs_global)}
     if st.diverged:
         c.status, c.reason = "failed", f"diverged at t = {st.diverged_at:.3g} s"
+        c.extra["hard_fail"] = True
     classify(c)
     return c
+
+
+def rescore_sphere(cases: list[Case]) -> None:
+    """Score the sphere runs of one velocity against the same mesh's newmark-mr run at the
+    smallest step (the coarse mesh's own error against Hertz, e.g. +46 % on F_max at 0.1 m/s
+    where h_far / h_contact is 80, would otherwise mask the integrators' differences): F_max and
+    t_c relative to that run; then classify again."""
+    refs = sorted((c for c in cases if c.integrator == "newmark-mr" and "F_max_N" in c.extra),
+                  key=lambda c: c.dt_rel)
+    if not refs:
+        return
+    ref = refs[0]
+    for c in cases:
+        if "F_max_N" not in c.extra:
+            continue
+        c.peak_force_rel_error = c.extra["F_max_N"] / ref.extra["F_max_N"] - 1.0
+        c.duration_rel_error = c.extra["t_c_s"] / ref.extra["t_c_s"] - 1.0
+        if not c.extra.get("hard_fail"):
+            c.status, c.reason = "pass", ""
+            classify(c)
 
 
 # --- the sweep -------------------------------------------------------------------------------------
@@ -318,9 +347,19 @@ def sweep(integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = Fal
 
         scene = scene if scene is not None else resolve_scene(None)
         for v in cfg.get("sphere_velocities", SPHERE_VELOCITIES):
-            setup = _SphereSetup(scene, v)
+            try:
+                setup = _SphereSetup(scene, v)
+            except MillimpactError as exc:
+                # a velocity the scene cannot model (e.g. the contact patch outgrows the ball):
+                # recorded as failed set-ups, the sweep goes on
+                for integ in integrators:
+                    cases.append(Case("sphere", integ, v, math.nan, math.nan, "-", "failed",
+                                      f"set-up: {str(exc)[:120]}"))
+                say(f"  sphere v {v:g} m/s: set-up failed: {exc}")
+                continue
             dt_c = setup.plan.dt_contact
             crit = None
+            n_v = len(cases)
             for integ in integrators:
                 n0 = len(cases)
                 if integ == "central-penalty":
@@ -334,8 +373,10 @@ def sweep(integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = Fal
                         cases.append(run_sphere_case(setup, integ, fac * dt_c, fac, "dt / (t_c/100)"))
                 for c in cases[n0:]:
                     c.extra["dofs"] = int(setup.model.n_dofs_global)
-                say(f"  sphere {integ:16s} v {v:6g} m/s: " + " ".join(
-                    f"{x.dt_rel:g}:{x.status[0].upper()}" for x in cases[n0:]))
+            rescore_sphere(cases[n_v:])
+            for integ in integrators:
+                cs = [x for x in cases[n_v:] if x.integrator == integ]
+                say(f"  sphere {integ:16s} v {v:6g} m/s: " + " ".join(f"{x.dt_rel:g}:{x.status[0].upper()}" for x in cs))
     return cases
 
 
@@ -387,7 +428,7 @@ CSV_FIELDS = [("problem", ""), ("integrator", ""), ("velocity_m_s", "m/s"), ("dt
               ("dt_axis", ""), ("status", ""), ("reason", ""), ("energy_drift_rel", ""), ("energy_growth_rel", ""),
               ("penetration_rel", ""), ("status_switches", ""), ("pulse_breaks", ""), ("force_roughness_rel", ""),
               ("duration_rel_error", ""), ("peak_force_rel_error", ""), ("dt_critical_s", "s"), ("steps", ""),
-              ("wall_s", "s")]
+              ("wall_s", "s"), ("F_max_vs_hertz", "")]
 
 
 def write_csv(cases: list[Case], path: Path) -> None:
@@ -396,8 +437,8 @@ def write_csv(cases: list[Case], path: Path) -> None:
         w = csv.writer(fh)
         w.writerow([k for k, _ in CSV_FIELDS])
         for c in cases:
-            w.writerow([getattr(c, k) if not isinstance(getattr(c, k), float) else f"{getattr(c, k):.6g}"
-                        for k, _ in CSV_FIELDS])
+            vals = [getattr(c, k, c.extra.get(k, "")) for k, _ in CSV_FIELDS]
+            w.writerow([f"{v:.6g}" if isinstance(v, float) else v for v in vals])
 
 
 def read_csv(path: Path) -> list[dict[str, str]]:
