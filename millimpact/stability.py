@@ -296,7 +296,7 @@ def run_sphere_case(setup: _SphereSetup, integrator: str, dt: float, dt_rel: flo
                        F_max_vs_hertz=c.peak_force_rel_error)
     c.steps = int(st.n_steps)
     c.dt_critical_s = float(st.dt_critical)
-    c.extra = {"max_active": int(st.max_active), "dofs": int(setup.model.n_dofs_global)}
+    c.extra.update(max_active=int(st.max_active), dofs=int(setup.model.n_dofs_global))
     if st.diverged:
         c.status, c.reason = "failed", f"diverged at t = {st.diverged_at:.3g} s"
         c.extra["hard_fail"] = True
