@@ -1,6 +1,6 @@
 """The time integrators on the 1D bar hitting a rigid wall (exact solution: DESIGN.md section 3).
 
-Default case (tests/bar.py): steel-like bar, L = 0.1 m, 100 P1 elements, v0 = 1 m/s, contact step
+Default case (millimpact/bar.py): steel-like bar, L = 0.1 m, 100 P1 elements, v0 = 1 m/s, contact step
 dt = h / c (Courant 1), so the exact contact lasts 2L/c = 200 dt. Tolerances are stated in units
 of dt / (2L/c) = 0.5 % where they come from the time resolution of contact start and end.
 """
