@@ -322,3 +322,4 @@ register_method("full", "unreduced finite elements of ball and block (P1/P2), La
 
 
 from . import reduced_methods  # noqa: E402,F401  (registers traditional, improved, modal-p2)
+from . import hertz_modal  # noqa: E402,F401  (registers hertz-modal)

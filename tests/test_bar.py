@@ -1,6 +1,6 @@
 """The time integrators on the 1D bar hitting a rigid wall (exact solution: DESIGN.md section 3).
 
-Default case (tests/bar.py): steel-like bar, L = 0.1 m, 100 P1 elements, v0 = 1 m/s, contact step
+Default case (millimpact/bar.py): steel-like bar, L = 0.1 m, 100 P1 elements, v0 = 1 m/s, contact step
 dt = h / c (Courant 1), so the exact contact lasts 2L/c = 200 dt. Tolerances are stated in units
 of dt / (2L/c) = 0.5 % where they come from the time resolution of contact start and end.
 """
@@ -11,7 +11,6 @@ import os
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,12 +20,9 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from bar import BarCase, run_bar, summarize  # noqa: E402
-
-from millimpact.integrators import TimeSchedule, kinetic_energy, redistribute_mass  # noqa: E402
-from millimpact.solvers import solve_lcp  # noqa: E402
+from millimpact.bar import BarCase, run_bar, summarize
+from millimpact.integrators import TimeSchedule, kinetic_energy, redistribute_mass
+from millimpact.solvers import solve_lcp
 
 CASE = BarCase()
 #: one contact step relative to the exact contact duration (dt = h/c, duration = 2L/c)
@@ -133,8 +129,7 @@ def test_mpi_matches_serial():
         pytest.skip("mpirun not installed")
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1")
-    script = str(Path(__file__).resolve().parent / "bar.py")
-    out = subprocess.run(["mpirun", "-n", "2", sys.executable, script, "--method", "newmark-mr"],
+    out = subprocess.run(["mpirun", "-n", "2", sys.executable, "-m", "millimpact.bar", "--method", "newmark-mr"],
                          capture_output=True, text=True, env=env, timeout=300)
     assert out.returncode == 0, out.stderr[-3000:]
     par = json.loads(out.stdout.strip().splitlines()[-1])

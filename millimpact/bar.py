@@ -9,17 +9,16 @@ with ``c = sqrt(E / rho)``; during contact the wall force (per unit area, here e
 stress) is the constant ``rho c v0``; afterwards the bar is unstressed and moves rigidly with
 ``-v0``; the energy ``rho L v0^2 / 2`` is conserved.
 
-Importable by the tests and by stability sweeps; ``python tests/bar.py --method newmark-mr``
-(also under ``mpirun``) runs one case and prints its summary and force history as JSON on rank 0.
+Importable by the tests and by the stability sweeps (:mod:`millimpact.stability`);
+``python -m millimpact.bar --method newmark-mr`` (also under ``mpirun``) runs one case and prints
+its summary and force history as JSON on rank 0.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import math
-import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import ufl
@@ -28,10 +27,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from millimpact.integrators import (  # noqa: E402
-    LinearDynamics, StepState, TimeSchedule, integrate, kinetic_energy, strain_energy)
+from .integrators import LinearDynamics, StepState, TimeSchedule, integrate, kinetic_energy, strain_energy
 
 
 @dataclass(frozen=True)
