@@ -35,7 +35,9 @@ Steps where the predictor opens every gap skip the contact work.
 Non-PETSc settings (``options`` keys or command-line ``-impact_<key>``): ``contact_solve``
 (fieldsplit|schur|lu), ``penalty`` (k_p in N/m; default ``penalty_factor`` (1) times the largest
 ``sum_j B_ij^2 K_jj``, i.e. about the element stiffness behind a contact node: on the bar a
-10x stiffer penalty made the tip chatter at a stable step), ``critical_step_safety`` (0.9),
+10x stiffer penalty made the tip chatter at a stable step), ``critical_step_safety`` (0.5: the
+on/off penalty contact of the sphere impact diverges at 0.8-0.9 of the linear estimate at 3 m/s and
+0.7-0.8 at 20 m/s, ``millimpact stability``; the bar is stable to 0.91 h/c as theory says),
 ``limit_step`` (true), ``divergence_factor`` (10: energy growth that counts as blow-up),
 ``gap_rtol`` (1e-9), ``lambda_check_rtol`` (1e-6: saddle-point multipliers vs the LCP's).
 The step-size rule's safety margin is :attr:`TimeSchedule.margin`.
@@ -57,6 +59,9 @@ from . import solvers
 from .errors import InputError, MillimpactError, SolverError
 
 log = logging.getLogger(__name__)
+
+#: default fraction of the estimated critical step for central-penalty (see the module docstring)
+CRITICAL_STEP_SAFETY = 0.5
 
 #: Integrator names accepted by :func:`integrate`.
 METHODS = ("newmark-mr", "newmark", "central-penalty")
@@ -675,7 +680,7 @@ class _CentralPenalty:
         t0 = time.perf_counter()
         lam_max = solvers.estimate_max_eigenvalue(system.K, self.m, self.contact.B, k_p, options)
         self.dt_crit = 2.0 / math.sqrt(lam_max)
-        self.safety = float(solvers.get_option("critical_step_safety", options, 0.9))
+        self.safety = float(solvers.get_option("critical_step_safety", options, CRITICAL_STEP_SAFETY))
         self.limit = bool(solvers.get_option("limit_step", options, True))
         self.div_factor = float(solvers.get_option("divergence_factor", options, 10.0))
         stats.dt_critical = self.dt_crit
