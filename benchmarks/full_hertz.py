@@ -11,14 +11,12 @@ table: F_max, t_c, max approach, restitution and energy drift against Hertz, wit
 from __future__ import annotations
 
 import argparse
-import csv
 import json
-import platform
 import time
-from pathlib import Path
 
 from mpi4py import MPI
 
+from _report import write_report
 from millimpact.runner import run_scene
 from millimpact.scene import builtin_scene
 
@@ -55,22 +53,11 @@ def main() -> None:
         if comm.rank == 0:
             print(json.dumps(rows[-1]), flush=True)
     if comm.rank == 0:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        with open(out / "full_hertz.csv", "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
-        lines = [f"machine: {platform.node()} {platform.processor() or platform.machine()}, {comm.size} rank(s)", "",
-                 "| h_c | P | dofs | F_max err % | t_c err % | delta err % | e | energy drift % | wall s |",
-                 "|---|---|---|---|---|---|---|---|---|"]
-        for r in rows:
-            lines.append(f"| {r['h_contact']} | {r['degree']} | {r['dofs']} | {r['F_max_err_pct']:+.2f} | "
-                         f"{r['t_c_err_pct']:+.2f} | {r['delta_max_err_pct']:+.2f} | {r['restitution']:.4f} | "
-                         f"{r['energy_drift_pct']:.3f} | {r['wall_s']:.1f} |")
-        (out / "full_hertz.md").write_text("\n".join(lines) + "\n")
-        print("\n".join(lines))
-
+        write_report(args.out, "full_hertz", rows, comm.size,
+                     ["h_c", "P", "dofs", "F_max err %", "t_c err %", "delta err %", "e", "energy drift %", "wall s"],
+                     lambda r: [r["h_contact"], str(r["degree"]), str(r["dofs"]), f"{r['F_max_err_pct']:+.2f}",
+                                f"{r['t_c_err_pct']:+.2f}", f"{r['delta_max_err_pct']:+.2f}", f"{r['restitution']:.4f}",
+                                f"{r['energy_drift_pct']:.3f}", f"{r['wall_s']:.1f}"])
 
 if __name__ == "__main__":
     main()

@@ -11,14 +11,12 @@ the measured force, for several contact mesh sizes and degrees side by side in o
 from __future__ import annotations
 
 import argparse
-import csv
 import json
-import platform
 import time
-from pathlib import Path
 
 from mpi4py import MPI
 
+from _report import write_report
 from millimpact.mesh import create_mesh
 from millimpact.plan import make_plan
 from millimpact.scene import builtin_scene
@@ -51,22 +49,12 @@ def main() -> None:
         if comm.rank == 0:
             print(json.dumps(rows[-1]), flush=True)
     if comm.rank == 0:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        with open(out / "static_hertz.csv", "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
-        lines = [f"machine: {platform.node()} {platform.machine()}, {comm.size} rank(s); cap {args.cap:g} m", "",
-                 "| h_c | P | dofs | F kN | a err % | approach err % | block indentation err % | wall s |",
-                 "|---|---|---|---|---|---|---|---|"]
-        for r in rows:
-            lines.append(f"| {r['h_contact']} | {r['degree']} | {r['dofs']} | {r['force_N']/1e3:.2f} | "
-                         f"{r['contact_radius_err_pct']:+.2f} | {r['approach_err_pct']:+.2f} | "
-                         f"{r['block_indentation_err_pct']:+.2f} | {r['wall_s']:.1f} |")
-        (out / "static_hertz.md").write_text("\n".join(lines) + "\n")
-        print("\n".join(lines))
-
+        write_report(args.out, "static_hertz", rows, comm.size,
+                     ["h_c", "P", "dofs", "F kN", "a err %", "approach err %", "block indentation err %", "wall s"],
+                     lambda r: [r["h_contact"], str(r["degree"]), str(r["dofs"]), f"{r['force_N'] / 1e3:.2f}",
+                                f"{r['contact_radius_err_pct']:+.2f}", f"{r['approach_err_pct']:+.2f}",
+                                f"{r['block_indentation_err_pct']:+.2f}", f"{r['wall_s']:.1f}"],
+                     note=f"; cap {args.cap:g} m")
 
 if __name__ == "__main__":
     main()
