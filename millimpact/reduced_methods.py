@@ -202,10 +202,11 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
     a = plan.hertz.a_max
     notes = []
     if scene.model.zone_radius is None:
-        zone = REDUCED_ZONE_FACTOR * a
+        # the candidates plus 3 contact elements (coarse meshes: h_contact > a_max / 4)
+        zone = max(REDUCED_ZONE_FACTOR * a, REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact)
         scene = scene.with_value("model.zone_radius", zone)
         plan = make_plan(scene)
-        notes.append(f"contact zone radius {zone * 1e3:.4g} mm = {REDUCED_ZONE_FACTOR:g} a_max (reduced methods' "
+        notes.append(f"contact zone radius {zone * 1e3:.4g} mm = {zone / a:.3g} a_max (reduced methods' "
                      f"default; full on the same mesh: --set model.zone_radius={zone:.6g})")
     radius = min(REDUCED_CANDIDATE_FACTOR * a, plan.zone_radius - 2.0 * plan.h_contact)
     if radius < 1.2 * a:
