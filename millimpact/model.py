@@ -189,14 +189,27 @@ def locate_points(V: fem.FunctionSpace, points: np.ndarray, cells_allowed: np.nd
         tree = dgeom.BoundingBoxTree(mesh, mesh.topology.dim, allowed)
         cand = dgeom.compute_collisions(tree, points)
         allowed_set = set(allowed.tolist())
-        for i in range(len(points)):
+
+        def best_of(i: int, cells) -> tuple[int, float]:
             best, best_lam = -1, -np.inf
-            for c in cand.links(i):
+            for c in cells:
                 if c not in allowed_set:
                     continue
                 lam = _barycentric(mesh, int(c), points[i])
                 if lam.min() > best_lam:
                     best, best_lam = int(c), lam.min()
+            return best, best_lam
+
+        # a point on a plane of the mesh (a symmetry plane, the struck face) can lie a rounding
+        # error outside its cell's bounding box: then the boxes of points nudged by 1e-10 of the
+        # mesh size in each direction supply the candidates
+        nudge = 1e-10 * float(np.ptp(mesh.geometry.x, axis=0).max() or 1.0)
+        for i in range(len(points)):
+            best, best_lam = best_of(i, cand.links(i))
+            if best_lam <= -1e-8:
+                shifted = points[i] + nudge * np.vstack([np.eye(3), -np.eye(3)])
+                more = dgeom.compute_collisions(tree, shifted)
+                best, best_lam = best_of(i, np.unique(np.concatenate([more.links(k) for k in range(6)])))
             if best >= 0 and best_lam > -1e-8:
                 cell_of[i] = best
     comm = mesh.comm
