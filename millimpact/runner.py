@@ -178,6 +178,11 @@ def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: d
         plots.plot_force(out.series, folder / "contact_force.png", hist, title=f"{title}: contact force")
         plots.plot_contact_point({out.method: out.series}, folder / "contact_point.png",
                                  title=f"{title}: liner contact point (normal components)")
+        t_end = float(out.series.time[-1]) if len(out.series.time) else 0.0
+        if t_end > 10.0 * plan.hertz.contact_time:   # a run with ringing: the first 2 ms as well
+            plots.plot_contact_point({out.method: out.series}, folder / "contact_point_run.png",
+                                     title=f"{title}: liner contact point, impact and ringing",
+                                     window=(0.0, min(t_end, 2e-3)))
         plots.plot_gauges(out.series, folder / "gauges.png", title=f"{title}: strain gauges")
         plots.plot_energy(out.series, folder / "energy.png", title=f"{title}: energy")
         if "tangential_force_N" in out.series:
