@@ -18,7 +18,7 @@ import math
 import re
 import tomllib
 import typing
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Optional
 
@@ -142,10 +142,8 @@ class Liner:
         from .geometry import LinerGeometry
 
         try:
-            return LinerGeometry(length=self.length, width=self.width, thickness=self.thickness,
-                                 n_lifters=self.n_lifters, lifter_height=self.lifter_height,
-                                 lifter_top_width=self.lifter_top_width, lifter_face_angle=self.lifter_face_angle,
-                                 lifter_spacing=self.lifter_spacing, mill_radius=self.mill_radius)
+            # the geometry's fields are this table's sizes of the same names
+            return LinerGeometry(**{f.name: getattr(self, f.name) for f in fields(LinerGeometry)})
         except MeshError as exc:   # "liner.<name> = <value>: <range>" -> the same, as a SceneError
             m = re.match(r"(liner\.\w+) = (.*?)(?: m| deg)?: (.*)$", str(exc))
             if m:
