@@ -235,9 +235,10 @@ if MPI.COMM_WORLD.rank == 0:
     # same model, other orderings of the parallel direct solves. KNOWN DEFECT (issue 5): the
     # NMM-reduced system amplifies round-off: measured 2.8e-6 to 1.7e-5 on F_max between serial and
     # 2 ranks, 8.6e-5 with eps_tol 1e-13 (so not the eigensolver), 6e-5 between the reference BLAS
-    # and OpenBLAS in serial; traditional on the same mesh agrees to ~1e-12. Suspected cause:
-    # near-linear dependence left in the cover functions by the remedy. The bound is the
-    # measured spread x ~1.5, far below the method's discretization error (~0.3 %).
+    # and OpenBLAS in serial; traditional on the same mesh agrees to ~1e-12. Not conditioning:
+    # the Jacobi-scaled M_r and K_eff have condition numbers 4e4 and 2e4 for both zones.
+    # Suspected: a contact node at the active-set threshold flipping with round-off. The bound
+    # is the measured spread x ~1.5, far below the method's discretization error (~0.3 %).
     assert got["F"] == pytest.approx(ser["F"], rel=1.5e-4)
     assert got["tc"] == pytest.approx(ser["tc"], rel=1.5e-4)
 
