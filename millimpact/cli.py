@@ -319,6 +319,10 @@ def main(argv: Optional[list[str]] = None) -> int:
     except MillimpactError as exc:
         if _rank() == 0:
             print(f"millimpact: failed: {exc}", file=sys.stderr)
+        else:
+            # a failure on another rank alone would otherwise end the run without a word (mpirun
+            # only reports the exit code); a collective failure prints this once per rank
+            print(f"millimpact: failed on rank {_rank()}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     except KeyboardInterrupt:
         return 130
