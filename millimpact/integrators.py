@@ -269,6 +269,7 @@ def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: Option
     all_c = np.unique(np.concatenate(comm.allgather(cglob))) if comm.size > 1 else np.unique(cglob)
     add = M.createVecLeft()
     add.set(0.0)
+    pending = []     # (dof, share, its contact neighbours): every neighbour is a contact dof too
     for c in cglob:
         cols, vals = M.getRow(int(c))
         same = (cols % bs) == (c % bs)
@@ -277,13 +278,22 @@ def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: Option
         share = float(vals.sum() + vals[~in_c].sum())
         nb, w = cols[~in_c], np.abs(vals[~in_c])
         if w.sum() <= 0.0:
-            # every neighbour is a contact dof too (a node at the edge of a small contact zone):
-            # the next ring of non-contact dofs, reached through the contact neighbours, takes it
-            nb, w = _second_ring(M, cols[in_c & (cols != c)], all_c, bs, int(c % bs))
-        if w.sum() <= 0.0:
-            raise MillimpactError(f"mass redistribution: contact dof {c} has no non-contact neighbour "
-                                  "with mass to take its mass")
+            pending.append((int(c), share))
+            continue
         add.setValues(nb.astype(PETSc.IntType), share * w / w.sum(), addv=PETSc.InsertMode.ADD_VALUES)
+    if comm.allreduce(len(pending)):
+        # a node at the edge of a small contact zone: the next ring of non-contact dofs takes its
+        # mass, weighted by the two-step couplings (|M| |M|)_ck (rows of any rank: collective)
+        M2 = _abs_square(M)
+        for c, share in pending:
+            cols, vals = M2.getRow(c)
+            keep = ((cols % bs) == (c % bs)) & ~np.isin(cols, all_c) & (vals > 0.0)
+            nb, w = cols[keep], vals[keep]
+            if w.sum() <= 0.0:
+                raise MillimpactError(f"mass redistribution: contact dof {c} has no non-contact dof with mass "
+                                      "within two rings to take its mass")
+            add.setValues(nb.astype(PETSc.IntType), share * w / w.sum(), addv=PETSc.InsertMode.ADD_VALUES)
+        M2.destroy()
     add.assemble()
     Mr = M.copy()
     Mr.zeroRowsColumns(cglob.astype(PETSc.IntType), diag=0.0)
@@ -298,21 +308,14 @@ def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: Option
     return Mr
 
 
-def _second_ring(M: PETSc.Mat, via: np.ndarray, all_c: np.ndarray, bs: int, comp: int
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Non-contact dofs (same component) coupled to the dofs ``via`` (rows owned here), with the
-    sums of |M| entries as weights."""
-    r0, r1 = M.getOwnershipRange()
-    acc: dict[int, float] = {}
-    for j in via:
-        if not r0 <= j < r1:
-            continue
-        cols, vals = M.getRow(int(j))
-        keep = ((cols % bs) == comp) & ~np.isin(cols, all_c) & (vals != 0.0)
-        for k, v in zip(cols[keep], np.abs(vals[keep])):
-            acc[int(k)] = acc.get(int(k), 0.0) + float(v)
-    nb = np.array(sorted(acc), dtype=np.int64)
-    return nb, np.array([acc[k] for k in nb], dtype=float)
+def _abs_square(M: PETSc.Mat) -> PETSc.Mat:
+    """|M| |M| (entrywise absolute values, then the matrix product), distributed like M."""
+    ai, aj, av = M.getValuesCSR()
+    A = PETSc.Mat().createAIJ(M.getSizes(), csr=(ai, aj, np.abs(av)), comm=M.getComm())
+    A.assemble()
+    A2 = A.matMult(A)
+    A.destroy()
+    return A2
 
 
 def lumped_mass(M: PETSc.Mat, block_size: Optional[int] = None) -> PETSc.Vec:
