@@ -73,18 +73,12 @@ class Recorder:
         self.p = np.array(scene.impact_point)
         self.n = np.array(scene.contact_normal)     # e_y for the block
         # ball centre-of-mass velocity along n: c . v with c = M e_n(ball) / m_ball
-        ey = model.M.createVecRight()
-        ey.set(0.0)
-        ball_y = model.ball_dofs[model.ball_dofs % 3 == 1]
-        ey.array[ball_y] = 1.0
+        # (M has zero rows and columns on clamped and symmetry dofs, so M e ignores them)
         self.c_y = model.M.createVecLeft()
-        model.M.mult(ey, self.c_y)
+        model.M.mult(model.ball_velocity((0.0, 1.0, 0.0)), self.c_y)
         self.ball_mass_model = self.c_y.sum()
         if scene.liner is not None:
-            ey.set(0.0)
-            for comp in range(3):
-                ey.array[model.ball_dofs[model.ball_dofs % 3 == comp]] = self.n[comp]
-            model.M.mult(ey, self.c_y)
+            model.M.mult(model.ball_velocity(self.n), self.c_y)
         self.c_y.scale(1.0 / self.ball_mass_model)
         # friction: the ball's tangential velocity along the incoming tangential direction t_v
         self.friction = contact.T is not None
@@ -92,12 +86,8 @@ class Recorder:
             v = np.array(scene.impact.velocity)
             vt = v - (v @ self.n) * self.n
             self.t_v = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > 1e-12 * np.linalg.norm(v) else contact.tangents[0]
-            et = model.M.createVecRight()
-            et.set(0.0)
-            for comp in range(3):
-                et.array[model.ball_dofs[model.ball_dofs % 3 == comp]] = self.t_v[comp]
             self.c_t = model.M.createVecLeft()
-            model.M.mult(et, self.c_t)
+            model.M.mult(model.ball_velocity(self.t_v), self.c_t)
             self.c_t.scale(1.0 / self.ball_mass_model)
             self.t_proj = contact.tangents @ self.t_v    # components of t_v in the rows' basis (t1, t2)
             self._fw_base, self._fw_last = 0.0, 0.0
@@ -284,13 +274,7 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
                                         T=contact.T, friction=scene.contact.friction)
     u0 = model.M.createVecRight()
     u0.set(0.0)
-    v0 = model.M.createVecRight()
-    v0.set(0.0)
-    vel = scene.impact.velocity
-    for comp in range(3):
-        dofs = model.ball_dofs[model.ball_dofs % 3 == comp]
-        v0.array[dofs] = vel[comp]
-    v0.array[model.fixed_dofs] = 0.0  # symmetry planes: no normal velocity there
+    v0 = model.ball_velocity(scene.impact.velocity)
     rec = Recorder(model, contact, scene.outputs.field_times if scene.outputs.xdmf else ())
     schedule = integrators.TimeSchedule(t_end, plan.dt_contact, plan.dt_free)
     stats = integrators.integrate(system, u0, v0, schedule, method=integrator, observer=rec,

@@ -68,6 +68,16 @@ class FEModel:
         f.name = name
         return f
 
+    def ball_velocity(self, velocity) -> "PETSc.Vec":
+        """The velocity field (m/s): the ball moving rigidly with ``velocity``, the block at rest,
+        zero on clamped and symmetry dofs (no normal velocity on a symmetry plane)."""
+        v = self.M.createVecRight()
+        v.set(0.0)
+        for comp in range(3):
+            v.array[self.ball_dofs[self.ball_dofs % 3 == comp]] = velocity[comp]
+        v.array[self.fixed_dofs] = 0.0
+        return v
+
 
 def _cells_of(md: MeshData, tags: Sequence[int]) -> np.ndarray:
     return np.sort(np.concatenate([md.cell_tags.find(t) for t in tags])).astype(np.int32)

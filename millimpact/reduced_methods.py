@@ -252,14 +252,7 @@ def reduced_system(red: ReducedModel, contact: ContactSet) -> integrators.Linear
 def initial_state(red: ReducedModel, scene: Scene) -> tuple[PETSc.Vec, PETSc.Vec]:
     """(q0, qdot0): at rest except the ball's arrival velocity (projected exactly: a rigid motion
     lies in range(T))."""
-    model = red.model
-    v0 = model.M.createVecRight()
-    v0.set(0.0)
-    vel = scene.impact.velocity
-    for comp in range(3):
-        dofs = model.ball_dofs[model.ball_dofs % 3 == comp]
-        v0.array[dofs] = vel[comp]
-    v0.array[model.fixed_dofs] = 0.0
+    v0 = red.model.ball_velocity(scene.impact.velocity)
     qd0 = red.project_state(v0)
     v0.destroy()
     return red.create_vector(), qd0

@@ -68,7 +68,7 @@ from slepc4py import SLEPc
 from . import geometry as G
 from .errors import InputError, SolverError
 from .model import FEModel
-from .solvers import petsc_options
+from .solvers import petsc_options, solve_or_factorize
 
 log = logging.getLogger(__name__)
 
@@ -367,18 +367,11 @@ class ReducedModel:
                                      {"ksp_type": "cg", "pc_type": "jacobi", "ksp_rtol": "1e-13",
                                       "ksp_atol": "0", "ksp_max_it": "5000"})
         q = self.create_vector()
-        self._mass_ksp.solve(rhs, q)
-        if self._mass_ksp.getConvergedReason() < 0 and self._mass_ksp.getType() != "preonly":
-            # the NMM zone's mass can be too ill-conditioned for Jacobi-CG (seen at 1 m/s on
-            # study-base: finer contact mesh): factorize M_r instead (once per run)
-            log.warning("mass projection: CG did not converge (reason %d), factorizing M_r",
-                        self._mass_ksp.getConvergedReason())
-            self._mass_ksp.destroy()
-            self._mass_ksp = _factor(self.M, "impact_reduction_mass_direct_",
-                                     {"ksp_type": "preonly", "pc_type": "cholesky",
-                                      "pc_factor_mat_solver_type": "mumps"})
-            self._mass_ksp.solve(rhs, q)
-        _check_ksp(self._mass_ksp, "projection of the initial state on the reduced basis")
+        # the NMM zone's mass can be too ill-conditioned for Jacobi-CG (seen at 1 m/s on
+        # study-base: finer contact mesh): then M_r is factorized instead (once per run)
+        self._mass_ksp = solve_or_factorize(self._mass_ksp, self.M, rhs, q,
+                                            "projection of the initial state on the reduced basis",
+                                            "impact_reduction_mass_direct_")
         log.debug("mass projection: %d CG iterations", self._mass_ksp.getIterationNumber())
         return q
 
@@ -509,6 +502,21 @@ def _split(n: int, size: int, rank: int) -> int:
 
 
 # --- eigenmodes ----------------------------------------------------------------------------------
+def _sorted_eigenpairs(eps, A: PETSc.Mat) -> tuple[np.ndarray, list[PETSc.Vec]]:
+    """The converged eigenvalues of a solved EPS (real parts, ascending) and their eigenvectors
+    (Vecs laid out like A's columns); destroys the EPS."""
+    nconv = eps.getConverged()
+    lam = np.array([eps.getEigenvalue(i).real for i in range(nconv)])
+    order = np.argsort(lam)
+    vecs = []
+    for i in order:
+        v = A.createVecRight()
+        eps.getEigenvector(int(i), v)
+        vecs.append(v)
+    eps.destroy()
+    return lam[order], vecs
+
+
 def _factor(A: PETSc.Mat, prefix: str, options: dict[str, str]) -> PETSc.KSP:
     """A factored KSP of A with options prefix ``prefix``: ``options`` (keys relative to the
     prefix) are defaults, the command line wins."""
@@ -566,15 +574,7 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
         if nconv < min(nev, n):
             raise SolverError(f"eigensolver ({prefix}): {nconv} of {nev} modes converged, "
                               f"reason {eps.getConvergedReason()}")
-        lam = np.array([eps.getEigenvalue(i).real for i in range(nconv)])
-        order = np.argsort(lam)
-        vecs = []
-        for i in order:
-            v = K_ii.createVecRight()
-            eps.getEigenvector(int(i), v)
-            vecs.append(v)
-        lam = lam[order]
-        eps.destroy()
+        lam, vecs = _sorted_eigenpairs(eps, K_ii)
         done = (n_modes is not None or dense or nconv >= n or lam[min(nev, len(lam)) - 1] > lam_cut)
         if done:
             break
@@ -1001,15 +1001,7 @@ def compute_free_modes(red: ReducedModel, f_max: float, mass: Optional[PETSc.Mat
             nconv = eps.getConverged()
             if nconv < nev:
                 raise SolverError(f"free-vibration modes ({prefix}): {nconv} of {nev} converged")
-            lam = np.array([eps.getEigenvalue(i).real for i in range(nconv)])
-            order = np.argsort(lam)
-            vecs = []
-            for i in order:
-                v = Kb.createVecRight()
-                eps.getEigenvector(int(i), v)
-                vecs.append(v)
-            lam = lam[order]
-            eps.destroy()
+            lam, vecs = _sorted_eigenpairs(eps, Kb)
             if lam[nev - 1] > lam_max or nev >= n_b - 1:
                 break
             prev = vecs[:nev]

@@ -215,6 +215,28 @@ def _setup_checked(ksp: PETSc.KSP, what: str, step: int = 0, t: float = 0.0) -> 
                           f"{failed} at step {step}, t = {t:.9g} s")
 
 
+def solve_or_factorize(ksp: PETSc.KSP, A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, what: str,
+                       direct_prefix: str) -> PETSc.KSP:
+    """Solve ``A x = b`` with the (iterative) ``ksp``; if it does not converge, destroy it and
+    solve with a Cholesky factorization of A instead (prefix ``direct_prefix``; CHOLMOD serial,
+    MUMPS parallel). Returns the KSP that solved, for reuse. For mass matrices, whose Jacobi-CG
+    is cheap but can stall when reduced coordinates of very different scales meet."""
+    try:
+        solve_checked(ksp, b, x, what, 0, 0.0)
+        return ksp
+    except SolverError as exc:
+        log.warning("%s: %s; factorizing instead", what, exc)
+    ksp.destroy()
+    direct = PETSc.KSP().create(A.getComm())
+    direct.setOptionsPrefix(direct_prefix)
+    direct.setOperators(A)
+    with petsc_options(effective_solver_defaults(A.getComm().tompi4py()), None, direct_prefix):
+        direct.setFromOptions()
+        _setup_checked(direct, f"{what} (factorization)")
+    solve_checked(direct, b, x, f"{what} (direct)", 0, 0.0)
+    return direct
+
+
 def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
                options: Optional[Mapping[str, object]] = None) -> None:
     """Solve ``M x = b`` with ``x = 0`` on ``unit_rows`` (local owned indices: clamped and
@@ -232,15 +254,7 @@ def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
     with petsc_options(mass_solver_defaults(), user, PREFIX + pre):
         ksp.setFromOptions()
         ksp.setUp()
-    try:
-        solve_checked(ksp, rhs, x, "initial-acceleration mass solve", 0, 0.0)
-    except SolverError:
-        # a reduced mass matrix (modal and enriched coordinates of very different scales) can be
-        # too ill-conditioned for Jacobi-CG: fall back to a factorization (used once per run)
-        log.warning("initial-acceleration mass solve: CG did not converge, factorizing M instead")
-        ksp.destroy()
-        ksp = create_effective_solver(Ms)
-        solve_checked(ksp, rhs, x, "initial-acceleration mass solve (direct)", 0, 0.0)
+    ksp = solve_or_factorize(ksp, Ms, rhs, x, "initial-acceleration mass solve", PREFIX + "mass_direct_")
     ksp.destroy()
     Ms.destroy()
     rhs.destroy()

@@ -244,13 +244,7 @@ class _SphereSetup:
                                   contact_dofs=self.contact.contact_dofs)
         u0 = m.M.createVecRight()
         u0.set(0.0)
-        v0 = m.M.createVecRight()
-        v0.set(0.0)
-        vel = self.scene.impact.velocity
-        for comp in range(3):
-            dofs = m.ball_dofs[m.ball_dofs % 3 == comp]
-            v0.array[dofs] = vel[comp]
-        v0.array[m.fixed_dofs] = 0.0
+        v0 = m.ball_velocity(self.scene.impact.velocity)
         rows = []
 
         def observe(st) -> None:
