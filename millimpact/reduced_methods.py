@@ -61,10 +61,10 @@ from .enrichment import create_nmm_zone
 from .errors import InputError
 from .fe_methods import Recorder, impact_results, write_fields
 from .mesh import create_mesh
-from .model import FEModel, PointProbe, create_fe_model
+from .model import FEModel, PointProbe, create_fe_model, stress_from_gradient, von_mises
 from .plan import Plan, make_plan
 from .reduction import (ModalProjection, ReducedModel, compute_free_modes, create_nodal_zone_basis,
-                        local_rows_to_aij, partition_dofs, reduce_model)
+                        gather_aij_dense, local_rows_to_aij, partition_dofs, reduce_model)
 from .runner import RunOutput, register_method
 from .scene import Scene
 
@@ -158,6 +158,74 @@ class ReducedRecorder(Recorder):
 
     def _local(self, vec) -> np.ndarray:
         return vec.array_r
+
+    def _dense_maps(self, modal: ModalProjection) -> SimpleNamespace:
+        """Replicated dense maps of a modal projection (m modal coordinates, a few dozen): the
+        ball's rows c and c_t, the probe rows (values, gradients), the scheme's mass, K_r and the
+        ball mask, all m-column; built once per projection."""
+        key = ("dense", id(modal))
+        if key not in self._maps:
+            comm = modal.comm
+
+            def vec(v) -> np.ndarray:
+                return np.concatenate(comm.allgather(v.array_r.copy()))
+
+            c_y, mask, _, _, probe, _ = self._maps[id(modal)]
+            cols = lambda P: sp.hstack(comm.allgather(P)).toarray()    # noqa: E731 (local columns)
+            self._maps[key] = SimpleNamespace(
+                c=vec(c_y), ct=vec(self._ct_maps[id(modal)]) if self._ct_full is not None else None,
+                mask=vec(mask), Pv=cols(probe.P_val), Pg=cols(probe.P_grad), n_points=probe.n_points,
+                M=gather_aij_dense(modal.M_scheme, comm), K=gather_aij_dense(modal.K, comm))
+        return self._maps[key]
+
+    def record_free(self, modal: ModalProjection, times: np.ndarray, eta: np.ndarray, etad: np.ndarray,
+                    etadd: np.ndarray) -> None:
+        """Rows of a closed-form free phase at ``times`` from the replicated modal states (m x n_t),
+        all at once: the rows :meth:`__call__` would give for each (no contact force, zero
+        multipliers; the same formulas on m-column maps), plus the XDMF fields at their times."""
+        self.set_projection(modal)
+        d = self._dense_maps(modal)
+        n_t = len(times)
+        approach = -(d.c @ eta) - self.gap0
+        vball = -(d.c @ etad)
+        np_ = d.n_points
+        vals_u = (d.Pv @ eta).reshape(np_, 3, n_t)
+        vals_v = (d.Pv @ etad).reshape(np_, 3, n_t)
+        vals_a = (d.Pv @ etadd).reshape(np_, 3, n_t)
+        grads = np.moveaxis((d.Pg @ eta).reshape(np_, 3, 3, n_t), -1, 0)      # (n_t, points, 3, 3)
+        s = stress_from_gradient(grads, self.mu, self.lmbda)
+        gauges = [self.E * np.einsum("i,tij,j->t", dv, 0.5 * (g + np.swapaxes(g, -1, -2)), dv)
+                  for dv, g in zip(self.gauge_dirs, np.moveaxis(grads[:, 1:], 1, 0))]
+        ke = 0.5 * np.einsum("it,it->t", etad, d.M @ etad)
+        vb = d.mask[:, None] * etad
+        ke_ball = 0.5 * np.einsum("it,it->t", vb, d.M @ vb)
+        se = 0.5 * np.einsum("it,it->t", eta, d.K @ eta)
+        if self.model.scene.liner is None:
+            normal = (-vals_u[0, 1], -vals_v[0, 1], -vals_a[0, 1], s[:, 0, 1, 1])
+        else:
+            n = self.n
+            normal = (-(n @ vals_u[0]), -(n @ vals_v[0]), -(n @ vals_a[0]), np.einsum("i,tij,j->t", n, s[:, 0], n))
+        zero = np.zeros(n_t)
+        cols = [times, zero, approach, zero, vball, *normal, von_mises(s[:, 0]), *gauges,
+                self.sym * ke_ball, self.sym * ke, self.sym * se, self.sym * (ke + se)]
+        if self.friction:
+            # no friction while apart: the cumulative work stays at its value (see __call__)
+            self._fw_base += self._fw_last
+            self._fw_last = 0.0
+            cols += [zero, d.ct @ etad, np.full(n_t, self.sym * self._fw_base)]
+        self.rows.extend(np.column_stack(cols).tolist())
+        lo, hi = modal.Phi.getOwnershipRangeColumn()
+        while self._next_field < len(self.field_times):
+            k = int(np.searchsorted(times, self.field_times[self._next_field] - 1e-15))
+            if k >= n_t:
+                break
+            x = modal.create_vector()
+            x.array[:] = eta[lo:hi, k]
+            u = modal.expand(x)
+            self.fields.append((float(times[k]), u.array_r.copy()))
+            u.destroy()
+            x.destroy()
+            self._next_field += 1
 
     def __call__(self, st) -> None:
         if self.time_offset:
@@ -411,22 +479,11 @@ def _free_vibration(modal: ModalProjection, gap_rows: np.ndarray, g0: np.ndarray
     if k_stop is not None and times[k_stop] - t0 < min_span:
         return None
     last = len(times) if k_stop is None else k_stop        # rows 0 .. last-1
-    rec.set_projection(modal)
-    lo, hi = eta_v.getOwnershipRange()
-    u, v, a = modal.create_vector(), modal.create_vector(), modal.create_vector()
-    lam0 = np.zeros(len(g0))
     for k0 in range(0, last, 2048):
         idx = np.arange(k0, min(last, k0 + 2048))
-        tau = times[idx] - t0
-        eta, etad, etadd = state(tau)
-        gaps = g0[:, None] + gap_rows @ eta
-        for j, k in enumerate(idx):
-            u.array[:] = eta[lo:hi, j]
-            v.array[:] = etad[lo:hi, j]
-            a.array[:] = etadd[lo:hi, j]
-            dt = times[k] - (times[k - 1] if k else t0)
-            rec(integrators.StepState(t=float(times[k]), dt=float(dt), u=u, v=v, a=a, lam=lam0, gap=gaps[:, j],
-                                      n_active=0, n_newton=0, step=int(k + 1), mass=modal.M_scheme))
+        rec.record_free(modal, times[idx], *state(times[idx] - t0))
+    lo, hi = eta_v.getOwnershipRange()
+    u, v = modal.create_vector(), modal.create_vector()
     if k_stop is None:
         return t_end, None, None, last, e_red - e_mod
     # hand the state at the last recorded time back to the integrator

@@ -413,3 +413,76 @@ def test_modal_free_phase_continues_the_stepping(setup):
     assert span <= plan.gap / scene.impact.speed + 1.5 * plan.hertz.contact_time + plan.dt_contact
     assert integ["n_factorizations"] == 1
     assert integ["n_steps"] < 0.35 * runs["step"].results["integration"]["n_steps"]
+
+
+def free_rows_mismatch(n_times: int = 40) -> tuple[float, float]:
+    """The closed-form free phase's vectorised rows (ReducedRecorder.record_free) against the
+    per-state recorder (Recorder.__call__) on the same modal states, on the SMALL traditional
+    model: (max relative difference per column, max relative difference of the XDMF fields).
+    The modal states are random: both recorders are the same linear/quadratic maps of them."""
+    from millimpact import integrators
+    from millimpact.contact import create_contact
+    from millimpact.mesh import create_mesh
+    from millimpact.model import create_fe_model
+    from millimpact.plan import make_plan
+    from millimpact.reduced_methods import ReducedRecorder, reduced_plan
+    from millimpact.reduction import compute_free_modes, reduce_model
+    from millimpact.scene import builtin_scene
+
+    scene = builtin_scene("paper-rig")
+    for key, value in SMALL.items():
+        scene = scene.with_value(key, value)
+    scene, plan, radius, _ = reduced_plan(scene, make_plan(scene))
+    model = create_fe_model(scene, plan, create_mesh(scene, plan, MPI.COMM_WORLD), 1)
+    red = reduce_model(model, f_cut=plan.f_cut)
+    contact = create_contact(model, radius=radius)
+    modal = compute_free_modes(red, 4 * plan.f_cut)
+    rng = np.random.default_rng(7)
+    m = modal.n_global
+    times = 1e-4 + 2e-6 * np.arange(n_times)
+    eta, etad, etadd = (rng.standard_normal((m, n_times)) * s for s in (1e-6, 1e-1, 1e4))
+    field_times = (times[3], times[17] + 1e-7)
+    recs = [ReducedRecorder(red, contact, field_times) for _ in range(2)]
+    recs[0].record_free(modal, times, eta, etad, etadd)
+    rec = recs[1]
+    rec.set_projection(modal)
+    lo, hi = modal.Phi.getOwnershipRangeColumn()
+    vecs = [modal.create_vector() for _ in range(3)]
+    for k, t in enumerate(times):
+        for v, x in zip(vecs, (eta, etad, etadd)):
+            v.array[:] = x[lo:hi, k]
+        rec(integrators.StepState(t=float(t), dt=2e-6, u=vecs[0], v=vecs[1], a=vecs[2], lam=np.zeros(contact.n),
+                                  gap=np.zeros(contact.n), n_active=0, n_newton=0, step=k + 1,
+                                  mass=modal.M_scheme))
+    a, b = (np.array(r.rows) for r in recs)
+    scale = np.maximum(np.max(np.abs(b), axis=0), 1e-300)
+    rows = float(np.max(np.max(np.abs(a - b), axis=0) / scale))
+    assert [t for t, _ in recs[0].fields] == [t for t, _ in recs[1].fields] == [times[3], times[18]]
+    fields = max(float(np.max(np.abs(fa - fb)) / max(np.max(np.abs(fb)), 1e-300))
+                 for (_, fa), (_, fb) in zip(recs[0].fields, recs[1].fields))
+    return MPI.COMM_WORLD.allreduce(rows, op=MPI.MAX), MPI.COMM_WORLD.allreduce(fields, op=MPI.MAX)
+
+
+def test_free_phase_rows_equal_the_per_state_recorder():
+    """The free phase records its thousands of rows at once: the same numbers as recording each
+    state (differences are summation order, ~1e-15 of each column's scale)."""
+    rows, fields = free_rows_mismatch()
+    assert rows < 1e-12 and fields < 1e-12, (rows, fields)
+
+
+@pytest.mark.mpi
+def test_free_phase_rows_under_mpi():
+    """The same under mpirun -n 2: the probe rows, ball rows and energies are gathered from the
+    ranks' modal columns."""
+    if MPI.COMM_WORLD.size > 1:
+        pytest.skip("launches its own mpirun")
+    code = ("import sys; sys.path.insert(0, 'tests')\n"
+            "from test_reduction import free_rows_mismatch\n"
+            "r = free_rows_mismatch()\n"
+            "from mpi4py import MPI\n"
+            "if MPI.COMM_WORLD.rank == 0: print('RESULT', r[0], r[1])\n")
+    res = run_mpi_script(code, np=2)
+    assert res.returncode == 0, res.stderr[-3000:]
+    line = [ln for ln in res.stdout.splitlines() if ln.startswith("RESULT")][0]
+    rows, fields = (float(x) for x in line.split()[1:])
+    assert rows < 1e-12 and fields < 1e-12, (rows, fields)
