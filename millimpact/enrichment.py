@@ -42,6 +42,12 @@ or a clamp), ``a^c`` is dropped and so are the components of ``b^c`` along the e
 midpoints are fixed in ``c`` (the plane's tangents): then every fixed P2 dof is zero for every
 coordinate vector. Rows of ``P`` at fixed dofs are left empty.
 
+Exact zeros. Edge-vector components below ``DIRECTION_TOL`` of the edge length are set to zero
+before they enter ``P``: on the symmetry plane the P2 node coordinates carry ~1e-20 m of
+round-off that depends on the mesh partition and the BLAS, and the resulting ~1e-17 entries made
+gradient coordinates "touch" contact dofs on some partitions only, so mass redistribution made
+another set of coordinates massless and ``mpirun -n 2`` differed from serial by 1.7e-5 on F_max.
+
 Only this module and :mod:`millimpact.reduction` hold PETSc objects (STYLE.md).
 """
 from __future__ import annotations
@@ -214,6 +220,11 @@ def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
     mids, first = np.unique(E[:, 0], return_index=True)
     for m, (_, i, j) in zip(mids, E[first]):
         dij = X[j] - X[i]
+        # components below round-off are exact zeros (an edge in a symmetry plane or an
+        # axis-aligned face): the P2 dof coordinates carry ~1e-20 m there, which differ with the
+        # mesh partition, and would otherwise leave 1e-17 entries that make the gradient
+        # coordinates "touch" the contact dofs (mass redistribution) on some partitions only
+        dij = np.where(np.abs(dij) > DIRECTION_TOL * np.linalg.norm(dij), dij, 0.0)
         for c in range(3):
             if fixed[m, c]:
                 continue

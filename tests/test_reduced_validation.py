@@ -203,7 +203,8 @@ def test_second_impact_hands_back_to_the_integrator():
 @pytest.mark.mpi
 @serial
 def test_improved_under_mpi_matches_serial():
-    """mpirun -n 2 gives the serial numbers for ``improved`` (same model sizes, modes, F_max, t_c)."""
+    """mpirun -n 2 gives the serial numbers for ``improved`` (same model sizes, modes, F_max, t_c and
+    the contact force at every step)."""
     from millimpact import reduced_methods
 
     scene, plan = small_scene()
@@ -225,26 +226,26 @@ out = reduced_methods.run_reduced(scene, plan, {{"t_end": {t_end!r}}}, False, "i
 m = contact_metrics(out.series)
 if MPI.COMM_WORLD.rank == 0:
     print("RESULT", json.dumps({{"n": out.model["reduced_dofs"], "F": m["peak_contact_force_N"],
-          "tc": m["contact_duration_s"], "modes": out.model["reduction"]["modes"]}}))
+          "tc": m["contact_duration_s"], "modes": out.model["reduction"]["modes"],
+          "t": out.series["time_s"].tolist(), "Ft": out.series["contact_force_N"].tolist()}}))
 """
     res = run_mpi_script(code, np=2)
     assert res.returncode == 0, res.stderr[-3000:]
     got = json.loads([ln for ln in res.stdout.splitlines() if ln.startswith("RESULT")][0].split(" ", 1)[1])
     assert got["n"] == out.model["reduced_dofs"]
     assert got["modes"] == out.model["reduction"]["modes"]
-    # same model, other orderings of the parallel direct solves. KNOWN DEFECT (issue 5): the
-    # NMM-reduced system amplifies round-off: measured 2.8e-6 to 1.7e-5 on F_max between serial and
-    # 2 ranks, 8.6e-5 with eps_tol 1e-13 (so not the eigensolver), 6e-5 between the reference BLAS
-    # and OpenBLAS in serial; traditional on the same mesh agrees to ~1e-12. Not conditioning:
-    # the Jacobi-scaled M_r and K_eff have condition numbers 4e4 and 2e4 for both zones.
-    # No contact status differs either: the force differs by 4e-9 F_max at the first contact step
-    # and the difference grows to 1.4e-4 F_max by the pulse's end. modal-p2 (same P2 mesh, nodal
-    # zone) agrees to 1e-12, the reduced (K_r, M_r) of 1 and 2 ranks have the same eigenvalues to
-    # 4e-10, and a direct initial-state projection changes nothing: the NMM time stepping itself
-    # amplifies round-off. Cause not found yet. The bound
-    # is the measured spread x ~1.5, far below the method's discretization error (~0.3 %).
-    assert got["F"] == pytest.approx(ser["F"], rel=1.5e-4)
-    assert got["tc"] == pytest.approx(ser["tc"], rel=1.5e-4)
+    # Same model, other orderings of the parallel direct solves: round-off (~1e-16) amplified by the
+    # contact operator S = B_r A^-1 B_r^T (condition 4.7e3 on this mesh) over ~150 steps. Measured
+    # 6e-13 on F_max, 5e-16 on t_c and 2.4e-12 F_max on the force at every step, like traditional
+    # and modal-p2 (1e-12); 1e-9 leaves room for other BLAS / MUMPS orderings. It was 1.7e-5 (2e-4
+    # on the force history) while the NMM prolongation kept ~1e-17 entries from the ~1e-20 m
+    # round-off of the P2 node coordinates in the symmetry plane: they differ with the partition
+    # (and the BLAS), and changed which coordinates mass redistribution made massless
+    # (448 serial, 457 on 2 ranks; 397 without them).
+    assert got["F"] == pytest.approx(ser["F"], rel=1e-9)
+    assert got["tc"] == pytest.approx(ser["tc"], rel=1e-9)
+    assert np.array_equal(got["t"], out.series["time_s"])
+    assert np.max(np.abs(np.array(got["Ft"]) - out.series["contact_force_N"])) < 1e-9 * ser["F"]
 
 
 @serial
