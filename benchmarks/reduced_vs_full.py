@@ -1,11 +1,13 @@
 """Benchmark: the reduced methods against the full FE model (issue 5), side by side in one run.
 
-Part A (``--part a``): the default scene ``paper-rig`` over ``--t-end`` (default 40 ms): the
-``improved`` method (the reduced methods' default contact zone, 2.5 a_max) against ``full`` P1 on
-the same mesh (``model.zone_radius`` set to the same radius, so gmsh meshes the same model: same
-cache key), both timed in this process; F_max, t_c and gauge peaks of both. With ``--p2-ref`` also
-``full`` P2 on the same mesh over the first contact only (the model the improved method reduces:
-the like-for-like reference of its contact answer; 40 ms of it is hours on 2 cores).
+Part A (``--part a``): the default scene ``paper-rig`` over ``--t-end`` (default 40 ms), on one
+mesh (the reduced methods' default contact zone, 2.5 a_max; ``model.zone_radius`` set to it for the
+full runs, so gmsh meshes the same model: same cache key): ``improved``, ``traditional``, ``full``
+P1 and ``full`` P2, each timed in this process (wall and CPU). Each reduced method is compared with
+the full model it reduces: improved (an NMM zone in a P2 mesh) with full P2 (its Galerkin parent:
+the same answer is the target), traditional with full P1; improved against full P1 is listed too
+(P1 is cheaper but 2-3 % stiffer). ``--p2 first-contact`` runs full P2 over the first contact only
+(its 40 ms take ~20 min on 2 cores).
 
 Part B (``--part b``): error against DOFs of ``traditional`` / ``improved`` / ``modal-p2`` at
 ``--resolutions`` (h_contact = a_max / n), the first contact only (gap / v + 1.6 t_c). The
@@ -16,7 +18,7 @@ and |t_c / t_ref - 1| against the reduced coordinates it integrates.
 Writes ``benchmarks/out/reduced_vs_full.json`` (+ ``.md`` table) and ``reduced_vs_full.png``.
 
     .venv/bin/python benchmarks/reduced_vs_full.py                    # A and B (~30-60 min, 2 cores)
-    .venv/bin/python benchmarks/reduced_vs_full.py --part a --p2-ref
+    .venv/bin/python benchmarks/reduced_vs_full.py --part a --p2 first-contact
     .venv/bin/python benchmarks/reduced_vs_full.py --part b --resolutions 2,3,4
 """
 from __future__ import annotations
@@ -37,7 +39,6 @@ from millimpact.runner import compute
 from millimpact.scene import builtin_scene
 
 HERE = Path(__file__).resolve().parent
-LABELS = {"full": "full P1", "improved": "improved", "full_p2_first_contact": "full P2 (first contact)"}
 GAUGE_WINDOW = 1e-3   # s shown of the gauge signal (40 ms of ringing is a solid band)
 
 
@@ -71,19 +72,41 @@ def _run(scene, method: str, options: dict, label: str, comm) -> dict:
     return row
 
 
-def part_a(t_end: float, p2_ref: bool, comm) -> dict:
+#: part A's runs: key -> (method, options, label); each reduced method's like-for-like full model
+#: is the one it reduces (improved and modal-p2: P2; traditional: P1) on the same mesh
+A_RUNS = {"improved": ("improved", {}, "improved"), "traditional": ("traditional", {}, "traditional"),
+          "full_p1": ("full", {"degree": 1}, "full P1"), "full_p2": ("full", {"degree": 2}, "full P2")}
+#: (reduced run, full run) pairs whose wall/CPU ratio and F_max / t_c differences part A reports
+A_PAIRS = (("improved", "full_p2"), ("improved", "full_p1"), ("traditional", "full_p1"))
+
+
+def part_a(t_end: float, p2: str, comm) -> dict:
+    """``p2``: "full" (full P2 over t_end: the like-for-like run of improved; ~20 min on 2
+    cores), "first-contact" (full P2 over the first contact only: accuracy, no ratio) or "none"."""
     base = builtin_scene("paper-rig")
     zone = REDUCED_ZONE_FACTOR * make_plan(base).hertz.a_max
     scene = base.with_value("model.zone_radius", zone).with_value("time.end", t_end)
-    res = {"t_end_s": t_end, "zone_radius_m": zone}
-    res["improved"] = _run(scene, "improved", {}, "A", comm)
-    res["full"] = _run(scene, "full", {"degree": 1}, "A", comm)
-    res["ratio_wall"] = res["full"]["wall_s"] / res["improved"]["wall_s"]
-    res["ratio_cpu"] = res["full"]["cpu_s"] / res["improved"]["cpu_s"]
-    if p2_ref:
-        plan = make_plan(scene)
-        short = plan.gap / scene.impact.speed + 1.6 * plan.hertz.contact_time
-        res["full_p2_first_contact"] = _run(scene.with_value("time.end", short), "full", {"degree": 2}, "A-ref", comm)
+    res = {"t_end_s": t_end, "zone_radius_m": zone, "runs": {}, "pairs": []}
+    for key, (method, options, label) in A_RUNS.items():
+        if key == "full_p2" and p2 == "none":
+            continue
+        sc = scene
+        if key == "full_p2" and p2 == "first-contact":
+            plan = make_plan(scene)
+            sc = scene.with_value("time.end", plan.gap / scene.impact.speed + 1.6 * plan.hertz.contact_time)
+            label += " (first contact)"
+        res["runs"][key] = _run(sc, method, options, label, comm)
+        res["runs"][key]["t_end_s"] = sc.time.end
+    for red, full in A_PAIRS:
+        R, F = res["runs"].get(red), res["runs"].get(full)
+        if R is None or F is None:
+            continue
+        same_span = abs(R["t_end_s"] - F["t_end_s"]) < 1e-12
+        res["pairs"].append({
+            "reduced": red, "full": full,
+            "ratio_wall": F["wall_s"] / R["wall_s"] if same_span else None,
+            "ratio_cpu": F["cpu_s"] / R["cpu_s"] if same_span else None,
+            "dF_max": R["F_max_N"] / F["F_max_N"] - 1, "dt_c": R["t_c_s"] / F["t_c_s"] - 1})
     return res
 
 
@@ -126,22 +149,18 @@ def write(res: dict, out: Path, comm) -> None:
     if "a" in res:
         A = res["a"]
         lines += [f"## A: paper-rig, {A['t_end_s'] * 1e3:g} ms, same mesh (zone radius {A['zone_radius_m'] * 1e3:.4g} mm)", "",
-                  "| run | dofs | integrated | wall s | cpu s | F_max kN | t_c us | gauge peaks MPa (A, B, C) |",
-                  "|---|---|---|---|---|---|---|---|"]
-        for key in ("improved", "full", "full_p2_first_contact"):
-            if key in A:
-                r = A[key]
-                gp = ", ".join(f"{v / 1e6:.2f}" for v in (r["gauge_peaks_Pa"] or {}).values())
-                lines.append(f"| {key} | {r['dofs']} | {r['reduced_dofs']} | {r['wall_s']:.1f} | {r['cpu_s']:.1f} | "
-                             f"{r['F_max_N'] / 1e3:.4f} | {r['t_c_s'] * 1e6:.3f} | {gp} |")
-        imp, full = A["improved"], A["full"]
-        lines += ["", f"ratio full / improved: wall {A['ratio_wall']:.2f}, cpu {A['ratio_cpu']:.2f}",
-                  f"improved vs full P1: F_max {100 * (imp['F_max_N'] / full['F_max_N'] - 1):+.2f} %, "
-                  f"t_c {100 * (imp['t_c_s'] / full['t_c_s'] - 1):+.2f} %"]
-        if "full_p2_first_contact" in A:
-            p2 = A["full_p2_first_contact"]
-            lines.append(f"improved vs full P2 (same mesh, first contact): F_max {100 * (imp['F_max_N'] / p2['F_max_N'] - 1):+.2f} %, "
-                         f"t_c {100 * (imp['t_c_s'] / p2['t_c_s'] - 1):+.2f} %")
+                  "| run | simulated ms | dofs | integrated | wall s | cpu s | F_max kN | t_c us | gauge peaks MPa (A, B, C) |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for key, r in A["runs"].items():
+            gp = ", ".join(f"{v / 1e6:.2f}" for v in (r["gauge_peaks_Pa"] or {}).values())
+            lines.append(f"| {r['label']} | {r['t_end_s'] * 1e3:.4g} | {r['dofs']} | {r['reduced_dofs']} | {r['wall_s']:.1f} | "
+                         f"{r['cpu_s']:.1f} | {r['F_max_N'] / 1e3:.4f} | {r['t_c_s'] * 1e6:.3f} | {gp} |")
+        lines += ["", "| reduced | full (same mesh) | wall ratio | cpu ratio | F_max diff | t_c diff |",
+                  "|---|---|---|---|---|---|"]
+        for pr in A["pairs"]:
+            ratio = lambda x: "-" if x is None else f"{x:.1f}"     # noqa: E731
+            lines.append(f"| {pr['reduced']} | {A['runs'][pr['full']]['label']} | {ratio(pr['ratio_wall'])} | "
+                         f"{ratio(pr['ratio_cpu'])} | {100 * pr['dF_max']:+.2f} % | {100 * pr['dt_c']:+.2f} % |")
         lines.append("")
         panels += ["force", "gauge"]
     if "b" in res:
@@ -164,25 +183,25 @@ def write(res: dict, out: Path, comm) -> None:
     for ax, kind in zip(axes[0], panels):
         if kind == "force":
             A = res["a"]
-            for key, style in (("full", "-"), ("improved", "--"), ("full_p2_first_contact", ":")):
-                if key in A:
-                    s = A[key]["series"]
-                    t = np.asarray(s["time_s"])
-                    sel = t < 1.3 * A[key]["t_c_hertz_s"]
-                    ax.plot(t[sel] * 1e6, np.asarray(s["contact_force_N"])[sel] / 1e3, style,
-                            label=f"{LABELS[key]} ({A[key]['reduced_dofs']} coords)")
+            for key, style in (("full_p1", "-"), ("full_p2", "-"), ("improved", "--"), ("traditional", ":")):
+                if key in A["runs"]:
+                    r = A["runs"][key]
+                    t = np.asarray(r["series"]["time_s"])
+                    sel = t < 1.3 * r["t_c_hertz_s"]
+                    ax.plot(t[sel] * 1e6, np.asarray(r["series"]["contact_force_N"])[sel] / 1e3, style,
+                            label=f"{r['label']} ({r['reduced_dofs']} coords, {r['wall_s']:.0f} s)")
             ax.set_xlabel("time (us)")
             ax.set_ylabel("contact force (kN)")
             ax.set_title("paper-rig: contact force")
         elif kind == "gauge":
             A = res["a"]
-            for key, style in (("full", "-"), ("improved", "--")):
-                s = A[key]["series"]
+            for key, style in (("full_p2", "-"), ("improved", "--")):
+                s = A["runs"].get(key, {}).get("series", {})
                 if "gauge" in s:
                     t = np.asarray(s["time_s"])
                     sel = t <= GAUGE_WINDOW
                     ax.plot(t[sel] * 1e3, np.asarray(s["gauge"])[sel] / 1e6, style, lw=0.9,
-                            label=f"{LABELS[key]}: {s['gauge_name'].replace('_stress_Pa', '')}")
+                            label=f"{A['runs'][key]['label']}: {s['gauge_name'].replace('_stress_Pa', '')}")
             ax.set_xlabel("time (ms)")
             ax.set_ylabel("gauge stress (MPa)")
             ax.set_title(f"gauge, first {GAUGE_WINDOW * 1e3:g} ms of {A['t_end_s'] * 1e3:g} ms")
@@ -207,7 +226,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--part", choices=["a", "b", "ab"], default="ab")
     p.add_argument("--t-end", type=float, default=0.04, help="simulated time of part A, s")
-    p.add_argument("--p2-ref", action="store_true", help="part A: also full P2 over the first contact")
+    p.add_argument("--p2", choices=["full", "first-contact", "none"], default="full",
+                   help="part A: full P2 over --t-end (the like-for-like run of improved, ~20 min), over "
+                        "the first contact only, or not at all")
     p.add_argument("--resolutions", default="2,3,4", help="part B: n of h_contact = a_max / n")
     p.add_argument("--extra-traditional", default="6,8", help="part B: finer n for traditional alone")
     p.add_argument("--out", default=str(HERE / "out"))
@@ -222,7 +243,7 @@ def main() -> None:
         write(res, Path(args.out), comm)
         return
     if "a" in args.part:
-        res["a"] = part_a(args.t_end, args.p2_ref, comm)
+        res["a"] = part_a(args.t_end, args.p2, comm)
     if "b" in args.part:
         extra = tuple(float(x) for x in args.extra_traditional.split(",") if x)
         res["b"] = part_b([float(x) for x in args.resolutions.split(",")], comm, extra)

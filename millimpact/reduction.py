@@ -416,7 +416,10 @@ class ReducedModel:
         cols = []
         for d in np.asarray(dofs, dtype=np.int64):
             c, v = self.Gr.getRow(int(r0 + d))
-            cols.append(np.asarray(c)[np.abs(v) > 0])
+            v = np.abs(np.asarray(v))
+            # round-off entries (1e-19 against 1e-5, see enrichment.DIRECTION_TOL) must not count:
+            # the massless set would then depend on the partition and the BLAS
+            cols.append(np.asarray(c)[v > 1e-10 * v.max()] if len(v) else np.zeros(0, np.int32))
         mine = np.unique(np.concatenate(cols)) if cols else np.zeros(0, dtype=np.int64)
         allc = np.unique(np.concatenate(self.comm.allgather(mine.astype(np.int64))))
         q0, q1 = self.M.getOwnershipRange()
