@@ -98,7 +98,7 @@ def compute_block_modes(scene: Scene, plan: Plan, f_cut: Optional[float], n_mode
     I = PETSc.IS().createGeneral((r0 + idx).astype(np.int32), comm=comm)
     K_bb, M_bb = K.createSubMatrix(I, I), M.createSubMatrix(I, I)
     prefix = "impact_hertzmodal_"
-    opts = default_solver_options()
+    opts = default_solver_options(comm.size)
     ksp = _factor(K_bb, prefix, opts)
     # probes: the contact point and the gauges, just inside the block
     pts = [_inward(np.array(scene.impact_point), plan, scene)]

@@ -91,7 +91,7 @@ DENSE_EIGEN_SHARE = 0.5
 CONSTRAINT_RESIDUAL_TOL = 1e-8
 
 
-def default_solver_options(comm_size: int = 1) -> dict[str, str]:
+def default_solver_options(comm_size: int) -> dict[str, str]:
     """Fresh default PETSc/SLEPc options, relative to ``impact_reduction_<body>_``.
 
     A Cholesky factorization (the same factorization serves the constraint modes' multi-right-
