@@ -64,8 +64,8 @@ from .fe_methods import Recorder, impact_results, write_fields
 from .mesh import create_mesh
 from .model import FEModel, PointProbe, create_fe_model
 from .plan import Plan, make_plan
-from .reduction import (ModalProjection, ReducedModel, compute_free_modes, create_nodal_zone_basis,
-                        local_rows_to_aij, partition_dofs, reduce_model)
+from .reduction import (AUGMENTATION_PATTERNS, ModalProjection, ReducedModel, compute_free_modes,
+                        create_nodal_zone_basis, local_rows_to_aij, partition_dofs, reduce_model)
 from .runner import RunOutput, register_method
 from .scene import Scene
 
@@ -462,6 +462,8 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     remedy = str(options.pop("nmm_remedy", None) or "interface")
     augment = str(options.pop("augment", None) or "none")
     augment = tuple(a for a in augment.split(",") if a and a != "none")
+    if any(a not in AUGMENTATION_PATTERNS for a in augment):
+        raise InputError(f"option augment = {','.join(augment)}: choose from none, {', '.join(AUGMENTATION_PATTERNS)}")
     free_phase = str(options.pop("free_phase", None) or "modal")
     if free_phase not in ("modal", "step"):
         raise InputError(f"option free_phase = {free_phase!r}: choose modal or step")
