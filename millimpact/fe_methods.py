@@ -17,6 +17,7 @@ from mpi4py import MPI
 
 from . import integrators
 from .contact import ContactSet, create_contact
+from .errors import InputError
 from .mesh import create_mesh
 from .model import BLOCK_CELLS, FEModel, _cells_of, create_fe_model, create_probe, stress_from_gradient, von_mises
 from .plan import Plan
@@ -258,16 +259,27 @@ def _signed_peak(x: np.ndarray) -> float:
 
 
 def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str = "full") -> RunOutput:
-    """The full FE model of a scene, integrated over the scene's time span."""
+    """The full FE model of a scene, integrated over the scene's time span.
+
+    ``options["candidate_radius"]`` (m, default the contact module's 2.5 a_max): contact candidates
+    within this distance of the contact axis; a reduced run's (``candidate_radius_m`` of its model
+    info) makes this run the very model that run reduces (same massless contact nodes)."""
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
     degree = int(options.pop("degree", None) or plan.degree)
     integrator = options.pop("integrator", None) or "newmark-mr"
     t_end = float(options.pop("t_end", None) or scene.time.end)
+    radius = options.pop("candidate_radius", None)
+    try:
+        radius = float(radius) if radius not in (None, "") else None
+    except (TypeError, ValueError):
+        raise InputError(f"option candidate_radius = {radius!r}: must be a length in m") from None
+    if radius is not None and not radius > 0:
+        raise InputError(f"option candidate_radius = {radius!r}: must be > 0 m")
     md = create_mesh(scene, plan, comm)
     t_mesh = time.perf_counter() - t0
     model = create_fe_model(scene, plan, md, degree)
-    contact = create_contact(model)
+    contact = create_contact(model, radius=radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
     system = integrators.LinearDynamics(M=model.M, K=model.K, B=contact.B, g0=contact.g0,
                                         fixed_dofs=model.fixed_dofs, contact_dofs=contact.contact_dofs,

@@ -18,7 +18,8 @@ Each is a Galerkin projection ``u = T q`` of the full finite-element model of th
 Options (``options`` keys, also ``-modes 20`` etc. on the command line):
 ``modes`` (modes kept per body; wins over the cutoff), ``f_cut`` (Hz; default the plan's
 ``f_cut = 4 / t_c`` or ``scene.model.f_cut``), ``nmm_remedy`` (improved: interface | anchors),
-``free_phase`` (modal | step, below), ``modal_min_span`` (s: a modal phase is taken only if no
+``augment`` (none | boussinesq | translation, comma-separated: modal truncation augmentation
+vectors of each body's region, :mod:`millimpact.reduction`; default none), ``free_phase`` (modal | step, below), ``modal_min_span`` (s: a modal phase is taken only if no
 gap closes within this span, default the stepping chunk max(2 t_c, 20 dt_contact)), ``free_modes_factor`` (the free phase keeps the
 free-vibration modes up to this many f_cut, default 4), ``integrator`` (default newmark-mr),
 ``t_end`` (s). The rest goes to the integrator.
@@ -63,8 +64,9 @@ from .fe_methods import Recorder, impact_results, write_fields
 from .mesh import create_mesh
 from .model import FEModel, PointProbe, create_fe_model, stress_from_gradient, von_mises
 from .plan import Plan, make_plan
-from .reduction import (ModalProjection, ReducedModel, compute_free_modes, create_nodal_zone_basis,
-                        gather_aij_dense, local_rows_to_aij, partition_dofs, reduce_model)
+from .reduction import (AUGMENTATION_PATTERNS, ModalProjection, ReducedModel, compute_free_modes,
+                        create_nodal_zone_basis, gather_aij_dense, local_rows_to_aij, partition_dofs,
+                        reduce_model)
 from .runner import RunOutput, register_method
 from .scene import Scene
 
@@ -280,7 +282,8 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
     if radius < 1.2 * a:
         raise InputError(f"model.zone_radius = {plan.zone_radius:g} m: too small for the contact candidates "
                          f"(needs at least {1.2 * a + 2.0 * plan.h_contact:g} m = 1.2 a_max + 2 h_contact)")
-    notes.append(f"contact candidates within {radius * 1e3:.4g} mm ({radius / a:.3g} a_max) of the contact axis; "
+    notes.append(f"contact candidates within {radius * 1e3:.4g} mm ({radius / a:.3g} a_max) of the contact axis "
+                 f"(full with the same candidates: -candidate_radius {radius:.6g}); "
                  f"f_cut {plan.f_cut / 1e3:.4g} kHz ({plan.f_cut * plan.hertz.contact_time:.3g} / t_c), "
                  f"dt_contact {plan.dt_contact * 1e6:.4g} us (t_c / {plan.hertz.contact_time / plan.dt_contact:.3g}), "
                  f"dt_free {plan.dt_free * 1e6:.4g} us")
@@ -288,14 +291,15 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
 
 
 def build_reduced_model(model: FEModel, kind: str, *, f_cut: Optional[float], n_modes: Optional[int],
-                        remedy: str = "interface") -> ReducedModel:
-    """The reduced model of ``model`` for a zone description ``kind`` ("nodal" or "nmm")."""
+                        remedy: str = "interface", augment: tuple[str, ...] = ()) -> ReducedModel:
+    """The reduced model of ``model`` for a zone description ``kind`` ("nodal" or "nmm"), its modes
+    augmented by the zone-motion patterns ``augment`` (:func:`millimpact.reduction.reduce_model`)."""
     part = partition_dofs(model)
     if kind == "nmm":
         zone = create_nmm_zone(model, part, remedy=remedy).basis
     else:
         zone = create_nodal_zone_basis(model, part)
-    return reduce_model(model, zone, f_cut=f_cut, n_modes=n_modes, partition=part)
+    return reduce_model(model, zone, f_cut=f_cut, n_modes=n_modes, partition=part, augment=augment)
 
 
 def reduced_system(red: ReducedModel, contact: ContactSet) -> integrators.LinearDynamics:
@@ -514,6 +518,10 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     n_modes = _int_option(options, "modes", scene.model.modes)
     f_cut = _float_option(options, "f_cut", plan.f_cut)
     remedy = str(options.pop("nmm_remedy", None) or "interface")
+    augment = str(options.pop("augment", None) or "none")
+    augment = tuple(a for a in augment.split(",") if a and a != "none")
+    if any(a not in AUGMENTATION_PATTERNS for a in augment):
+        raise InputError(f"option augment = {','.join(augment)}: choose from none, {', '.join(AUGMENTATION_PATTERNS)}")
     free_phase = str(options.pop("free_phase", None) or "modal")
     if free_phase not in ("modal", "step"):
         raise InputError(f"option free_phase = {free_phase!r}: choose modal or step")
@@ -527,7 +535,7 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     model = create_fe_model(scene, plan, md, degree)
     contact = create_contact(model, radius=cand_radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
-    red = build_reduced_model(model, kind, f_cut=f_cut, n_modes=n_modes, remedy=remedy)
+    red = build_reduced_model(model, kind, f_cut=f_cut, n_modes=n_modes, remedy=remedy, augment=augment)
     system = reduced_system(red, contact)
     q0, qd0 = initial_state(red, scene)
     t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
@@ -559,7 +567,9 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     notes.extend(plan_notes)
     for b in red.bodies:
         f = b.frequencies_hz
-        notes.append(f"  {b.name}: {b.n_modes} modes" + (f", {f[0] / 1e3:.4g}-{f[-1] / 1e3:.4g} kHz" if len(f) else ""))
+        f = f[:len(f) - b.n_augmented]
+        notes.append(f"  {b.name}: {len(f)} modes" + (f", {f[0] / 1e3:.4g}-{f[-1] / 1e3:.4g} kHz" if len(f) else "")
+                     + (f" + {b.n_augmented} augmentation vectors" if b.n_augmented else ""))
     writers = []
     if rec.fields:
         fields = list(rec.fields)

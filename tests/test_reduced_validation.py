@@ -1,7 +1,8 @@
 """Validation of the reduced methods against independent references (issue 5), on small meshes.
 
 * mode convergence: F_max, t_c and the gauge stresses converge to the full model's as the modal
-  cutoff rises (traditional against full P1 and improved against full P2, same mesh);
+  cutoff rises (traditional against full P1 and improved against full P2, same mesh and same
+  contact candidates, so that with every mode the two are the same model);
 * the clamped block's free-vibration frequencies of the improved reduced model against an
   independent P2 model of a finer mesh;
 * a second impact: the modal free phase hands the state back to the integrator, checked against
@@ -58,77 +59,117 @@ def rel(a: float, b: float) -> float:
     return abs(a / b - 1.0)
 
 
+def same_model_full(scene, plan, t_end, degree, reduced_out) -> dict:
+    """Full P``degree`` with the reduced run's contact candidates: the very model the reduced run
+    projects (same mesh, same massless contact nodes of the mass redistribution). With the full
+    method's own candidates (2.5 a_max against the reduced 1.75 a_max) the two models differ by
+    a ring of massless nodes: on this mesh that alone moves the gauge peaks by up to 2 % (B), more
+    than the reduction's own error at 16 / t_c."""
+    from millimpact import fe_methods
+
+    radius = reduced_out.model["candidate_radius_m"]
+    return metrics(fe_methods.run_fe(scene, plan, {"t_end": t_end, "degree": degree, "candidate_radius": radius},
+                                     False))
+
+
 @pytest.fixture(scope="module")
 def traditional_runs():
-    from millimpact import fe_methods, reduced_methods
+    from millimpact import reduced_methods
 
     scene, plan = small_scene()
     t_end = first_contact_end(scene, plan)
     tc = plan.hertz.contact_time
-    runs = {"full": metrics(fe_methods.run_fe(scene, plan, {"t_end": t_end, "degree": 1}, False))}
-    for k in (1, 4, 16):       # 4 / t_c is the plan's default cutoff
-        out = reduced_methods.run_reduced(scene, plan, {"t_end": t_end, "f_cut": k / tc}, False, "traditional")
-        runs[k] = metrics(out)
+    runs, outs = {}, {}
+    # 4 / t_c is the plan's default cutoff; "1+aug": 1 / t_c with the modal truncation augmentation
+    for key, opts in ((1, {"f_cut": 1 / tc}), (4, {"f_cut": 4 / tc}), (32, {"f_cut": 32 / tc}),
+                      ("all", {"modes": 100000}), ("1+aug", {"f_cut": 1 / tc, "augment": "boussinesq"})):
+        outs[key] = reduced_methods.run_reduced(scene, plan, {"t_end": t_end, "free_phase": "step", **opts}, False,
+                                                "traditional")
+        runs[key] = metrics(outs[key])
+    runs["full"] = same_model_full(scene, plan, t_end, 1, outs[4])
     return runs
 
 
 @serial
 def test_traditional_converges_to_full_p1_with_the_cutoff(traditional_runs):
-    """Traditional (P1 zone + Craig-Bampton) against full P1 on the same mesh: with all modes the
-    two are the same model, so the gap is the modal truncation alone."""
+    """Traditional (P1 zone + Craig-Bampton) against full P1 of the same mesh and contact
+    candidates: with all modes the two are the same model, so the gap is the modal truncation."""
     r = traditional_runs
     full = r["full"]
-    err_F = {k: rel(r[k]["F"], full["F"]) for k in (1, 4, 16)}
+    # every mode kept: the same model, time steps, gauge element and stress recovery, so however
+    # the gauge peak is sampled it cancels: measured 1.4e-11 (rounding); 1e-6
+    for g, ref in full["gauges"].items():
+        assert rel(r["all"]["gauges"][g], ref) < 1e-6, (g, r["all"]["gauges"][g], ref)
+    assert rel(r["all"]["F"], full["F"]) < 1e-6
+    err_F = {k: rel(r[k]["F"], full["F"]) for k in (1, 4, 32, "1+aug")}
     # measured: 3.0 % at 1/t_c (below ~1/t_c a mode's dynamic error is large, DESIGN.md 4),
-    # 0.2 % at 4/t_c, 0.05 % at 16/t_c
-    assert err_F[4] < 0.5 * err_F[1] and err_F[16] < 0.5 * err_F[1]
-    # brief: within 1 % on F_max and t_c at the default cutoff (measured 0.2 %, 0.2 %)
+    # 0.20 % at 4/t_c, 0.06 % at 32/t_c
+    assert err_F[4] < 0.5 * err_F[1] and err_F[32] < 0.5 * err_F[1]
+    # brief: within 1 % on F_max and t_c at the default cutoff (measured 0.20 %, 0.17 %)
     assert err_F[4] < 0.01
     assert rel(r[4]["tc"], full["tc"]) < 0.01
-    # gauge peaks within the contact: they converge with the cutoff (measured errors A/B/C:
-    # 12/46/9.4 % at 1/t_c, 2.3/0.5/4.1 % at 4/t_c, 0.05/1.4/2.2 % at 16/t_c). The brief's 2 % at
-    # the default cutoff is missed on this mesh (gauge C 4.1 %): the gauges lie in the reduced
-    # region, 7.5-15 mm from the contact, where the near-field stress has content above 4/t_c
+    # the augmentation vectors (one per body) restore the truncated modes' quasi-static response
+    # to the contact pulse: F_max at 1/t_c measured 3.0 % -> 0.05 %
+    assert err_F["1+aug"] < 0.1 * err_F[1]
+    # gauge peaks within the contact converge with the cutoff: measured errors A/B/C 11.9/47/8.0 %
+    # at 1/t_c, 2.0/1.5/2.6 % at 4/t_c, 3.5/1.1/1.2 % at 32/t_c (433 of the 1019 modes).
+    # KNOWN MISS (issue 5): the brief's 2 % at the default cutoff (gauge C). Not the sampling (all
+    # modes: 1e-11, above): the P1 gauge stresses at 7.5-15 mm carry 10-20 % of their amplitude
+    # above 4/t_c (stress waves in the clamped block) and their peak is not a smooth function of
+    # the basis: the largest error is 5.7, 3.2, 6.6, 0.7 % at 6, 8, 12, 16/t_c, and 12 % with the
+    # augmentation at 4/t_c; the full P1 peak itself moves by up to 12 % (C) when its time step
+    # is quartered. Bounds: the measured errors rounded up to whole percents.
     for g, ref in full["gauges"].items():
-        e1, e4, e16 = (rel(r[k]["gauges"][g], ref) for k in (1, 4, 16))
-        assert e16 < 0.5 * e1, (g, e1, e16)
-        assert e4 < 0.05, (g, e4)
-        assert e16 < 0.03, (g, e16)
+        e1, e4, e32 = (rel(r[k]["gauges"][g], ref) for k in (1, 4, 32))
+        assert e32 < 0.5 * e1, (g, e1, e32)
+        assert e4 < 0.03, (g, e4)
+        assert e32 < 0.04, (g, e32)
 
 
 @pytest.fixture(scope="module")
 def improved_runs():
-    from millimpact import fe_methods, reduced_methods
+    from millimpact import reduced_methods
 
     scene, plan = small_scene()
     t_end = first_contact_end(scene, plan)
     tc = plan.hertz.contact_time
-    runs = {"full": metrics(fe_methods.run_fe(scene, plan, {"t_end": t_end, "degree": 2}, False))}
-    for k in (2, 4):
-        runs[k] = metrics(reduced_methods.run_reduced(scene, plan, {"t_end": t_end, "f_cut": k / tc}, False,
-                                                      "improved"))
+    runs, outs = {}, {}
+    for key, k, extra in ((2, 2, {}), (4, 4, {}), ("anchors", 4, {"nmm_remedy": "anchors"})):
+        outs[key] = reduced_methods.run_reduced(scene, plan, {"t_end": t_end, "f_cut": k / tc, **extra}, False,
+                                                "improved")
+        runs[key] = metrics(outs[key])
+    runs["full"] = same_model_full(scene, plan, t_end, 2, outs[4])
     return runs
 
 
 @serial
 def test_improved_converges_to_full_p2(improved_runs):
-    """Improved (NMM zone in a P2 mesh + Craig-Bampton) against full P2 of the same mesh. Its zone
-    space is a subspace of P2's, so even with all modes a small gap remains: on this mesh the
-    contact patch spans only 1.4 elements (a_max / h_contact) and the NMM zone resolves it a
-    little less well than P2 (on the default mesh, a_max / 4, the gap is 0.4 % on F_max and 0.1 %
-    on t_c: benchmarks/reduced_vs_full.py)."""
+    """Improved (NMM zone in a P2 mesh + Craig-Bampton) against full P2 of the same mesh and
+    contact candidates. Its zone space is a subspace of P2's, so even with all modes a small gap
+    remains: on this mesh the contact patch spans only 1.4 elements (a_max / h_contact) and the NMM
+    zone resolves it a little less well than P2 (on the default mesh, a_max / 4, the gap is 0.2 %
+    on F_max and 0.05 % on t_c: benchmarks/reduced_vs_full.py)."""
     r = improved_runs
     full = r["full"]
     # measured: F_max +2.3 % at 2/t_c, -0.8 % at 4/t_c; 8/t_c equals 4/t_c to 1e-4 (converged)
     assert rel(r[4]["F"], full["F"]) < 0.5 * rel(r[2]["F"], full["F"])
     assert rel(r[4]["F"], full["F"]) < 0.01                   # brief: 1 %
     assert rel(r[4]["tc"], full["tc"]) < 0.015                # measured -1.0 % (zone space, above)
-    # gauges (brief: 2 %): measured B +1.3 %, C -1.5 %. Gauge A (7.5 mm above the contact) is
-    # -22 % here but the reference itself is unreliable on this coarse far mesh: full P2 gives
-    # 19.4 MPa at h_far 8 mm and 15.5 MPa at h_far 5 mm, where improved is -5 % and modal-p2 -5.4 %
-    # (modal truncation of the region, the same for both zone descriptions); not asserted
+    # gauges, brief 2 %: measured B +1.3 %, C -1.4 %
     for g in ("gauge_B_stress_Pa", "gauge_C_stress_Pa"):
-        assert rel(r[4]["gauges"][g], full["gauges"][g]) < 0.03, (g, r[4]["gauges"][g], full["gauges"][g])
+        assert rel(r[4]["gauges"][g], full["gauges"][g]) < 0.02, (g, r[4]["gauges"][g], full["gauges"][g])
+    # gauge A (7.5 mm above the contact, 2.5 mm beyond the zone): -23 % with the default null-space
+    # remedy. Not the reference (modal-p2, the nodal P2 zone with the same modes, is within 0.9 %
+    # of it) nor the modes (-19 % at 16/t_c): the remedy drops the gradient covers at the interface
+    # vertices, so the zone's trace on the interface is piecewise linear and the constraint modes
+    # feed the region a P1 interface motion, 0.8-2 mm edges on this mesh. Three anchor vertices
+    # instead (nmm_remedy = anchors, 4x the interface coordinates) give the P2 trace back: measured
+    # -2.0 % (B +0.9 %, C -2.4 %: at this level the peaks are not a smooth function of the basis,
+    # see the traditional test). On the default mesh (0.29 mm interface edges) the two remedies'
+    # 40 ms gauge peaks differ by 0.3 % at 3x the run time, so "interface" stays the default.
+    g = "gauge_A_stress_Pa"
+    assert rel(r["anchors"]["gauges"][g], full["gauges"][g]) < 0.025, (r["anchors"]["gauges"][g], full["gauges"][g])
+    assert rel(r["anchors"]["F"], full["F"]) < 0.015          # measured -0.9 %
 
 
 @serial
@@ -246,6 +287,43 @@ if MPI.COMM_WORLD.rank == 0:
     assert got["tc"] == pytest.approx(ser["tc"], rel=1e-9)
     assert np.array_equal(got["t"], out.series["time_s"])
     assert np.max(np.abs(np.array(got["Ft"]) - out.series["contact_force_N"])) < 1e-9 * ser["F"]
+
+
+@pytest.mark.mpi
+@serial
+def test_augmentation_under_mpi_matches_serial():
+    """The modal truncation augmentation (one vector per body, traditional at 1/t_c where it
+    matters most) gives the serial numbers on 2 ranks: measured 4e-13 on F_max (traditional's
+    direct solves agree to ~1e-12); 1e-9."""
+    code = f"""
+import json
+from mpi4py import MPI
+from millimpact.scene import builtin_scene
+from millimpact.plan import make_plan
+from millimpact import reduced_methods
+from millimpact.results import contact_metrics
+scene = builtin_scene("paper-rig")
+for k, v in {SMALL!r}.items():
+    scene = scene.with_value(k, v)
+plan = make_plan(scene)
+t_end = plan.gap / scene.impact.speed + 1.6 * plan.hertz.contact_time
+out = reduced_methods.run_reduced(scene, plan, {{"t_end": t_end, "f_cut": 1 / plan.hertz.contact_time,
+                                  "augment": "boussinesq"}}, False, "traditional")
+if MPI.COMM_WORLD.rank == 0:
+    print("RESULT", json.dumps({{"F": contact_metrics(out.series)["peak_contact_force_N"],
+          "n": out.model["reduced_dofs"], "aug": out.model["reduction"]["augmentation_vectors"],
+          "A": float(max(abs(out.series["gauge_A_stress_Pa"])))}}))
+"""
+    got = []
+    for np_ in (1, 2):
+        res = run_mpi_script(code, np=np_)
+        assert res.returncode == 0, res.stderr[-3000:]
+        got.append(json.loads([ln for ln in res.stdout.splitlines() if ln.startswith("RESULT")][0].split(" ", 1)[1]))
+    ser, par = got
+    assert ser["aug"] == par["aug"] == 2
+    assert ser["n"] == par["n"]
+    assert par["F"] == pytest.approx(ser["F"], rel=1e-9)
+    assert par["A"] == pytest.approx(ser["A"], rel=1e-9)
 
 
 @serial
