@@ -172,6 +172,63 @@ def test_improved_converges_to_full_p2(improved_runs):
     assert rel(r["anchors"]["F"], full["F"]) < 0.015          # measured -0.9 %
 
 
+def band_limited_gauge_peaks(out, f_band: float, t_max: float) -> dict:
+    """Each gauge's peak |stress| (Pa) up to ``t_max`` after a zero-phase low-pass at ``f_band``
+    (Hz; 4th-order Butterworth, forward and back, on the series resampled to its smallest step):
+    the part of the signal the reduced model claims (its modes reach f_cut). The run should last
+    ~1 / f_band beyond t_max, where the filter's end effects fade."""
+    from scipy.signal import butter, sosfiltfilt
+
+    ts = out.series
+    t = np.asarray(ts["time_s"])
+    dt = float(np.min(np.diff(t)))          # outputs switch from dt_contact to dt_free after the contact
+    grid = np.arange(t[0], t[-1] + 0.5 * dt, dt)
+    sos = butter(4, 2.0 * f_band * dt, output="sos")
+    keep = grid <= t_max
+    return {k: float(np.max(np.abs(sosfiltfilt(sos, np.interp(grid, t, ts[k]))[keep])))
+            for k in ts.columns if k.startswith("gauge_")}
+
+
+@serial
+def test_band_limited_gauge_peaks_converge_with_the_cutoff():
+    """Gauge peaks over the first contact and the first bending swing (to gap / v + 4 t_c), in the
+    band below the default cutoff (4/t_c): traditional against full P1 of the same mesh, contact
+    candidates and time steps. Unfiltered, the reference's peaks are not converged (they move by
+    4-7 % when its steps are halved: content far above f_cut, see the test above)."""
+    from millimpact import fe_methods, reduced_methods
+    from millimpact.plan import make_plan
+
+    scene, plan = small_scene()
+    tc = plan.hertz.contact_time
+    t_max = plan.gap / scene.impact.speed + 4.0 * tc
+    t_end = t_max + tc
+    band = plan.f_cut
+    red = {}
+    for k in (4, 8, 16):
+        out = reduced_methods.run_reduced(scene, plan, {"t_end": t_end, "f_cut": k / tc, "free_phase": "step"},
+                                          False, "traditional")
+        red[k] = band_limited_gauge_peaks(out, band, t_max)
+    opts = {"t_end": t_end, "degree": 1, "candidate_radius": out.model["candidate_radius_m"]}
+    full = band_limited_gauge_peaks(fe_methods.run_fe(scene, plan, opts, False), band, t_max)
+    fine_scene = scene.with_value("time.dt_contact", plan.dt_contact / 2).with_value("time.dt_free", plan.dt_free / 2)
+    fine = band_limited_gauge_peaks(fe_methods.run_fe(fine_scene, make_plan(fine_scene), opts, False), band, t_max)
+    errs = {g: {k: rel(red[k][g], ref) for k in red} for g, ref in full.items()}
+    for g, ref in full.items():
+        # the reference in time, within the band: measured 1.5 / 1.6 / 1.8 % (A/B/C) under dt/2
+        # (dt_free = 1 / (10 f_cut) has 3 % period error at the band's edge; plan.py)
+        assert rel(fine[g], ref) < 0.025, (g, fine[g], ref)
+        e = errs[g]
+        # measured A 4.5 / 1.7 / 0.75 %, B 0.6 / 0.6 / 0.5 %, C 0.6 / 0.2 / 0.07 % at 4 / 8 / 16 t_c:
+        # the brief's 2 % holds from 8/t_c for every gauge, at the default cutoff for B and C
+        assert e[8] < 0.02 and e[16] < 0.02, (g, e)
+        if g != "gauge_A_stress_Pa":
+            assert e[4] < 0.02, (g, e)
+    # KNOWN MISS (issue 5): gauge A (7.5 mm above the contact, 2.5 mm outside the zone) at the
+    # default cutoff, measured 4.5 %; it converges monotonically with the cutoff
+    eA = errs["gauge_A_stress_Pa"]
+    assert eA[16] < eA[8] < eA[4] < 0.06, eA
+
+
 @serial
 def test_reduced_block_frequencies_match_a_finer_p2_model():
     """The clamped block's lowest free-vibration frequencies of the improved reduced model (the
