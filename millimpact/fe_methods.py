@@ -134,6 +134,11 @@ class Recorder:
         self.u_fn.x.scatter_forward()
         return self.u_fn.x.array
 
+    def _displacement_probe(self, st) -> tuple[np.ndarray, np.ndarray]:
+        """Values (points x 3) and gradients (points x 3 x 3) of the displacement at the probes."""
+        u_loc = self._local(st.u).copy()
+        return self.probe.values(u_loc), self.probe.gradients(u_loc)
+
     def __call__(self, st) -> None:
         m = self.model
         lam = np.asarray(st.lam)
@@ -150,9 +155,7 @@ class Recorder:
             a = 0.0
         approach = -self.c_y.dot(st.u) - self.gap0
         vball = -self.c_y.dot(st.v)
-        u_loc = self._local(st.u).copy()
-        vals_u = self.probe.values(u_loc)
-        grads = self.probe.gradients(u_loc)
+        vals_u, grads = self._displacement_probe(st)
         vals_v = self.probe.values(self._local(st.v).copy())
         vals_a = self.probe.values(self._local(st.a).copy())
         s = stress_from_gradient(grads, self.mu, self.lmbda)

@@ -23,7 +23,7 @@ vectors of each body's region, :mod:`millimpact.reduction`; default none), ``fre
 gap closes within this span, default the stepping chunk max(2 t_c, 20 dt_contact)), ``free_modes_factor`` (the free phase keeps the
 free-vibration modes up to this many times the plan's f_cut, whose dt_free = 1 / (10 f_cut) is its
 output grid; default 4), ``integrator`` (default newmark-mr),
-``t_end`` (s). The rest goes to the integrator.
+``recovery`` (mode-acceleration | modal, below), ``t_end`` (s). The rest goes to the integrator.
 
 The free phase. The contact lasts ~0.1 ms of the 40 ms run; with the zone kept physical the
 reduced model is still thousands of coordinates, so stepping the free vibration would cost nearly
@@ -40,7 +40,9 @@ the switch is dropped and reported (``results["free_phase"]["energy_dropped_J"]`
 Observables: the time series are the full method's (:class:`millimpact.fe_methods.Recorder`),
 computed from rows precomputed once per projection (probe rows P T, the ball's centre-of-mass
 row T^T c), energies as ``q . M_r q / 2`` and ``q . K_r q / 2``; u = T q is expanded only for
-the XDMF fields.
+the XDMF fields. Probe displacements and gradients in the non-contact region (the gauges) are
+recovered by mode acceleration (``recovery``: mode-acceleration, the default, or modal: u = T q
+alone): ``P T q + C q''`` with the rows C of :meth:`ReducedModel.mode_acceleration_rows`.
 """
 from __future__ import annotations
 
@@ -131,10 +133,17 @@ class ReducedRecorder(Recorder):
     states' times (restarted integrations). XDMF states are expanded to model vectors at once.
     """
 
-    def __init__(self, red: ReducedModel, contact: ContactSet, field_times: tuple[float, ...]):
+    def __init__(self, red: ReducedModel, contact: ContactSet, field_times: tuple[float, ...],
+                 recovery: str = "mode-acceleration"):
         super().__init__(red.model, contact, field_times)
         self._c_full = self.c_y
         self._probe_full = self.probe
+        # mode-acceleration rows of the probes (ReducedModel.mode_acceleration_rows): displacement
+        # values and gradients get C q'' added; replicated dense (rows x reduced coordinates)
+        self._ma = None
+        if recovery == "mode-acceleration":
+            self._ma = tuple(red.mode_acceleration_rows(local_rows_to_aij(P, red.model.V))
+                             for P in (self._probe_full.P_val, self._probe_full.P_grad))
         self.time_offset = 0.0
         self.proj = None
         self._maps: dict[int, tuple] = {}
@@ -153,7 +162,9 @@ class ReducedRecorder(Recorder):
                                    scene=proj.model.scene, sym_factor=proj.model.sym_factor)
             self._maps[key] = (proj.restrict(self._c_full), mask, proj.create_vector(), proj.create_vector(),
                                _reduced_probe(self._probe_full, proj), view)
+            self._maps[("ma", key)] = self._ma_probe(proj)
         self.c_y, self.ball_mask, self.tmp, self.tmp2, self.probe, self.model = self._maps[key]
+        self.ma_probe = self._maps[("ma", key)]
         if self._ct_full is not None:
             if key not in self._ct_maps:
                 self._ct_maps[key] = proj.restrict(self._ct_full)
@@ -161,6 +172,34 @@ class ReducedRecorder(Recorder):
 
     def _local(self, vec) -> np.ndarray:
         return vec.array_r
+
+    def _ma_probe(self, proj) -> Optional[PointProbe]:
+        """The mode-acceleration rows for states of ``proj`` as a probe acting on accelerations
+        (owned columns of proj's coordinates): C for the reduced model, C Phi for a modal one."""
+        if self._ma is None:
+            return None
+        comm = proj.comm
+        mats = []
+        for C in self._ma:
+            if isinstance(proj, ModalProjection):
+                r0, r1 = proj.red.M.getOwnershipRange()
+                C = comm.allreduce(C[:, r0:r1] @ proj.Phi.getDenseArray(), op=MPI.SUM)
+                # quasi-static only below the lowest fixed-interface mode not kept: a free mode
+                # above it drives the truncated modes near or past resonance
+                nxt = [b.next_frequency_hz for b in proj.red.bodies if b.n_interior and np.isfinite(b.next_frequency_hz)]
+                if nxt:
+                    C = C * (np.sqrt(proj.omega2) < 2 * math.pi * min(nxt))[None, :]
+            lo, hi = proj.create_vector().getOwnershipRange()
+            mats.append(sp.csr_matrix(C[:, lo:hi]))
+        return PointProbe(comm, self._probe_full.n_points, mats[0], mats[1], self._probe_full.found)
+
+    def _displacement_probe(self, st) -> tuple[np.ndarray, np.ndarray]:
+        vals, grads = super()._displacement_probe(st)
+        if self.ma_probe is not None:
+            a = st.a.array_r
+            vals = vals + self.ma_probe.values(a)
+            grads = grads + self.ma_probe.gradients(a)
+        return vals, grads
 
     def _dense_maps(self, modal: ModalProjection) -> SimpleNamespace:
         """Replicated dense maps of a modal projection (m modal coordinates, a few dozen): the
@@ -174,10 +213,12 @@ class ReducedRecorder(Recorder):
                 return np.concatenate(comm.allgather(v.array_r.copy()))
 
             c_y, mask, _, _, probe, _ = self._maps[id(modal)]
+            ma = self._maps[("ma", id(modal))]
             cols = lambda P: sp.hstack(comm.allgather(P)).toarray()    # noqa: E731 (local columns)
             self._maps[key] = SimpleNamespace(
                 c=vec(c_y), ct=vec(self._ct_maps[id(modal)]) if self._ct_full is not None else None,
                 mask=vec(mask), Pv=cols(probe.P_val), Pg=cols(probe.P_grad), n_points=probe.n_points,
+                Cv=cols(ma.P_val) if ma is not None else None, Cg=cols(ma.P_grad) if ma is not None else None,
                 M=gather_aij_dense(modal.M_scheme, comm), K=gather_aij_dense(modal.K, comm))
         return self._maps[key]
 
@@ -192,10 +233,13 @@ class ReducedRecorder(Recorder):
         approach = -(d.c @ eta) - self.gap0
         vball = -(d.c @ etad)
         np_ = d.n_points
-        vals_u = (d.Pv @ eta).reshape(np_, 3, n_t)
+        u_v, u_g = d.Pv @ eta, d.Pg @ eta
+        if d.Cv is not None:            # mode-acceleration recovery
+            u_v, u_g = u_v + d.Cv @ etadd, u_g + d.Cg @ etadd
+        vals_u = u_v.reshape(np_, 3, n_t)
         vals_v = (d.Pv @ etad).reshape(np_, 3, n_t)
         vals_a = (d.Pv @ etadd).reshape(np_, 3, n_t)
-        grads = np.moveaxis((d.Pg @ eta).reshape(np_, 3, 3, n_t), -1, 0)      # (n_t, points, 3, 3)
+        grads = np.moveaxis(u_g.reshape(np_, 3, 3, n_t), -1, 0)               # (n_t, points, 3, 3)
         s = stress_from_gradient(grads, self.mu, self.lmbda)
         gauges = [self.E * np.einsum("i,tij,j->t", dv, 0.5 * (g + np.swapaxes(g, -1, -2)), dv)
                   for dv, g in zip(self.gauge_dirs, np.moveaxis(grads[:, 1:], 1, 0))]
@@ -519,6 +563,9 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     n_modes = _int_option(options, "modes", scene.model.modes)
     f_cut = _float_option(options, "f_cut", plan.f_cut)
     remedy = str(options.pop("nmm_remedy", None) or "interface")
+    recovery = str(options.pop("recovery", None) or "mode-acceleration")
+    if recovery not in ("mode-acceleration", "modal"):
+        raise InputError(f"option recovery = {recovery!r}: choose mode-acceleration or modal")
     augment = str(options.pop("augment", None) or "none")
     augment = tuple(a for a in augment.split(",") if a and a != "none")
     if any(a not in AUGMENTATION_PATTERNS for a in augment):
@@ -541,7 +588,10 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     q0, qd0 = initial_state(red, scene)
     t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
 
-    rec = ReducedRecorder(red, contact, scene.outputs.field_times if scene.outputs.xdmf else ())
+    t1 = time.perf_counter()
+    rec = ReducedRecorder(red, contact, scene.outputs.field_times if scene.outputs.xdmf else (), recovery)
+    red.release_recovery()
+    t_rows = time.perf_counter() - t1
     t1 = time.perf_counter()
     run = integrate_reduced(red, system, q0, qd0, contact, plan, t_end, rec, integrator=integrator,
                             options=options, progress=progress, free_phase=free_phase,
@@ -553,7 +603,8 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     ts = rec.series()
     results = impact_results(ts, scene, stats, integrator)
     results["timings_s"] = {"mesh": t_mesh, "assemble": t_assemble, "reduction_offline": t_reduce,
-                            "free_modes_offline": run["free_modes_time"], "integrate": t_integrate,
+                            "free_modes_offline": run["free_modes_time"], "output_rows": t_rows,
+                            "integrate": t_integrate,
                             "reduction_detail": dict(red.timings)}
     results["free_phase"] = {k: v for k, v in run.items() if k not in ("stats",)}
     rep = red.report()

@@ -38,6 +38,15 @@ coarse test mesh traditional 2.0 / 1.5 / 2.6 % -> 5.6 / 5.4 / 12 %: the gauge st
 content far above any affordable cutoff, so they are not a smooth function of the basis, and the
 augmentation is not the default.
 
+Output recovery by mode acceleration (:meth:`ReducedModel.mode_acceleration_rows`, the default of
+the reduced methods' recorder): outputs in a body's interior (the gauges) add ``C q''`` to
+``A T q``, the truncated modes' quasi-static response to the interior's inertia (residual
+flexibility ``K_ii^-1 - Phi Omega^-2 Phi^T`` applied to ``(M_ii Psi + M_ib) q_b''``). The dynamics
+do not change; the stresses next to the zone converge much faster with the cutoff: gauge A of the
+block's 15.4 kHz free mode -14 % -> +0.3 %, and the band-limited gauge peaks of an impact 4.5 % ->
+0.5 % (test mesh, 4/t_c; tests/test_reduced_validation.py). Cost: one solve per output row with
+the factorization of ``K_ii`` (kept until :meth:`ReducedModel.release_recovery`).
+
 The reduced matrices have a sparse zone block ``G^T K_zz G`` plus dense blocks on the interface
 coordinates and the modes (in closed form, no dense ``n x n`` matrix is ever formed)::
 
@@ -255,6 +264,12 @@ class BodyReduction:
     timings: dict[str, float] = field(default_factory=dict)
     #: the last ``n_augmented`` columns of Phi are augmentation vectors (their Ritz frequencies)
     n_augmented: int = 0
+    #: kept for the mode-acceleration output rows (:meth:`ReducedModel.mode_acceleration_rows`)
+    #: until :meth:`ReducedModel.release_recovery`: the factored K_ii, M_ii, and the coupling
+    #: A_b = M_ii Psi + M_ib (dense n_i x n_b) through which the zone's acceleration loads the interior
+    ksp: Optional[PETSc.KSP] = None
+    A_b: Optional[PETSc.Mat] = None
+    K_ii: Optional[PETSc.Mat] = None
 
     @property
     def n_modes(self) -> int:
@@ -423,6 +438,59 @@ class ReducedModel:
             S = S + sp.csr_matrix((loc.ravel(), (np.repeat(np.arange(n_rows), len(idx)),
                                                  np.tile(idx, n_rows))), shape=(n_rows, n_cols))
         return _aij_from_local_csr(S.tocsr(), AG.getSizes(), self.comm)
+
+    def mode_acceleration_rows(self, A: PETSc.Mat) -> np.ndarray:
+        """Output rows by the mode-acceleration method: a replicated dense C (k x n_r) such that
+        ``A u ~ (A T) q + C q''`` for a row operator A (k x n, AIJ: probes, gauges).
+
+        In each body's interior (no external load) the exact motion obeys
+        ``u_i = Psi u_b - K_ii^-1 (M_ii u_i'' + M_ib u_b'')``. With the reduced accelerations on the
+        right and the modal equations of the reduced model, this is
+        ``u_i = Psi q_b + Phi eta - R A_b q_b''``, ``R = K_ii^-1 - Phi Omega^-2 Phi^T`` the residual
+        flexibility of the modes not kept and ``A_b = M_ii Psi + M_ib``: the truncated modes'
+        quasi-static response to the interior's inertia. Stresses near the zone converge much
+        faster with the cutoff this way (mode shapes' gauge stresses: 14 % -> 0.4 % at 4/t_c on
+        the test mesh); the dynamics are unchanged. Zero rows where A does not reach an interior.
+        Needs the factorizations kept by :func:`reduce_model` (:meth:`release_recovery` frees
+        them); bodies with augmentation vectors are skipped (Phi holds non-eigenvectors there)."""
+        k = A.getSize()[0]
+        C = np.zeros((k, self.n_global))
+        r0, r1 = A.getOwnershipRange()
+        for b in self.bodies:
+            if b.n_interior == 0 or b.ksp is None or b.A_b is None or b.n_augmented:
+                continue
+            cols = PETSc.IS().createGeneral(b.I.getIndices(), comm=self.comm)
+            rows = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
+            AI = A.createSubMatrix(rows, cols)                       # k x n_i
+            if AI.norm(PETSc.NormType.FROBENIUS) == 0.0:
+                continue
+            AIt = AI.transpose()                                   # n_i x k
+            rhs = _dense_columns(AIt, np.arange(k), self.comm)
+            Y = rhs.duplicate()
+            # the eigensolver's reset dropped the factor (shift-and-invert shares this KSP): set up
+            # again (a no-op when the factor is current)
+            b.ksp.setOperators(b.K_ii)
+            b.ksp.setUp()
+            b.ksp.getPC().getFactorMatrix().matSolve(rhs, Y)      # K_ii^-1 A_i^T
+            if b.Phi is not None:
+                Z = _gather_rows(b.Phi.transposeMatMult(rhs), self.comm)          # m x k
+                w2 = (2 * math.pi * np.asarray(b.frequencies_hz)) ** 2
+                y = Y.getDenseArray()
+                y -= b.Phi.getDenseArray() @ (Z / w2[:, None])
+                Y.assemble()
+            G = _gather_rows(b.A_b.transposeMatMult(Y), self.comm)                # n_b x k
+            C[:, b.qb] -= G.T
+            for m in (AI, AIt, rhs, Y):
+                m.destroy()
+        return C
+
+    def release_recovery(self) -> None:
+        """Free the per-body factorizations and couplings kept for :meth:`mode_acceleration_rows`."""
+        for b in self.bodies:
+            for m in (b.ksp, b.A_b):
+                if m is not None:
+                    m.destroy()
+            b.ksp = b.A_b = b.K_ii = None
 
     def reduced_dofs(self, dofs: np.ndarray) -> np.ndarray:
         """Owned local reduced indices whose basis vectors touch the given owned model dofs (the
@@ -927,10 +995,13 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         mode_start += len(freq)
         qb = q_to_red(d["qb_q"])
         Psi, Phi, Cb, Db, K_ii, M_ii = d["Psi"], d["Phi"], d["Cb"], d["Db"], d["K_ii"], d["M_ii"]
+        A_b = None
         if Psi is not None:
             Kbb = _gather_rows(Cb.transposeMatMult(Psi), comm)
             Kbb = 0.5 * (Kbb + Kbb.T)
             MPsi = M_ii.matMult(Psi)
+            A_b = MPsi.copy()
+            A_b.axpy(1.0, _dense_columns(Db, np.arange(Db.getSize()[1]), comm))
             DtPsi = _gather_rows(Db.transposeMatMult(Psi), comm)
             Mbb = DtPsi + DtPsi.T + _gather_rows(Psi.transposeMatMult(MPsi), comm)
             Mbb = 0.5 * (Mbb + Mbb.T)
@@ -957,9 +1028,8 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         for m in (d["C"], d["D"], Cb, Db):
             if m is not None:
                 m.destroy()
-        d["ksp"].destroy()
         bodies.append(BodyReduction(name, d["n_i"], d["I"], Psi, qb, Phi, modes, freq, f_cut, d["next"],
-                                    d["timings"], d["n_aug"]))
+                                    d["timings"], d["n_aug"], ksp=d["ksp"], A_b=A_b, K_ii=K_ii))
     timings["dense_blocks"] = time.perf_counter() - t0
 
     sizes = ((n_red_loc, n_red), (n_red_loc, n_red))
