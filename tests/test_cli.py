@@ -43,6 +43,7 @@ def test_run_hertz_writes_the_output_contract(tmp_path):
     (["run", "no-such-scene", "--method", "hertz"], "scene"),
     (["run", "--method", "teleport"], "--method"),
     (["hertz", "--bogus"], "--bogus"),
+    (["run", "--method", "improved", "-recovery", "psychic"], "recovery"),
 ])
 def test_bad_input_one_line_exit_2(args, field, tmp_path):
     out = tmp_path / "never"
