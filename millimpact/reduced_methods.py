@@ -322,13 +322,13 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
         scene = scene.with_value("model.zone_radius", zone)
         plan = make_plan(scene)
         notes.append(f"contact zone radius {zone * 1e3:.4g} mm = {zone / a:.3g} a_max (reduced methods' "
-                     f"default; full on the same mesh: --set model.zone_radius={zone:.6g})")
+                     f"default; full on the same mesh: --set model.zone_radius={zone!r})")
     radius = min(REDUCED_CANDIDATE_FACTOR * a, plan.zone_radius - 2.0 * plan.h_contact)
     if radius < 1.2 * a:
         raise InputError(f"model.zone_radius = {plan.zone_radius:g} m: too small for the contact candidates "
                          f"(needs at least {1.2 * a + 2.0 * plan.h_contact:g} m = 1.2 a_max + 2 h_contact)")
     notes.append(f"contact candidates within {radius * 1e3:.4g} mm ({radius / a:.3g} a_max) of the contact axis "
-                 f"(full with the same candidates: -candidate_radius {radius:.6g}); "
+                 f"(full with the same candidates: -candidate_radius {radius!r}); "
                  f"f_cut {plan.f_cut / 1e3:.4g} kHz ({plan.f_cut * plan.hertz.contact_time:.3g} / t_c), "
                  f"dt_contact {plan.dt_contact * 1e6:.4g} us (t_c / {plan.hertz.contact_time / plan.dt_contact:.3g}), "
                  f"dt_free {plan.dt_free * 1e6:.4g} us")
