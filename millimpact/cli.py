@@ -157,6 +157,17 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
         options["degree"] = args.degree
     if args.integrator:
         options["integrator"] = args.integrator
+    for flag, key, value in (("--modes", "modes", args.modes), ("--f-cut", "f_cut", args.f_cut)):
+        if value is None:
+            continue
+        from .reduced_methods import REDUCED_METHODS
+
+        if args.method not in REDUCED_METHODS:
+            raise InputError(f"{flag} {value:g}: applies to the reduced methods ({', '.join(REDUCED_METHODS)}), "
+                             f"not --method {args.method}")
+        if not value > 0 and not (key == "modes" and value == 0):
+            raise InputError(f"{flag} {value:g}: must be > 0" + (" (or 0: constraint modes only)" if key == "modes" else " Hz"))
+        options[key] = value
     summary = run_scene(scene, args.method, out, options=options, progress=not args.quiet, comm=comm,
                         reference=args.reference)
     h = summary["hertz"]
@@ -250,6 +261,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--integrator", choices=["newmark-mr", "newmark", "central-penalty"],
                    help="time integrator of FE methods: newmark-mr (default: Newmark average acceleration with "
                         "mass redistribution), newmark (plain, chatters), central-penalty (explicit)")
+    r.add_argument("--modes", type=int, metavar="N",
+                   help="reduced methods: fixed-interface modes kept per body (wins over the cutoff)")
+    r.add_argument("--f-cut", type=float, metavar="HZ",
+                   help="reduced methods: modal cutoff of the reduction in Hz (default the plan's 4 / t_c; "
+                        "the output grid keeps the plan's)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.add_argument("--reference", action="store_true",
                    help="also write reference.h5 / reference.csv (+ .json): a versioned reference file other "

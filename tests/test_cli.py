@@ -44,6 +44,9 @@ def test_run_hertz_writes_the_output_contract(tmp_path):
     (["run", "--method", "teleport"], "--method"),
     (["hertz", "--bogus"], "--bogus"),
     (["run", "--method", "improved", "-recovery", "psychic"], "recovery"),
+    (["run", "--method", "improved", "--modes", "-3"], "--modes"),
+    (["run", "--method", "traditional", "--f-cut", "0"], "--f-cut"),
+    (["run", "--method", "full", "--f-cut", "1e5"], "--f-cut"),
 ])
 def test_bad_input_one_line_exit_2(args, field, tmp_path):
     out = tmp_path / "never"
