@@ -159,12 +159,28 @@ def check_ksp(ksp: PETSc.KSP, what: str, step: int, t: float) -> None:
         name = _KSP_REASONS.get(reason, str(reason))
         extra = ""
         if reason == PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED:
-            try:
-                extra = f" (PC failure: {ksp.getPC().getFailedReason()})"
-            except Exception:  # pragma: no cover - older petsc4py
-                pass
+            extra = _pc_failure(ksp.getPC())
         raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) did not converge: {name}{extra} "
                           f"at step {step}, t = {t:.9g} s")
+
+
+def _pc_failure(pc: PETSc.PC) -> str:
+    """What a failed PC set-up reports, for the error message: the PC's failure reason and, for a
+    MUMPS factorization, its INFOG(1) / INFO(1) / INFO(2) error codes (MUMPS user guide, section 8;
+    -9 / -8: workspace too small, -10: numerically singular)."""
+    parts = []
+    try:
+        parts.append(f"PC failure {pc.getFailedReason()}")
+    except Exception:  # pragma: no cover - older petsc4py
+        pass
+    try:
+        if pc.getType() in ("lu", "cholesky") and pc.getFactorSolverType() == "mumps":
+            F = pc.getFactorMatrix()
+            parts.append(f"MUMPS INFOG(1) {F.getMumpsInfog(1)}, INFO(1) {F.getMumpsInfo(1)}, "
+                         f"INFO(2) {F.getMumpsInfo(2)}")
+    except Exception:  # no factor matrix yet
+        pass
+    return f" ({'; '.join(parts)})" if parts else ""
 
 
 def solve_checked(ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec, what: str, step: int, t: float) -> None:
@@ -206,13 +222,12 @@ def _setup_checked(ksp: PETSc.KSP, what: str, step: int = 0, t: float = 0.0) -> 
         raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) failed in set-up: PETSc error "
                           f"{e.ierr} at step {step}, t = {t:.9g} s") from e
     pc = ksp.getPC()
-    try:
-        failed = pc.getFailedReason()
-    except Exception:  # pragma: no cover
-        failed = 0
+    # a failed factorization does not raise: the KSP's reason says so (petsc4py 3.18 has no
+    # PC.getFailedReason; before this check such a failure surfaced at the first solve)
+    failed = ksp.getConvergedReason() < 0
     if failed:
-        raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) failed in set-up: PC reason "
-                          f"{failed} at step {step}, t = {t:.9g} s")
+        raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) failed in set-up{_pc_failure(pc)} "
+                          f"at step {step}, t = {t:.9g} s")
 
 
 def solve_or_factorize(ksp: PETSc.KSP, A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, what: str,

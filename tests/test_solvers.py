@@ -1,5 +1,6 @@
 """Small PETSc solver utilities against dense references."""
 import numpy as np
+import pytest
 from petsc4py import PETSc
 
 from millimpact.solvers import solve_lcp, solve_mass
@@ -52,3 +53,24 @@ def test_lcp_matches_brute_force():
             break
     assert best is not None
     assert np.allclose(res.lam, best, atol=1e-12)
+
+
+def test_failed_factorization_is_reported_at_set_up():
+    """A factorization that fails (here a singular matrix, MUMPS Cholesky) raises at set-up with
+    MUMPS's error code, not later as a diverged solve."""
+    from petsc4py import PETSc
+
+    from millimpact.errors import SolverError
+    from millimpact.solvers import _setup_checked
+
+    A = PETSc.Mat().createAIJ((3, 3), nnz=1, comm=PETSc.COMM_SELF)
+    for i in range(3):
+        A.setValue(i, i, 0.0 if i == 1 else 1.0)
+    A.assemble()
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    ksp.getPC().setType("cholesky")
+    ksp.getPC().setFactorSolverType("mumps")
+    with pytest.raises(SolverError, match=r"failed in set-up.*MUMPS INFOG\(1\) -10"):
+        _setup_checked(ksp, "test factorization")
