@@ -139,6 +139,23 @@ class Recorder:
         u_loc = self._local(st.u).copy()
         return self.probe.values(u_loc), self.probe.gradients(u_loc)
 
+    def probe_columns(self, vals_u: np.ndarray, vals_v: np.ndarray, vals_a: np.ndarray,
+                      grads: np.ndarray) -> list[np.ndarray]:
+        """The probe columns of the rows for n_t states at once: from the displacement, velocity
+        and acceleration values (n_t, points, 3) and displacement gradients (n_t, points, 3, 3) at
+        the probes (the contact point first, then the gauges), the contact point's displacement,
+        velocity, acceleration and normal stress (along the impact direction, into the block or
+        liner positive), its von Mises stress and each gauge's stress E d.eps.d, each (n_t,)."""
+        s = stress_from_gradient(grads[:, 0], self.mu, self.lmbda)
+        eps = 0.5 * (grads[:, 1:] + np.swapaxes(grads[:, 1:], -1, -2))
+        gauges = [self.E * np.einsum("i,tij,j->t", d, eps[:, k], d) for k, d in enumerate(self.gauge_dirs)]
+        if self.model.scene.liner is None:
+            normal = [-vals_u[:, 0, 1], -vals_v[:, 0, 1], -vals_a[:, 0, 1], s[:, 1, 1]]
+        else:   # along the contact normal n, into the liner positive
+            n = self.n
+            normal = [-(vals_u[:, 0] @ n), -(vals_v[:, 0] @ n), -(vals_a[:, 0] @ n), np.einsum("i,tij,j->t", n, s, n)]
+        return normal + [von_mises(s)] + gauges
+
     def __call__(self, st) -> None:
         m = self.model
         lam = np.asarray(st.lam)
@@ -158,8 +175,7 @@ class Recorder:
         vals_u, grads = self._displacement_probe(st)
         vals_v = self.probe.values(self._local(st.v).copy())
         vals_a = self.probe.values(self._local(st.a).copy())
-        s = stress_from_gradient(grads, self.mu, self.lmbda)
-        gauges = [self.E * d @ (0.5 * (gr + gr.T)) @ d for d, gr in zip(self.gauge_dirs, grads[1:])]
+        probe_cols = [float(c[0]) for c in self.probe_columns(vals_u[None], vals_v[None], vals_a[None], grads[None])]
         # energies: kinetic with the mass the scheme integrates (st.mass: redistributed for
         # newmark-mr, whose massless contact dofs carry no momentum), strain 1/2 u.K u
         mass = st.mass if getattr(st, "mass", None) is not None else m.M
@@ -169,13 +185,7 @@ class Recorder:
         mass.mult(self.tmp2, self.tmp)
         ke_ball = 0.5 * self.tmp.dot(self.tmp2)
         se = integrators.strain_energy(m.K, st.u, m.fixed_dofs)
-        if self.model.scene.liner is None:
-            normal = (-vals_u[0, 1], -vals_v[0, 1], -vals_a[0, 1], s[0, 1, 1])
-        else:   # along the contact normal n, into the liner positive
-            n = self.n
-            normal = (-vals_u[0] @ n, -vals_v[0] @ n, -vals_a[0] @ n, n @ s[0] @ n)
-        row = [st.t, force, approach, a, vball, *normal,
-               float(von_mises(s[0])), *gauges, self.sym * ke_ball, self.sym * ke, self.sym * se,
+        row = [st.t, force, approach, a, vball, *probe_cols, self.sym * ke_ball, self.sym * ke, self.sym * se,
                self.sym * (ke + se)]
         if self.friction:
             # tangential force on the ball along t_v (N, full body: the half model's mirror adds

@@ -47,7 +47,7 @@ from .model import BLOCK_CELLS, _cells_of, create_fe_model, create_probe
 from .plan import Plan, make_plan
 from .reduction import _factor, compute_modes, default_solver_options
 from .results import TimeSeries
-from .runner import RunOutput, register_method
+from .runner import RunOutput, float_option, register_method
 from .scene import Scene
 
 log = logging.getLogger(__name__)
@@ -247,21 +247,12 @@ def run_hertz_modal(scene: Scene, plan: Plan, options: dict[str, Any], progress:
     options.pop("degree", None)
     options.pop("integrator", None)
 
-    def num(key, default):
-        v = options.pop(key, None)
-        if v is None or v == "":
-            return default
-        try:
-            return float(v)
-        except (TypeError, ValueError):
-            raise InputError(f"option {key} = {v!r}: must be a number") from None
-
-    t_end = num("t_end", scene.time.end)
-    f_cut = num("f_cut", plan.f_cut)
-    n_modes = num("modes", scene.model.modes)
+    t_end = float_option(options, "t_end", scene.time.end)
+    f_cut = float_option(options, "f_cut", plan.f_cut)
+    n_modes = float_option(options, "modes", scene.model.modes)
     n_modes = int(n_modes) if n_modes is not None else None
-    rtol = num("rtol", 1e-8)
-    h_c = num("h_contact", None)
+    rtol = float_option(options, "rtol", 1e-8)
+    h_c = float_option(options, "h_contact", None)
     if h_c is None and scene.model.h_contact is None:
         # the modes need no contact mesh, but the gauges' static correction sees the 1/r^2
         # Boussinesq field near the impact: a_max / 2 (coarser, a_max-sized elements, flipped the

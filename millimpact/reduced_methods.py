@@ -65,12 +65,12 @@ from .enrichment import create_nmm_zone
 from .errors import InputError
 from .fe_methods import Recorder, impact_results, write_fields
 from .mesh import create_mesh
-from .model import FEModel, PointProbe, create_fe_model, stress_from_gradient, von_mises
+from .model import FEModel, PointProbe, create_fe_model
 from .plan import Plan, make_plan
 from .reduction import (AUGMENTATION_PATTERNS, ModalProjection, ReducedModel, compute_free_modes,
                         create_nodal_zone_basis, gather_aij_dense, local_rows_to_aij, partition_dofs,
                         reduce_model)
-from .runner import RunOutput, register_method
+from .runner import RunOutput, float_option, int_option, register_method
 from .scene import Scene
 
 log = logging.getLogger(__name__)
@@ -142,8 +142,10 @@ class ReducedRecorder(Recorder):
         # values and gradients get C q'' added; replicated dense (rows x reduced coordinates)
         self._ma = None
         if recovery == "mode-acceleration":
-            self._ma = tuple(red.mode_acceleration_rows(local_rows_to_aij(P, red.model.V))
-                             for P in (self._probe_full.P_val, self._probe_full.P_grad))
+            P_val = self._probe_full.P_val
+            C = red.mode_acceleration_rows(local_rows_to_aij(sp.vstack([P_val, self._probe_full.P_grad]).tocsr(),
+                                                             red.model.V))
+            self._ma = (C[:P_val.shape[0]], C[P_val.shape[0]:])
         self.time_offset = 0.0
         self.proj = None
         self._maps: dict[int, tuple] = {}
@@ -189,7 +191,7 @@ class ReducedRecorder(Recorder):
                 nxt = [b.next_frequency_hz for b in proj.red.bodies if b.n_interior and np.isfinite(b.next_frequency_hz)]
                 if nxt:
                     C = C * (np.sqrt(proj.omega2) < 2 * math.pi * min(nxt))[None, :]
-            lo, hi = proj.create_vector().getOwnershipRange()
+            lo, hi = proj.M.getOwnershipRange()
             mats.append(sp.csr_matrix(C[:, lo:hi]))
         return PointProbe(comm, self._probe_full.n_points, mats[0], mats[1], self._probe_full.found)
 
@@ -236,25 +238,14 @@ class ReducedRecorder(Recorder):
         u_v, u_g = d.Pv @ eta, d.Pg @ eta
         if d.Cv is not None:            # mode-acceleration recovery
             u_v, u_g = u_v + d.Cv @ etadd, u_g + d.Cg @ etadd
-        vals_u = u_v.reshape(np_, 3, n_t)
-        vals_v = (d.Pv @ etad).reshape(np_, 3, n_t)
-        vals_a = (d.Pv @ etadd).reshape(np_, 3, n_t)
+        vals = [np.moveaxis(x.reshape(np_, 3, n_t), -1, 0) for x in (u_v, d.Pv @ etad, d.Pv @ etadd)]
         grads = np.moveaxis(u_g.reshape(np_, 3, 3, n_t), -1, 0)               # (n_t, points, 3, 3)
-        s = stress_from_gradient(grads, self.mu, self.lmbda)
-        gauges = [self.E * np.einsum("i,tij,j->t", dv, 0.5 * (g + np.swapaxes(g, -1, -2)), dv)
-                  for dv, g in zip(self.gauge_dirs, np.moveaxis(grads[:, 1:], 1, 0))]
         ke = 0.5 * np.einsum("it,it->t", etad, d.M @ etad)
         vb = d.mask[:, None] * etad
         ke_ball = 0.5 * np.einsum("it,it->t", vb, d.M @ vb)
         se = 0.5 * np.einsum("it,it->t", eta, d.K @ eta)
-        if self.model.scene.liner is None:
-            normal = (-vals_u[0, 1], -vals_v[0, 1], -vals_a[0, 1], s[:, 0, 1, 1])
-        else:
-            n = self.n
-            normal = (-(n @ vals_u[0]), -(n @ vals_v[0]), -(n @ vals_a[0]), np.einsum("i,tij,j->t", n, s[:, 0], n))
         zero = np.zeros(n_t)
-        cols = [times, zero, approach, zero, vball, *normal, von_mises(s[:, 0]), *gauges,
-                self.sym * ke_ball, self.sym * ke, self.sym * se, self.sym * (ke + se)]
+        cols = [times, zero, approach, zero, vball, *self.probe_columns(*vals, grads), self.sym * ke_ball, self.sym * ke, self.sym * se, self.sym * (ke + se)]
         if self.friction:
             # no friction while apart: the cumulative work stays at its value (see __call__)
             self._fw_base += self._fw_last
@@ -290,26 +281,6 @@ class ReducedRecorder(Recorder):
 
 
 # --- the run -------------------------------------------------------------------------------------
-def _int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]:
-    value = options.pop(key, None)
-    if value is None or value == "":
-        return default
-    try:
-        return int(value)
-    except (TypeError, ValueError):
-        raise InputError(f"option {key} = {value!r}: must be an integer") from None
-
-
-def _float_option(options: dict, key: str, default: Optional[float]) -> Optional[float]:
-    value = options.pop(key, None)
-    if value is None or value == "":
-        return default
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"option {key} = {value!r}: must be a number") from None
-
-
 def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str]]:
     """The scene and plan of a reduced run: the contact zone shrunk to ``REDUCED_ZONE_FACTOR``
     a_max (unless the scene sets ``model.zone_radius``); the candidate radius (m); notes saying
@@ -559,9 +530,9 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     if asked not in (None, "", degree, str(degree)):
         raise InputError(f"--degree {asked}: method {method} uses P{degree} (P1: --method full or traditional)")
     integrator = options.pop("integrator", None) or "newmark-mr"
-    t_end = _float_option(options, "t_end", scene.time.end)
-    n_modes = _int_option(options, "modes", scene.model.modes)
-    f_cut = _float_option(options, "f_cut", plan.f_cut)
+    t_end = float_option(options, "t_end", scene.time.end)
+    n_modes = int_option(options, "modes", scene.model.modes)
+    f_cut = float_option(options, "f_cut", plan.f_cut)
     remedy = str(options.pop("nmm_remedy", None) or "interface")
     recovery = str(options.pop("recovery", None) or "mode-acceleration")
     if recovery not in ("mode-acceleration", "modal"):
@@ -573,8 +544,8 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     free_phase = str(options.pop("free_phase", None) or "modal")
     if free_phase not in ("modal", "step"):
         raise InputError(f"option free_phase = {free_phase!r}: choose modal or step")
-    free_factor = _float_option(options, "free_modes_factor", FREE_MODES_FACTOR)
-    min_span = _float_option(options, "modal_min_span", None)
+    free_factor = float_option(options, "free_modes_factor", FREE_MODES_FACTOR)
+    min_span = float_option(options, "modal_min_span", None)
 
     scene, plan, cand_radius, plan_notes = reduced_plan(scene, plan)
     t0 = time.perf_counter()

@@ -122,6 +122,30 @@ def load_fe_methods() -> bool:
     return True
 
 
+def int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]:
+    """Pop a method option as an integer (``default`` if absent or empty); a bad value is an
+    :class:`InputError` naming the option."""
+    value = options.pop(key, None)
+    if value is None or value == "":
+        return default
+    try:
+        return int(value)
+    except (TypeError, ValueError):
+        raise InputError(f"option {key} = {value!r}: must be an integer") from None
+
+
+def float_option(options: dict, key: str, default: Optional[float]) -> Optional[float]:
+    """Pop a method option as a number (``default`` if absent or empty); a bad value is an
+    :class:`InputError` naming the option."""
+    value = options.pop(key, None)
+    if value is None or value == "":
+        return default
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"option {key} = {value!r}: must be a number") from None
+
+
 def register_method(name: str, description: str, runner: Callable[..., RunOutput]) -> None:
     """Make ``runner(scene, plan, options, progress) -> RunOutput`` available as ``--method name``."""
     METHODS[name] = description

@@ -117,7 +117,7 @@ def test_traditional_converges_to_full_p1_with_the_cutoff(traditional_runs):
     # A/B/C 6.5/7.2/3.6 % at 1/t_c (47 % on B by mode displacement), 2.5/1.0/0.9 % at 4/t_c. They
     # are not a converged quantity (4.0/0.5/2.3 % at 32/t_c, 0.6/4.8/0.1 % at 8/t_c): the reference
     # peak falls on the last contact sample while the signal still changes, and the full P1 peak
-    # itself moves by up to 12 % (C) when its time step is quartered. So the bound here is loose
+    # itself moves by +2.9 / +4.9 / +18.9 % (A/B/C) when its time step is quartered. So the bound here is loose
     # (measured, rounded up); test_band_limited_gauge_peaks_converge_with_the_cutoff checks the
     # convergence and the brief's 2 % on the part of the signal the reference resolves.
     for g, ref in full["gauges"].items():
