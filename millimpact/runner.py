@@ -122,28 +122,24 @@ def load_fe_methods() -> bool:
     return True
 
 
-def int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]:
-    """Pop a method option as an integer (``default`` if absent or empty); a bad value is an
-    :class:`InputError` naming the option."""
+def _typed_option(options: dict, key: str, default, kind: type, what: str):
+    """Pop a method option converted by ``kind`` (``default`` if absent or empty); a bad value is
+    an :class:`InputError` naming the option."""
     value = options.pop(key, None)
     if value is None or value == "":
         return default
     try:
-        return int(value)
+        return kind(value)
     except (TypeError, ValueError):
-        raise InputError(f"option {key} = {value!r}: must be an integer") from None
+        raise InputError(f"option {key} = {value!r}: must be {what}") from None
+
+
+def int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]:
+    return _typed_option(options, key, default, int, "an integer")
 
 
 def float_option(options: dict, key: str, default: Optional[float]) -> Optional[float]:
-    """Pop a method option as a number (``default`` if absent or empty); a bad value is an
-    :class:`InputError` naming the option."""
-    value = options.pop(key, None)
-    if value is None or value == "":
-        return default
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"option {key} = {value!r}: must be a number") from None
+    return _typed_option(options, key, default, float, "a number")
 
 
 def register_method(name: str, description: str, runner: Callable[..., RunOutput]) -> None:
