@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from millimpact.bench import read_csv
+from millimpact.studies.bench import read_csv
 from millimpact.cli import main as cli_main
 
 OUT = Path(__file__).resolve().parent / "out" / "bench-paper-rig"

@@ -17,8 +17,8 @@ import time
 from mpi4py import MPI
 
 from _report import write_report
-from millimpact.runner import run_scene
-from millimpact.scene import builtin_scene
+from millimpact.methods.run import run_scene
+from millimpact.scene.schema import builtin_scene
 
 A_MAX = 1.159e-3  # m, Hertz contact radius of the default impact (DESIGN.md section 3)
 

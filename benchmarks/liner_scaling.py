@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _scene(args):
-    from millimpact.scene import builtin_scene
+    from millimpact.scene.schema import builtin_scene
 
     s = builtin_scene("liner-segment")
     for k, v in (("model.h_far", args.h_far), ("time.end", args.t_end), ("outputs.xdmf", False)):
@@ -46,9 +46,9 @@ def worker(args) -> None:
     from mpi4py import MPI
 
     import dolfinx  # noqa: F401  (the baseline includes the stack)
-    from millimpact.mesh import create_mesh
-    from millimpact.plan import make_plan
-    from millimpact.runner import compute
+    from millimpact.geometry.mesh import create_mesh
+    from millimpact.scene.plan import make_plan
+    from millimpact.methods.run import compute
 
     comm = MPI.COMM_WORLD
     scene = _scene(args)

@@ -32,11 +32,11 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from millimpact.plan import make_plan
-from millimpact.reduced_methods import REDUCED_ZONE_FACTOR
-from millimpact.results import contact_metrics
-from millimpact.runner import compute
-from millimpact.scene import builtin_scene
+from millimpact.scene.plan import make_plan
+from millimpact.methods.reduced import REDUCED_ZONE_FACTOR
+from millimpact.results.timeseries import contact_metrics
+from millimpact.methods.run import compute
+from millimpact.scene.schema import builtin_scene
 
 HERE = Path(__file__).resolve().parent
 GAUGE_WINDOW = 1e-3   # s shown of the gauge signal (40 ms of ringing is a solid band)

@@ -17,7 +17,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from millimpact.cli import main as cli_main
-from millimpact.stability import read_csv
+from millimpact.studies.stability import read_csv
 
 OUT = Path(__file__).resolve().parent / "out" / "stability"
 

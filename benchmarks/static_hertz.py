@@ -1,7 +1,7 @@
 """Benchmark: the static Hertz contact (ball pressed on the hertz-halfspace block) against Hertz.
 
 The ball's top cap is pushed ``--cap`` towards the block and the contact solved exactly
-(millimpact.static); contact radius, approach and block indentation are compared with Hertz at
+(millimpact.methods.static); contact radius, approach and block indentation are compared with Hertz at
 the measured force, for several contact mesh sizes and degrees side by side in one run. Writes
 ``benchmarks/out/static_hertz.csv`` and ``.md``.
 
@@ -17,10 +17,10 @@ import time
 from mpi4py import MPI
 
 from _report import write_report
-from millimpact.mesh import create_mesh
-from millimpact.plan import make_plan
-from millimpact.scene import builtin_scene
-from millimpact.static import static_hertz
+from millimpact.geometry.mesh import create_mesh
+from millimpact.scene.plan import make_plan
+from millimpact.scene.schema import builtin_scene
+from millimpact.methods.static import static_hertz
 
 
 def main() -> None:

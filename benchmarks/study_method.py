@@ -20,8 +20,8 @@ if __name__ == "__main__":
     p.add_argument("--tol", type=float, default=0.01, help="relative tolerance against full (default 1 %%)")
     args = p.parse_args()
 
-    from millimpact.runner import run_scene
-    from millimpact.scene import resolve_scene
+    from millimpact.methods.run import run_scene
+    from millimpact.scene.schema import resolve_scene
 
     base = resolve_scene("study-base")
 

@@ -22,8 +22,8 @@ def parse(name: str, doc: str, argv=None) -> argparse.Namespace:
 
 
 def run(name: str, args: argparse.Namespace):
-    """The built-in study ``name`` at full or reduced size; returns millimpact.study.StudyResult."""
-    from millimpact.study import run_study
+    """The built-in study ``name`` at full or reduced size; returns millimpact.studies.study.StudyResult."""
+    from millimpact.studies.study import run_study
 
     res = run_study(name, out=args.out, jobs=args.jobs, **(SMALL if args.small else {}))
     if res.failed:

@@ -22,8 +22,8 @@ if __name__ == "__main__":
     p.add_argument("--out", type=Path, help="output folder (default out/demo-paper-rig[-small])")
     args = p.parse_args()
 
-    from millimpact.runner import run_scene
-    from millimpact.scene import resolve_scene
+    from millimpact.methods.run import run_scene
+    from millimpact.scene.schema import resolve_scene
 
     scene = resolve_scene("paper-rig")
     method = args.method or ("traditional" if args.small else "improved")

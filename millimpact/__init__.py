@@ -1,7 +1,19 @@
 """millimpact: reference-quality 3D impact dynamics of a grinding ball on a SAG mill liner.
 
-The flow of one run (see README): scene -> plan -> geometry -> model -> reduction -> contact ->
-integrator -> solvers -> results -> plots.
+The flow of one run, one subpackage per stage (each imports only the stages listed after it;
+pyproject.toml's import-linter contract checks this):
+
+- :mod:`millimpact.cli`          the ``millimpact`` command line, on top of everything
+- :mod:`millimpact.studies`      sweeps, benchmarks, stability maps, ``compare``
+- :mod:`millimpact.methods`      the registry of run methods and one module per method family
+- :mod:`millimpact.results`      recorder, time series, fields, reference files, figures
+- :mod:`millimpact.reduction`    SLEPc modes, Craig-Bampton, the NMM contact zone
+- :mod:`millimpact.integration`  time integrators and PETSc solver set-ups
+- :mod:`millimpact.fem`          DOLFINx spaces, mass and stiffness, contact rows, probes
+- :mod:`millimpact.geometry`     gmsh builders and the mesh cache
+- :mod:`millimpact.scene`        what the user describes (schema, built-in scenes) and the plan
+- :mod:`millimpact.theory`       closed-form contact mechanics (Hertz, ...)
+- :mod:`millimpact.errors`, :mod:`millimpact.console`  exceptions and rank-0 printing
 """
 import os as _os
 

@@ -13,7 +13,10 @@ import sys
 from pathlib import Path
 from typing import Optional
 
+from .console import say, world_rank
 from .errors import InputError, MillimpactError
+from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
+from .scene.schema import parse_value
 
 EXIT_INPUT = 2
 EXIT_FAILURE = 1
@@ -28,20 +31,6 @@ Typical use:
   millimpact hertz                      Hertz values of the default scene
   millimpact scene export paper-rig > my.toml   (edit, then: millimpact run my.toml)
 """
-
-
-def _rank() -> int:
-    if "OMPI_COMM_WORLD_RANK" in os.environ or "PMI_RANK" in os.environ:
-        from mpi4py import MPI
-
-        return MPI.COMM_WORLD.rank
-    return 0
-
-
-def _say(*args, **kw) -> None:
-    """Print on rank 0 only."""
-    if _rank() == 0:
-        print(*args, **kw)
 
 
 _PETSC_OPTION = re.compile(r"^-[A-Za-z][A-Za-z0-9_]+$")
@@ -78,29 +67,29 @@ def _is_number(text: str) -> bool:
 
 # --- commands ---------------------------------------------------------------------------------
 def cmd_hertz(args: argparse.Namespace) -> int:
-    from .hertz import scene_hertz
-    from .scene import resolve_scene
+    from .scene.plan import scene_hertz
+    from .scene.schema import resolve_scene
 
     scene = resolve_scene(args.scene)
     h = scene_hertz(scene)
-    _say(f"Hertz impact of scene '{scene.name}' (ball on a half-space of the block's material)")
+    say(f"Hertz impact of scene '{scene.name}' (ball on a half-space of the block's material)")
     for name, value, unit, _ in h.table():
-        _say(f"  {name:<26s} {value:12.5g} {unit}")
+        say(f"  {name:<26s} {value:12.5g} {unit}")
     return 0
 
 
 def cmd_scene(args: argparse.Namespace) -> int:
-    from .plan import make_plan
-    from .scene import BUILTIN_SCENES, BUILTIN_STUDIES, DEFAULT_SCENE, dump_scene, resolve_scene
+    from .scene.plan import make_plan
+    from .scene.schema import BUILTIN_SCENES, BUILTIN_STUDIES, DEFAULT_SCENE, dump_scene, resolve_scene
 
     if args.action == "list":
-        _say("built-in scenes:")
+        say("built-in scenes:")
         for name in BUILTIN_SCENES:
             s = resolve_scene(name)
-            _say(f"  {name:<16s}{' (default)' if name == DEFAULT_SCENE else ''}  {s.description}")
-        _say("built-in studies (millimpact study NAME):")
+            say(f"  {name:<16s}{' (default)' if name == DEFAULT_SCENE else ''}  {s.description}")
+        say("built-in studies (millimpact study NAME):")
         for name, st in BUILTIN_STUDIES.items():
-            _say(f"  {name:<16s} {st.label} = {', '.join(f'{v:g}' for v in st.display)} {st.unit} on {st.base}")
+            say(f"  {name:<16s} {st.label} = {', '.join(f'{v:g}' for v in st.display)} {st.unit} on {st.base}")
         return 0
     scene = resolve_scene(args.name)
     if args.action == "export":
@@ -109,49 +98,50 @@ def cmd_scene(args: argparse.Namespace) -> int:
     # show: resolved scene with units, and the plan
     plan = make_plan(scene)
     b, k, i = scene.ball, scene.block, scene.impact
-    _say(f"scene '{scene.name}': {scene.description}")
-    _say(f"  ball    radius {b.radius*1e3:g} mm, mass {b.mass*1e3:.4g} g, rho {b.material.density:g} kg/m^3, "
+    say(f"scene '{scene.name}': {scene.description}")
+    say(f"  ball    radius {b.radius*1e3:g} mm, mass {b.mass*1e3:.4g} g, rho {b.material.density:g} kg/m^3, "
          f"G {b.material.shear_modulus/1e9:g} GPa, nu {b.material.poisson:g} (E {b.material.youngs_modulus/1e9:.4g} GPa)")
     if scene.liner is not None:
         ln, p, n = scene.liner, scene.impact_point, scene.contact_normal
-        _say(f"  liner   plate {ln.length*1e3:g} x {ln.width*1e3:g} x {ln.thickness*1e3:g} mm, {ln.n_lifters} lifter(s) "
+        say(f"  liner   plate {ln.length*1e3:g} x {ln.width*1e3:g} x {ln.thickness*1e3:g} mm, {ln.n_lifters} lifter(s) "
              f"{ln.lifter_height*1e3:g} mm high, top {ln.lifter_top_width*1e3:g} mm, face angle {ln.lifter_face_angle:g} deg, "
              f"mill radius {ln.mill_radius:g} m; rho {ln.material.density:g} kg/m^3, G {ln.material.shear_modulus/1e9:g} "
              f"GPa, nu {ln.material.poisson:g}")
-        _say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, normal "
+        say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, normal "
              f"{scene.normal_speed:.4g} m/s; point ({', '.join(f'{c*1e3:.4g}' for c in p)}) mm on lifter "
              f"{ln.impact_lifter} face {ln.impact_face}, normal ({', '.join(f'{c:.4g}' for c in n)})")
     else:
-        _say(f"  block   {k.length*1e3:g} x {k.thickness*1e3:g} x {k.height*1e3:g} mm (length x thickness x height), "
+        say(f"  block   {k.length*1e3:g} x {k.thickness*1e3:g} x {k.height*1e3:g} mm (length x thickness x height), "
              f"support '{k.support}', rho {k.material.density:g} kg/m^3, G {k.material.shear_modulus/1e9:g} GPa, "
              f"nu {k.material.poisson:g}")
         x, _, z = scene.impact_point
-        _say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, "
+        say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, "
              f"point (x {x*1e3:g} mm, z {z*1e3:g} mm) on face y = 0")
     if scene.contact.friction > 0:
-        _say(f"  contact Coulomb friction mu = {scene.contact.friction:g}")
+        say(f"  contact Coulomb friction mu = {scene.contact.friction:g}")
     for g in scene.gauges:
-        _say(f"  gauge {g.name}  at ({', '.join(f'{c*1e3:g}' for c in g.position)}) mm, "
+        say(f"  gauge {g.name}  at ({', '.join(f'{c*1e3:g}' for c in g.position)}) mm, "
              f"direction ({', '.join(f'{c:g}' for c in g.direction)})")
-    _say(f"  time    end {scene.time.end*1e3:g} ms")
-    _say("plan (derived from the Hertz estimate; override in [model], [time], impact.gap):")
+    say(f"  time    end {scene.time.end*1e3:g} ms")
+    say("plan (derived from the Hertz estimate; override in [model], [time], impact.gap):")
     for name, value, why in plan.table():
-        _say(f"  {name:<12s} {value:<28s} {why}")
+        say(f"  {name:<12s} {value:<28s} {why}")
     return 0
 
 
 def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
-    from .runner import run_scene
-    from .scene import DEFAULT_SCENE, resolve_scene
+    method_entry(args.method)   # an unknown method: one line listing them, before any work
+    from .methods.run import run_scene
+    from .scene.schema import DEFAULT_SCENE, resolve_scene
 
     scene = resolve_scene(args.scene)
     for assignment in args.set or []:
         key, _, value = assignment.partition("=")
-        scene = scene.with_value(key.strip(), _parse_value(value))
+        scene = scene.with_value(key.strip(), parse_value(value))
     out = Path(args.out) if args.out else Path("out") / (scene.name if args.scene else DEFAULT_SCENE)
     comm = _comm()
     if args.method == "hertz":
-        _say("note: --method hertz is the quasi-static Hertz model (1 DOF), the lightest method.")
+        say("note: --method hertz is the quasi-static Hertz model (1 DOF), the lightest method.")
     options = dict(petsc)
     if args.degree:
         options["degree"] = args.degree
@@ -160,10 +150,9 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
     for flag, key, value in (("--modes", "modes", args.modes), ("--f-cut", "f_cut", args.f_cut)):
         if value is None:
             continue
-        from .reduced_methods import REDUCED_METHODS
-
-        if args.method not in REDUCED_METHODS:
-            raise InputError(f"{flag} {value:g}: applies to the reduced methods ({', '.join(REDUCED_METHODS)}), "
+        reduced = method_names("reduced")
+        if args.method not in reduced:
+            raise InputError(f"{flag} {value:g}: applies to the reduced methods ({', '.join(reduced)}), "
                              f"not --method {args.method}")
         if not value > 0 and not (key == "modes" and value == 0):
             raise InputError(f"{flag} {value:g}: must be > 0" + (" (or 0: constraint modes only)" if key == "modes" else " Hz"))
@@ -172,39 +161,39 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
                         reference=args.reference)
     h = summary["hertz"]
     rel = summary["relative_to_hertz"]
-    _say(f"scene {scene.name}, method {args.method}: wall time {summary['wall_time_s']:.3g} s")
-    _say(f"  peak contact force  {summary['peak_contact_force_N']/1e3:10.4g} kN   (Hertz {h['F_max_N']/1e3:.4g} kN, "
+    say(f"scene {scene.name}, method {args.method}: wall time {summary['wall_time_s']:.3g} s")
+    say(f"  peak contact force  {summary['peak_contact_force_N']/1e3:10.4g} kN   (Hertz {h['F_max_N']/1e3:.4g} kN, "
          f"{100*rel['peak_contact_force']:+.2f} %)")
-    _say(f"  contact duration    {summary['contact_duration_s']*1e6:10.4g} us   (Hertz {h['t_c_s']*1e6:.4g} us, "
+    say(f"  contact duration    {summary['contact_duration_s']*1e6:10.4g} us   (Hertz {h['t_c_s']*1e6:.4g} us, "
          f"{100*rel['contact_duration']:+.2f} %)")
     if summary.get("max_approach_m"):
-        _say(f"  max approach        {summary['max_approach_m']*1e6:10.4g} um   (Hertz {h['delta_max_m']*1e6:.4g} um)")
+        say(f"  max approach        {summary['max_approach_m']*1e6:10.4g} um   (Hertz {h['delta_max_m']*1e6:.4g} um)")
     if summary.get("restitution") is not None:
-        _say(f"  restitution         {summary['restitution']:10.4f}")
+        say(f"  restitution         {summary['restitution']:10.4f}")
     for note in summary.get("notes", []):
-        _say(f"  note: {note}")
-    _say(f"  results in {out}/ ({', '.join(summary.get('files', []))})")
+        say(f"  note: {note}")
+    say(f"  results in {out}/ ({', '.join(summary.get('files', []))})")
     return 0
 
 
 def cmd_mesh(args: argparse.Namespace) -> int:
-    from .mesh import create_mesh, mesh_report, write_mesh_xdmf
-    from .plan import make_plan
-    from .scene import resolve_scene
+    from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf
+    from .scene.plan import make_plan
+    from .scene.schema import resolve_scene
 
     scene = resolve_scene(args.scene)
     for assignment in args.set or []:
         key, _, value = assignment.partition("=")
-        scene = scene.with_value(key.strip(), _parse_value(value))
+        scene = scene.with_value(key.strip(), parse_value(value))
     plan = make_plan(scene)
     md = create_mesh(scene, plan, _comm())
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}-mesh"
-    if _rank() == 0:
+    if world_rank() == 0:
         out.mkdir(parents=True, exist_ok=True)
     write_mesh_xdmf(md, out / "mesh.xdmf")
-    _say(f"mesh of scene '{scene.name}' -> {out}/mesh.xdmf")
+    say(f"mesh of scene '{scene.name}' -> {out}/mesh.xdmf")
     for name, value in mesh_report(md):
-        _say(f"  {name:<28s} {value}")
+        say(f"  {name:<28s} {value}")
     return 0
 
 
@@ -214,21 +203,12 @@ EXTRA_COMMANDS = ("study", "bench", "stability", "compare")
 def _command_module(name: str):
     import importlib
 
-    return importlib.import_module(f"millimpact.{name}")
+    return importlib.import_module(f"millimpact.studies.{name}")
 
 
 def cmd_not_yet(args: argparse.Namespace) -> int:
-    _say(f"millimpact {args.command}: not available in this version yet.", file=sys.stderr)
+    say(f"millimpact {args.command}: not available in this version yet.", file=sys.stderr)
     return EXIT_NOT_AVAILABLE
-
-
-def _parse_value(text: str):
-    import tomllib
-
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
 
 
 def _comm():
@@ -238,22 +218,30 @@ def _comm():
 
 
 # --- parser -----------------------------------------------------------------------------------
-def build_parser() -> argparse.ArgumentParser:
-    from .runner import METHODS
+class _LineFormatter(argparse.HelpFormatter):
+    """Wraps each line of a help text on its own, so a list (one method per line) stays a list."""
 
+    def _split_lines(self, text, width):
+        lines = []
+        for line in text.splitlines():
+            lines += super()._split_lines(line, width) or [""]
+        return lines
+
+
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="millimpact", description=DESCRIPTION,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     r = sub.add_parser("run", help="simulate a scene and write summary, time series, fields and figures",
+                       formatter_class=_LineFormatter,
                        description="Simulate SCENE (a built-in name or a .toml file; default paper-rig) and "
                                    "write DIR/summary.json, timeseries.csv/.h5, scene.toml, figures and fields. "
                                    "PETSc options such as -impact_ksp_type may follow.")
     r.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
-    r.add_argument("--method", default=None,
-                   help="solution method: " + "; ".join(f"{k}: {v}" for k, v in METHODS.items())
-                   + " (FE methods: full, ... when available)")
+    r.add_argument("--method", default=DEFAULT_METHOD, metavar="METHOD",
+                   help=f"solution method (default {DEFAULT_METHOD}):\n{method_help()}")
     r.add_argument("--out", help="output folder (default out/SCENE)")
     r.add_argument("--set", action="append", metavar="FIELD=VALUE",
                    help="override a scene field, e.g. --set ball.radius=0.02 --set model.h_contact=2e-4")
@@ -305,7 +293,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         parser = build_parser()
         argv, petsc = split_petsc_options(argv)
         args, rest = parser.parse_known_args(argv)
-        logging.basicConfig(level=logging.INFO if args.verbose and _rank() == 0 else logging.WARNING,
+        logging.basicConfig(level=logging.INFO if args.verbose and world_rank() == 0 else logging.WARNING,
                             format="%(name)s: %(message)s")
         if args.command is None:
             parser.print_help()
@@ -316,8 +304,6 @@ def main(argv: Optional[list[str]] = None) -> int:
         if petsc and args.command != "run":
             raise InputError(f"PETSc options {sorted(petsc)} only apply to 'millimpact run'")
         if args.command == "run":
-            if args.method is None:
-                args.method = _default_method()
             return cmd_run(args, petsc)
         if args.command == "hertz":
             return cmd_hertz(args)
@@ -329,16 +315,16 @@ def main(argv: Optional[list[str]] = None) -> int:
             return _command_module(args.command).main(args)
         return cmd_not_yet(args)
     except InputError as exc:
-        if _rank() == 0:
+        if world_rank() == 0:
             print(f"millimpact: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except MillimpactError as exc:
-        if _rank() == 0:
+        if world_rank() == 0:
             print(f"millimpact: failed: {exc}", file=sys.stderr)
         else:
             # a failure on another rank alone would otherwise end the run without a word (mpirun
             # only reports the exit code); a collective failure prints this once per rank
-            print(f"millimpact: failed on rank {_rank()}: {exc}", file=sys.stderr)
+            print(f"millimpact: failed on rank {world_rank()}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     except KeyboardInterrupt:
         return 130
@@ -360,19 +346,6 @@ def main(argv: Optional[list[str]] = None) -> int:
 
             MPI.COMM_WORLD.Abort(1)
         raise
-
-
-def _default_method() -> str:
-    """The paper's improved multivariable method once the FE methods exist, else Hertz. It reduces
-    the P2 model of the mesh and matches full P2 on the same mesh within 0.3 % on F_max at the
-    default scene, at a fraction of full P1's cost over 40 ms (benchmarks/reduced_vs_full.py)."""
-    from .runner import load_fe_methods
-
-    if not load_fe_methods():
-        return "hertz"
-    from .runner import METHODS     # fe_methods registers the reduced methods too
-
-    return "improved" if "improved" in METHODS else "full"
 
 
 if __name__ == "__main__":

@@ -33,3 +33,9 @@ def run_mpi_script(code: str, np: int = 2, timeout: float = 600) -> subprocess.C
         pytest.skip("mpirun not installed")
     return subprocess.run(["mpirun", "-n", str(np), sys.executable, "-c", code], capture_output=True,
                           text=True, env=mpi_env(), cwd=ROOT, timeout=timeout)
+
+
+def shared_out(tmp_path_factory, name):
+    """One folder per study for the whole session: tests/test_demos.py runs the demos' reduced studies
+    (the first and last of these cases) into the same folders, so the case cache serves both."""
+    return tmp_path_factory.getbasetemp() / "shared-studies" / name

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from millimpact.results import TimeSeries
+from millimpact.results.timeseries import TimeSeries
 
 
 def test_hertz_command_prints_the_default_values():

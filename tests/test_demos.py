@@ -5,8 +5,7 @@ import sys
 
 import pytest
 
-from conftest import ROOT, mpi_env
-from test_study import shared_out
+from conftest import ROOT, mpi_env, shared_out
 
 DEMOS = ["paper_rig.py", "study_velocity.py", "study_radius.py", "study_poisson.py", "study_thickness.py"]
 

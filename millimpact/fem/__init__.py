@@ -1,0 +1,7 @@
+"""The finite-element model: DOLFINx spaces, materials, mass and stiffness, supports and symmetry,
+node-to-surface contact rows, and point probes.
+
+Takes a mesh (:mod:`millimpact.geometry`), the scene and the plan; gives :class:`.model.FEModel`
+(PETSc M, K, the dof sets), :class:`.contact.ContactSet` (the gap rows B, g0, tangents) and
+:class:`.probes.PointProbe`. UFL forms live in :mod:`.forms`. Imports geometry and below.
+"""

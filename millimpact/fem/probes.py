@@ -1,0 +1,183 @@
+"""Point probes: linear maps from a displacement vector to values and gradients at chosen points,
+and where the contact point and the gauges sit in a (possibly symmetric) model.
+
+Each probe is a pair of sparse matrices built once from the basis functions of the cells that hold
+the points; applying them is a sparse product and an MPI sum, so the time loop records a probe for
+the cost of a matrix-vector product. Stresses follow from the gradients by Hooke's law.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from dolfinx import fem
+from dolfinx import geometry as dgeom
+from mpi4py import MPI
+
+from ..scene.plan import Plan
+from ..scene.schema import Scene
+
+
+# --- point probes --------------------------------------------------------------------------------
+@dataclass
+class PointProbe:
+    """Values and gradients of a vector field of ``V`` at fixed points, as sparse linear maps.
+
+    ``values(u_local)`` returns (n_points, 3) and ``gradients(u_local)`` (n_points, 3, 3) with
+    grad[i, j] = d u_i / d x_j; ``u_local`` is the local array with ghosts (``Function.x.array``).
+    Each point is owned by one rank (the lowest that holds a cell containing it); the results are
+    summed over ranks so every rank gets them.
+    """
+
+    comm: MPI.Comm
+    n_points: int
+    P_val: sp.csr_matrix     # (3 n_points) x n_local
+    P_grad: sp.csr_matrix    # (9 n_points) x n_local
+    found: np.ndarray        # bool per point (globally)
+
+    def values(self, u_local: np.ndarray) -> np.ndarray:
+        loc = self.P_val @ u_local
+        return self.comm.allreduce(loc, op=MPI.SUM).reshape(self.n_points, 3)
+
+    def gradients(self, u_local: np.ndarray) -> np.ndarray:
+        loc = self.P_grad @ u_local
+        return self.comm.allreduce(loc, op=MPI.SUM).reshape(self.n_points, 3, 3)
+
+
+def locate_points(V: fem.FunctionSpace, points: np.ndarray, cells_allowed: np.ndarray) -> np.ndarray:
+    """For each point, an owned local cell (from ``cells_allowed``) containing it, or -1; each point
+    is given to the lowest rank that finds it."""
+    mesh = V.mesh
+    n_owned_cells = mesh.topology.index_map(mesh.topology.dim).size_local
+    allowed = cells_allowed[cells_allowed < n_owned_cells]
+    cell_of = np.full(len(points), -1, dtype=np.int32)
+    if len(allowed):
+        # bounding boxes give candidates; a barycentric test decides (compute_colliding_cells of
+        # DOLFINx 0.5.2 misses points within ~1e-10 m of a face, where our probes sit)
+        tree = dgeom.BoundingBoxTree(mesh, mesh.topology.dim, allowed)
+        cand = dgeom.compute_collisions(tree, points)
+        allowed_set = set(allowed.tolist())
+
+        def best_of(i: int, cells) -> tuple[int, float]:
+            best, best_lam = -1, -np.inf
+            for c in cells:
+                if c not in allowed_set:
+                    continue
+                lam = _barycentric(mesh, int(c), points[i])
+                if lam.min() > best_lam:
+                    best, best_lam = int(c), lam.min()
+            return best, best_lam
+
+        # a point on a plane of the mesh (a symmetry plane, the struck face) can lie a rounding
+        # error outside its cell's bounding box: then the boxes of points nudged by 1e-10 of the
+        # mesh size in each direction supply the candidates
+        nudge = 1e-10 * float(np.ptp(mesh.geometry.x, axis=0).max() or 1.0)
+        for i in range(len(points)):
+            best, best_lam = best_of(i, cand.links(i))
+            if best_lam <= -1e-8:
+                shifted = points[i] + nudge * np.vstack([np.eye(3), -np.eye(3)])
+                more = dgeom.compute_collisions(tree, shifted)
+                best, best_lam = best_of(i, np.unique(np.concatenate([more.links(k) for k in range(6)])))
+            if best >= 0 and best_lam > -1e-8:
+                cell_of[i] = best
+    comm = mesh.comm
+    me = np.where(cell_of >= 0, comm.rank, comm.size).astype(np.int32)
+    owner = np.empty_like(me)
+    comm.Allreduce(me, owner, op=MPI.MIN)
+    cell_of[owner != comm.rank] = -1
+    return cell_of
+
+
+def _barycentric(mesh, cell: int, x: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates of x in an affine tetrahedron (all >= 0 inside)."""
+    xg = mesh.geometry.x[mesh.geometry.dofmap.links(cell), :3]
+    X = np.linalg.solve((xg[1:4] - xg[0]).T, x - xg[0])
+    return np.array([1.0 - X.sum(), *X])
+
+
+def tabulate_at(V: fem.FunctionSpace, cell: int, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Scalar basis values (ndofs,) and physical gradients (ndofs, 3) of V's element at point x in
+    ``cell`` (affine tetrahedron), and the cell's node (block) dof indices."""
+    mesh = V.mesh
+    gnodes = mesh.geometry.dofmap.links(cell)
+    xg = mesh.geometry.x[gnodes, :3]
+    J = (xg[1:4] - xg[0]).T           # x = x0 + J X on the reference tetrahedron
+    X = np.linalg.solve(J, x - xg[0])
+    elem = V.sub(0).element.basix_element if hasattr(V.sub(0).element, "basix_element") else None
+    if elem is None:  # pragma: no cover
+        raise RuntimeError("basix element not available")
+    tab = elem.tabulate(1, X.reshape(1, 3))  # (4, 1, ndofs, 1)
+    N = tab[0, 0, :, 0]
+    dNdX = tab[1:4, 0, :, 0]                  # (3, ndofs)
+    grad = np.linalg.solve(J.T, dNdX).T       # (ndofs, 3): J^-T dN/dX
+    return N, grad, V.dofmap.cell_dofs(cell)
+
+
+def create_probe(V: fem.FunctionSpace, points: np.ndarray, cells_allowed: np.ndarray) -> PointProbe:
+    """A :class:`PointProbe` of V at ``points`` (n, 3), searched among ``cells_allowed``."""
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    cells = locate_points(V, points, cells_allowed)
+    bs = V.dofmap.index_map_bs
+    n_local = (V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts) * bs
+    rv, cv, vv, rg, cg, vg = [], [], [], [], [], []
+    for i, (x, c) in enumerate(zip(points, cells)):
+        if c < 0:
+            continue
+        N, grad, nodes = tabulate_at(V, int(c), x)
+        for comp in range(bs):
+            dofs = nodes * bs + comp
+            rv += [3 * i + comp] * len(dofs); cv += dofs.tolist(); vv += N.tolist()
+            for j in range(3):
+                rg += [9 * i + 3 * comp + j] * len(dofs); cg += dofs.tolist(); vg += grad[:, j].tolist()
+    P_val = sp.csr_matrix((vv, (rv, cv)), shape=(3 * len(points), n_local))
+    P_grad = sp.csr_matrix((vg, (rg, cg)), shape=(9 * len(points), n_local))
+    found = V.mesh.comm.allreduce((cells >= 0).astype(np.int32), op=MPI.SUM) > 0
+    return PointProbe(V.mesh.comm, len(points), P_val, P_grad, found)
+
+
+def stress_from_gradient(grad: np.ndarray, mu: float, lmbda: float) -> np.ndarray:
+    """Cauchy stress (…, 3, 3) in Pa from displacement gradients (…, 3, 3)."""
+    eps = 0.5 * (grad + np.swapaxes(grad, -1, -2))
+    tr = np.trace(eps, axis1=-2, axis2=-1)
+    return 2.0 * mu * eps + lmbda * tr[..., None, None] * np.eye(3)
+
+
+def von_mises(s: np.ndarray) -> np.ndarray:
+    """Von Mises stress of stress tensors (…, 3, 3), Pa."""
+    dev = s - np.trace(s, axis1=-2, axis2=-1)[..., None, None] * np.eye(3) / 3.0
+    return np.sqrt(1.5 * np.sum(dev * dev, axis=(-2, -1)))
+
+
+# --- where the probes sit ----------------------------------------------------------------------
+def mirror_into_model(point: np.ndarray, direction: np.ndarray, plan: Plan, scene: Scene):
+    """Map a point (and a direction) on the full body into the kept part of a symmetric model."""
+    x_p, _, z_p = scene.impact_point
+    p, d = np.array(point, float), np.array(direction, float)
+    if "x" in plan.symmetry_planes and p[0] < x_p:
+        p[0], d[0] = 2 * x_p - p[0], -d[0]
+    if "z" in plan.symmetry_planes and p[2] < z_p:
+        p[2], d[2] = 2 * z_p - p[2], -d[2]
+    return p, d
+
+
+def inward_point(point: np.ndarray, plan: Plan, scene: Scene) -> np.ndarray:
+    """A point nudged just inside the block (and off the symmetry planes) so one cell holds it."""
+    eps = 1e-6 * plan.h_contact
+    p = np.array(point, float)
+    if scene.liner is not None:   # the liner's contact point: along -n into the lifter
+        p = p - eps * np.asarray(scene.contact_normal)
+        if "x" in plan.symmetry_planes:
+            p[0] = max(p[0], scene.impact_point[0] + eps)
+        return p
+    blk = scene.block
+    p[1] = min(p[1], -eps)
+    p[1] = max(p[1], -blk.thickness + eps)
+    p[0] = np.clip(p[0], -blk.length / 2 + eps, blk.length / 2 - eps)
+    p[2] = np.clip(p[2], eps, blk.height - eps)
+    x_p, _, z_p = scene.impact_point
+    if "x" in plan.symmetry_planes:
+        p[0] = max(p[0], x_p + eps)
+    if "z" in plan.symmetry_planes:
+        p[2] = max(p[2], z_p + eps)
+    return p

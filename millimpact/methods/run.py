@@ -1,0 +1,119 @@
+"""One run of a scene by a named method: computes, then writes the output contract.
+
+Output contract (``--out DIR``): ``summary.json`` (scene, method, peak_contact_force_N,
+contact_duration_s, max_approach_m, restitution, hertz, wall_time_s, model, plan),
+``timeseries.csv`` (header of names with units), ``timeseries.h5``, ``scene.toml``, figures
+``*.png`` and, for FE methods, XDMF fields.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+from typing import Any, Optional
+
+from ..results import plots
+from ..results.output import RunOutput
+from ..results.reference import write_reference
+from ..results.timeseries import contact_metrics, staged_output, write_hdf5, write_summary
+from ..scene.plan import Plan, make_plan
+from ..scene.schema import Scene, dump_scene, scene_to_dict
+from ..theory.hertz import HertzImpact, hertz_history
+from .registry import method_runner
+
+log = logging.getLogger(__name__)
+
+def hertz_summary(h: HertzImpact) -> dict[str, float]:
+    """The Hertz values of a scene, SI, for ``summary.json``."""
+    return {
+        "delta_max_m": h.delta_max, "F_max_N": h.force_max, "t_c_s": h.contact_time, "a_max_m": h.a_max,
+        "p0_Pa": h.p0, "tau_max_Pa": h.tau_max, "tau_depth_m": h.tau_depth, "impact_energy_J": h.energy,
+        "effective_modulus_Pa": h.e_star, "mass_kg": h.mass, "normal_speed_m_s": h.speed,
+    }
+
+
+def compute(scene: Scene, method: str, options: Optional[dict] = None, progress: bool = False) -> tuple[RunOutput, Plan]:
+    """Run ``scene`` with ``method`` (a name of :mod:`millimpact.methods.registry`); returns the
+    output and the plan it used."""
+    runner = method_runner(method)
+    plan = make_plan(scene)
+    return runner(scene, plan, options or {}, progress), plan
+
+
+def build_summary(scene: Scene, plan: Plan, out: RunOutput, wall: float) -> dict[str, Any]:
+    """The ``summary.json`` content."""
+    m = contact_metrics(out.series)
+    h = plan.hertz
+    summary = {
+        "scene": scene.name,
+        "method": out.method,
+        "peak_contact_force_N": m["peak_contact_force_N"],
+        "contact_duration_s": m["contact_duration_s"],
+        "max_approach_m": m.get("max_approach_m"),
+        "impulse_N_s": m["impulse_N_s"],
+        "restitution": out.results.get("restitution"),
+        **{k: v for k, v in out.results.items() if k != "restitution"},
+        "hertz": hertz_summary(h),
+        "relative_to_hertz": {
+            "peak_contact_force": m["peak_contact_force_N"] / h.force_max - 1.0,
+            "contact_duration": m["contact_duration_s"] / h.contact_time - 1.0,
+            **({"max_approach": m["max_approach_m"] / h.delta_max - 1.0} if m.get("max_approach_m") else {}),
+        },
+        "wall_time_s": wall,
+        "model": out.model,
+        "plan": {name: value for name, value, _ in plan.table()},
+        "notes": out.notes,
+        "scene_resolved": scene_to_dict(scene),
+    }
+    return summary
+
+
+def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: dict, figures: bool = True,
+              comm=None, reference: bool = False) -> list[str]:
+    """Write the output contract into ``folder``: rank 0 writes the files, every rank joins the
+    collective writers (XDMF). Returns the file names written."""
+    rank = comm.rank if comm is not None else 0
+    for writer in out.extra_writers:
+        writer(folder)
+    if rank != 0:
+        return []
+    out.series.write_csv(folder / "timeseries.csv")
+    scene_toml = dump_scene(scene)
+    (folder / "scene.toml").write_text(scene_toml)
+    if scene.outputs.hdf5:
+        write_hdf5(folder, out.series, summary, scene_toml)
+    if figures and scene.outputs.figures:
+        hist = hertz_history(plan.hertz)
+        title = f"{scene.name}: {out.method}"
+        plots.plot_force(out.series, folder / "contact_force.png", hist, title=f"{title}: contact force")
+        plots.plot_contact_point({out.method: out.series}, folder / "contact_point.png",
+                                 title=f"{title}: liner contact point (normal components)")
+        t_end = float(out.series.time[-1]) if len(out.series.time) else 0.0
+        if t_end > 10.0 * plan.hertz.contact_time:   # a run with ringing: the first 2 ms as well
+            plots.plot_contact_point({out.method: out.series}, folder / "contact_point_run.png",
+                                     title=f"{title}: liner contact point, impact and ringing",
+                                     window=(0.0, min(t_end, 2e-3)))
+        plots.plot_gauges(out.series, folder / "gauges.png", title=f"{title}: strain gauges")
+        plots.plot_energy(out.series, folder / "energy.png", title=f"{title}: energy")
+        if "tangential_force_N" in out.series:
+            plots.plot_friction(out.series, folder / "friction.png", scene.contact.friction,
+                                title=f"{title}: friction (mu = {scene.contact.friction:g})")
+    if reference:  # reference.h5/.csv/.json for millimpact compare (reference.py)
+        write_reference(folder, scene, plan, out, summary, scene_toml)
+    write_summary(folder, summary)  # last: its presence marks a complete run
+    return sorted(p.name for p in folder.iterdir())
+
+
+def run_scene(scene: Scene, method: str, out_dir: Optional[Path], options: Optional[dict] = None,
+              progress: bool = False, comm=None, reference: bool = False) -> dict[str, Any]:
+    """Compute and (if ``out_dir``) write a run (with ``reference``: also the reference files);
+    returns the summary. Only rank 0 writes."""
+    t0 = time.perf_counter()
+    out, plan = compute(scene, method, options, progress)
+    wall = time.perf_counter() - t0
+    summary = build_summary(scene, plan, out, wall)
+    if out_dir is not None:
+        with staged_output(Path(out_dir), comm) as stage:
+            summary["files"] = write_run(stage, scene, plan, out, summary, comm=comm,
+                                         reference=reference)
+    return summary

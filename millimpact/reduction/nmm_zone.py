@@ -1,0 +1,282 @@
+"""Manifold (NMM) enrichment of the contact zone: a prolongation into the P2 space.
+
+The paper's "improved multivariable method" describes the contact zone of each body by
+first-order numerical-manifold covers (DESIGN.md section 4)::
+
+    u(x) = sum_i N_i(x) (a_i + b_i . (x - x_i) / h_i)          (one such field per component)
+
+with ``N_i`` the P1 hat functions of the zone's vertices ``x_i`` (the partition of unity), ``a_i``
+the vertex value and ``b_i`` the scaled gradient (``h_i`` the mean length of the zone edges at
+vertex i, so that ``a`` and ``b`` share the unit metre and the reduced mass matrix stays well
+conditioned: unscaled, the ``b`` rows would carry an extra factor h^2 ~ 1e-7).
+
+On each (affine) tetrahedron ``u`` is quadratic, so the enriched fields form a subspace of the
+whole-mesh P2 space and are *exactly* their P2 nodal interpolant. The prolongation ``P`` maps the
+cover coordinates to P2 nodal values:
+
+* vertex node j:                 u_j = a_j
+* midpoint m of edge (i, j):     u_m = (a_i + a_j) / 2 + (b_i / h_i - b_j / h_j) . (x_j - x_i) / 4
+
+Conformity with the region. Every P2 node of a zone cell, the nodes on the zone/region interface
+included, takes its value from ``P``; region cells read the same nodal values, so the field is
+one conforming P2 function on the whole mesh (no constraint between two descriptions is needed).
+The region's interior is then reduced by Craig-Bampton on top (:mod:`millimpact.reduction`), with
+the interface nodes' cover coordinates as boundary coordinates.
+
+Null space. Fields with ``a = 0`` and ``b_i = c + W x_i`` (W antisymmetric) vanish at every node:
+``(b_i - b_j) . (x_j - x_i) = 0`` on every edge. They are the infinitesimal rigid motions of the
+edge framework, 6 per scalar field and connected zone (DESIGN.md section 4; fewer on a symmetry
+plane, where some ``b`` components are removed, see below), so with every vertex enriched
+``P^T M P`` is singular. Remedies (``remedy=``):
+
+* ``"interface"`` (default): no ``b`` at the interface vertices. ``c + W x_i = 0`` at the
+  (non-collinear) interface vertices forces ``c = W = 0``. The interface trace becomes piecewise
+  linear, which also keeps the Craig-Bampton boundary small (3 coordinates per interface vertex
+  instead of 12), at the price of a P1-like coupling to the region, far from the contact.
+* ``"anchors"``: no ``b`` at three interface vertices per zone, chosen far apart and not
+  collinear (the least change that removes the null space: 9 coordinates per zone).
+* ``"none"``: every vertex enriched; singular, for tests that show the null space.
+
+Constrained dofs. Where a component ``c`` of a zone vertex is fixed (symmetry plane ``u . n = 0``
+or a clamp), ``a^c`` is dropped and so are the components of ``b^c`` along the edges whose
+midpoints are fixed in ``c`` (the plane's tangents): then every fixed P2 dof is zero for every
+coordinate vector. Rows of ``P`` at fixed dofs are left empty.
+
+Exact zeros. Edge-vector components below ``DIRECTION_TOL`` of the edge length are set to zero
+before they enter ``P``: on the symmetry plane the P2 node coordinates carry ~1e-20 m of
+round-off that depends on the mesh partition and the BLAS, and the resulting ~1e-17 entries made
+gradient coordinates "touch" contact dofs on some partitions only, so mass redistribution made
+another set of coordinates massless and ``mpirun -n 2`` differed from serial by 1.7e-5 on F_max.
+
+Only this module and :mod:`millimpact.reduction` hold PETSc objects (STYLE.md).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Optional
+
+import basix
+import numpy as np
+from dolfinx.cpp.la.petsc import create_vector as _create_ghosted_vector
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..geometry import builders as G
+from ..errors import InputError
+from ..fem.model import FEModel
+from .craig_bampton import DofPartition, ZoneBasis, partition_dofs, tagged_cells
+
+log = logging.getLogger(__name__)
+
+REMEDIES = ("interface", "anchors", "none")
+#: cover coordinates per vertex and their order: a^x, a^y, a^z, then b^c_k at 3 + 3 c + k
+SLOTS = 12
+#: a direction component counts as present when above this share of the edge length
+DIRECTION_TOL = 1e-8
+
+
+@dataclass
+class NMMZone:
+    """The manifold-enriched zone: the :class:`ZoneBasis` (``basis.G`` = P) and, per owned zone
+    vertex, its local P2 node, coordinates (m), scale h (m) and the global coordinate index of each
+    of its 12 slots (-1 where dropped)."""
+
+    basis: ZoneBasis
+    nodes: np.ndarray       #: (nv,) local node indices of the owned zone vertices
+    x: np.ndarray           #: (nv, 3)
+    h: np.ndarray           #: (nv,)
+    index: np.ndarray       #: (nv, 12) global coordinate indices, -1 if dropped
+    remedy: str
+
+    def linear_field(self, c: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """Owned coordinate values (local array) representing u(x) = c + A x (exact for every
+        linear field: a_i = c + A x_i, b_i^c = h_i A[c, :])."""
+        q = np.zeros(self.basis.n_local)
+        lo = self.basis.G.getOwnershipRangeColumn()[0]
+        vals = np.zeros((len(self.nodes), SLOTS))
+        vals[:, :3] = c[None, :] + self.x @ A.T
+        vals[:, 3:] = self.h[:, None] * A.reshape(1, 9)
+        kept = self.index >= 0
+        q[self.index[kept] - lo] = vals[kept]
+        return q
+
+
+def _accumulate(imap, bs: int, values: np.ndarray, op: str = "add") -> np.ndarray:
+    """Sum (``add``) node values over the ranks that hold the node, returned on owners and ghosts
+    alike (reverse then forward ghost update). ``values``: (n_local_nodes_with_ghosts, bs)."""
+    x = _create_ghosted_vector(imap, bs)
+    with x.localForm() as loc:
+        loc.array[:] = values.ravel()
+    if op == "add":
+        x.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    with x.localForm() as loc:
+        out = loc.array.reshape(-1, bs).copy()
+    x.destroy()
+    return out
+
+
+def _cell_layout(V):
+    """Local cell-dof columns of the P2 vertex nodes (4) and of the edge nodes with their two
+    vertex columns (6 x 3: edge node, vertex a, vertex b)."""
+    layout = V.dofmap.dof_layout
+    vcol = [layout.entity_dofs(0, v)[0] for v in range(4)]
+    edges = basix.topology(basix.CellType.tetrahedron)[1]
+    ecol = [(layout.entity_dofs(1, e)[0], vcol[a], vcol[b]) for e, (a, b) in enumerate(edges)]
+    return np.array(vcol), np.array(ecol)
+
+
+def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
+                    remedy: str = "interface", scale: bool = True) -> NMMZone:
+    """The manifold-enriched zone of a P2 model (see the module docstring). Collective."""
+    if model.degree != 2:
+        raise InputError(f"manifold enrichment needs the P2 model (got P{model.degree})")
+    if remedy not in REMEDIES:
+        raise InputError(f"NMM null-space remedy {remedy!r}: must be one of {', '.join(REMEDIES)}")
+    part = partition or partition_dofs(model)
+    V = model.V
+    comm = model.comm
+    mesh = V.mesh
+    imap = V.dofmap.index_map
+    bs = V.dofmap.index_map_bs
+    n_own = imap.size_local
+    n_loc = n_own + imap.num_ghosts
+    X = V.tabulate_dof_coordinates()[:, :3]
+    n_cells_own = mesh.topology.index_map(mesh.topology.dim).size_local
+    cell_nodes = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
+    vcol, ecol = _cell_layout(V)
+
+    zone_cells = tagged_cells(model, (G.BALL_ZONE, G.BLOCK_ZONE))
+    zone_cells = zone_cells[zone_cells < n_cells_own]
+    ball_cells = tagged_cells(model, (G.BALL_ZONE,))
+    ball_cells = ball_cells[ball_cells < n_cells_own]
+    cn = cell_nodes[zone_cells]                                   # (nc, 10)
+    E = np.stack([cn[:, ecol[:, 0]], cn[:, ecol[:, 1]], cn[:, ecol[:, 2]]], axis=-1).reshape(-1, 3)  # m, i, j
+
+    # fixed flags on every local node
+    fixed = np.zeros(n_own * bs)
+    fixed[model.fixed_dofs] = 1.0
+    fixed = _accumulate(imap, bs, np.concatenate([fixed, np.zeros((n_loc - n_own) * bs)]).reshape(-1, bs),
+                        op="forward") > 0.5
+
+    # per node: zone vertex, ball-zone vertex, edge-length sum and count, tangential drop mask (9)
+    acc = np.zeros((n_loc, 13))
+    acc[np.unique(cn[:, vcol]), 0] = 1.0
+    acc[np.unique(cell_nodes[ball_cells][:, vcol]), 1] = 1.0
+    d = X[E[:, 2]] - X[E[:, 1]]
+    length = np.linalg.norm(d, axis=1)
+    for end in (1, 2):
+        np.add.at(acc[:, 2], E[:, end], length)
+        np.add.at(acc[:, 3], E[:, end], 1.0)
+    along = np.abs(d) > DIRECTION_TOL * length[:, None]           # (ne, 3) axes an edge spans
+    for c in range(3):
+        fm = fixed[E[:, 0], c]                                     # midpoint fixed in component c
+        for end in (1, 2):
+            for k in range(3):
+                sel = fm & along[:, k]
+                np.add.at(acc[:, 4 + 3 * c + k], E[sel, end], 1.0)
+    acc = _accumulate(imap, 13, acc)
+    is_vertex = acc[:, 0] > 0.5
+    is_ball = acc[:, 1] > 0.5
+    h = np.where(acc[:, 3] > 0, acc[:, 2] / np.maximum(acc[:, 3], 1), 1.0) if scale else np.ones(n_loc)
+    tangent_fixed = acc[:, 4:13].reshape(-1, 3, 3) > 0.5           # [node, c, k]
+
+    # kept slots of the owned zone vertices
+    own_v = np.nonzero(is_vertex[:n_own])[0].astype(np.int32)
+    keep = np.ones((len(own_v), SLOTS), dtype=bool)
+    keep[:, :3] = ~fixed[own_v]
+    keep[:, 3:] = ~tangent_fixed[own_v].reshape(-1, 9)
+    n_fixed_drop = int(np.count_nonzero(~keep))
+    interface_v = part.region_node[own_v]
+    if remedy == "interface":
+        keep[interface_v, 3:] = False
+    elif remedy == "anchors":
+        anchors = _choose_anchors(comm, imap, own_v[interface_v], X[own_v[interface_v]], is_ball[own_v[interface_v]],
+                                  model)
+        gidx = imap.local_to_global(own_v)
+        keep[np.isin(gidx, anchors), 3:] = False
+    n_drop = int(np.count_nonzero(~keep))
+    n_q = int(np.count_nonzero(keep))
+    q0 = comm.exscan(n_q) or 0
+    index = np.full((len(own_v), SLOTS), -1, dtype=np.int64)
+    index[keep] = q0 + np.arange(n_q)
+    idx_all = np.full((n_loc, SLOTS), -1.0)
+    idx_all[own_v] = index
+    idx_all = _accumulate(imap, SLOTS, idx_all, op="forward").round().astype(np.int64)
+
+    # rows of P: vertex nodes and edge midpoints of the owned zone cells (off-process rows stashed)
+    P = PETSc.Mat().createAIJ(((n_own * bs, PETSc.DETERMINE), (n_q, PETSc.DETERMINE)), comm=comm)
+    P.setPreallocationNNZ((8, 8))
+    P.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    gnode = imap.local_to_global(np.arange(n_loc, dtype=np.int32))
+    INSERT = PETSc.InsertMode.INSERT_VALUES
+    for j in np.unique(cn[:, vcol]):
+        for c in range(3):
+            col = idx_all[j, c]
+            if fixed[j, c] or col < 0:
+                continue
+            P.setValues([int(gnode[j]) * bs + c], [int(col)], [1.0], addv=INSERT)
+    mids, first = np.unique(E[:, 0], return_index=True)
+    for m, (_, i, j) in zip(mids, E[first]):
+        dij = X[j] - X[i]
+        # components below round-off are exact zeros (an edge in a symmetry plane or an
+        # axis-aligned face): the P2 dof coordinates carry ~1e-20 m there, which differ with the
+        # mesh partition, and would otherwise leave 1e-17 entries that make the gradient
+        # coordinates "touch" the contact dofs (mass redistribution) on some partitions only
+        dij = np.where(np.abs(dij) > DIRECTION_TOL * np.linalg.norm(dij), dij, 0.0)
+        for c in range(3):
+            if fixed[m, c]:
+                continue
+            cols = [idx_all[i, c], idx_all[j, c]]
+            vals = [0.5, 0.5]
+            for k in range(3):
+                cols += [idx_all[i, 3 + 3 * c + k], idx_all[j, 3 + 3 * c + k]]
+                vals += [0.25 * dij[k] / h[i], -0.25 * dij[k] / h[j]]
+            cols, vals = np.array(cols), np.array(vals)
+            ok = (cols >= 0) & (vals != 0.0)
+            if np.any(ok):
+                P.setValues([int(gnode[m]) * bs + c], cols[ok].astype(np.int32), vals[ok], addv=INSERT)
+    P.assemble()
+
+    body = np.repeat(np.where(is_ball[own_v], 0, 1), SLOTS).reshape(-1, SLOTS)[keep].astype(np.int8)
+    totals = comm.allreduce(np.array([len(own_v), n_q, n_fixed_drop, n_drop - n_fixed_drop,
+                                      int(np.count_nonzero(interface_v))], dtype=np.int64), op=MPI.SUM)
+    info = {"zone_vertices": int(totals[0]), "zone_coordinates": int(totals[1]),
+            "dropped_constrained": int(totals[2]), "dropped_remedy": int(totals[3]),
+            "interface_vertices": int(totals[4]), "remedy": remedy,
+            "p2_zone_dofs": int(comm.allreduce(len(part.zone)))}
+    if comm.rank == 0:
+        log.info("NMM zone: %d vertices, %d cover coordinates (P2 zone dofs %d), dropped %d constrained + %d (%s)",
+                 info["zone_vertices"], info["zone_coordinates"], info["p2_zone_dofs"],
+                 info["dropped_constrained"], info["dropped_remedy"], remedy)
+    basis = ZoneBasis(P, body, "nmm", info)
+    return NMMZone(basis, own_v, X[own_v].copy(), h[own_v].copy(), index, remedy)
+
+
+def _choose_anchors(comm: MPI.Comm, imap, nodes: np.ndarray, x: np.ndarray, ball: np.ndarray,
+                    model: FEModel) -> np.ndarray:
+    """Global node indices of three interface vertices per zone, far apart and not collinear:
+    A the farthest from the zone's contact point, B the farthest from A, C the farthest from the
+    line AB (ties broken by the global index, so every rank picks the same)."""
+    g = imap.local_to_global(nodes.astype(np.int32)).astype(np.int64)
+    all_g = np.concatenate(comm.allgather(g))
+    all_x = np.concatenate(comm.allgather(x)).reshape(-1, 3)
+    all_b = np.concatenate(comm.allgather(ball))
+    info = model.meshdata.info
+    picked = []
+    for is_ball, centre in ((True, info.contact_point_ball), (False, info.contact_point_block)):
+        sel = all_b == is_ball
+        if np.count_nonzero(sel) < 3 or centre is None:
+            continue
+        gg, xx = all_g[sel], all_x[sel]
+        order = np.argsort(gg)
+        gg, xx = gg[order], xx[order]
+        a = int(np.argmax(np.linalg.norm(xx - np.asarray(centre), axis=1)))
+        b = int(np.argmax(np.linalg.norm(xx - xx[a], axis=1)))
+        ab = (xx[b] - xx[a]) / np.linalg.norm(xx[b] - xx[a])
+        rel = xx - xx[a]
+        off = np.linalg.norm(rel - np.outer(rel @ ab, ab), axis=1)
+        c = int(np.argmax(off))
+        picked += [gg[a], gg[b], gg[c]]
+    return np.array(picked, dtype=np.int64)

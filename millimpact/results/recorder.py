@@ -1,0 +1,209 @@
+"""The recorder: turns each time step's state of an FE model into the run's time-series rows, and
+the scalar results of an impact (restitution, energy balance, peak stresses) from those rows.
+
+Columns (SI, the unit is the name's suffix): contact force (the multipliers' sum times the
+symmetry factor), approach of the ball's centre of mass along the contact normal less the initial
+gap, contact radius (the farthest active contact node from the contact axis), the ball's normal
+velocity, the contact point's displacement / velocity / acceleration / normal and von Mises stress
+(probes just inside the struck body), gauge stresses E d.eps.d, and energies (kinetic with the mass
+the scheme integrates, strain 1/2 u.K u); with friction the tangential force, the ball's
+tangential velocity and the cumulative friction work.
+"""
+from __future__ import annotations
+
+from typing import Any, Optional
+
+import numpy as np
+
+from ..fem.contact import ContactSet
+from ..fem.model import BLOCK_CELLS, FEModel
+from ..fem.probes import create_probe, inward_point, mirror_into_model, stress_from_gradient, von_mises
+from ..geometry.mesh import locate_cells
+from ..integration.integrators import strain_energy
+from ..scene.schema import Scene
+from .timeseries import TimeSeries
+
+
+class Recorder:
+    """Observer of the time loop: turns each step's state into the run's time-series rows."""
+
+    def __init__(self, model: FEModel, contact: ContactSet, field_times: tuple[float, ...]):
+        scene, plan = model.scene, model.plan
+        self.model, self.contact = model, contact
+        V = model.V
+        self.u_fn = model.function("u")
+        self.sym = model.sym_factor
+        self.x_p, _, self.z_p = scene.impact_point
+        self.p = np.array(scene.impact_point)
+        self.n = np.array(scene.contact_normal)     # e_y for the block
+        # ball centre-of-mass velocity along n: c . v with c = M e_n(ball) / m_ball
+        # (M has zero rows and columns on clamped and symmetry dofs, so M e ignores them)
+        self.c_y = model.M.createVecLeft()
+        model.M.mult(model.ball_velocity((0.0, 1.0, 0.0)), self.c_y)
+        self.ball_mass_model = self.c_y.sum()
+        if scene.liner is not None:
+            model.M.mult(model.ball_velocity(self.n), self.c_y)
+        self.c_y.scale(1.0 / self.ball_mass_model)
+        # friction: the ball's tangential velocity along the incoming tangential direction t_v
+        self.friction = contact.T is not None
+        if self.friction:
+            v = np.array(scene.impact.velocity)
+            vt = v - (v @ self.n) * self.n
+            self.t_v = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > 1e-12 * np.linalg.norm(v) else contact.tangents[0]
+            self.c_t = model.M.createVecLeft()
+            model.M.mult(model.ball_velocity(self.t_v), self.c_t)
+            self.c_t.scale(1.0 / self.ball_mass_model)
+            self.t_proj = contact.tangents @ self.t_v    # components of t_v in the rows' basis (t1, t2)
+            self._fw_base, self._fw_last = 0.0, 0.0
+        self.ball_mask = model.M.createVecRight()
+        self.ball_mask.set(0.0)
+        self.ball_mask.array[model.ball_dofs] = 1.0
+        self.tmp = model.M.createVecLeft()
+        self.tmp2 = model.M.createVecLeft()
+        self.gap0 = plan.gap
+        # probes: contact point (surface value and just-inside gradient) and gauges
+        blk_cells = locate_cells(model.meshdata, BLOCK_CELLS)
+        cp = inward_point(np.array(scene.impact_point), plan, scene)
+        pts = [cp]
+        self.gauge_dirs = []
+        for g in scene.gauges:
+            p, d = mirror_into_model(np.array(g.position), np.array(g.direction), plan, scene)
+            pts.append(inward_point(p, plan, scene))
+            self.gauge_dirs.append(d / np.linalg.norm(d))
+        self.probe = create_probe(V, np.array(pts), blk_cells)
+        if not np.all(self.probe.found):
+            raise RuntimeError("a probe point (contact point or gauge) lies outside the block mesh")
+        mat = scene.target_material
+        self.mu, self.lmbda, self.E = mat.shear_modulus, mat.lame_lambda, mat.youngs_modulus
+        self.rows: list[list[float]] = []
+        self.field_times = sorted(field_times)
+        self.fields: list[tuple[float, np.ndarray]] = []
+        self._next_field = 0
+        self.e0: Optional[float] = None
+
+    names_base = ["time_s", "contact_force_N", "approach_m", "contact_radius_m", "ball_velocity_m_s",
+                  "contact_point_displacement_m", "contact_point_velocity_m_s", "contact_point_acceleration_m_s2",
+                  "contact_point_stress_Pa", "contact_point_von_mises_Pa"]
+
+    @property
+    def names(self) -> list[str]:
+        return (self.names_base + [f"gauge_{g.name}_stress_Pa" for g in self.model.scene.gauges]
+                + ["ball_kinetic_energy_J", "kinetic_energy_J", "strain_energy_J", "total_energy_J"]
+                + (["tangential_force_N", "ball_tangential_velocity_m_s", "friction_dissipation_J"]
+                   if self.friction else []))
+
+    def _local(self, vec) -> np.ndarray:
+        self.u_fn.vector.array[:] = vec.array_r
+        self.u_fn.x.scatter_forward()
+        return self.u_fn.x.array
+
+    def _displacement_probe(self, st) -> tuple[np.ndarray, np.ndarray]:
+        """Values (points x 3) and gradients (points x 3 x 3) of the displacement at the probes."""
+        u_loc = self._local(st.u).copy()
+        return self.probe.values(u_loc), self.probe.gradients(u_loc)
+
+    def probe_columns(self, vals_u: np.ndarray, vals_v: np.ndarray, vals_a: np.ndarray,
+                      grads: np.ndarray) -> list[np.ndarray]:
+        """The probe columns of the rows for n_t states at once: from the displacement, velocity
+        and acceleration values (n_t, points, 3) and displacement gradients (n_t, points, 3, 3) at
+        the probes (the contact point first, then the gauges), the contact point's displacement,
+        velocity, acceleration and normal stress (along the impact direction, into the block or
+        liner positive), its von Mises stress and each gauge's stress E d.eps.d, each (n_t,)."""
+        s = stress_from_gradient(grads[:, 0], self.mu, self.lmbda)
+        eps = 0.5 * (grads[:, 1:] + np.swapaxes(grads[:, 1:], -1, -2))
+        gauges = [self.E * np.einsum("i,tij,j->t", d, eps[:, k], d) for k, d in enumerate(self.gauge_dirs)]
+        if self.model.scene.liner is None:
+            normal = [-vals_u[:, 0, 1], -vals_v[:, 0, 1], -vals_a[:, 0, 1], s[:, 1, 1]]
+        else:   # along the contact normal n, into the liner positive
+            n = self.n
+            normal = [-(vals_u[:, 0] @ n), -(vals_v[:, 0] @ n), -(vals_a[:, 0] @ n), np.einsum("i,tij,j->t", n, s, n)]
+        return normal + [von_mises(s)] + gauges
+
+    def __call__(self, st) -> None:
+        m = self.model
+        lam = np.asarray(st.lam)
+        force = self.sym * float(lam.sum()) if lam.size else 0.0
+        active = lam > 0
+        if np.any(active):
+            pts = self.contact.points[active]
+            if self.model.scene.liner is None:
+                a = float(np.max(np.hypot(pts[:, 0] - self.x_p, pts[:, 2] - self.z_p)))
+            else:   # distance from the contact axis p + s n
+                d = pts - self.p
+                a = float(np.max(np.linalg.norm(d - np.outer(d @ self.n, self.n), axis=1)))
+        else:
+            a = 0.0
+        approach = -self.c_y.dot(st.u) - self.gap0
+        vball = -self.c_y.dot(st.v)
+        vals_u, grads = self._displacement_probe(st)
+        vals_v = self.probe.values(self._local(st.v).copy())
+        vals_a = self.probe.values(self._local(st.a).copy())
+        probe_cols = [float(c[0]) for c in self.probe_columns(vals_u[None], vals_v[None], vals_a[None], grads[None])]
+        # energies: kinetic with the mass the scheme integrates (st.mass: redistributed for
+        # newmark-mr, whose massless contact dofs carry no momentum), strain 1/2 u.K u
+        mass = st.mass if getattr(st, "mass", None) is not None else m.M
+        mass.mult(st.v, self.tmp)
+        ke = 0.5 * self.tmp.dot(st.v)
+        self.tmp2.pointwiseMult(st.v, self.ball_mask)
+        mass.mult(self.tmp2, self.tmp)
+        ke_ball = 0.5 * self.tmp.dot(self.tmp2)
+        se = strain_energy(m.K, st.u, m.fixed_dofs)
+        row = [st.t, force, approach, a, vball, *probe_cols, self.sym * ke_ball, self.sym * ke, self.sym * se,
+               self.sym * (ke + se)]
+        if self.friction:
+            # tangential force on the ball along t_v (N, full body: the half model's mirror adds
+            # only the in-plane component, which is t_v's when the plane of incidence is the cut)
+            tau = np.asarray(st.tau) if getattr(st, "tau", None) is not None else np.zeros(2 * lam.size)
+            nc = lam.size
+            ft = self.sym * float(self.t_proj[0] * tau[:nc].sum() + self.t_proj[1] * tau[nc:].sum())
+            # friction work is cumulative per integrate() call: restarted segments (reduced
+            # methods) and modal free phases (no friction) continue the sum
+            fw = float(getattr(st, "friction_work", 0.0))
+            if fw < self._fw_last:
+                self._fw_base += self._fw_last
+            self._fw_last = fw
+            row += [ft, self.c_t.dot(st.v), self.sym * (self._fw_base + fw)]
+        self.rows.append([float(x) for x in row])
+        while self._next_field < len(self.field_times) and st.t >= self.field_times[self._next_field] - 1e-15:
+            self.fields.append((st.t, st.u.array_r.copy()))
+            self._next_field += 1
+
+    def series(self) -> TimeSeries:
+        return TimeSeries.from_rows(self.names, self.rows)
+
+
+def impact_results(ts: TimeSeries, scene: Scene, stats, integrator: str) -> dict[str, Any]:
+    """Scalar results of an FE run (full or reduced): restitution from the ball's centre-of-mass
+    velocity just after the first contact, energy balance, peak stresses, integrator statistics."""
+    f = ts["contact_force_N"]
+    after = np.nonzero(f > 0)[0]
+    if len(after):
+        last = after[-1] if not np.any(np.diff(after) > 1) else after[np.argmax(np.diff(after) > 1)]
+        i_out = min(last + 2, len(f) - 1)
+        restitution = -ts["ball_velocity_m_s"][i_out] / scene.normal_speed
+    else:
+        i_out = len(f) - 1
+        restitution = float("nan")
+    e = ts["total_energy_J"]
+    e_in = e[0]
+    i_peak = int(np.argmax(f))
+    return {
+        "restitution": restitution,
+        "energy_initial_J": float(e_in),
+        "energy_final_J": float(e[-1]),
+        "energy_drift_max_rel": float(np.max(np.abs(e - e_in)) / e_in),
+        "energy_drift_over_impact_rel": float(np.max(np.abs(e[: i_out + 1] - e_in)) / e_in),
+        "ball_kinetic_energy_after_J": float(ts["ball_kinetic_energy_J"][-1]),
+        "vibration_energy_share_end": float(1.0 - ts["ball_kinetic_energy_J"][-1] / e_in),
+        "peak_contact_point_stress_Pa": float(np.min(ts["contact_point_stress_Pa"])),
+        "peak_contact_point_von_mises_Pa": float(np.max(ts["contact_point_von_mises_Pa"])),
+        "peak_gauge_stress_Pa": {g.name: _signed_peak(ts[f"gauge_{g.name}_stress_Pa"]) for g in scene.gauges},
+        "time_of_peak_force_s": float(ts.time[i_peak]),
+        "integrator": integrator,
+        "integration": stats._asdict() if hasattr(stats, "_asdict") else stats,
+    }
+
+
+def _signed_peak(x: np.ndarray) -> float:
+    """The value of largest magnitude, with its sign."""
+    return float(x[np.argmax(np.abs(x))])

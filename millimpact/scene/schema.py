@@ -1,0 +1,675 @@
+"""Scenes: what the user describes (bodies, materials, impact, gauges, time span, outputs).
+
+A scene is a frozen dataclass tree, validated on construction; every refusal is a
+:class:`SceneError` naming the field, the value and the allowed range. Scenes load from and save
+to TOML; built-in scenes are named (``paper-rig`` is the default).
+
+Coordinates (SI units throughout, metres / seconds / pascals / kilograms):
+the block occupies ``x in [-length/2, length/2]``, ``y in [-thickness, 0]``, ``z in [0, height]``;
+the struck face is ``y = 0`` (the length x height face), so ``thickness`` (b) lies along the impact
+direction. ``support = "base"`` clamps the ``z = 0`` face (the paper's rig), ``"back"`` clamps the
+``y = -thickness`` face (a half-space-like block). The ball starts at
+``(x_p, radius + gap, z_p)`` above the impact point ``(x_p, 0, z_p)`` and moves with ``velocity``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+from ..errors import SceneError
+from .liner_shape import LinerShape
+
+Vec3 = tuple[float, float, float]
+Vec2 = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Material:
+    """Linear elastic isotropic material (density kg/m^3, shear modulus Pa, Poisson ratio)."""
+
+    density: float = 7800.0
+    shear_modulus: float = 70.0e9
+    poisson: float = 0.3
+
+    def validate(self, where: str) -> None:
+        _positive(f"{where}.density", self.density, "kg/m^3")
+        _positive(f"{where}.shear_modulus", self.shear_modulus, "Pa")
+        if not (-1.0 < self.poisson < 0.5):
+            raise SceneError(f"{where}.poisson", self.poisson, "must lie in (-1, 0.5)")
+
+    @property
+    def youngs_modulus(self) -> float:
+        """E = 2 G (1 + nu), Pa."""
+        return 2.0 * self.shear_modulus * (1.0 + self.poisson)
+
+    @property
+    def lame_lambda(self) -> float:
+        """First Lame parameter, Pa."""
+        return 2.0 * self.shear_modulus * self.poisson / (1.0 - 2.0 * self.poisson)
+
+    @property
+    def wave_speed_p(self) -> float:
+        """Dilatational wave speed sqrt((lambda + 2 mu) / rho), m/s."""
+        return math.sqrt((self.lame_lambda + 2.0 * self.shear_modulus) / self.density)
+
+    @property
+    def bar_wave_speed(self) -> float:
+        """One-dimensional bar wave speed sqrt(E / rho), m/s."""
+        return math.sqrt(self.youngs_modulus / self.density)
+
+
+@dataclass(frozen=True)
+class Ball:
+    """The grinding ball: a sphere of ``radius`` (m)."""
+
+    radius: float = 0.015
+    material: Material = field(default_factory=Material)
+
+    def validate(self) -> None:
+        _positive("ball.radius", self.radius, "m")
+        self.material.validate("ball.material")
+
+    @property
+    def mass(self) -> float:
+        """kg."""
+        return 4.0 / 3.0 * math.pi * self.radius**3 * self.material.density
+
+
+@dataclass(frozen=True)
+class Block:
+    """The struck body: a rectangular block (the paper's liner sample), sizes in m.
+
+    ``length`` l2 along x, ``thickness`` b along y (the impact direction), ``height`` l3 along z.
+    """
+
+    length: float = 0.042
+    thickness: float = 0.045
+    height: float = 0.080
+    support: str = "base"
+    material: Material = field(default_factory=Material)
+
+    def validate(self) -> None:
+        _positive("block.length", self.length, "m")
+        _positive("block.thickness", self.thickness, "m")
+        _positive("block.height", self.height, "m")
+        if self.support not in ("base", "back"):
+            raise SceneError("block.support", self.support, "must be 'base' (z = 0 face) or 'back' (y = -thickness face)")
+        self.material.validate("block.material")
+
+
+@dataclass(frozen=True)
+class Liner(LinerShape):
+    """A SAG-mill liner segment: a shell plate with lifter bars, struck on a lifter face. When a
+    scene has a ``liner``, it replaces the block (whose fields are then unused).
+
+    Shape (m, degrees): the fields of :class:`millimpact.scene.liner_shape.LinerShape` (plate
+    ``length``, ``width``, ``thickness``; ``n_lifters`` lifters ``lifter_height`` high with a
+    ``lifter_top_width`` top, ``lifter_face_angle``, ``lifter_spacing``; ``mill_radius``). The back
+    face (bolted to the mill shell) is clamped.
+
+    Impact placement: the ball first touches lifter ``impact_lifter`` (index from the lowest z) on
+    its ``impact_face`` (``"+z"`` or ``"-z"``, the side the face looks to) at ``impact_height`` (a
+    fraction in (0, 1) of the lifter height, measured along its centre line from the plate) and at
+    ``x = impact_x`` (m). The contact normal is that face's outward normal; the impact velocity
+    (``impact.velocity``, global x, y, z) must point into the face.
+    """
+
+    material: Material = field(default_factory=Material)
+    impact_lifter: int = 0
+    impact_face: str = "+z"
+    impact_height: float = 0.5
+    impact_x: float = 0.0
+
+    def face_point(self) -> tuple[Vec3, Vec3]:
+        """The impact point on the lifter face and the face's outward unit normal (m)."""
+        return self.lifter_face_point(self.impact_lifter, self.impact_face, self.impact_height, self.impact_x)
+
+    def validate(self) -> None:
+        self.material.validate("liner.material")
+        self.validate_shape()
+        _finite("liner.impact_height", self.impact_height, "fraction of the lifter height")
+        _finite("liner.impact_x", self.impact_x, "m")
+        self.face_point()   # refuses a lifter, face, height or x off the liner
+
+
+@dataclass(frozen=True)
+class ContactOptions:
+    """Contact law. ``friction``: Coulomb coefficient mu >= 0 between ball and block/liner (0:
+    frictionless, the default; see :mod:`millimpact.integration.friction` for the formulation)."""
+
+    friction: float = 0.0
+
+    def validate(self) -> None:
+        _finite("contact.friction", self.friction, "dimensionless")
+        if not (0.0 <= self.friction <= 2.0):
+            raise SceneError("contact.friction", self.friction, "must lie in [0, 2] (Coulomb coefficient)")
+
+
+@dataclass(frozen=True)
+class Impact:
+    """Arrival state of the ball.
+
+    ``velocity`` (m/s) at first contact; ``point`` (x, z) on the struck face y = 0 (m), ``None``
+    for the face centre; ``gap`` (m) between ball and face at the start, ``None`` for the plan's
+    choice (a small fraction of the Hertz approach).
+    """
+
+    velocity: Vec3 = (0.0, -3.0, 0.0)
+    point: Optional[Vec2] = None
+    gap: Optional[float] = None
+
+    @property
+    def speed(self) -> float:
+        return math.sqrt(sum(c * c for c in self.velocity))
+
+    @property
+    def normal_speed(self) -> float:
+        """Speed towards the struck face (m/s); positive when approaching."""
+        return -self.velocity[1]
+
+
+@dataclass(frozen=True)
+class Gauge:
+    """A strain gauge on the block: reports sigma = E * (direction . eps . direction), Pa."""
+
+    name: str
+    position: Vec3
+    direction: Vec3 = (0.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class TimeSpan:
+    """Simulated time ``end`` (s); steps ``dt_contact`` in contact and ``dt_free`` otherwise (s),
+    ``None`` for the plan's choice (from the Hertz contact time)."""
+
+    end: float = 0.040
+    dt_contact: Optional[float] = None
+    dt_free: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """Overrides of the plan's modelling choices; ``None`` leaves the choice to the plan.
+
+    ``h_contact`` element size at the contact point (m), ``h_far`` far from it (m),
+    ``zone_radius`` contact-zone radius (m), ``symmetry`` one of auto/full/half/quarter,
+    ``degree`` Lagrange degree of the full model, ``f_cut`` modal cutoff (Hz), ``modes`` a fixed
+    mode count per body.
+    """
+
+    h_contact: Optional[float] = None
+    h_far: Optional[float] = None
+    zone_radius: Optional[float] = None
+    symmetry: str = "auto"
+    degree: int = 1
+    f_cut: Optional[float] = None
+    modes: Optional[int] = None
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """What a run writes: XDMF fields at ``field_times`` (s; those after ``time.end`` are skipped),
+    PNG figures, HDF5 time series."""
+
+    field_times: tuple[float, ...] = ()
+    figures: bool = True
+    xdmf: bool = True
+    hdf5: bool = True
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A complete impact scene. Validated on construction."""
+
+    name: str = "custom"
+    description: str = ""
+    ball: Ball = field(default_factory=Ball)
+    block: Block = field(default_factory=Block)
+    impact: Impact = field(default_factory=Impact)
+    gauges: tuple[Gauge, ...] = ()
+    time: TimeSpan = field(default_factory=TimeSpan)
+    model: ModelOptions = field(default_factory=ModelOptions)
+    outputs: Outputs = field(default_factory=Outputs)
+    liner: Optional[Liner] = None
+    contact: ContactOptions = field(default_factory=ContactOptions)
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    # --- derived geometry -------------------------------------------------------------------
+    @property
+    def impact_point(self) -> Vec3:
+        """Point of first contact on the struck face (m): on y = 0 for a block, on the lifter face
+        for a liner."""
+        if self.liner is not None:
+            return tuple(float(c) for c in self.liner.face_point()[0])
+        if self.impact.point is None:
+            return (0.0, 0.0, 0.5 * self.block.height)
+        return (float(self.impact.point[0]), 0.0, float(self.impact.point[1]))
+
+    @property
+    def contact_normal(self) -> Vec3:
+        """Outward unit normal of the struck face at the impact point: +y for a block, the lifter
+        face's normal for a liner."""
+        if self.liner is not None:
+            return tuple(float(c) for c in self.liner.face_point()[1])
+        return (0.0, 1.0, 0.0)
+
+    @property
+    def normal_speed(self) -> float:
+        """Speed towards the struck face, -v . n (m/s); positive when approaching."""
+        if self.liner is None:
+            return self.impact.normal_speed
+        return -sum(v * n for v, n in zip(self.impact.velocity, self.contact_normal))
+
+    @property
+    def target_material(self) -> Material:
+        """The struck body's material (the liner's or the block's)."""
+        return self.liner.material if self.liner is not None else self.block.material
+
+    def ball_centre(self, gap: float) -> Vec3:
+        """Initial ball centre for a given gap (m): ``radius + gap`` off the impact point along
+        the contact normal."""
+        if self.liner is not None:
+            p, n = self.liner.face_point()
+            return tuple(float(pc + (self.ball.radius + gap) * nc) for pc, nc in zip(p, n))
+        x, _, z = self.impact_point
+        return (x, self.ball.radius + gap, z)
+
+    # --- validation ---------------------------------------------------------------------------
+    def validate(self) -> None:
+        self.ball.validate()
+        self.block.validate()
+        imp, blk = self.impact, self.block
+        for i, c in enumerate(imp.velocity):
+            _finite(f"impact.velocity[{i}]", c, "m/s")
+        self.contact.validate()
+        if self.liner is not None:
+            self._validate_liner()
+        elif imp.normal_speed <= 0.0:
+            raise SceneError("impact.velocity", list(imp.velocity),
+                             "its y component must be negative (towards the struck face y = 0)")
+        if imp.point is not None and self.liner is None:
+            x, z = imp.point
+            if not (-blk.length / 2 < x < blk.length / 2):
+                raise SceneError("impact.point[0]", x, f"must lie on the face: (-{blk.length/2:g}, {blk.length/2:g}) m")
+            if not (0.0 < z < blk.height):
+                raise SceneError("impact.point[1]", z, f"must lie on the face: (0, {blk.height:g}) m")
+        if imp.gap is not None:
+            if not (math.isfinite(imp.gap) and imp.gap >= 0.0):
+                raise SceneError("impact.gap", imp.gap, "must be >= 0 m (a negative gap puts the ball inside the block)")
+            if imp.gap > self.ball.radius:
+                raise SceneError("impact.gap", imp.gap, f"must be at most the ball radius ({self.ball.radius:g} m): "
+                                 "the simulation starts just before contact")
+        names = set()
+        if self.liner is not None and self.gauges:
+            raise SceneError("gauges", [g.name for g in self.gauges], "are not supported on a liner yet (leave empty)")
+        for i, g in enumerate(self.gauges):
+            where = f"gauges[{i}]"
+            if g.name in names:
+                raise SceneError(f"{where}.name", g.name, "must be unique")
+            names.add(g.name)
+            x, y, z = g.position
+            tol = 1e-9
+            inside = (-blk.length / 2 - tol <= x <= blk.length / 2 + tol and -blk.thickness - tol <= y <= tol
+                      and -tol <= z <= blk.height + tol)
+            on_surface = inside and min(abs(x - blk.length / 2), abs(x + blk.length / 2), abs(y), abs(y + blk.thickness),
+                                        abs(z), abs(z - blk.height)) <= 1e-6
+            if not on_surface:
+                raise SceneError(f"{where}.position", list(g.position),
+                                 f"must lie on the block's surface: x in [{-blk.length/2:g}, {blk.length/2:g}], "
+                                 f"y in [{-blk.thickness:g}, 0], z in [0, {blk.height:g}] m with one coordinate on a face")
+            n = math.sqrt(sum(c * c for c in g.direction))
+            if not n > 0:
+                raise SceneError(f"{where}.direction", list(g.direction), "must be a non-zero vector")
+        t = self.time
+        _positive("time.end", t.end, "s")
+        if t.dt_contact is not None:
+            _positive("time.dt_contact", t.dt_contact, "s")
+        if t.dt_free is not None:
+            _positive("time.dt_free", t.dt_free, "s")
+        m = self.model
+        for name in ("h_contact", "h_far", "zone_radius", "f_cut"):
+            v = getattr(m, name)
+            if v is not None:
+                _positive(f"model.{name}", v, "Hz" if name == "f_cut" else "m")
+        if m.zone_radius is not None and self.liner is None and m.zone_radius >= min(blk.length, blk.height) / 2:
+            raise SceneError("model.zone_radius", m.zone_radius,
+                             f"must be smaller than half the struck face ({min(blk.length, blk.height)/2:g} m)")
+        if m.symmetry not in ("auto", "full", "half", "quarter"):
+            raise SceneError("model.symmetry", m.symmetry, "must be one of auto, full, half, quarter")
+        if m.degree not in (1, 2):
+            raise SceneError("model.degree", m.degree, "must be 1 or 2")
+        if m.modes is not None and m.modes < 1:
+            raise SceneError("model.modes", m.modes, "must be >= 1")
+        for i, ft in enumerate(self.outputs.field_times):
+            if not (math.isfinite(ft) and ft >= 0.0):
+                raise SceneError(f"outputs.field_times[{i}]", ft, "must be >= 0 s (times after time.end are skipped)")
+
+    def _validate_liner(self) -> None:
+        """Liner scenes: the geometry, the placement, an approaching velocity, a ball clear of the plate."""
+        ln, imp = self.liner, self.impact
+        ln.validate()
+        if imp.point is not None:
+            raise SceneError("impact.point", list(imp.point), "is not used with a liner: place the impact with "
+                             "liner.impact_lifter / impact_face / impact_height / impact_x")
+        p, n = ln.face_point()
+        vn = sum(v * c for v, c in zip(imp.velocity, n))
+        if not vn < 0.0:
+            raise SceneError("impact.velocity", list(imp.velocity),
+                             f"must point into the struck lifter face (v . n < 0 with its outward normal n = "
+                             f"({n[0]:.4g}, {n[1]:.4g}, {n[2]:.4g}))")
+        c = self.ball_centre(0.0 if imp.gap is None else imp.gap)
+        Rm = ln.mill_radius
+        # clearance of the ball from the plate's inner face (y = 0, or the cylinder of radius Rm)
+        clear = c[1] - self.ball.radius if Rm == 0.0 else Rm - math.hypot(c[1] - Rm, c[2] - 0.5 * ln.width) - self.ball.radius
+        if clear <= 0.0:
+            raise SceneError("liner.impact_height", ln.impact_height,
+                             f"too low for a ball of radius {self.ball.radius:g} m: the ball would touch the "
+                             f"plate ({-clear:.4g} m into it); choose a higher point")
+
+    def with_value(self, path: str, value: Any) -> "Scene":
+        """A copy with the dotted field ``path`` (e.g. ``ball.radius``) set to ``value`` (validated)."""
+        return _replace_path(self, path.split("."), value, path)
+
+
+# --- helpers ---------------------------------------------------------------------------------
+def parse_value(text: str):
+    """The value of a ``FIELD=VALUE`` override: a TOML value (number, string, array, boolean), or
+    the text itself when it is not one (a bare word such as ``base``)."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _finite(name: str, value: Any, unit: str) -> None:
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+        raise SceneError(name, value, f"must be a finite number ({unit})")
+
+
+def _positive(name: str, value: Any, unit: str) -> None:
+    _finite(name, value, unit)
+    if value <= 0:
+        raise SceneError(name, value, f"must be > 0 {unit}")
+
+
+def _replace_path(obj: Any, parts: list[str], value: Any, full: str) -> Any:
+    if not dataclasses.is_dataclass(obj):
+        raise SceneError(full, value, "is not a scene field")
+    names = {f.name for f in dataclasses.fields(obj)}
+    if parts[0] not in names:
+        raise SceneError(full, value, f"unknown field '{parts[0]}'; known: {', '.join(sorted(names))}")
+    if len(parts) == 1:
+        hints = typing.get_type_hints(type(obj))
+        return dataclasses.replace(obj, **{parts[0]: _coerce(hints[parts[0]], value, full)})
+    child = _replace_path(getattr(obj, parts[0]), parts[1:], value, full)
+    return dataclasses.replace(obj, **{parts[0]: child})
+
+
+def _coerce(tp: Any, value: Any, where: str) -> Any:
+    """Convert a TOML value to the annotated type, refusing wrong types with the field name."""
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if origin is typing.Union:  # Optional[X]
+        if value is None:
+            return None
+        inner = [a for a in args if a is not type(None)]
+        return _coerce(inner[0], value, where)
+    if dataclasses.is_dataclass(tp):
+        if not isinstance(value, dict):
+            raise SceneError(where, value, f"must be a table of {tp.__name__} fields")
+        return _from_dict(tp, value, where)
+    if origin is tuple:
+        if not isinstance(value, (list, tuple)):
+            raise SceneError(where, value, "must be an array")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_coerce(args[0], v, f"{where}[{i}]") for i, v in enumerate(value))
+        if len(value) != len(args):
+            raise SceneError(where, list(value), f"must have {len(args)} components")
+        return tuple(_coerce(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise SceneError(where, value, "must be a number")
+        return float(value)
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise SceneError(where, value, "must be an integer")
+        return value
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise SceneError(where, value, "must be true or false")
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            raise SceneError(where, value, "must be a string")
+        return value
+    raise TypeError(f"unsupported field type {tp!r} at {where}")
+
+
+def _from_dict(cls: type, data: dict, where: str) -> Any:
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls)]
+    kwargs = {}
+    for key, value in data.items():
+        path = f"{where}.{key}" if where else key
+        if key not in names:
+            raise SceneError(path, value, f"unknown key; allowed here: {', '.join(names)}")
+        kwargs[key] = _coerce(hints[key], value, path)
+    try:
+        return cls(**kwargs)
+    except TypeError as exc:  # a required field missing
+        raise SceneError(where or cls.__name__, data, f"incomplete: {exc}") from None
+
+
+def scene_from_dict(data: dict) -> Scene:
+    """Build (and validate) a scene from a TOML-like dict; unknown keys and wrong types refused."""
+    return _from_dict(Scene, data, "")
+
+
+def scene_to_dict(scene: Scene) -> dict:
+    """The scene as plain TOML-able data (None values omitted: they mean 'the plan decides')."""
+    def clean(v: Any) -> Any:
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items() if x is not None}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        return v
+    d = clean(dataclasses.asdict(scene))
+    if scene.liner is not None and scene.block == Block():
+        d.pop("block", None)    # unused by a liner scene
+    return d
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read a scene TOML file."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise SceneError("scene", str(p), f"cannot be read ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError("scene", str(p), f"is not valid TOML ({exc})") from None
+    data.setdefault("name", p.stem)
+    return scene_from_dict(data)
+
+
+def dump_scene(scene: Scene) -> str:
+    """The scene as TOML text, with a header that states the units."""
+    import tomli_w
+
+    head = ("# millimpact scene. SI units: m, s, kg/m^3, Pa, m/s.\n"
+            "# Block: x in [-length/2, length/2], y in [-thickness, 0], z in [0, height]; struck face y = 0.\n"
+            "# Liner scenes: the [liner] table replaces the block (struck lifter face, contact normal = its normal).\n"
+            "# Omitted optional values (impact.point, impact.gap, time.dt_*, model.*) are chosen by the plan.\n")
+    return head + tomli_w.dumps(scene_to_dict(scene))
+
+
+# --- built-in scenes -------------------------------------------------------------------------
+def _default_gauges(block: Block, radius: float) -> tuple[Gauge, ...]:
+    """Gauges A, B, C on the struck face near the impact (an assumption: the paper's Figure 4 with
+    their exact places is not available). A and B above the impact point along z, C beside it
+    along x, each measuring the in-plane normal stress along its direction."""
+    zc = 0.5 * block.height
+    d = 0.5 * radius
+    return (
+        Gauge("A", (0.0, 0.0, zc + d), (0.0, 0.0, 1.0)),
+        Gauge("B", (0.0, 0.0, zc + 2 * d), (0.0, 0.0, 1.0)),
+        Gauge("C", (min(d, 0.45 * block.length), 0.0, zc), (1.0, 0.0, 0.0)),
+    )
+
+
+def _paper_rig() -> Scene:
+    block = Block()
+    return Scene(
+        name="paper-rig",
+        description="The paper's test rig (Liu et al. 2022, Tables 1-2): r = 15 mm steel ball at 3 m/s "
+                    "normal to the 42 x 80 mm face of a 45 mm thick block clamped at its base; 40 ms.",
+        block=block,
+        gauges=_default_gauges(block, 0.015),
+        outputs=Outputs(field_times=(0.0, 45e-6, 90e-6, 1e-3)),
+    )
+
+
+def _hertz_halfspace() -> Scene:
+    block = Block(length=0.100, thickness=0.100, height=0.100, support="back")
+    return Scene(
+        name="hertz-halfspace",
+        description="The default ball on a large block clamped at its back face: a half-space-like "
+                    "target whose impact Hertz theory describes (restitution ~0.99).",
+        block=block,
+        gauges=_default_gauges(block, 0.015),
+        time=TimeSpan(end=0.3e-3),
+    )
+
+
+def _study_base() -> Scene:
+    """The base of the paper's parameter studies (section 4): r = 20 mm, v = 3 m/s, b = 40 mm, u = 1."""
+    block = Block(thickness=0.040)
+    return Scene(
+        name="study-base",
+        description="Base case of the paper's parameter studies (section 4): r = 20 mm, v = 3 m/s, "
+                    "b = 40 mm, u = nu_ball / nu_block = 1.0; other values as the rig.",
+        ball=Ball(radius=0.020),
+        block=block,
+        gauges=_default_gauges(block, 0.020),
+    )
+
+
+#: the liner-segment scene's impact: speed (m/s) and angle (deg) between the velocity and the lifter
+#: face's inward normal, in the plane of incidence x = 0 (the ball comes down along the face)
+LINER_IMPACT_SPEED = 8.0
+LINER_IMPACT_ANGLE = 30.0
+
+
+def _liner_segment() -> Scene:
+    """A large ball striking a SAG liner's lifter face obliquely (sizes and sources in the description)."""
+    liner = Liner(length=0.40, width=0.50, thickness=0.075, n_lifters=1, lifter_height=0.20,
+                  lifter_top_width=0.10, lifter_face_angle=20.0, lifter_spacing=0.30, mill_radius=5.5,
+                  impact_lifter=0, impact_face="+z", impact_height=0.5, impact_x=0.0)
+    # velocity: LINER_IMPACT_ANGLE from the face's inward normal -n, tilted towards the plate (down
+    # the face): v = V (-cos(a) n - sin(a) s), s the face's up-slope direction in the y-z plane
+    _, n = liner.face_point()
+    up = (0.0, n[2], -n[1]) if n[2] > 0 else (0.0, -n[2], n[1])    # in-face, pointing away from the plate
+    a = math.radians(LINER_IMPACT_ANGLE)
+    v = tuple(round(LINER_IMPACT_SPEED * (-math.cos(a) * nc - math.sin(a) * uc), 12) + 0.0 for nc, uc in zip(n, up))
+    return Scene(
+        name="liner-segment",
+        description=(
+            "A 125 mm steel ball at 8 m/s striking a lifter face of a SAG-mill liner segment 30 deg off the "
+            "face normal (towards the plate), Coulomb friction mu = 0.2 (steel on wet steel). Sizes of a "
+            "36-40 ft (11-12 m) SAG mill, typical values of the liner-design literature (e.g. D. Royston, "
+            "SAG mill liner design and development, Min. Metall. Process. 24 (2007) 121-132): shell plate "
+            "75 mm thick (typical 75-100 mm), lifter 200 mm high (150-250 mm), 100 mm top, 20 deg face angle "
+            "(15-30 deg), Cr-Mo steel (elastic here: E = 182 GPa, nu = 0.3 as the rig), plate curved to the "
+            "mill's 5.5 m radius, 400 mm along the axis x 500 mm of arc; balls 100-150 mm thrown at up to "
+            "~10 m/s. Elastic on purpose: Hertz p0 ~6.9 GPa, far above the yield of real liner steel. "
+            "Half model: the plane of incidence x = 0 is a symmetry plane."),
+        ball=Ball(radius=0.0625),
+        liner=liner,
+        impact=Impact(velocity=v),
+        contact=ContactOptions(friction=0.2),
+        time=TimeSpan(end=0.6e-3),
+        outputs=Outputs(field_times=(0.0, 2.0e-4, 4.0e-4)),
+    )
+
+
+BUILTIN_SCENES = {
+    "paper-rig": _paper_rig,
+    "hertz-halfspace": _hertz_halfspace,
+    "study-base": _study_base,
+    "liner-segment": _liner_segment,
+}
+DEFAULT_SCENE = "paper-rig"
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """A one-parameter sweep of the paper: ``param`` is a dotted scene field, ``values`` its values,
+    ``label``/``display`` how the figure names each case (e.g. u = nu_ball / nu_block)."""
+
+    name: str
+    base: str
+    param: str
+    values: tuple[float, ...]
+    label: str
+    display: tuple[float, ...]
+    unit: str
+    paper_conclusion: str
+
+
+BUILTIN_STUDIES = {
+    "poisson": StudySpec("poisson", "study-base", "ball.material.poisson", (0.15, 0.30, 0.45),
+                         "u = nu_ball / nu_block", (0.5, 1.0, 1.5), "",
+                         "(2) Poisson ratio changes little the contact-point displacement, velocity and "
+                         "acceleration but changes the stress; above u = 1.0 the stress grows less."),
+    "velocity": StudySpec("velocity", "study-base", "impact.velocity", (1.0, 3.0, 5.0),
+                          "v", (1.0, 3.0, 5.0), "m/s",
+                          "(3) displacement, velocity, acceleration and stress grow with v; above 3 m/s "
+                          "they grow less."),
+    "radius": StudySpec("radius", "study-base", "ball.radius", (0.015, 0.020, 0.025),
+                        "r", (15.0, 20.0, 25.0), "mm",
+                        "(4) displacement, velocity and stress grow with r, acceleration changes little; "
+                        "above 20 mm the stress changes greatly and the peak acceleration comes earlier."),
+    "thickness": StudySpec("thickness", "study-base", "block.thickness", (0.030, 0.040, 0.050),
+                           "b", (30.0, 40.0, 50.0), "mm",
+                           "(5) displacement and acceleration grow with b, stress amplitude falls; above "
+                           "40 mm the time of peak acceleration hardly changes."),
+}
+
+
+def builtin_scene(name: str) -> Scene:
+    """A built-in scene by name."""
+    try:
+        return BUILTIN_SCENES[name]()
+    except KeyError:
+        raise SceneError("scene", name, f"unknown built-in scene; known: {', '.join(BUILTIN_SCENES)} "
+                         "(or give a .toml file)") from None
+
+
+def resolve_scene(name_or_file: str | None) -> Scene:
+    """A built-in scene by name, or a TOML file by path; ``None`` gives the default scene."""
+    if name_or_file is None:
+        return builtin_scene(DEFAULT_SCENE)
+    if name_or_file in BUILTIN_SCENES:
+        return builtin_scene(name_or_file)
+    if name_or_file.endswith(".toml") or Path(name_or_file).exists():
+        return load_scene(name_or_file)
+    return builtin_scene(name_or_file)
+
+
+def study_scene(spec: StudySpec, value: float) -> Scene:
+    """The scene of one study case (velocity values are speeds along -y)."""
+    base = builtin_scene(spec.base)
+    if spec.param == "impact.velocity":
+        v = base.impact.velocity
+        n = base.impact.speed
+        return base.with_value("impact.velocity", [c / n * value for c in v])
+    return base.with_value(spec.param, value)
