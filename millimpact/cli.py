@@ -6,6 +6,8 @@ PETSc options (``-impact_ksp_type gmres`` ...) may follow any run command and re
 from __future__ import annotations
 
 import argparse
+import signal
+import threading
 import re
 import logging
 import os
@@ -15,6 +17,7 @@ from typing import Optional
 
 from .console import say, world_rank
 from .errors import InputError, MillimpactError
+from .results.output_folder import prepare_output
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
 from .scene.schema import parse_value
 
@@ -139,6 +142,10 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
         key, _, value = assignment.partition("=")
         scene = scene.with_value(key.strip(), parse_value(value))
     out = Path(args.out) if args.out else Path("out") / (scene.name if args.scene else DEFAULT_SCENE)
+    shown = out
+    replacing = out.is_dir() and any(out.iterdir())
+    out = prepare_output(out, "--out", force=args.force)   # before any computing: a typo costs a second
+    _INTERRUPT_NOTE[0] = f"nothing written to {shown}/" + (" (its earlier content is kept)" if replacing else "")
     comm = _comm()
     if args.method == "hertz":
         say("note: --method hertz is the quasi-static Hertz model (1 DOF), the lightest method.")
@@ -172,7 +179,8 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
         say(f"  restitution         {summary['restitution']:10.4f}")
     for note in summary.get("notes", []):
         say(f"  note: {note}")
-    say(f"  results in {out}/ ({', '.join(summary.get('files', []))})")
+    say(f"  results in {shown}/ ({', '.join(summary.get('files', []))})"
+        + (" (replaced its earlier content)" if replacing else ""))
     return 0
 
 
@@ -232,6 +240,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="millimpact", description=DESCRIPTION,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    p.add_argument("--version", action=_VersionAction, nargs=0,
+                   help="print millimpact's version and those of DOLFINx, PETSc, SLEPc and gmsh")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     r = sub.add_parser("run", help="simulate a scene and write summary, time series, fields and figures",
@@ -242,7 +252,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
     r.add_argument("--method", default=DEFAULT_METHOD, metavar="METHOD",
                    help=f"solution method (default {DEFAULT_METHOD}):\n{method_help()}")
-    r.add_argument("--out", help="output folder (default out/SCENE)")
+    r.add_argument("--out", help="output folder (default out/SCENE); an earlier millimpact output there is "
+                                 "replaced, a folder holding other files is refused")
+    r.add_argument("--force", action="store_true", help="replace --out even if it holds files millimpact did not write")
     r.add_argument("--set", action="append", metavar="FIELD=VALUE",
                    help="override a scene field, e.g. --set ball.radius=0.02 --set model.h_contact=2e-4")
     r.add_argument("--degree", type=int, choices=[1, 2], help="Lagrange degree of FE methods (default: the plan's, P1)")
@@ -277,6 +289,9 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--out", help="output folder (default out/SCENE-mesh)")
     m.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
 
+    for q in sub.choices.values():
+        q.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                       help="log progress details")
     # commands that live in their own modules (millimpact/<name>.py): each module has
     # HELP (one line), add_arguments(parser) and main(args) -> exit status
     for name in EXTRA_COMMANDS:
@@ -284,23 +299,63 @@ def build_parser() -> argparse.ArgumentParser:
         q = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.add_arguments(q)
+        q.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                       help="log progress details")
     return p
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program stands so staged outputs are discarded as for Ctrl-C."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+#: what an interruption leaves, said in its one line (set by the command once it knows its output)
+_INTERRUPT_NOTE = ["no output was written"]
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: computed when asked (it imports DOLFINx, ~1 s), not for every command."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        say(version_text())
+        parser.exit(0)
+
+
+def version_text() -> str:
+    """millimpact's version and the stack's, for ``--version`` and bug reports."""
+    import importlib
+
+    from . import __version__
+
+    parts = [f"millimpact {__version__}"]
+    for name, module in (("DOLFINx", "dolfinx"), ("PETSc", "petsc4py"), ("SLEPc", "slepc4py"), ("gmsh", "gmsh")):
+        try:
+            parts.append(f"{name} {importlib.import_module(module).__version__}")
+        except ImportError:
+            parts.append(f"{name} not installed")
+    return ", ".join(parts)
 
 
 def main(argv: Optional[list[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         parser = build_parser()
         argv, petsc = split_petsc_options(argv)
         args, rest = parser.parse_known_args(argv)
         logging.basicConfig(level=logging.INFO if args.verbose and world_rank() == 0 else logging.WARNING,
                             format="%(name)s: %(message)s")
+        if rest:
+            where = f"'millimpact {args.command}'" if args.command else "'millimpact'"
+            raise InputError(f"unrecognised arguments {' '.join(rest)!r} for {where}: "
+                             f"see {where[:-1]} --help'")
         if args.command is None:
             parser.print_help()
             return 0
-        if rest:
-            raise InputError(f"unrecognised arguments {' '.join(rest)!r} for 'millimpact {args.command}': "
-                             f"see 'millimpact {args.command} --help'")
         if petsc and args.command != "run":
             raise InputError(f"PETSc options {sorted(petsc)} only apply to 'millimpact run'")
         if args.command == "run":
@@ -326,8 +381,12 @@ def main(argv: Optional[list[str]] = None) -> int:
             # only reports the exit code); a collective failure prints this once per rank
             print(f"millimpact: failed on rank {world_rank()}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
-    except KeyboardInterrupt:
-        return 130
+    except KeyboardInterrupt as exc:
+        code = 143 if isinstance(exc, Terminated) else 130
+        if world_rank() == 0:
+            print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {_INTERRUPT_NOTE[0]}",
+                  file=sys.stderr)
+        return code
     except BrokenPipeError:
         # the reader went away (``millimpact ... | head``): not an error of ours, and no traceback
         try:

@@ -80,3 +80,35 @@ def test_petsc_options_are_separated():
                                       "-impact_ksp_rtol", "1e-10"])
     assert rest == ["run", "--out", "x", "-q"]
     assert opts == {"impact_ksp_type": "gmres", "log_view": "", "impact_ksp_rtol": "1e-10"}
+
+
+def test_version_unknown_option_and_verbose_after_the_command():
+    """--version names the stack; an unknown top-level option is exit 2 in one line (it printed the
+    help with exit 0); -v is accepted after the command as before it."""
+    r = run_cli("--version")
+    assert r.returncode == 0
+    for part in ("millimpact ", "DOLFINx 0.5", "PETSc 3.18", "SLEPc 3.18", "gmsh 4."):
+        assert part in r.stdout
+    r = run_cli("--bogus")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--bogus" in r.stderr
+    r = run_cli("scene", "list", "-v")
+    assert r.returncode == 0 and "paper-rig" in r.stdout
+
+
+def test_run_help_lists_every_method():
+    from millimpact.methods.registry import DEFAULT_METHOD, METHODS
+
+    r = run_cli("run", "--help")
+    assert r.returncode == 0
+    text = " ".join(r.stdout.split())
+    for m in METHODS:
+        assert f"{m.name}: {' '.join(m.summary.split()[:3])}" in text, m.name
+    assert f"default {DEFAULT_METHOD}" in text and "when available" not in text
+
+
+def test_every_registered_method_resolves():
+    """The registry's table is the only list of methods: each row names a real runner."""
+    from millimpact.methods.registry import METHODS, method_runner
+
+    for m in METHODS:
+        assert callable(method_runner(m.name)), m.name

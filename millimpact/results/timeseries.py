@@ -20,6 +20,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from .. import __version__
+from .output_folder import apply_umask, write_marker
 
 #: known time-series columns and their units (names end with the unit)
 UNITS = {
@@ -147,31 +148,36 @@ def jsonable(obj: Any) -> Any:
 
 
 @contextmanager
-def staged_output(out: Path, comm=None) -> Iterator[Path]:
-    """Write a run's files into a hidden staging folder and move it to ``out`` only on success.
+def staged_output(out: Path, comm=None, kind: str = "run") -> Iterator[Path]:
+    """Write an output's files into a hidden staging folder and move it to ``out`` only on success.
 
     Collective when ``comm`` is given: rank 0 makes the folder and every rank gets its path (for
-    collective writers such as XDMF); only rank 0 moves it. An exception leaves ``out`` untouched
-    (a previous complete result stays) and removes the staging folder.
+    collective writers such as XDMF); only rank 0 moves it. An exception (an interruption too)
+    leaves ``out`` untouched (a previous complete result stays) and removes the staging folder.
+    The folder gets the :data:`~millimpact.results.output_folder.MARKER` of a millimpact output of
+    ``kind`` and the mode the user's umask asks for. Check ``out`` first with
+    :func:`~millimpact.results.output_folder.prepare_output`.
     """
     rank = comm.rank if comm is not None else 0
-    out = Path(out)
+    out = Path(os.path.abspath(out))
     stage = None
     if rank == 0:
         out.parent.mkdir(parents=True, exist_ok=True)
         stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+        apply_umask(stage)
     if comm is not None:
         stage = Path(comm.bcast(str(stage) if stage else None, root=0))
     try:
         yield stage
+        if comm is not None:
+            comm.barrier()
     except BaseException:
         if rank == 0:
             shutil.rmtree(stage, ignore_errors=True)
         raise
-    if comm is not None:
-        comm.barrier()
     if rank != 0:
         return
+    write_marker(stage, kind)
     if out.exists():
         old = out.parent / f".{out.name}.old-{os.getpid()}"
         out.rename(old)

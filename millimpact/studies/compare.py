@@ -34,6 +34,7 @@ import numpy as np
 
 from ..console import say, world_rank
 from ..errors import InputError
+from ..results.output_folder import prepare_output
 from ..results.timeseries import TimeSeries, jsonable, contact_metrics, staged_output, unit_of
 
 HELP = "score another implementation's CSV histories against a reference run (peak, L2, time shift)"
@@ -60,7 +61,9 @@ MAX_GRID = 2**21
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("reference", help="reference.h5 / reference.csv (millimpact run --reference) or a run folder")
     p.add_argument("other", help="the other implementation's CSV: time_s and any of the reference's columns")
-    p.add_argument("--out", help="output folder (default out/compare-OTHER)")
+    p.add_argument("--out", help="output folder (default out/compare-OTHER); an earlier millimpact output there "
+                                 "is replaced, a folder holding other files is refused")
+    p.add_argument("--force", action="store_true", help="replace --out even if it holds files millimpact did not write")
     p.add_argument("--time-offset", type=float, default=0.0, metavar="SECONDS",
                    help="added to OTHER's time_s before comparing, e.g. the reference's first_contact_s when "
                         "OTHER starts at first contact (default 0)")
@@ -333,8 +336,10 @@ def main(args: argparse.Namespace) -> int:
     """``millimpact compare``: read, score, print the table, write compare.json/.csv/.png."""
     from ..results.reference import read_history_csv, read_reference
 
-    ref = read_reference(Path(args.reference))
     other_path = Path(args.other)
+    out = Path(args.out) if args.out else Path("out") / f"compare-{other_path.stem}"
+    prepare_output(out, "--out", force=args.force)
+    ref = read_reference(Path(args.reference))
     if other_path.is_dir() or not other_path.exists():
         raise InputError(f"other {other_path}: no such file (expected a CSV with a time_s column)")
     if other_path.suffix.lower() in (".h5", ".hdf5"):  # another millimpact reference
@@ -356,7 +361,6 @@ def main(args: argparse.Namespace) -> int:
                          f"reference's {ref.series.time[0]:g}..{ref.series.time[-1]:g} s (see --time-offset)")
     max_shift = default_max_shift(ref.series) if args.max_shift is None else args.max_shift
     scores = compare_series(ref.series, other, max_shift)
-    out = Path(args.out) if args.out else Path("out") / f"compare-{other_path.stem}"
 
     say(f"reference {ref.path} ({ref.label}), other {other_path}: {len(common)} histories compared")
     say(format_table(scores))
@@ -385,7 +389,7 @@ def main(args: argparse.Namespace) -> int:
         },
         "scores": [asdict(s) for s in scores],
     }
-    with staged_output(out) as stage:
+    with staged_output(out, kind="compare") as stage:
         (stage / "compare.json").write_text(json.dumps(jsonable(result), indent=2) + "\n")
         write_csv(scores, stage / "compare.csv")
         if not args.no_plots:

@@ -1,0 +1,79 @@
+"""Output folders (issue 18): checked before computing, never deleting what millimpact did not
+write, and an interrupted run leaves nothing that looks complete."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from conftest import ROOT, mpi_env, run_cli
+from millimpact.errors import InputError
+from millimpact.results.output_folder import MARKER, is_millimpact_output, prepare_output
+from millimpact.results.timeseries import staged_output
+
+
+def test_refusals_name_the_path(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "user").mkdir()
+    (tmp_path / "user" / "thesis.tex").write_text("mine")
+    (tmp_path / "afile").write_text("mine")
+    cases = {"user": "did not write", "afile": "is a file", ".": "current folder", str(tmp_path.parent): "current folder",
+             "afile/sub": "is a file, so no folder", "/proc/millimpact-test": "no folder can be made"}
+    for out, words in cases.items():
+        with pytest.raises(InputError, match=words) as exc:
+            prepare_output(out)
+        assert str(exc.value).startswith(f"--out {out}:") and "\n" not in str(exc.value)
+    assert (tmp_path / "user" / "thesis.tex").read_text() == "mine" and (tmp_path / "afile").read_text() == "mine"
+    assert prepare_output("user", force=True) == tmp_path / "user"          # --force: the user asked
+    assert prepare_output("new/deeper") == tmp_path / "new" / "deeper"       # parents are made
+    assert not (tmp_path / "new" / "deeper").exists()                        # but not the folder itself
+    assert [p.name for p in (tmp_path / "new").iterdir()] == []               # nor a stray probe
+
+
+def test_staged_output_marks_replaces_and_cleans_up(tmp_path):
+    out = tmp_path / "run"
+    with staged_output(out) as stage:
+        (stage / "summary.json").write_text("{}")
+    assert (out / MARKER).is_file() and is_millimpact_output(out)
+    mask = os.umask(0)
+    os.umask(mask)
+    assert (out.stat().st_mode & 0o777) == 0o777 & ~mask                      # not mkdtemp's 0700
+    prepare_output(out)                                                      # an earlier output: accepted
+    with pytest.raises(RuntimeError):
+        with staged_output(out) as stage:
+            (stage / "half.csv").write_text("1,2")
+            raise RuntimeError("solver failed")
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "summary.json"]   # the earlier result stays
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]                      # no partial folder left
+
+
+def test_cli_refuses_a_user_folder_before_computing(tmp_path):
+    user = tmp_path / "user"
+    user.mkdir()
+    (user / "data.csv").write_text("1")
+    t0 = time.perf_counter()
+    r = run_cli("run", "--out", str(user))                                    # the default improved run
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "did not write" in r.stderr
+    assert time.perf_counter() - t0 < 30                                      # refused before the ~15 s run
+    assert [p.name for p in user.iterdir()] == ["data.csv"]
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_interrupted_run_leaves_nothing(tmp_path, sig, code):
+    """A run stopped mid-way (during meshing, reduction or the time loop) exits 130/143 with one
+    line, and leaves no folder that could be taken for a result."""
+    out = tmp_path / "run"
+    p = subprocess.Popen([sys.executable, "-m", "millimpact.cli", "run", "-q", "--out", str(out)], cwd=ROOT,
+                         env=mpi_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(6.0)   # past the imports (~2 s), inside meshing, reduction or the time loop (~15 s in all)
+    p.send_signal(sig)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == code, err
+    lines = [l for l in err.splitlines() if l.strip()]
+    assert lines[-1].startswith("millimpact: interrupted") and f"nothing written to {out}" in lines[-1]
+    assert "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
