@@ -138,9 +138,7 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
     from .scene.schema import DEFAULT_SCENE, resolve_scene
 
     scene = resolve_scene(args.scene)
-    for assignment in args.set or []:
-        key, _, value = assignment.partition("=")
-        scene = scene.with_value(key.strip(), parse_value(value))
+    scene = _apply_sets(scene, args.set)
     out = Path(args.out) if args.out else Path("out") / (scene.name if args.scene else DEFAULT_SCENE)
     shown = out
     replacing = out.is_dir() and any(out.iterdir())
@@ -184,15 +182,23 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
     return 0
 
 
+def _apply_sets(scene, sets: Optional[list[str]]):
+    """The scene with each ``--set FIELD=VALUE`` applied (validated); a malformed one is one line."""
+    for assignment in sets or []:
+        key, eq, value = assignment.partition("=")
+        if not eq or not key.strip() or not value.strip():
+            raise InputError(f"--set {assignment}: expected FIELD=VALUE, e.g. --set ball.radius=0.02")
+        scene = scene.with_value(key.strip(), parse_value(value))
+    return scene
+
+
 def cmd_mesh(args: argparse.Namespace) -> int:
     from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf
     from .scene.plan import make_plan
     from .scene.schema import resolve_scene
 
     scene = resolve_scene(args.scene)
-    for assignment in args.set or []:
-        key, _, value = assignment.partition("=")
-        scene = scene.with_value(key.strip(), parse_value(value))
+    scene = _apply_sets(scene, args.set)
     plan = make_plan(scene)
     md = create_mesh(scene, plan, _comm())
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}-mesh"
@@ -304,6 +310,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+class _CompilerChatter(logging.Filter):
+    """The form compiler's C build (cffi / setuptools) logs each gcc command on the root logger and
+    raises the root level to INFO while it does: one line "compiling forms" instead, unless -v."""
+
+    def __init__(self, verbose: bool):
+        super().__init__()
+        self.verbose, self.told = verbose, False
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.name != "root" or record.levelno >= logging.WARNING or self.verbose:
+            return True
+        if not self.told and world_rank() == 0:
+            print("compiling forms (first run only: JIT, a few seconds per form)", file=sys.stderr)
+            self.told = True
+        return False
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM, raised where the program stands so staged outputs are discarded as for Ctrl-C."""
 
@@ -349,6 +372,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         args, rest = parser.parse_known_args(argv)
         logging.basicConfig(level=logging.INFO if args.verbose and world_rank() == 0 else logging.WARNING,
                             format="%(name)s: %(message)s")
+        for handler in logging.getLogger().handlers:
+            handler.addFilter(_CompilerChatter(args.verbose))
         if rest:
             where = f"'millimpact {args.command}'" if args.command else "'millimpact'"
             raise InputError(f"unrecognised arguments {' '.join(rest)!r} for {where}: "

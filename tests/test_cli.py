@@ -112,3 +112,27 @@ def test_every_registered_method_resolves():
 
     for m in METHODS:
         assert callable(method_runner(m.name)), m.name
+
+
+def test_first_run_form_compilation_is_one_line(tmp_path):
+    """On a fresh form cache (~/.cache/fenics under a new HOME) the C build's gcc lines are not
+    shown: one 'compiling forms' line instead (issue 18)."""
+    import subprocess
+    import sys
+
+    from conftest import ROOT, mpi_env
+
+    env = {**mpi_env(), "HOME": str(tmp_path)}
+    r = subprocess.run([sys.executable, "-m", "millimpact.cli", "run", "-q", "--method", "full",
+                        "--set", "time.end=2e-6", "--out", str(tmp_path / "out")],
+                       capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert (tmp_path / ".cache" / "fenics").is_dir()              # it really compiled
+    assert "gcc" not in r.stdout + r.stderr
+    assert (r.stdout + r.stderr).count("compiling forms") == 1
+
+
+@pytest.mark.parametrize("bad", ["ball.radius", "=0.02", "ball.radius="])
+def test_set_without_value_is_one_line(bad):
+    r = run_cli("run", "--method", "hertz", "--set", bad, "--out", "out/never")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "expected FIELD=VALUE" in r.stderr
