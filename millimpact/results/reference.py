@@ -29,6 +29,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
+from .output_folder import is_millimpact_output
 from .timeseries import TimeSeries, jsonable, unit_of, write_hdf5
 
 REFERENCE_FORMAT = "millimpact-reference"
@@ -89,6 +90,12 @@ class Reference:
     def label(self) -> str:
         scene, method = self.meta.get("scene"), self.meta.get("method")
         return f"{scene}: {method}" if scene and method else self.path.name
+
+    @property
+    def is_reference_file(self) -> bool:
+        """True for a versioned reference file (``millimpact run --reference``); False for a run's
+        plain ``timeseries.h5`` / ``timeseries.csv``, which lacks the reference metadata."""
+        return self.meta.get("format") in (REFERENCE_FORMAT, REFERENCE_CSV_FORMAT)
 
 
 def _metadata(scene, plan, out, summary) -> dict[str, Any]:
@@ -211,9 +218,12 @@ def read_reference(path: Path) -> Reference:
         raise InputError(f"reference {path}: no such file")
     if path.suffix.lower() in (".h5", ".hdf5"):
         return _read_reference_h5(path)
+    side = path.with_suffix(".json")
+    if not side.is_file() and not is_millimpact_output(path.parent):
+        raise InputError(f"reference {path}: not a millimpact reference (no {side.name} beside it and not in a "
+                         "millimpact run folder); write one with 'millimpact run SCENE --reference'")
     ts = read_history_csv(path, "reference")
     meta: dict[str, Any] = {}
-    side = path.with_suffix(".json")
     if side.is_file():
         try:
             meta = json.loads(side.read_text())

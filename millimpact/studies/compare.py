@@ -363,6 +363,9 @@ def main(args: argparse.Namespace) -> int:
     scores = compare_series(ref.series, other, max_shift)
 
     say(f"reference {ref.path} ({ref.label}), other {other_path}: {len(common)} histories compared")
+    if not ref.is_reference_file:
+        say(f"warning: {ref.path.name} is a run's time series, not a reference file: scored without the "
+            "reference metadata (first contact, Hertz values); 'millimpact run SCENE --reference' writes one")
     say(format_table(scores))
     for reason, names in ignored.items():
         say(f"ignored ({reason}): {', '.join(names)}")

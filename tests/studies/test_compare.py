@@ -184,6 +184,7 @@ def test_reference_under_mpirun_matches_serial(runs):
 
 
 def _write(path, text):
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     return str(path)
 
@@ -254,9 +255,12 @@ def test_bad_reference_one_line_exit_2(runs, tmp_path, capsys):
         h5.attrs["format_version"] = 99
         h5.create_group("timeseries")
     no_time = _write(tmp_path / "ref.csv", "contact_force_N\n1\n2\n")
+    _write(tmp_path / "ref.json", '{"format": "millimpact-reference-csv", "format_version": 1}')
+    bare = _write(tmp_path / "bare" / "theirs.csv", "time_s,contact_force_N\n0,1\n1e-6,2\n")
     for ref, word in ((not_h5, "not an HDF5"), (str(tmp_path / "foreign.h5"), "format"),
                       (str(tmp_path / "future.h5"), "format_version = 99"), (no_time, "time_s"),
-                      (str(tmp_path / "missing.h5"), "no such file"), (str(tmp_path), "folder without")):
+                      (str(tmp_path / "missing.h5"), "no such file"), (str(tmp_path), "folder without"),
+                      (bare, "not a millimpact reference")):
         status, _, err = _compare(capsys, ref, other, "--out", str(tmp_path / "never"))
         assert status == 2 and len(err.strip().splitlines()) == 1 and word in err, (ref, err)
     status, _, err = _compare(capsys, str(fe), other, "--max-shift", "-1", "--out", str(tmp_path / "never"))
@@ -272,3 +276,10 @@ def test_cli_bad_file_no_traceback(runs, tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and "time_s" in r.stderr
     assert not (tmp_path / "never").exists()
+
+
+def test_plain_timeseries_as_reference_is_warned(runs, tmp_path, capsys):
+    """A run's timeseries.h5 scores (same columns) but lacks the reference metadata: one warning."""
+    _, fe, hz = runs
+    status, out, _ = _compare(capsys, str(fe / "timeseries.h5"), str(hz / "timeseries.csv"), "--out", str(tmp_path / "c"))
+    assert status == 0 and out.count("warning: timeseries.h5 is a run's time series") == 1
