@@ -232,6 +232,18 @@ def _comm():
 
 
 # --- parser -----------------------------------------------------------------------------------
+_RST_ROLE = re.compile(r":[a-z]+:`~?([^`<]+?)(?:\s*<[^>]*>)?`")
+
+
+def plain_text(doc: str) -> str:
+    """A module docstring (reStructuredText) as plain help text: roles (:mod:`x`) and literals
+    (``x``) become x, section underlines and table rules go."""
+    text = _RST_ROLE.sub(lambda m: m.group(1).split(".")[-1] if m.group(0).startswith(":func:") else m.group(1), doc)
+    text = text.replace("``", "")
+    lines = [l for l in text.splitlines() if not re.fullmatch(r"\s*[=\-~^+]{3,}[=\-~^+ ]*", l)]
+    return "\n".join(lines).strip()
+
+
 class _LineFormatter(argparse.HelpFormatter):
     """Wraps each line of a help text on its own, so a list (one method per line) stays a list."""
 
@@ -302,7 +314,7 @@ def build_parser() -> argparse.ArgumentParser:
     # HELP (one line), add_arguments(parser) and main(args) -> exit status
     for name in EXTRA_COMMANDS:
         mod = _command_module(name)
-        q = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
+        q = sub.add_parser(name, help=mod.HELP, description=plain_text(getattr(mod, "DESCRIPTION", mod.HELP)),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.add_arguments(q)
         q.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,

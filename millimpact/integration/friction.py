@@ -5,12 +5,12 @@ regularization). Each candidate slave node i has a normal multiplier lambda_i >=
 tangential multiplier tau_i in R^2 (N, the tangential force on the ball in the face's basis
 t1, t2). With the step's effective-matrix factorization, the end-of-step state is
 ``u = u_pred + W [lambda; tau]``, ``W = A^-1 C^T``, ``C = [B; T]``, so the gaps and the slip
-increments over the step are affine in the multipliers:
+increments over the step are affine in the multipliers::
 
     g  = q_n + S_nn lambda + S_nt tau        (m)
     ds = q_t + S_tn lambda + S_tt tau        (m; ds_i = T_i (u_{n+1} - u_n), q_t = T (u_pred - u_n))
 
-with ``S = C A^-1 C^T`` (dense, replicated). The discrete law:
+with ``S = C A^-1 C^T`` (dense, replicated). The discrete law::
 
     normal:   g >= 0, lambda >= 0, lambda . g = 0;
     Coulomb:  |tau_i| <= mu lambda_i;  |tau_i| < mu lambda_i  =>  ds_i = 0 (stick);

@@ -11,6 +11,7 @@ with the multipliers from the small dense LCP ``q + S lam`` (``S = B K^-1 B^T``,
 of the contact-free solution), as in each time step of the impact solver.
 
 Measured, for the full body (symmetric models scaled back):
+
 - ``force``: the contact resultant F = sum(lam) (N);
 - ``contact_radius``: from the second moment of the nodal forces about the axis. For the Hertz
   pressure p0 sqrt(1 - r^2/a^2), int r^2 p dA / int p dA = (2/5) a^2 exactly, so

@@ -68,7 +68,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="added to OTHER's time_s before comparing, e.g. the reference's first_contact_s when "
                         "OTHER starts at first contact (default 0)")
     p.add_argument("--max-shift", type=float, metavar="SECONDS",
-                   help="largest |time shift| searched (default: the reference's contact duration, or a "
+                   help="largest time shift (either sign) searched (default: the reference's contact duration, or a "
                         "quarter of its span without a contact force)")
     p.add_argument("--no-plots", action="store_true", help="skip compare.png")
 
