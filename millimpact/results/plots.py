@@ -20,6 +20,37 @@ def _plt():
     return plt
 
 
+#: prefixes by power of ten, for axis units chosen by the data's span
+_PREFIX = {-9: "n", -6: "\u00b5", -3: "m", 0: "", 3: "k", 6: "M", 9: "G"}
+
+
+def time_unit(span: float) -> tuple[float, str]:
+    """(factor, unit) for a time axis spanning ``span`` seconds: µs below 1 ms, ms below 1 s, else
+    s, so the tick labels stay between about 0.1 and 1000 (a 2 ms axis reads 0-2 ms, not 0-2000 µs)."""
+    if span < 1e-3:
+        return 1e6, "\u00b5s"
+    if span < 1.0:
+        return 1e3, "ms"
+    return 1.0, "s"
+
+
+def value_unit(column: str, values: np.ndarray) -> tuple[float, str]:
+    """(factor, unit) for a time-series column (SI, the unit its name's suffix): the SI prefix that
+    puts the largest magnitude between 1 and 1000 (N -> kN, m -> µm, Pa -> MPa or GPa, ...)."""
+    for suffix, unit in (("_m_s2", "m/s\u00b2"), ("_m_s", "m/s"), ("_N_s", "N s"), ("_Pa", "Pa"), ("_N", "N"),
+                         ("_J", "J"), ("_m", "m"), ("_s", "s")):
+        if column.endswith(suffix):
+            break
+    else:
+        return 1.0, ""
+    if unit in ("N s",):
+        return 1.0, unit
+    peak = float(np.max(np.abs(values))) if len(values) else 0.0
+    power = 0 if peak == 0 or not np.isfinite(peak) else int(np.floor(np.log10(peak) / 3.0)) * 3
+    power = min(max(power, -9), 9)
+    return 10.0 ** -power, _PREFIX[power] + unit
+
+
 def _contact_window(ts: TimeSeries, pad: float = 0.5) -> tuple[float, float]:
     """Time window (s) around the contact pulse, padded by ``pad`` x its length."""
     t, f = ts.time, ts["contact_force_N"]
@@ -32,19 +63,21 @@ def _contact_window(ts: TimeSeries, pad: float = 0.5) -> tuple[float, float]:
 
 
 def plot_force(ts: TimeSeries, path: Path, hertz: Optional[HertzHistory] = None, title: str = "") -> None:
-    """Contact force against time (us), with the Hertz history shifted to the same first contact."""
+    """Contact force against time, with the Hertz history shifted to the same first contact."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     t, f = ts.time, ts["contact_force_N"]
     lo, hi = _contact_window(ts)
     sel = (t >= lo) & (t <= hi)
-    ax.plot(t[sel] * 1e6, f[sel] / 1e3, lw=2, label="simulation")
+    ts_, tu = time_unit(hi - lo)
+    fs, fu = value_unit("contact_force_N", f)
+    ax.plot(t[sel] * ts_, f[sel] * fs, lw=2, label="simulation")
     if hertz is not None:
         on = np.nonzero(f > 1e-3 * max(f.max(), 1e-30))[0]
         t0 = t[on[0] - 1] if len(on) and on[0] > 0 else 0.0
-        ax.plot((hertz.time + t0) * 1e6, hertz.force / 1e3, "k--", lw=1.3, label="Hertz (quasi-static)")
-    ax.set_xlabel("time [us]")
-    ax.set_ylabel("contact force [kN]")
+        ax.plot((hertz.time + t0) * ts_, hertz.force * fs, "k--", lw=1.3, label="Hertz (quasi-static)")
+    ax.set_xlabel(f"time [{tu}]")
+    ax.set_ylabel(f"contact force [{fu}]")
     ax.set_title(title or "Contact force")
     ax.grid(alpha=0.3)
     ax.legend()
@@ -53,9 +86,9 @@ def plot_force(ts: TimeSeries, path: Path, hertz: Optional[HertzHistory] = None,
 
 
 CONTACT_POINT_PANELS = [
-    ("contact_point_displacement_m", 1e6, "displacement [um]"),
+    ("contact_point_displacement_m", 1e6, "displacement [\u00b5m]"),
     ("contact_point_velocity_m_s", 1.0, "velocity [m/s]"),
-    ("contact_point_acceleration_m_s2", 1e-3, "acceleration [km/s^2]"),
+    ("contact_point_acceleration_m_s2", 1e-3, "acceleration [km/s\u00b2]"),
     ("contact_point_stress_Pa", 1e-9, "normal stress [GPa]"),
 ]
 
@@ -66,16 +99,21 @@ def plot_contact_point(series: dict[str, TimeSeries], path: Path, title: str = "
     point, along the face normal) against time; one line per labelled series."""
     plt = _plt()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
-    for label, ts in series.items():
-        lo, hi = window or _contact_window(ts, pad=1.0)
-        t = ts.time
-        sel = (t >= lo) & (t <= hi)
-        for ax, (col, scale, ylabel) in zip(axes.flat, CONTACT_POINT_PANELS):
+    windows = {label: window or _contact_window(ts, pad=1.0) for label, ts in series.items()}
+    span = max(hi - lo for lo, hi in windows.values())
+    tscale, tu = time_unit(span)
+    for ax, (col, _, label_) in zip(axes.flat, CONTACT_POINT_PANELS):
+        name = label_.split(" [")[0]
+        present = [ts[col] for ts in series.values() if col in ts]
+        scale, unit = value_unit(col, np.concatenate(present) if present else np.zeros(0))
+        for label, ts in series.items():
+            lo, hi = windows[label]
+            sel = (ts.time >= lo) & (ts.time <= hi)
             if col in ts:
-                ax.plot(t[sel] * 1e6, ts[col][sel] * scale, label=label)
-            ax.set_ylabel(ylabel)
+                ax.plot(ts.time[sel] * tscale, ts[col][sel] * scale, label=label)
+        ax.set_ylabel(f"{name} [{unit}]")
     for ax, letter in zip(axes.flat, "abcd"):
-        ax.set_xlabel("time [us]")
+        ax.set_xlabel(f"time [{tu}]")
         ax.grid(alpha=0.3)
         ax.set_title(f"({letter})", loc="left")
     if len(series) > 1:
@@ -86,25 +124,33 @@ def plot_contact_point(series: dict[str, TimeSeries], path: Path, title: str = "
 
 
 def plot_gauges(ts: TimeSeries, path: Path, title: str = "") -> bool:
-    """Gauge stresses (MPa) against time (ms); returns False when the series has no gauge."""
+    """Gauge stresses against time: the whole run and, when the run is much longer than the impact,
+    a second panel around it; units chosen by span (:func:`time_unit`, :func:`value_unit`). Returns
+    False when the series has no gauge."""
     cols = [c for c in ts.columns if c.startswith("gauge_") and c.endswith("_Pa")]
     if not cols:
         return False
     plt = _plt()
-    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
     lo, hi = _contact_window(ts, pad=3.0)
     t = ts.time
-    for c in cols:
-        name = c[len("gauge_"):-len("_stress_Pa")]
-        ax0.plot(t * 1e3, ts[c] / 1e6, lw=0.8, label=name)
-        sel = (t >= lo) & (t <= hi)
-        ax1.plot(t[sel] * 1e6, ts[c][sel] / 1e6, label=name)
-    ax0.set_xlabel("time [ms]")
-    ax1.set_xlabel("time [us]")
-    ax0.set_title("whole run")
-    ax1.set_title("around the impact")
-    for ax in (ax0, ax1):
-        ax.set_ylabel("gauge stress sigma = E eps [MPa]")
+    # a second panel "around the impact" only when it shows something the whole run does not
+    two = (t[-1] - t[0]) > 4.0 * (hi - lo)
+    fig, axes = plt.subplots(1, 2 if two else 1, figsize=(11, 4) if two else (7, 4.2), constrained_layout=True)
+    axes = list(np.atleast_1d(axes))
+    vs, vu = value_unit("gauge_stress_Pa", np.concatenate([ts[c] for c in cols]))
+    windows = [(float(t[0]), float(t[-1]))] + ([(lo, hi)] if two else [])
+    for ax, (a, b) in zip(axes, windows):
+        sel = (t >= a) & (t <= b)
+        tscale, tu = time_unit(b - a)
+        for c in cols:
+            ax.plot(t[sel] * tscale, ts[c][sel] * vs, lw=0.8 if a == t[0] and two else 1.3,
+                    label=c[len("gauge_"):-len("_stress_Pa")])
+        ax.set_xlabel(f"time [{tu}]")
+    if two:
+        axes[0].set_title("whole run")
+        axes[1].set_title("around the impact")
+    for ax in axes:
+        ax.set_ylabel(f"gauge stress \u03c3 = E \u03b5 [{vu}]")
         ax.grid(alpha=0.3)
         ax.legend()
     fig.suptitle(title or "Strain-gauge stresses")
@@ -120,13 +166,18 @@ def plot_energy(ts: TimeSeries, path: Path, title: str = "") -> bool:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     t = ts.time
-    scale, unit = (1e3, "ms") if t[-1] > 2e-3 else (1e6, "us")
+    scale, unit = time_unit(float(t[-1] - t[0]))
     for col, label in (("kinetic_energy_J", "kinetic"), ("strain_energy_J", "strain"),
                        ("total_energy_J", "total"), ("ball_kinetic_energy_J", "ball kinetic")):
         if col in ts:
             ax.plot(t * scale, ts[col], label=label, lw=2 if col == "total_energy_J" else 1.2)
     ax.set_xlabel(f"time [{unit}]")
-    ax.set_ylabel("energy [J]")
+    es, eu = value_unit("total_energy_J", ts["total_energy_J"])
+    for line in ax.get_lines():
+        line.set_ydata(np.asarray(line.get_ydata()) * es)
+    ax.relim()
+    ax.autoscale_view()
+    ax.set_ylabel(f"energy [{eu}]")
     ax.set_title(title or "Energy balance")
     ax.grid(alpha=0.3)
     ax.legend()
@@ -143,15 +194,17 @@ def plot_friction(ts: TimeSeries, path: Path, mu: float, title: str = "") -> Non
     t, fn, ft = ts.time, ts["contact_force_N"], ts["tangential_force_N"]
     lo, hi = _contact_window(ts)
     sel = (t >= lo) & (t <= hi)
-    us = t[sel] * 1e6
-    ax.plot(us, fn[sel] / 1e3, lw=2, label="normal force")
-    ax.plot(us, ft[sel] / 1e3, lw=2, label="tangential force (along the incoming tangential velocity)")
-    ax.fill_between(us, -mu * fn[sel] / 1e3, mu * fn[sel] / 1e3, color="0.85", label=f"Coulomb cone |F_t| <= {mu:g} F_n")
-    ax.set_ylabel("force on the ball [kN]")
+    tscale, tu = time_unit(hi - lo)
+    fs, fu = value_unit("contact_force_N", fn)
+    us = t[sel] * tscale
+    ax.plot(us, fn[sel] * fs, lw=2, label="normal force")
+    ax.plot(us, ft[sel] * fs, lw=2, label="tangential force (along the incoming tangential velocity)")
+    ax.fill_between(us, -mu * fn[sel] * fs, mu * fn[sel] * fs, color="0.85", label=f"Coulomb cone |F_t| <= {mu:g} F_n")
+    ax.set_ylabel(f"force on the ball [{fu}]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     bx.plot(us, ts["ball_tangential_velocity_m_s"][sel], lw=2, color="C2")
-    bx.set_xlabel("time [us]")
+    bx.set_xlabel(f"time [{tu}]")
     bx.set_ylabel("ball tangential velocity [m/s]")
     bx.grid(alpha=0.3)
     fig.suptitle(title or "Friction")
