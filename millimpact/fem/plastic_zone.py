@@ -1,0 +1,194 @@
+"""J2 plasticity in the contact zones: stresses at quadrature points, internal force and tangent.
+
+Outside their contact zones the bodies stay linear elastic (the plan sizes the zones to hold the
+plastic region, and a run checks that the zone boundary stayed elastic). Inside, the stress follows
+small-strain J2 plasticity with isotropic hardening (:func:`millimpact.fem.plasticity.return_map`:
+radial return and its consistent tangent; Simo & Hughes, Computational Inelasticity, 1998, ch. 3)
+at the quadrature points of the zone cells. The internal force is the elastic one plus a correction
+that lives on the zone alone:
+
+    f_int(u) = K u + f_c(u),    f_c(u) = int_zone B^T (sigma(eps(u); state) - C eps(u)) dV
+    df_int/du = K + dK(u),      dK     = int_zone B^T (C_t - C) B dV
+
+with C the elastic and C_t the consistent tangent matrix (Mandel notation, 6 x 6). So the elastic
+K, M and every operator built from them stay as they are; a step's Newton iteration adds dK to the
+effective matrix and f_c to the residual, and the reduced methods project both with their
+transform (f_c,r = T^T f_c, dK_r = T^T dK T: the zone's NMM covers span a subspace of the P2
+space these quadrature points belong to, so the projection is exact).
+
+Plastic state per quadrature point: plastic strain (Mandel, 6) and equivalent plastic strain
+alpha. :meth:`PlasticZone.evaluate` computes the trial state of a displacement without changing
+the committed one; :meth:`PlasticZone.commit` accepts it at the end of a converged step. Units SI.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import basix
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .plasticity import J2Material, return_map
+
+_S2 = float(np.sqrt(2.0))
+
+
+def mandel_strain(u) -> ufl.core.expr.Expr:
+    """The small strain sym(grad u) as a Mandel vector [xx, yy, zz, sqrt2 yz, sqrt2 xz, sqrt2 xy]."""
+    e = ufl.sym(ufl.grad(u))
+    return ufl.as_vector([e[0, 0], e[1, 1], e[2, 2], _S2 * e[1, 2], _S2 * e[0, 2], _S2 * e[0, 1]])
+
+
+@dataclass(frozen=True)
+class ZoneMaterial:
+    """A body's contact zone (its cell tag) and the J2 material that fills it."""
+
+    cell_tag: int
+    material: J2Material
+
+
+class PlasticZone:
+    """J2 plasticity at the quadrature points of the contact-zone cells of one or more bodies.
+
+    ``V`` the vector P1/P2 space of the model, ``cell_tags`` its cell tags, ``zones`` the zone tags
+    with their materials, ``bcs`` the model's Dirichlet conditions (their rows of f_c and dK are
+    zero). The quadrature degree is 2 (p - 1) (at least 1): exact for the elastic stiffness.
+    """
+
+    def __init__(self, V: fem.FunctionSpace, cell_tags, zones: Sequence[ZoneMaterial], bcs: Sequence = ()):
+        mesh = V.mesh
+        self.V, self.bcs, self.zones = V, list(bcs), list(zones)
+        self.comm = mesh.comm
+        p = V.ufl_element().degree()
+        self.q_degree = max(1, 2 * (p - 1))
+        points, _ = basix.make_quadrature(basix.CellType.tetrahedron, self.q_degree)
+        self.n_q = points.shape[0]
+        n_owned = mesh.topology.index_map(mesh.topology.dim).size_local
+        self.cells = [np.sort(cell_tags.find(z.cell_tag)[cell_tags.find(z.cell_tag) < n_owned]).astype(np.int32)
+                      for z in self.zones]
+        self.u = fem.Function(V)
+        self._strain = fem.Expression(mandel_strain(self.u), points)
+        cell = mesh.ufl_cell()
+        quad = {"quadrature_degree": self.q_degree, "quadrature_scheme": "default"}
+        Q6 = fem.FunctionSpace(mesh, ufl.VectorElement("Quadrature", cell, self.q_degree, dim=6, quad_scheme="default"))
+        Q66 = fem.FunctionSpace(mesh, ufl.TensorElement("Quadrature", cell, self.q_degree, shape=(6, 6),
+                                                        quad_scheme="default"))
+        Q1 = fem.FunctionSpace(mesh, ufl.FiniteElement("Quadrature", cell, self.q_degree, quad_scheme="default"))
+        self.stress_correction = fem.Function(Q6)     # sigma - C eps, Pa
+        self.tangent_correction = fem.Function(Q66)   # C_t - C, Pa
+        self.density = fem.Function(Q1)               # a scalar density to integrate over the zones
+        dx = ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags, metadata=quad)
+        dxz = dx(tuple(z.cell_tag for z in self.zones))
+        v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
+        self._f_form = fem.form(ufl.inner(self.stress_correction, mandel_strain(v)) * dxz)
+        self._k_form = fem.form(ufl.inner(ufl.dot(self.tangent_correction, mandel_strain(du)), mandel_strain(v)) * dxz)
+        self._int_form = fem.form(self.density * dxz)
+        # committed and trial state per zone: plastic strain (n, 6), alpha (n,)
+        n = [len(c) * self.n_q for c in self.cells]
+        self.plastic_strain = [np.zeros((k, 6)) for k in n]
+        self.alpha = [np.zeros(k) for k in n]
+        self._trial = None
+        self._elastic = [z.material.elastic_matrix() for z in self.zones]
+
+    # --- state --------------------------------------------------------------------------------
+    def _set_displacement(self, u_vec) -> None:
+        self.u.vector.array[:] = u_vec.array_r
+        self.u.x.scatter_forward()
+
+    def quadrature_slots(self, k: int) -> np.ndarray:
+        """Indices (cell-major, point-minor) of zone k's quadrature points in the Quadrature spaces."""
+        return (self.cells[k][:, None] * self.n_q + np.arange(self.n_q)[None, :]).ravel()
+
+    def evaluate(self, u_vec, tangent: bool = True) -> int:
+        """Return-map the strains of displacement ``u_vec`` (PETSc Vec of V) from the committed
+        state: fills the stress and tangent corrections and keeps the trial state. Returns the
+        number of yielding quadrature points (this rank)."""
+        self._set_displacement(u_vec)
+        sc = self.stress_correction.x.array.reshape(-1, 6)
+        tc = self.tangent_correction.x.array.reshape(-1, 6, 6)
+        sc[:] = 0.0
+        tc[:] = 0.0
+        trial, n_yield = [], 0
+        for k, zone in enumerate(self.zones):
+            if not len(self.cells[k]):
+                trial.append(None)
+                continue
+            eps = self._strain.eval(self.cells[k]).reshape(-1, 6)
+            res = return_map(zone.material, eps, self.plastic_strain[k], self.alpha[k])
+            slots = self.quadrature_slots(k)
+            sc[slots] = res.stress - eps @ self._elastic[k]
+            if tangent:
+                tc[slots] = res.tangent - self._elastic[k][None, :, :]
+            trial.append(res)
+            n_yield += int(np.count_nonzero(res.yielding))
+        self.stress_correction.x.scatter_forward()
+        self.tangent_correction.x.scatter_forward()
+        self._trial = trial
+        return n_yield
+
+    def commit(self) -> None:
+        """Accept the last evaluated state (end of a converged step)."""
+        if self._trial is None:
+            return
+        for k, res in enumerate(self._trial):
+            if res is not None:
+                self.plastic_strain[k] = res.plastic_strain.copy()
+                self.alpha[k] = res.alpha.copy()
+        self._trial = None
+
+    # --- operators ----------------------------------------------------------------------------
+    def force_correction(self):
+        """f_c = int_zone B^T (sigma - C eps) dV (N, a PETSc Vec of V; zero on Dirichlet rows)."""
+        b = fem_petsc.assemble_vector(self._f_form)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem_petsc.set_bc(b, self.bcs, scale=0.0)
+        return b
+
+    def stiffness_correction(self):
+        """dK = int_zone B^T (C_t - C) B dV (N/m, a PETSc Mat of V's pattern; zero Dirichlet rows and
+        columns, so K + dK keeps K's unit diagonal there)."""
+        A = fem_petsc.assemble_matrix(self._k_form, bcs=self.bcs, diagonal=0.0)
+        A.assemble()
+        return A
+
+    def integrate(self, values: Sequence[np.ndarray]) -> float:
+        """int_zone d dV of a density given per zone at its quadrature points (global sum)."""
+        arr = self.density.x.array
+        arr[:] = 0.0
+        for k, val in enumerate(values):
+            if len(self.cells[k]):
+                arr[self.quadrature_slots(k)] = val
+        self.density.x.scatter_forward()
+        return self.comm.allreduce(fem.assemble_scalar(self._int_form), op=MPI.SUM)
+
+    def strain_energy_correction(self, u_vec) -> float:
+        """E_el - 1/2 u.K u (J): the elastic strain energy with the committed plastic strain is
+        1/2 int (eps - eps_p) : C : (eps - eps_p) dV = 1/2 u.K u + int_zone (-eps : C : eps_p
+        + 1/2 eps_p : C : eps_p) dV (global sum)."""
+        self._set_displacement(u_vec)
+        dens = []
+        for k in range(len(self.zones)):
+            if not len(self.cells[k]):
+                dens.append(np.zeros(0))
+                continue
+            eps = self._strain.eval(self.cells[k]).reshape(-1, 6)
+            ep = self.plastic_strain[k]
+            Cep = ep @ self._elastic[k]
+            dens.append(-np.einsum("pi,pi->p", eps, Cep) + 0.5 * np.einsum("pi,pi->p", ep, Cep))
+        return self.integrate(dens)
+
+    # --- outputs ------------------------------------------------------------------------------
+    def trial(self):
+        """The last evaluated return-mapping results per zone (None for an empty zone)."""
+        return self._trial
+
+    def max_equivalent_plastic_strain(self) -> float:
+        """Largest committed alpha over all zones and ranks."""
+        local = max((float(a.max()) for a in self.alpha if a.size), default=0.0)
+        return self.comm.allreduce(local, op=MPI.MAX)
+
