@@ -1,0 +1,280 @@
+"""Average-acceleration Newmark (beta = 1/4, gamma = 1/2) with Lagrange-multiplier contact on
+u_{n+1}, on the redistributed mass (``newmark-mr``) or the consistent one (``newmark``).
+
+Each step: one predictor solve with lambda = 0 using the factorization of ``A = K + M/(beta dt^2)``
+(cached per step size), the exact small LCP ``g = q + S lambda`` on ``S = B A^-1 B^T`` (or the
+frictional problem on ``C = [B; T]``), then the final state from the saddle-point solve on the
+active set or ``u = u_pred + W lambda``; see :mod:`millimpact.integration.integrators`.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from typing import Mapping, Optional
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import solvers
+from ..errors import InputError, SolverError
+from .contact_rows import ContactRows, broadcast
+from .dynamics import IntegrationStats, LinearDynamics
+from .mass import redistribute_mass
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class StepOperators:
+    """Cached linear algebra of one step size."""
+
+    dt: float
+    A: PETSc.Mat
+    ksp_u: PETSc.KSP
+    saddle: Optional[solvers.SaddlePointSolver]
+    contact: Optional[solvers.ContactOperator] = None
+
+
+class NewmarkScheme:
+    """Average-acceleration Newmark with Lagrange-multiplier contact on u_{n+1}."""
+
+    beta, gamma = 0.25, 0.5
+
+    def __init__(self, system: LinearDynamics, redistribute: bool, options: Mapping, stats: IntegrationStats,
+                 comm: MPI.Comm):
+        self.sys, self.options, self.stats, self.comm = system, dict(options), stats, comm
+        self.contact = ContactRows(system, comm)
+        self.fixed = np.asarray(system.fixed_dofs, dtype=np.int64)
+        if redistribute:
+            self.M = redistribute_mass(system.M, system.contact_dofs)
+            self.massless = np.asarray(system.contact_dofs, dtype=np.int64)
+        else:
+            self.M = system.M
+            self.massless = np.zeros(0, dtype=np.int64)
+        cs = str(solvers.get_option("contact_solve", options, "fieldsplit")).lower()
+        if cs not in ("fieldsplit", "schur", "lu"):
+            raise InputError(f"-impact_contact_solve {cs!r}: choose fieldsplit, schur or lu")
+        # friction: the step's multipliers come from the dense problem on S = C A^-1 C^T and the
+        # state from u = u_pred + W [lambda; tau] (the "schur" update, exact with the factorization)
+        self.mu = float(system.friction) if system.T is not None else 0.0
+        self.frictional = system.T is not None
+        stats.friction = self.mu
+        if self.frictional:
+            cs = "schur"
+        self.tau = np.zeros(2 * self.contact.n_c) if self.frictional else None
+        self.sliding = np.zeros(self.contact.n_c, dtype=bool)
+        self.contact_solve = cs
+        stats.contact_solve = cs
+        self.petsc_options = dict(options)
+        if cs == "lu":
+            self.petsc_options = {"pc_type": "lu", **solvers._normalize(options)}
+        self.gap_rtol = float(solvers.get_option("gap_rtol", options, 1e-9))
+        self.check_rtol = float(solvers.get_option("lambda_check_rtol", options, 1e-6))
+        self.ops: dict[float, StepOperators] = {}
+        self.u = system.M.createVecRight()
+        self.v, self.a = self.u.duplicate(), self.u.duplicate()
+        self.u_new, self.u_pred = self.u.duplicate(), self.u.duplicate()
+        self.r, self.tmp = self.u.duplicate(), self.u.duplicate()
+        self.lam = np.zeros(self.contact.n_c)
+        self.gap = self.contact.g0.copy()
+        self.active = np.zeros(self.contact.n_c, dtype=bool)
+        self.n_newton = 0
+        self.penalty_energy = 0.0
+
+    @property
+    def mass(self) -> PETSc.Mat:
+        return self.M
+
+    def initialize(self, u0: PETSc.Vec, v0: PETSc.Vec) -> None:
+        u0.copy(self.u)
+        v0.copy(self.v)
+        for x in (self.u, self.v):
+            x.array[self.fixed] = 0.0
+        self.gap = self.contact.gap(self.u)
+        tol = self.gap_rtol * max(float(np.max(np.abs(self.gap), initial=0.0)), 1e-300)
+        if np.any(self.gap < -tol):
+            raise InputError(f"initial penetration: min gap {self.gap.min():.3e} m < 0")
+        # M a0 = f - K u0 (gaps open: lambda0 = 0); massless and clamped dofs: a0 = 0
+        rhs = self.u.duplicate()
+        self.sys.K.mult(self.u, rhs)
+        rhs.scale(-1.0)
+        if self.sys.f_ext is not None:
+            rhs.axpy(1.0, self.sys.f_ext)
+        rhs.array[self.fixed] = 0.0
+        rhs.array[self.massless] = 0.0
+        self.a.set(0.0)
+        if rhs.norm() > 0.0:
+            solvers.solve_mass(self.M, rhs, self.a, np.union1d(self.fixed, self.massless), self.options)
+        rhs.destroy()
+
+    def _ops(self, dt: float) -> StepOperators:
+        if dt in self.ops:
+            return self.ops[dt]
+        c0 = 1.0 / (self.beta * dt * dt)
+        A = self.sys.K.copy()
+        try:
+            A.axpy(c0, self.M, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        except PETSc.Error:
+            A = self.sys.K.copy()
+            A.axpy(c0, self.M, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        t0 = time.perf_counter()
+        if self.contact_solve == "schur" or self.contact.n_c == 0:
+            ksp_u = solvers.create_effective_solver(A, self.petsc_options)
+            saddle = None
+        else:
+            saddle = solvers.SaddlePointSolver(A, self.contact.B, self.petsc_options)
+            ksp_u = saddle.ksp_u
+        self.stats.n_factorizations += 1
+        if self.comm.rank == 0:
+            log.info("dt = %.4g s: effective matrix factorized in %.2f s (%s)", dt, time.perf_counter() - t0,
+                     ksp_u.getPC().getFactorSolverType() if ksp_u.getPC().getType() in ("lu", "cholesky")
+                     else ksp_u.getPC().getType())
+        op = StepOperators(dt, A, ksp_u, saddle)
+        self.ops[dt] = op
+        return op
+
+    def _contact_operator(self, op: StepOperators) -> solvers.ContactOperator:
+        if op.contact is None:
+            t0 = time.perf_counter()
+            op.contact = solvers.compute_contact_operator(op.ksp_u, self.contact.C)
+            self.stats.n_w_columns += op.contact.n_rhs
+            if self.comm.rank == 0:
+                log.info("dt = %.4g s: W = A^-1 B^T for %d contact rows in %.2f s", op.dt, op.contact.n_rhs,
+                         time.perf_counter() - t0)
+        return op.contact
+
+    def step(self, dt: float, t_new: float, step: int, allow_reject: bool) -> bool:
+        """Advance by dt; False (state unchanged) if ``allow_reject`` and a gap would close."""
+        op = self._ops(dt)
+        self._predictor_rhs(dt)
+        solvers.solve_checked(op.ksp_u, self.r, self.u_pred, "effective-matrix solve", step, t_new)
+        self.stats.n_solves += 1
+        q = self.contact.gap(self.u_pred)
+        scale = max(float(np.max(np.abs(q), initial=0.0)), float(np.max(np.abs(self.contact.g0), initial=0.0)))
+        gap_tol = self.gap_rtol * max(scale, 1e-300)
+        n_c = q.size
+        if n_c == 0 or np.all(q >= -gap_tol):
+            lam = np.zeros(n_c)
+            self.u_pred.copy(self.u_new)
+            self.n_newton = 0
+            if self.frictional:
+                self.tau, self.sliding = np.zeros(2 * n_c), np.zeros(n_c, dtype=bool)
+        else:
+            if allow_reject:
+                return False
+            C = self._contact_operator(op)
+        if n_c and not np.all(q >= -gap_tol) and self.frictional:
+            lam = self._friction_step(C, q, gap_tol, step)
+        elif n_c and not np.all(q >= -gap_tol):
+            res = broadcast(self.comm, solvers.solve_lcp(C.S, q, self.active, gap_tol))
+            self.n_newton = res.iterations
+            self.stats.n_lcp_fallback += res.method != "active-set"
+            lam = res.lam
+            if not res.active.any():
+                self.u_pred.copy(self.u_new)
+            elif self.contact_solve == "schur":
+                lv = self.contact.B.createVecLeft()
+                solvers.scatter_into(lv, lam)
+                C.W.mult(lv, self.tmp)
+                lv.destroy()
+                self.u_new.waxpy(1.0, self.tmp, self.u_pred)
+            else:
+                op.saddle.set_active(res.active, C.S, step, t_new)
+                lam_s = op.saddle.solve(self.r, self.contact.g0, self.u_new, step, t_new)
+                self.stats.n_saddle_solves += 1
+                err = float(np.max(np.abs(lam_s - lam)))
+                if err > self.check_rtol * max(float(np.max(np.abs(lam))), 1e-300):
+                    raise SolverError(f"contact saddle-point solve disagrees with the LCP: max |dlambda| = "
+                                      f"{err:.3e} N (|lambda| = {np.max(np.abs(lam)):.3e} N) at step {step}, "
+                                      f"t = {t_new:.9g} s")
+                lam = lam_s
+            self.stats.n_newton += self.n_newton
+            self.stats.max_newton = max(self.stats.max_newton, self.n_newton)
+        self._accept(lam, dt, step, t_new, gap_tol, scale)
+        return True
+
+    def _predictor_rhs(self, dt: float) -> None:
+        """self.r = M (c0 u + c1 v + c2 a) + f_ext, zero on clamped rows (the effective right-hand side)."""
+        b = self.beta
+        c0, c1, c2 = 1.0 / (b * dt * dt), 1.0 / (b * dt), 0.5 / b - 1.0
+        self.tmp.array[:] = c0 * self.u.array_r + c1 * self.v.array_r + c2 * self.a.array_r
+        self.M.mult(self.tmp, self.r)
+        if self.sys.f_ext is not None:
+            self.r.axpy(1.0, self.sys.f_ext)
+        self.r.array[self.fixed] = 0.0
+
+    def _accept(self, lam: np.ndarray, dt: float, step: int, t_new: float, gap_tol: float, scale: float) -> None:
+        """Check the contact conditions at ``self.u_new`` and advance u, v, a by the Newmark update."""
+        b, g = self.beta, self.gamma
+        c0, c1, c2 = 1.0 / (b * dt * dt), 1.0 / (b * dt), 0.5 / b - 1.0
+        n_c = lam.size
+        gap = self.contact.gap(self.u_new)
+        lam_tol = 1e-8 * max(float(np.max(np.abs(lam), initial=0.0)), 1e-300)
+        if n_c and (np.min(lam) < -lam_tol or np.min(gap) < -max(gap_tol, 1e-8 * scale)):
+            raise SolverError(f"contact conditions violated after the step: min lambda {np.min(lam):.3e} N, "
+                              f"min gap {np.min(gap):.3e} m at step {step}, t = {t_new:.9g} s")
+        if self.frictional:
+            self.tau = np.where(np.concatenate([lam, lam]) > lam_tol, self.tau, 0.0)
+        lam = np.where(lam > lam_tol, lam, 0.0)
+        # Newmark update on the local arrays
+        u, v, a, un = self.u.array, self.v.array, self.a.array, self.u_new.array_r
+        a_new = c0 * (un - u) - c1 * v - c2 * a
+        v_new = v + dt * ((1.0 - g) * a + g * a_new)
+        ml = self.massless
+        if ml.size:
+            # massless dofs carry no momentum: their velocity is the backward difference of u
+            # (the Newmark recursion would ring there with period 2 dt after an impact)
+            vm = (un[ml] - u[ml]) / dt
+            a_new[ml] = (vm - v[ml]) / dt
+            v_new[ml] = vm
+        a_new[self.fixed] = 0.0
+        v_new[self.fixed] = 0.0
+        u[:] = un
+        u[self.fixed] = 0.0
+        v[:] = v_new
+        a[:] = a_new
+        if not (np.isfinite(lam).all() and self.comm.allreduce(bool(np.isfinite(u).all()), op=MPI.LAND)):
+            raise SolverError(f"non-finite state at step {step}, t = {t_new:.9g} s")
+        self.lam, self.gap, self.active = lam, gap, lam > 0
+
+    def _friction_step(self, C: solvers.ContactOperator, q: np.ndarray, gap_tol: float, step: int) -> np.ndarray:
+        """Coulomb friction (:mod:`millimpact.integration.friction`): lambda, tau from the dense problem on
+        S = C A^-1 C^T, then u_new = u_pred + W [lambda; tau]. Returns lambda (N); sets self.tau."""
+        from . import friction
+
+        self.tmp.waxpy(-1.0, self.u, self.u_pred)
+        q_t = self.contact.slip(self.tmp)           # slip increment of the predictor, m
+        # dense and small: solved on rank 0 only (the ranks share cores), the answer broadcast
+        res = (friction.solve_friction(C.S, q, q_t, self.mu, self.active, self.sliding, gap_tol)
+               if self.comm.rank == 0 else None)
+        res = broadcast(self.comm, res)
+        n_c = q.size
+        x = np.concatenate([res.lam, res.tau])
+        solvers.scatter_into(self.contact._cc, x)
+        C.W.mult(self.contact._cc, self.tmp)
+        self.u_new.waxpy(1.0, self.tmp, self.u_pred)
+        ds = q_t + C.S[n_c:, :] @ x                 # slip increments over the step, m
+        self.stats.friction_work_J += max(0.0, -float(res.tau @ ds))
+        self.stats.max_friction_passes = max(self.stats.max_friction_passes, res.iterations)
+        self.stats.n_friction_fallback += res.n_fallback
+        self.stats.max_sliding_nodes = max(self.stats.max_sliding_nodes, int(np.count_nonzero(res.slip)))
+        self.n_newton = res.iterations
+        self.stats.n_newton += res.iterations
+        self.stats.max_newton = max(self.stats.max_newton, res.iterations)
+        self.tau, self.sliding = res.tau, res.slip
+        return res.lam
+
+    def rate(self) -> np.ndarray:
+        return self.contact.rate(self.v)
+
+    def destroy(self) -> None:
+        for op in self.ops.values():
+            if op.saddle is not None:
+                op.saddle.destroy()
+            else:
+                op.ksp_u.destroy()
+            if op.contact is not None:
+                op.contact.W.destroy()
+            op.A.destroy()
