@@ -13,7 +13,7 @@ Node-to-surface (not mortar) because the master is flat and smooth, so the gap o
 is exact to first order; the multipliers are nodal forces (N), whose sum is the contact force.
 Mortar would give smoother pressures; the nodal forces integrate to the same resultant.
 
-With friction (``scene.contact.friction > 0``) two tangential rows per slave node give the
+With friction (the plan's coefficient ``plan.friction > 0``) two tangential rows per slave node give the
 relative tangential displacement s_i = t_k . (u(x_i) - u^block(p_i)), k = 1, 2, for an orthonormal
 tangent basis (t1, t2) of the face; their multipliers are the tangential nodal forces on the ball
 (:mod:`millimpact.integration.friction`). The master points stay fixed (small sliding): valid while the
@@ -30,9 +30,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..geometry.mesh import facet_indices, locate_cells
-from ..geometry import builders as G
-from .model import BLOCK_CELLS, FEModel
+from ..scene.plan import Plan
+from .model import FEModel
 from .probes import locate_points, tabulate_at
 
 log = logging.getLogger(__name__)
@@ -49,7 +48,7 @@ class ContactSet:
     gaps (m), ``contact_dofs`` local owned dofs whose mass mass-redistribution removes
     all three components of the slave nodes and of the block-face nodes they touch, less clamped
     or symmetry dofs), ``radius`` the candidate
-    radius around the axis (m).
+    radius around the axis p + s n (m), ``point`` the impact point p on the face (m).
     """
 
     points: np.ndarray
@@ -57,6 +56,7 @@ class ContactSet:
     g0: np.ndarray
     contact_dofs: np.ndarray
     radius: float
+    point: np.ndarray                       #: p, the impact point: the contact axis is p + s n
     normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))   #: n, outward from the block
     tangents: Optional[np.ndarray] = None   #: (2, 3) t1, t2 (friction only)
     T: Optional[PETSc.Mat] = None           #: (2 n_c x n) tangential rows [t1 rows; t2 rows] (friction only)
@@ -76,26 +76,26 @@ def tangent_basis(n: np.ndarray) -> np.ndarray:
     return np.array([t1, np.cross(n, t1)])
 
 
-def create_contact(model: FEModel, radius: float | None = None, friction: Optional[bool] = None) -> ContactSet:
-    """Build the contact constraint rows of a model (collective); with ``friction`` (default: the
-    scene's coefficient > 0) also the tangential rows."""
+def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
+                   friction: Optional[bool] = None) -> ContactSet:
+    """Build the contact constraint rows of a model (collective) at its impact point and contact
+    normal; candidates within ``radius`` (m; default 2.5 a_max, inside the plan's zone) of the
+    contact axis; with ``friction`` (default: the plan's coefficient > 0) also the tangential
+    rows."""
     V = model.V
     comm = model.comm
-    md = model.meshdata
     mesh = V.mesh
-    plan = model.plan
-    scene = model.scene
     bs = V.dofmap.index_map_bs
     imap = V.dofmap.index_map
     n_owned_nodes = imap.size_local
-    p = np.array(scene.impact_point, dtype=float)
-    n = np.array(scene.contact_normal, dtype=float)
+    p = np.array(model.impact_point, dtype=float)
+    n = np.array(model.contact_normal, dtype=float)
     if friction is None:
-        friction = scene.contact.friction > 0.0
+        friction = plan.friction > 0.0
     radius = radius or min(CANDIDATE_RADIUS_FACTOR * plan.hertz.a_max, 0.95 * plan.zone_radius)
 
     fdim = mesh.topology.dim - 1
-    nodes = fem.locate_dofs_topological(V, fdim, facet_indices(md, G.BALL_CONTACT))
+    nodes = fem.locate_dofs_topological(V, fdim, model.contact_facets)
     nodes = nodes[nodes < n_owned_nodes]
     coords = V.tabulate_dof_coordinates()[nodes]
     d = coords - p
@@ -143,7 +143,7 @@ def create_contact(model: FEModel, radius: float | None = None, friction: Option
     # master side: the block's face point below each slave node, found on whichever rank owns it
     proj = points - np.outer(g0, n)                      # on the face
     face_points = proj - 1e-9 * plan.h_contact * n       # just inside the block
-    cells = locate_points(V, face_points, locate_cells(md, BLOCK_CELLS))
+    cells = locate_points(V, face_points, model.block_cells)
     block_face_dofs = []
     for i, c in enumerate(cells):
         if c < 0:
@@ -174,4 +174,4 @@ def create_contact(model: FEModel, radius: float | None = None, friction: Option
     contact_dofs = np.setdiff1d(contact_dofs, model.fixed_dofs).astype(np.int32)
     log.info("contact: %d slave nodes within %.3g mm of the axis%s", n_c, radius * 1e3,
              ", with friction rows" if friction else "")
-    return ContactSet(points, B, g0, contact_dofs, radius, n, tangent_basis(n) if friction else None, T)
+    return ContactSet(points, B, g0, contact_dofs, radius, p, n, tangent_basis(n) if friction else None, T)

@@ -1,5 +1,6 @@
-"""Point probes: linear maps from a displacement vector to values and gradients at chosen points,
-and where the contact point and the gauges sit in a (possibly symmetric) model.
+"""Point probes: linear maps from a displacement vector to values and gradients at chosen points
+(where the contact point and the gauges sit in a symmetric model is the plan's:
+:class:`millimpact.scene.plan.ProbeSpec`).
 
 Each probe is a pair of sparse matrices built once from the basis functions of the cells that hold
 the points; applying them is a sparse product and an MPI sum, so the time loop records a probe for
@@ -15,11 +16,7 @@ from dolfinx import fem
 from dolfinx import geometry as dgeom
 from mpi4py import MPI
 
-from ..scene.plan import Plan
-from ..scene.schema import Scene
 
-
-# --- point probes --------------------------------------------------------------------------------
 @dataclass
 class PointProbe:
     """Values and gradients of a vector field of ``V`` at fixed points, as sparse linear maps.
@@ -147,37 +144,3 @@ def von_mises(s: np.ndarray) -> np.ndarray:
     """Von Mises stress of stress tensors (…, 3, 3), Pa."""
     dev = s - np.trace(s, axis1=-2, axis2=-1)[..., None, None] * np.eye(3) / 3.0
     return np.sqrt(1.5 * np.sum(dev * dev, axis=(-2, -1)))
-
-
-# --- where the probes sit ----------------------------------------------------------------------
-def mirror_into_model(point: np.ndarray, direction: np.ndarray, plan: Plan, scene: Scene):
-    """Map a point (and a direction) on the full body into the kept part of a symmetric model."""
-    x_p, _, z_p = scene.impact_point
-    p, d = np.array(point, float), np.array(direction, float)
-    if "x" in plan.symmetry_planes and p[0] < x_p:
-        p[0], d[0] = 2 * x_p - p[0], -d[0]
-    if "z" in plan.symmetry_planes and p[2] < z_p:
-        p[2], d[2] = 2 * z_p - p[2], -d[2]
-    return p, d
-
-
-def inward_point(point: np.ndarray, plan: Plan, scene: Scene) -> np.ndarray:
-    """A point nudged just inside the block (and off the symmetry planes) so one cell holds it."""
-    eps = 1e-6 * plan.h_contact
-    p = np.array(point, float)
-    if scene.liner is not None:   # the liner's contact point: along -n into the lifter
-        p = p - eps * np.asarray(scene.contact_normal)
-        if "x" in plan.symmetry_planes:
-            p[0] = max(p[0], scene.impact_point[0] + eps)
-        return p
-    blk = scene.block
-    p[1] = min(p[1], -eps)
-    p[1] = max(p[1], -blk.thickness + eps)
-    p[0] = np.clip(p[0], -blk.length / 2 + eps, blk.length / 2 - eps)
-    p[2] = np.clip(p[2], eps, blk.height - eps)
-    x_p, _, z_p = scene.impact_point
-    if "x" in plan.symmetry_planes:
-        p[0] = max(p[0], x_p + eps)
-    if "z" in plan.symmetry_planes:
-        p[2] = max(p[2], z_p + eps)
-    return p

@@ -48,29 +48,29 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
         raise InputError(f"option candidate_radius = {radius!r}: must be > 0 m")
     md = create_mesh(scene, plan, comm)
     t_mesh = time.perf_counter() - t0
-    model = create_fe_model(scene, plan, md, degree)
-    contact = create_contact(model, radius=radius)
+    model = create_fe_model(md, plan, degree)
+    contact = create_contact(model, plan, radius=radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
     system = integrators.LinearDynamics(M=model.M, K=model.K, B=contact.B, g0=contact.g0,
                                         fixed_dofs=model.fixed_dofs, contact_dofs=contact.contact_dofs,
-                                        T=contact.T, friction=scene.contact.friction)
+                                        T=contact.T, friction=plan.friction)
     u0 = model.M.createVecRight()
     u0.set(0.0)
-    v0 = model.ball_velocity(scene.impact.velocity)
-    rec = Recorder(model, contact, scene.outputs.field_times if scene.outputs.xdmf else ())
+    v0 = model.ball_velocity(plan.velocity)
+    rec = Recorder(model, contact, plan.probes, scene.outputs.field_times if scene.outputs.xdmf else ())
     schedule = integrators.TimeSchedule(t_end, plan.dt_contact, plan.dt_free)
     stats = integrators.integrate(system, u0, v0, schedule, method=integrator, observer=rec,
                                   options=options, progress=progress)
     ts = rec.series()
     wall = time.perf_counter() - t0
 
-    results = impact_results(ts, scene, stats, integrator)
+    results = impact_results(ts, plan.normal_speed, plan.probes.gauge_names, stats, integrator)
     results["timings_s"] = {"mesh": t_mesh, "assemble": t_assemble, "integrate": wall - t_mesh - t_assemble}
     info = md.info
     model_info = {
         "method": method, "degree": degree, "dofs": model.n_dofs_global, "contact_candidates": contact.n,
         "symmetry": plan.symmetry, "symmetry_factor": model.sym_factor,
-        "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model, "ball_mass_exact_kg": scene.ball.mass,
+        "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model, "ball_mass_exact_kg": plan.ball.mass,
         "ball_density_scale": model.extra["ball_density_scale"],
         "mesh": info.__dict__ if hasattr(info, "__dict__") else str(info),
         "mpi_ranks": comm.size,

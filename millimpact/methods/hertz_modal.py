@@ -40,11 +40,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from scipy import integrate as sci
 
-from ..geometry.mesh import locate_cells
 from ..errors import InputError
-from ..fem.probes import inward_point, mirror_into_model
 from ..geometry.mesh import create_mesh
-from ..fem.model import BLOCK_CELLS, create_fe_model
+from ..fem.model import create_fe_model
 from ..fem.probes import create_probe
 from ..scene.plan import Plan, make_plan
 from ..integration.solvers import create_factored_solver
@@ -90,7 +88,7 @@ def compute_block_modes(scene: Scene, plan: Plan, f_cut: Optional[float], n_mode
     """Mesh the scene, assemble P1 and compute the block's clamped modes (collective)."""
     t0 = time.perf_counter()
     md = create_mesh(scene, plan, comm)
-    model = create_fe_model(scene, plan, md, 1)
+    model = create_fe_model(md, plan, 1)
     t_model = time.perf_counter() - t0
     K, M = model.K, model.M
     free = np.ones(K.getLocalSize()[0], dtype=bool)
@@ -104,14 +102,10 @@ def compute_block_modes(scene: Scene, plan: Plan, f_cut: Optional[float], n_mode
     prefix = "impact_hertzmodal_"
     opts = default_solver_options(comm.size)
     ksp = create_factored_solver(K_bb, prefix, opts)
-    # probes: the contact point and the gauges, just inside the block
-    pts = [inward_point(np.array(scene.impact_point), plan, scene)]
-    dirs = []
-    for g in scene.gauges:
-        p, d = mirror_into_model(np.array(g.position), np.array(g.direction), plan, scene)
-        pts.append(inward_point(p, plan, scene))
-        dirs.append(d / np.linalg.norm(d))
-    probe = create_probe(model.V, np.array(pts), locate_cells(md, BLOCK_CELLS))
+    # probes: the contact point and the gauges, just inside the block (the plan's places)
+    pts = [plan.probes.contact_point] + [g.point for g in plan.probes.gauges]
+    dirs = [np.array(g.direction) for g in plan.probes.gauges]
+    probe = create_probe(model.V, np.array(pts), model.block_cells)
     if not np.all(probe.found):
         raise InputError("hertz-modal: a probe point (contact point or gauge) lies outside the block mesh")
     E = scene.block.material.youngs_modulus

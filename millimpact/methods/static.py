@@ -33,12 +33,12 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..geometry.mesh import facet_indices, locate_cells
+from ..geometry.mesh import facet_indices
 from ..fem import forms
 from ..geometry import builders as G
 from ..fem.contact import create_contact
 from ..theory.hertz import effective_modulus
-from ..fem.model import BALL_CELLS, BLOCK_CELLS, create_fe_model
+from ..fem.model import create_fe_model
 from ..fem.probes import create_probe
 from ..scene.plan import Plan
 from ..scene.schema import Scene
@@ -76,13 +76,12 @@ def static_hertz(scene: Scene, plan: Plan, md, cap_displacement: float, degree: 
                  options: dict | None = None) -> StaticHertzResult:
     """Press the ball on the block by moving its top cap ``cap_displacement`` (m) towards the block
     and solve the frictionless contact exactly (collective over the mesh's communicator)."""
-    model = create_fe_model(scene, plan, md, degree)
+    model = create_fe_model(md, plan, degree)
     V, comm = model.V, model.comm
     mesh = V.mesh
     fdim = mesh.topology.dim - 1
     x_p, _, z_p = scene.impact_point
     centre = np.array(scene.ball_centre(plan.gap), dtype=float)
-    R = scene.ball.radius
 
     # the top cap: ball-surface facets whose midpoint lies within CAP_HALF_ANGLE of the top pole
     surface = facet_indices(md, G.BALL_SURFACE)
@@ -114,7 +113,7 @@ def static_hertz(scene: Scene, plan: Plan, md, cap_displacement: float, degree: 
     u0 = K.createVecRight()
     ksp.solve(b, u0)
 
-    contact = create_contact(model)
+    contact = create_contact(model, plan)
     op = compute_contact_operator(ksp, contact.B)
     q = contact.g0 + _gather_rows(contact.B, u0)
     lcp = solve_lcp(op.S, q)
@@ -129,7 +128,7 @@ def static_hertz(scene: Scene, plan: Plan, md, cap_displacement: float, degree: 
     uf.x.array[: len(u.array_r)] = u.array_r
     uf.x.scatter_forward()
     probe = create_probe(V, np.array([centre, [x_p, 0.0, z_p]]),
-                         np.concatenate([locate_cells(md, BALL_CELLS), locate_cells(md, BLOCK_CELLS)]))
+                         np.concatenate([model.ball_cells, model.block_cells]))
     # the centre lies in the ball, the surface point on the block's face (found in the block cells:
     # the probe takes the best-containing cell, and the ball does not reach y = 0 at that point)
     disp = probe.values(uf.x.array)

@@ -8,48 +8,55 @@ velocity, the contact point's displacement / velocity / acceleration / normal an
 (probes just inside the struck body), gauge stresses E d.eps.d, and energies (kinetic with the mass
 the scheme integrates, strain 1/2 u.K u); with friction the tangential force, the ball's
 tangential velocity and the cumulative friction work.
+
+Takes the model, its contact set and the plan's :class:`millimpact.scene.plan.ProbeSpec` (where to
+probe, the struck body's elastic constants, the initial gap); never the scene.
 """
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import Any, Optional, Sequence
 
 import numpy as np
 
 from ..fem.contact import ContactSet
-from ..fem.model import BLOCK_CELLS, FEModel
-from ..fem.probes import create_probe, inward_point, mirror_into_model, stress_from_gradient, von_mises
-from ..geometry.mesh import locate_cells
+from ..fem.model import FEModel
+from ..fem.probes import create_probe, stress_from_gradient, von_mises
 from ..integration.integrators import strain_energy
-from ..scene.schema import Scene
+from ..scene.plan import ProbeSpec
 from .timeseries import TimeSeries
 
 
 class Recorder:
-    """Observer of the time loop: turns each step's state into the run's time-series rows."""
+    """Observer of the time loop: turns each step's state into the run's time-series rows.
 
-    def __init__(self, model: FEModel, contact: ContactSet, field_times: tuple[float, ...]):
-        scene, plan = model.scene, model.plan
+    ``probes`` says where the contact point and the gauges are probed (already inside the model's
+    kept part), the struck body's material, whether it is a liner, the incoming tangential
+    direction and the initial gap; ``field_times`` (s) the states kept for XDMF.
+    """
+
+    def __init__(self, model: FEModel, contact: ContactSet, probes: ProbeSpec, field_times: tuple[float, ...]):
         self.model, self.contact = model, contact
+        self.liner = probes.liner
+        self.gauge_names = probes.gauge_names
         V = model.V
         self.u_fn = model.function("u")
         self.sym = model.sym_factor
-        self.x_p, _, self.z_p = scene.impact_point
-        self.p = np.array(scene.impact_point)
-        self.n = np.array(scene.contact_normal)     # e_y for the block
+        self.x_p, _, self.z_p = contact.point
+        self.p = contact.point
+        self.n = contact.normal     # e_y for the block
         # ball centre-of-mass velocity along n: c . v with c = M e_n(ball) / m_ball
         # (M has zero rows and columns on clamped and symmetry dofs, so M e ignores them)
         self.c_y = model.M.createVecLeft()
         model.M.mult(model.ball_velocity((0.0, 1.0, 0.0)), self.c_y)
         self.ball_mass_model = self.c_y.sum()
-        if scene.liner is not None:
+        if self.liner:
             model.M.mult(model.ball_velocity(self.n), self.c_y)
         self.c_y.scale(1.0 / self.ball_mass_model)
         # friction: the ball's tangential velocity along the incoming tangential direction t_v
         self.friction = contact.T is not None
         if self.friction:
-            v = np.array(scene.impact.velocity)
-            vt = v - (v @ self.n) * self.n
-            self.t_v = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > 1e-12 * np.linalg.norm(v) else contact.tangents[0]
+            slide = probes.slide_direction
+            self.t_v = np.array(slide) if slide is not None else contact.tangents[0]
             self.c_t = model.M.createVecLeft()
             model.M.mult(model.ball_velocity(self.t_v), self.c_t)
             self.c_t.scale(1.0 / self.ball_mass_model)
@@ -60,20 +67,14 @@ class Recorder:
         self.ball_mask.array[model.ball_dofs] = 1.0
         self.tmp = model.M.createVecLeft()
         self.tmp2 = model.M.createVecLeft()
-        self.gap0 = plan.gap
+        self.gap0 = probes.gap
         # probes: contact point (surface value and just-inside gradient) and gauges
-        blk_cells = locate_cells(model.meshdata, BLOCK_CELLS)
-        cp = inward_point(np.array(scene.impact_point), plan, scene)
-        pts = [cp]
-        self.gauge_dirs = []
-        for g in scene.gauges:
-            p, d = mirror_into_model(np.array(g.position), np.array(g.direction), plan, scene)
-            pts.append(inward_point(p, plan, scene))
-            self.gauge_dirs.append(d / np.linalg.norm(d))
-        self.probe = create_probe(V, np.array(pts), blk_cells)
+        pts = [probes.contact_point] + [g.point for g in probes.gauges]
+        self.gauge_dirs = [np.array(g.direction) for g in probes.gauges]
+        self.probe = create_probe(V, np.array(pts), model.block_cells)
         if not np.all(self.probe.found):
             raise RuntimeError("a probe point (contact point or gauge) lies outside the block mesh")
-        mat = scene.target_material
+        mat = probes.material
         self.mu, self.lmbda, self.E = mat.shear_modulus, mat.lame_lambda, mat.youngs_modulus
         self.rows: list[list[float]] = []
         self.field_times = sorted(field_times)
@@ -87,7 +88,7 @@ class Recorder:
 
     @property
     def names(self) -> list[str]:
-        return (self.names_base + [f"gauge_{g.name}_stress_Pa" for g in self.model.scene.gauges]
+        return (self.names_base + [f"gauge_{name}_stress_Pa" for name in self.gauge_names]
                 + ["ball_kinetic_energy_J", "kinetic_energy_J", "strain_energy_J", "total_energy_J"]
                 + (["tangential_force_N", "ball_tangential_velocity_m_s", "friction_dissipation_J"]
                    if self.friction else []))
@@ -112,7 +113,7 @@ class Recorder:
         s = stress_from_gradient(grads[:, 0], self.mu, self.lmbda)
         eps = 0.5 * (grads[:, 1:] + np.swapaxes(grads[:, 1:], -1, -2))
         gauges = [self.E * np.einsum("i,tij,j->t", d, eps[:, k], d) for k, d in enumerate(self.gauge_dirs)]
-        if self.model.scene.liner is None:
+        if not self.liner:
             normal = [-vals_u[:, 0, 1], -vals_v[:, 0, 1], -vals_a[:, 0, 1], s[:, 1, 1]]
         else:   # along the contact normal n, into the liner positive
             n = self.n
@@ -126,7 +127,7 @@ class Recorder:
         active = lam > 0
         if np.any(active):
             pts = self.contact.points[active]
-            if self.model.scene.liner is None:
+            if not self.liner:
                 a = float(np.max(np.hypot(pts[:, 0] - self.x_p, pts[:, 2] - self.z_p)))
             else:   # distance from the contact axis p + s n
                 d = pts - self.p
@@ -172,15 +173,17 @@ class Recorder:
         return TimeSeries.from_rows(self.names, self.rows)
 
 
-def impact_results(ts: TimeSeries, scene: Scene, stats, integrator: str) -> dict[str, Any]:
+def impact_results(ts: TimeSeries, normal_speed: float, gauge_names: Sequence[str], stats,
+                   integrator: str) -> dict[str, Any]:
     """Scalar results of an FE run (full or reduced): restitution from the ball's centre-of-mass
-    velocity just after the first contact, energy balance, peak stresses, integrator statistics."""
+    velocity just after the first contact (over the arrival ``normal_speed``, m/s), energy balance,
+    peak stresses (of the gauges ``gauge_names``), integrator statistics."""
     f = ts["contact_force_N"]
     after = np.nonzero(f > 0)[0]
     if len(after):
         last = after[-1] if not np.any(np.diff(after) > 1) else after[np.argmax(np.diff(after) > 1)]
         i_out = min(last + 2, len(f) - 1)
-        restitution = -ts["ball_velocity_m_s"][i_out] / scene.normal_speed
+        restitution = -ts["ball_velocity_m_s"][i_out] / normal_speed
     else:
         i_out = len(f) - 1
         restitution = float("nan")
@@ -197,7 +200,7 @@ def impact_results(ts: TimeSeries, scene: Scene, stats, integrator: str) -> dict
         "vibration_energy_share_end": float(1.0 - ts["ball_kinetic_energy_J"][-1] / e_in),
         "peak_contact_point_stress_Pa": float(np.min(ts["contact_point_stress_Pa"])),
         "peak_contact_point_von_mises_Pa": float(np.max(ts["contact_point_von_mises_Pa"])),
-        "peak_gauge_stress_Pa": {g.name: _signed_peak(ts[f"gauge_{g.name}_stress_Pa"]) for g in scene.gauges},
+        "peak_gauge_stress_Pa": {name: _signed_peak(ts[f"gauge_{name}_stress_Pa"]) for name in gauge_names},
         "time_of_peak_force_s": float(ts.time[i_peak]),
         "integrator": integrator,
         "integration": stats._asdict() if hasattr(stats, "_asdict") else stats,

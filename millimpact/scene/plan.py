@@ -3,14 +3,23 @@
 Every choice (symmetry, contact-zone radius, element sizes, initial gap, time steps, modal cutoff)
 is computed here from the scene, can be overridden in ``scene.model`` / ``scene.time`` /
 ``scene.impact.gap``, and is reported with its reason by :meth:`Plan.table`.
+
+The plan also carries the scene's derived numbers that the lower stages need, so that the scene
+itself stops at the methods (the top of the flow): the ball and the struck body's materials, the
+impact point, contact normal, arrival velocity and friction coefficient, and the places the
+recorder probes (:class:`ProbeSpec`: the contact point and each gauge, mirrored into the kept part
+of a symmetric model and nudged just inside the struck body, so that one cell holds each).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
 
 from ..errors import SceneError
 from ..theory.hertz import HertzImpact, effective_modulus, hertz_impact
-from .schema import Scene
+from .schema import Ball, Material, Scene, Vec3
 
 #: elements across the Hertz contact radius a_max: ~4 gives ~1 % on F_max (DESIGN.md section 3)
 ELEMENTS_ACROSS_CONTACT = 4.0
@@ -33,8 +42,44 @@ def scene_hertz(scene: Scene) -> HertzImpact:
 
 
 @dataclass(frozen=True)
+class GaugePlace:
+    """A strain gauge where the model holds it: ``point`` (m) just inside the struck body's kept
+    part (mirrored into it on a symmetric model), unit ``direction`` (mirrored with it); the
+    gauge reports sigma = E d.eps.d (Pa)."""
+
+    name: str
+    point: Vec3
+    direction: Vec3
+
+
+@dataclass(frozen=True)
+class ProbeSpec:
+    """What a recorder observes of an impact, in the model's coordinates (SI units).
+
+    ``contact_point`` the impact point nudged just inside the struck body (and off the symmetry
+    planes); ``gauges`` the gauges' places; ``material`` the struck body's elastic constants
+    (stresses from strains); ``liner`` True when the struck body is a liner (normal quantities
+    along the contact normal n rather than -y); ``slide_direction`` the unit tangential
+    direction of the arrival velocity (None for a normal impact: the contact's first tangent
+    is used); ``gap`` the initial gap (m), subtracted from the ball's travel to give the approach.
+    """
+
+    contact_point: Vec3
+    gauges: tuple[GaugePlace, ...]
+    material: Material
+    liner: bool
+    slide_direction: Optional[Vec3]
+    gap: float
+
+    @property
+    def gauge_names(self) -> tuple[str, ...]:
+        return tuple(g.name for g in self.gauges)
+
+
+@dataclass(frozen=True)
 class Plan:
-    """Modelling choices for a scene, all in SI units."""
+    """Modelling choices for a scene, all in SI units; below ``degree``, the scene's derived
+    numbers that the lower stages need (not printed by :meth:`table`)."""
 
     hertz: HertzImpact
     symmetry: str                 #: full | half | quarter
@@ -48,7 +93,19 @@ class Plan:
     dt_free: float                #: step in free vibration, s
     f_cut: float                  #: modal cutoff frequency, Hz
     degree: int                   #: Lagrange degree of the full model
+    ball: Ball                    #: the ball: radius (m), material; its mass ``ball.mass`` (kg)
+    target: Material              #: the struck body's material (the block's or the liner's)
+    impact_point: Vec3            #: point p of first contact on the struck face, m
+    contact_normal: Vec3          #: outward unit normal n of the struck face at p
+    velocity: Vec3                #: the ball's arrival velocity, m/s
+    friction: float               #: Coulomb coefficient between ball and struck body
+    probes: ProbeSpec             #: what a recorder observes, and where
     reasons: tuple[tuple[str, str], ...] = ()
+
+    @property
+    def normal_speed(self) -> float:
+        """Speed towards the struck face, -v . n (m/s): the Hertz estimate's speed."""
+        return self.hertz.speed
 
     def table(self) -> list[tuple[str, str, str]]:
         """(name, value with unit, reason) rows for printing."""
@@ -103,6 +160,69 @@ def decide_symmetry(scene: Scene) -> tuple[str, tuple[str, ...], str]:
     return req, tuple(planes), "user choice"
 
 
+def mirror_into_model(point: np.ndarray, direction: np.ndarray, planes: tuple[str, ...],
+                      impact_point: Vec3) -> tuple[np.ndarray, np.ndarray]:
+    """Map a point (and a direction) on the full body into the kept part of a symmetric model
+    (cut by the x = x_p and z = z_p ``planes`` through the impact point)."""
+    x_p, _, z_p = impact_point
+    p, d = np.array(point, float), np.array(direction, float)
+    if "x" in planes and p[0] < x_p:
+        p[0], d[0] = 2 * x_p - p[0], -d[0]
+    if "z" in planes and p[2] < z_p:
+        p[2], d[2] = 2 * z_p - p[2], -d[2]
+    return p, d
+
+
+def inward_point(point: np.ndarray, scene: Scene, planes: tuple[str, ...], h_contact: float) -> np.ndarray:
+    """A point nudged just inside the struck body (and off the symmetry ``planes``) by 1e-6
+    ``h_contact`` (m), so that one cell holds it."""
+    eps = 1e-6 * h_contact
+    p = np.array(point, float)
+    if scene.liner is not None:   # the liner's contact point: along -n into the lifter
+        p = p - eps * np.asarray(scene.contact_normal)
+        if "x" in planes:
+            p[0] = max(p[0], scene.impact_point[0] + eps)
+        return p
+    blk = scene.block
+    p[1] = min(p[1], -eps)
+    p[1] = max(p[1], -blk.thickness + eps)
+    p[0] = np.clip(p[0], -blk.length / 2 + eps, blk.length / 2 - eps)
+    p[2] = np.clip(p[2], eps, blk.height - eps)
+    x_p, _, z_p = scene.impact_point
+    if "x" in planes:
+        p[0] = max(p[0], x_p + eps)
+    if "z" in planes:
+        p[2] = max(p[2], z_p + eps)
+    return p
+
+
+def slide_direction(velocity: Vec3, normal: Vec3) -> Optional[Vec3]:
+    """The unit tangential direction of ``velocity`` on the plane of unit ``normal``; None when
+    the velocity is normal to it (tangential part below 1e-12 of the speed)."""
+    v, n = np.array(velocity), np.array(normal)
+    vt = v - (v @ n) * n
+    if np.linalg.norm(vt) > 1e-12 * np.linalg.norm(v):
+        return _vec3(vt / np.linalg.norm(vt))
+    return None
+
+
+def make_probe_spec(scene: Scene, planes: tuple[str, ...], h_contact: float, gap: float) -> ProbeSpec:
+    """Where a model of ``scene`` (cut by the symmetry ``planes``, contact element size
+    ``h_contact``) is probed: the contact point and each gauge, inside the struck body's kept part."""
+    contact_point = inward_point(np.array(scene.impact_point), scene, planes, h_contact)
+    gauges = []
+    for g in scene.gauges:
+        p, d = mirror_into_model(np.array(g.position), np.array(g.direction), planes, scene.impact_point)
+        gauges.append(GaugePlace(g.name, _vec3(inward_point(p, scene, planes, h_contact)),
+                                 _vec3(d / np.linalg.norm(d))))
+    return ProbeSpec(_vec3(contact_point), tuple(gauges), scene.target_material, scene.liner is not None,
+                     slide_direction(scene.impact.velocity, scene.contact_normal), gap)
+
+
+def _vec3(x) -> Vec3:
+    return (float(x[0]), float(x[1]), float(x[2]))
+
+
 def make_plan(scene: Scene) -> Plan:
     """Derive the modelling choices of a scene from its Hertz estimate (DESIGN.md section 5)."""
     h = scene_hertz(scene)
@@ -142,4 +262,8 @@ def make_plan(scene: Scene) -> Plan:
     reasons["degree"] = "user" if m.degree != 1 else "P1 (default)"
     if dt_c > t.end:
         raise SceneError("time.end", t.end, f"must exceed the contact step ({dt_c:g} s)")
-    return Plan(h, sym, planes, h_c, h_far, zone, fine, gap, dt_c, dt_f, f_cut, m.degree, tuple(reasons.items()))
+    return Plan(h, sym, planes, h_c, h_far, zone, fine, gap, dt_c, dt_f, f_cut, m.degree,
+                ball=scene.ball, target=scene.target_material, impact_point=scene.impact_point,
+                contact_normal=scene.contact_normal, velocity=tuple(scene.impact.velocity),
+                friction=scene.contact.friction, probes=make_probe_spec(scene, planes, h_c, gap),
+                reasons=tuple(reasons.items()))

@@ -245,12 +245,12 @@ def test_reduced_block_frequencies_match_a_finer_p2_model():
 
     scene, plan = small_scene()
     md = create_mesh(scene, plan, MPI.COMM_WORLD)
-    red = build_reduced_model(create_fe_model(scene, plan, md, 2), "nmm", f_cut=plan.f_cut, n_modes=None)
+    red = build_reduced_model(create_fe_model(md, plan, 2), "nmm", f_cut=plan.f_cut, n_modes=None)
     modal = compute_free_modes(red, 2.0 * plan.f_cut)
     f_red = np.sort(np.sqrt(modal.omega2[modal.body == 1])) / (2 * math.pi)
 
     fine_scene, fine_plan = small_scene(**{"model.h_far": 5.6e-3})
-    fine = create_fe_model(fine_scene, fine_plan, create_mesh(fine_scene, fine_plan, MPI.COMM_WORLD), 2)
+    fine = create_fe_model(create_mesh(fine_scene, fine_plan, MPI.COMM_WORLD), fine_plan, 2)
     n = fine.K.getSize()[0]
     sel = np.zeros(n, dtype=bool)
     sel[fine.block_dofs] = True

@@ -41,7 +41,7 @@ def p1(setup):
     from millimpact.fem.model import create_fe_model
 
     scene, plan, md = setup
-    return create_fe_model(scene, plan, md, 1)
+    return create_fe_model(md, plan, 1)
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +49,7 @@ def p2(setup):
     from millimpact.fem.model import create_fe_model
 
     scene, plan, md = setup
-    return create_fe_model(scene, plan, md, 2)
+    return create_fe_model(md, plan, 2)
 
 
 @pytest.fixture(scope="module")
@@ -191,8 +191,8 @@ def test_block_frequencies_converge(setup, p1, p2):
     fine_scene = scene.with_value("model.h_far", 5.6e-3)
     fine_plan = make_plan(fine_scene)
     md = create_mesh(fine_scene, fine_plan, MPI.COMM_WORLD)
-    f1_fine = block_hz(create_fe_model(fine_scene, fine_plan, md, 1), 4)
-    f2_fine = block_hz(create_fe_model(fine_scene, fine_plan, md, 2), 4)
+    f1_fine = block_hz(create_fe_model(md, fine_plan, 1), 4)
+    f2_fine = block_hz(create_fe_model(md, fine_plan, 2), 4)
     f1, f2 = block_hz(p1, 4), block_hz(p2, 4)
     assert np.all(np.abs(f2 / f2_fine - 1) < 3e-3)          # P2 converged to 0.1 % (measured)
     err = np.array([np.mean(f1 / f2_fine - 1), np.mean(f1_fine / f2_fine - 1)])
@@ -430,7 +430,8 @@ def free_rows_mismatch(n_times: int = 40) -> tuple[float, float]:
     from millimpact.geometry.mesh import create_mesh
     from millimpact.fem.model import create_fe_model
     from millimpact.scene.plan import make_plan
-    from millimpact.methods.reduced import ReducedRecorder, reduced_plan
+    from millimpact.methods.reduced import reduced_plan
+    from millimpact.results.reduced_recorder import ReducedRecorder
     from millimpact.reduction.craig_bampton import compute_free_modes, reduce_model
     from millimpact.scene.schema import builtin_scene
 
@@ -438,16 +439,16 @@ def free_rows_mismatch(n_times: int = 40) -> tuple[float, float]:
     for key, value in SMALL.items():
         scene = scene.with_value(key, value)
     scene, plan, radius, _ = reduced_plan(scene, make_plan(scene))
-    model = create_fe_model(scene, plan, create_mesh(scene, plan, MPI.COMM_WORLD), 1)
+    model = create_fe_model(create_mesh(scene, plan, MPI.COMM_WORLD), plan, 1)
     red = reduce_model(model, f_cut=plan.f_cut)
-    contact = create_contact(model, radius=radius)
+    contact = create_contact(model, plan, radius=radius)
     modal = compute_free_modes(red, 4 * plan.f_cut)
     rng = np.random.default_rng(7)
     m = modal.n_global
     times = 1e-4 + 2e-6 * np.arange(n_times)
     eta, etad, etadd = (rng.standard_normal((m, n_times)) * s for s in (1e-6, 1e-1, 1e4))
     field_times = (times[3], times[17] + 1e-7)
-    recs = [ReducedRecorder(red, contact, field_times) for _ in range(2)]
+    recs = [ReducedRecorder(red, contact, plan.probes, field_times) for _ in range(2)]
     recs[0].record_free(modal, times, eta, etad, etadd)
     rec = recs[1]
     rec.set_projection(modal)
@@ -481,7 +482,7 @@ def test_free_phase_rows_under_mpi():
     ranks' modal columns."""
     if MPI.COMM_WORLD.size > 1:
         pytest.skip("launches its own mpirun")
-    code = ("import sys; sys.path.insert(0, 'tests')\n"
+    code = ("import sys; sys.path[:0] = ['tests', 'tests/reduction']\n"
             "from test_reduction import free_rows_mismatch\n"
             "r = free_rows_mismatch()\n"
             "from mpi4py import MPI\n"
@@ -502,13 +503,13 @@ def test_mode_acceleration_recovers_free_mode_gauge_stresses(setup, p1):
     import scipy.linalg as sla
 
     from millimpact.fem.contact import create_contact
-    from millimpact.methods.full import Recorder
+    from millimpact.results.recorder import Recorder
     from millimpact.methods.reduced import reduced_plan
     from millimpact.reduction.craig_bampton import compute_free_modes, local_rows_to_aij, reduce_model
 
     scene, plan, _ = setup
     _, _, radius, _ = reduced_plan(scene, plan)
-    rec = Recorder(p1, create_contact(p1, radius=radius), ())
+    rec = Recorder(p1, create_contact(p1, plan, radius=radius), plan.probes, ())
     K, M = csr(p1.K), csr(p1.M)
     sel = np.zeros(K.shape[0], dtype=bool)
     sel[p1.block_dofs] = True
