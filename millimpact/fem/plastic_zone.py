@@ -33,7 +33,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .plasticity import J2Material, return_map
+from .plasticity import J2Material, flow_curve_from_fields, return_map
 
 _S2 = float(np.sqrt(2.0))
 
@@ -149,6 +149,18 @@ class PlasticZone:
         fem_petsc.set_bc(b, self.bcs, scale=0.0)
         return b
 
+    def frozen_force(self):
+        """f_c of the committed plastic strain alone, -int_zone B^T C eps_p dV (N): the load that
+        the residual (unloaded, elastic) state balances; a PETSc Vec of V."""
+        sc = self.stress_correction.x.array.reshape(-1, 6)
+        sc[:] = 0.0
+        for k in range(len(self.zones)):
+            if len(self.cells[k]):
+                sc[self.quadrature_slots(k)] = -self.plastic_strain[k] @ self._elastic[k]
+        self.stress_correction.x.scatter_forward()
+        self._trial = None
+        return self.force_correction()
+
     def stiffness_correction(self):
         """dK = int_zone B^T (C_t - C) B dV (N/m, a PETSc Mat of V's pattern; zero Dirichlet rows and
         columns, so K + dK keeps K's unit diagonal there)."""
@@ -182,13 +194,54 @@ class PlasticZone:
             dens.append(-np.einsum("pi,pi->p", eps, Cep) + 0.5 * np.einsum("pi,pi->p", ep, Cep))
         return self.integrate(dens)
 
+    def step_plastic_work(self) -> float:
+        """The plastic work of the evaluated (trial) state over the step, int_zone sigma : d eps_p dV
+        (J, global; the model's, not scaled by symmetry)."""
+        if self._trial is None:
+            return 0.0
+        return self.integrate([r.dissipation_increment if r is not None else np.zeros(0) for r in self._trial])
+
     # --- outputs ------------------------------------------------------------------------------
     def trial(self):
         """The last evaluated return-mapping results per zone (None for an empty zone)."""
         return self._trial
+
+    def plastic_strain_near(self, points: np.ndarray) -> np.ndarray:
+        """The committed plastic strain (Mandel, (n_points, 6)) at the zone's quadrature point
+        nearest each point (global over ranks; zeros where the zone is farther than a cell)."""
+        if not hasattr(self, "_qp_xyz"):
+            X = fem.Expression(ufl.SpatialCoordinate(self.V.mesh), basix.make_quadrature(
+                basix.CellType.tetrahedron, self.q_degree)[0])
+            self._qp_xyz = [X.eval(c).reshape(-1, 3) if len(c) else np.zeros((0, 3)) for c in self.cells]
+        out = np.zeros((len(points), 6))
+        for i, x in enumerate(np.asarray(points, dtype=float)):
+            best = (np.inf, -1, -1)
+            for k, xyz in enumerate(self._qp_xyz):
+                if len(xyz):
+                    d = np.linalg.norm(xyz - x, axis=1)
+                    j = int(np.argmin(d))
+                    best = min(best, (float(d[j]), k, j))
+            dist = self.comm.allgather(best[0])
+            owner = int(np.argmin(dist))
+            value = self.plastic_strain[best[1]][best[2]] if self.comm.rank == owner and best[1] >= 0 else None
+            value = self.comm.bcast(value, root=owner)
+            out[i] = value if value is not None else 0.0
+        return out
 
     def max_equivalent_plastic_strain(self) -> float:
         """Largest committed alpha over all zones and ranks."""
         local = max((float(a.max()) for a in self.alpha if a.size), default=0.0)
         return self.comm.allreduce(local, op=MPI.MAX)
 
+
+def create_plastic_zone(model, zone_materials) -> "PlasticZone | None":
+    """The plastic zone of a model: ``zone_materials`` pairs (cell tag of a body's contact zone,
+    its scene material); bodies whose material is elastic are left out; None if none yields."""
+    zones = []
+    for tag, mat in zone_materials:
+        flow = flow_curve_from_fields(mat.yield_stress, mat.hardening_modulus, mat.flow_curve)
+        if flow is not None:
+            zones.append(ZoneMaterial(tag, J2Material(mat.youngs_modulus, mat.poisson, flow)))
+    if not zones:
+        return None
+    return PlasticZone(model.V, model.meshdata.cell_tags, zones, model.bcs)

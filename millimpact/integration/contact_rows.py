@@ -60,6 +60,15 @@ class ContactRows:
         self.T.mult(du, self._t)
         return solvers.gather(self._t)
 
+    def add_multiplier_force(self, x: np.ndarray, f: PETSc.Vec, scale: float = 1.0) -> None:
+        """f += scale * C^T x for x = [lambda; tau] (friction, 3 n_c values), or B^T lambda."""
+        if x.size == self.n_c:
+            self.add_force(x, f, scale)
+            return
+        solvers.scatter_into(self._cc, x)
+        self.C.multTranspose(self._cc, self._f)
+        f.axpy(scale, self._f)
+
     def add_force(self, lam: np.ndarray, f: PETSc.Vec, scale: float = 1.0) -> None:
         """f += scale * B^T lam."""
         solvers.scatter_into(self._c, lam)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Optional
+from typing import Optional, Protocol
 
 import numpy as np
 from petsc4py import PETSc
@@ -40,6 +40,27 @@ class LinearDynamics:
     #: (relative tangential displacement, m), ``friction`` the coefficient mu; None / 0: frictionless
     T: Optional[PETSc.Mat] = None
     friction: float = 0.0
+    #: a nonlinear (plastic) internal force of the contact zone, ``f_int = K u + f_c(u)``
+    #: (:class:`NonlinearZone`, e.g. :class:`millimpact.fem.plastic_zone.PlasticZone`); None: linear
+    plastic: Optional["NonlinearZone"] = None
+
+
+class NonlinearZone(Protocol):
+    """What an integrator needs of a nonlinear internal force ``f_int(u) = K u + f_c(u)``:
+    ``evaluate(u)`` computes the trial state at u from the committed one and returns how many
+    points are nonlinear (yielding) on this rank; then ``force_correction()`` gives f_c (N, a Vec
+    like u) and ``stiffness_correction()`` dK = d f_c / du (a Mat); ``step_plastic_work()`` the
+    plastic work of the trial state over the step (J, global); ``commit()`` accepts the trial state."""
+
+    def evaluate(self, u: PETSc.Vec) -> int: ...
+
+    def force_correction(self) -> PETSc.Vec: ...
+
+    def stiffness_correction(self) -> PETSc.Mat: ...
+
+    def step_plastic_work(self) -> float: ...
+
+    def commit(self) -> None: ...
 
 
 @dataclass
@@ -69,6 +90,7 @@ class StepState:
     penalty_energy: float = 0.0
     tau: Optional[np.ndarray] = None     #: friction: tangential multipliers (N, 2 n_c: [t1; t2])
     friction_work: float = 0.0           #: friction: energy dissipated by slip so far (J, >= 0)
+    plastic_work: float = 0.0            #: plasticity: plastic work so far (J, >= 0)
 
 
 @dataclass
@@ -98,6 +120,11 @@ class IntegrationStats:
     n_friction_fallback: int = 0     #: friction: Tresca problems finished by projected gradient
     friction_work_J: float = 0.0     #: friction: energy dissipated by slip (>= 0), J
     max_sliding_nodes: int = 0
+    plastic_work_J: float = 0.0      #: plasticity: plastic work (dissipated and stored by hardening), J
+    n_plastic_steps: int = 0         #: steps with yielding points
+    n_plastic_iterations: int = 0    #: Newton iterations of the plastic steps, summed
+    max_plastic_iterations: int = 0
+    n_tangent_factorizations: int = 0
     dt_contact: float = 0.0
     dt_free: float = 0.0
     dt_critical: float = float("nan")   #: central differences: critical step, s

@@ -58,6 +58,7 @@ from .dynamics import (IntegrationStats, LinearDynamics, StepState, TimeSchedule
                        strain_energy)
 from .mass import lumped_mass, lumped_mass_matrix, redistribute_mass
 from .newmark import NewmarkScheme
+from .plastic_newmark import PlasticNewmarkScheme
 
 log = logging.getLogger(__name__)
 
@@ -89,7 +90,11 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
     wall0 = time.perf_counter()
     stats = IntegrationStats(method=method, t_end=schedule.t_end)
     if method == "central-penalty":
+        if system.plastic is not None:
+            raise InputError("--integrator central-penalty has no plasticity: use newmark-mr (or elastic materials)")
         integ = CentralPenaltyScheme(system, options, stats, comm)
+    elif system.plastic is not None:
+        integ = PlasticNewmarkScheme(system, method == "newmark-mr", options, stats, comm)
     else:
         integ = NewmarkScheme(system, method == "newmark-mr", options, stats, comm)
     integ.initialize(u0, v0)
@@ -106,7 +111,8 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
             observer(StepState(t=t, dt=dt, u=integ.u, v=integ.v, a=integ.a, lam=integ.lam, gap=integ.gap,
                                n_active=int(np.count_nonzero(integ.lam > 0)), n_newton=integ.n_newton,
                                step=step, mass=integ.mass, penalty_energy=integ.penalty_energy,
-                               tau=getattr(integ, "tau", None), friction_work=stats.friction_work_J))
+                               tau=getattr(integ, "tau", None), friction_work=stats.friction_work_J,
+                               plastic_work=stats.plastic_work_J))
 
     notify(0.0, 0.0, 0)
     bar = None

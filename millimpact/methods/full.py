@@ -17,10 +17,13 @@ from mpi4py import MPI
 from ..errors import InputError
 from ..fem.contact import create_contact
 from ..fem.model import create_fe_model
+from ..fem.plastic_zone import create_plastic_zone
+from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
 from ..geometry.mesh import create_mesh
 from ..integration import integrators
 from ..results.fields import write_fields
 from ..results.output import RunOutput
+from ..results.dent import plastic_notes, residual_dent
 from ..results.recorder import Recorder, impact_results
 from ..scene.plan import Plan
 from ..scene.schema import Scene
@@ -51,13 +54,14 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
     model = create_fe_model(md, plan, degree)
     contact = create_contact(model, plan, radius=radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
+    plastic = create_plastic_zone(model, [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)])
     system = integrators.LinearDynamics(M=model.M, K=model.K, B=contact.B, g0=contact.g0,
                                         fixed_dofs=model.fixed_dofs, contact_dofs=contact.contact_dofs,
-                                        T=contact.T, friction=plan.friction)
+                                        T=contact.T, friction=plan.friction, plastic=plastic)
     u0 = model.M.createVecRight()
     u0.set(0.0)
     v0 = model.ball_velocity(plan.velocity)
-    rec = Recorder(model, contact, plan.probes, scene.outputs.field_times if scene.outputs.xdmf else ())
+    rec = Recorder(model, contact, plan.probes, scene.outputs.field_times if scene.outputs.xdmf else (), plastic)
     schedule = integrators.TimeSchedule(t_end, plan.dt_contact, plan.dt_free)
     stats = integrators.integrate(system, u0, v0, schedule, method=integrator, observer=rec,
                                   options=options, progress=progress)
@@ -76,6 +80,9 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
         "mpi_ranks": comm.size,
     }
     notes = [f"full FE, P{degree}, {model.n_dofs_global} dofs, {plan.symmetry} model, integrator {integrator}"]
+    if plastic is not None:
+        notes.append(plastic_notes(plastic, stats, model.sym_factor))
+        results.update(residual_dent(model, plastic, plan))
     fields = rec.fields
     writers = []
     if fields:

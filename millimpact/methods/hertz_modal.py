@@ -50,6 +50,7 @@ from ..reduction.craig_bampton import compute_modes, default_solver_options
 from ..results.timeseries import TimeSeries
 from ..results.output import RunOutput
 from .options import float_option
+from .reduced import refuse_plastic
 from ..scene.schema import Scene
 
 log = logging.getLogger(__name__)
@@ -241,6 +242,7 @@ def run_hertz_modal(scene: Scene, plan: Plan, options: dict[str, Any], progress:
     """The ``hertz-modal`` run of a scene (see the module docstring)."""
     comm = MPI.COMM_WORLD
     options = dict(options)
+    refuse_plastic("hertz-modal", plan)
     t_wall = time.perf_counter()
     options.pop("degree", None)
     options.pop("integrator", None)

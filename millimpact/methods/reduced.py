@@ -192,10 +192,20 @@ def initial_state(red: ReducedModel, velocity) -> tuple[PETSc.Vec, PETSc.Vec]:
     return red.create_vector(), qd0
 
 
+def refuse_plastic(method: str, plan: Plan) -> None:
+    """The reduced methods are elastic for now: a plastic material is one line naming the way out."""
+    plastic = [name for name, mat in (("ball.material", plan.ball.material), ("the struck body's material", plan.target))
+               if mat.plastic]
+    if plastic:
+        raise InputError(f"--method {method}: {' and '.join(plastic)} yield (yield_stress / flow_curve); plasticity "
+                         "runs with --method full for now (the reduced methods are elastic)")
+
+
 def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str) -> RunOutput:
     """One reduced run of a scene (``method`` in :data:`REDUCED_METHODS`)."""
     comm = MPI.COMM_WORLD
     options = dict(options)
+    refuse_plastic(method, plan)
     opt = read_reduced_options(method, scene, plan, options)
 
     scene, plan, cand_radius, plan_notes = reduced_plan(scene, plan)

@@ -16,7 +16,7 @@ from ..results import plots
 from ..results.output import RunOutput
 from ..results.reference import write_reference
 from ..results.timeseries import contact_metrics, staged_output, write_hdf5, write_summary
-from ..scene.plan import Plan, make_plan
+from ..scene.plan import Plan, elastic_limit_note, make_plan
 from ..scene.schema import Scene, dump_scene, scene_to_dict
 from ..theory.hertz import HertzImpact, hertz_history
 from .registry import method_runner
@@ -37,7 +37,11 @@ def compute(scene: Scene, method: str, options: Optional[dict] = None, progress:
     output and the plan it used."""
     runner = method_runner(method)
     plan = make_plan(scene)
-    return runner(scene, plan, options or {}, progress), plan
+    out = runner(scene, plan, options or {}, progress)
+    note = elastic_limit_note(plan)
+    if note:
+        out.notes.append(note)
+    return out, plan
 
 
 def build_summary(scene: Scene, plan: Plan, out: RunOutput, wall: float) -> dict[str, Any]:

@@ -683,10 +683,9 @@ def interface_motion_pattern(model: FEModel, part: DofPartition, body: str, kind
     the contact normal (it decelerates as a whole). The block: ``kind = "boussinesq"``, the
     half-space's static displacement under a normal point load at the impact point (Boussinesq;
     Johnson, Contact Mechanics (1985), section 3.2), or ``"translation"``, a translation along the normal."""
-    scene = model.scene
     V = model.V
     bs = V.dofmap.index_map_bs
-    inward = -np.asarray(scene.contact_normal, dtype=float)     # into the block
+    inward = -np.asarray(model.contact_normal, dtype=float)     # into the block
     u = model.K.createVecRight()
     u.set(0.0)
     zone = part.zone[part.zone_body == (0 if body == "ball" else 1)]
@@ -696,8 +695,8 @@ def interface_motion_pattern(model: FEModel, part: DofPartition, body: str, kind
     if body == "ball" or kind == "translation":
         u.array[zone] = inward[comp]
         return u
-    X = V.tabulate_dof_coordinates()[node, :3] - np.asarray(scene.impact_point, dtype=float)
-    nu = scene.block.material.poisson
+    X = V.tabulate_dof_coordinates()[node, :3] - np.asarray(model.impact_point, dtype=float)
+    nu = model.target_material.poisson
     z = np.maximum(X @ inward, 0.0)                   # depth below the struck face
     lateral = X - np.outer(X @ inward, inward)
     rho = np.linalg.norm(lateral, axis=1)

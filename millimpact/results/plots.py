@@ -167,10 +167,16 @@ def plot_energy(ts: TimeSeries, path: Path, title: str = "") -> bool:
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     t = ts.time
     scale, unit = time_unit(float(t[-1] - t[0]))
-    for col, label in (("kinetic_energy_J", "kinetic"), ("strain_energy_J", "strain"),
-                       ("total_energy_J", "total"), ("ball_kinetic_energy_J", "ball kinetic")):
+    for col, label in (("kinetic_energy_J", "kinetic"), ("strain_energy_J", "elastic strain"),
+                       ("total_energy_J", "kinetic + elastic"), ("ball_kinetic_energy_J", "ball kinetic"),
+                       ("friction_dissipation_J", "dissipated by friction"),
+                       ("plastic_dissipation_J", "plastic work (dissipated)")):
         if col in ts:
             ax.plot(t * scale, ts[col], label=label, lw=2 if col == "total_energy_J" else 1.2)
+    lost = [c for c in ("friction_dissipation_J", "plastic_dissipation_J") if c in ts]
+    if lost:
+        ax.plot(t * scale, ts["total_energy_J"] + sum(ts[c] for c in lost), "k--", lw=1.5,
+                label="kinetic + elastic + dissipated (conserved)")
     ax.set_xlabel(f"time [{unit}]")
     es, eu = value_unit("total_energy_J", ts["total_energy_J"])
     for line in ax.get_lines():

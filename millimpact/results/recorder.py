@@ -20,6 +20,7 @@ import numpy as np
 
 from ..fem.contact import ContactSet
 from ..fem.model import FEModel
+from ..fem.plasticity import from_mandel
 from ..fem.probes import create_probe, stress_from_gradient, von_mises
 from ..integration.integrators import strain_energy
 from ..scene.plan import ProbeSpec
@@ -34,8 +35,12 @@ class Recorder:
     direction and the initial gap; ``field_times`` (s) the states kept for XDMF.
     """
 
-    def __init__(self, model: FEModel, contact: ContactSet, probes: ProbeSpec, field_times: tuple[float, ...]):
+    def __init__(self, model: FEModel, contact: ContactSet, probes: ProbeSpec, field_times: tuple[float, ...],
+                 plastic=None):
         self.model, self.contact = model, contact
+        #: the plastic zone (:class:`millimpact.fem.plastic_zone.PlasticZone`), None if elastic:
+        #: strain energy with the plastic strain, plastic work and the largest plastic strain
+        self.plastic = plastic
         self.liner = probes.liner
         self.gauge_names = probes.gauge_names
         V = model.V
@@ -70,6 +75,7 @@ class Recorder:
         self.gap0 = probes.gap
         # probes: contact point (surface value and just-inside gradient) and gauges
         pts = [probes.contact_point] + [g.point for g in probes.gauges]
+        self.probe_point = np.array(probes.contact_point)
         self.gauge_dirs = [np.array(g.direction) for g in probes.gauges]
         self.probe = create_probe(V, np.array(pts), model.block_cells)
         if not np.all(self.probe.found):
@@ -91,7 +97,8 @@ class Recorder:
         return (self.names_base + [f"gauge_{name}_stress_Pa" for name in self.gauge_names]
                 + ["ball_kinetic_energy_J", "kinetic_energy_J", "strain_energy_J", "total_energy_J"]
                 + (["tangential_force_N", "ball_tangential_velocity_m_s", "friction_dissipation_J"]
-                   if self.friction else []))
+                   if self.friction else [])
+                + (["plastic_dissipation_J", "max_equivalent_plastic_strain"] if self.plastic is not None else []))
 
     def _local(self, vec) -> np.ndarray:
         self.u_fn.vector.array[:] = vec.array_r
@@ -111,6 +118,8 @@ class Recorder:
         velocity, acceleration and normal stress (along the impact direction, into the block or
         liner positive), its von Mises stress and each gauge's stress E d.eps.d, each (n_t,)."""
         s = stress_from_gradient(grads[:, 0], self.mu, self.lmbda)
+        if self.plastic is not None:   # sigma = C (eps - eps_p): the contact point lies in the plastic zone
+            s = s - self._plastic_stress_offset()
         eps = 0.5 * (grads[:, 1:] + np.swapaxes(grads[:, 1:], -1, -2))
         gauges = [self.E * np.einsum("i,tij,j->t", d, eps[:, k], d) for k, d in enumerate(self.gauge_dirs)]
         if not self.liner:
@@ -119,6 +128,11 @@ class Recorder:
             n = self.n
             normal = [-(vals_u[:, 0] @ n), -(vals_v[:, 0] @ n), -(vals_a[:, 0] @ n), np.einsum("i,tij,j->t", n, s, n)]
         return normal + [von_mises(s)] + gauges
+
+    def _plastic_stress_offset(self) -> np.ndarray:
+        """C eps_p (3 x 3, Pa) at the contact-point probe, from the nearest quadrature point."""
+        ep = from_mandel(self.plastic.plastic_strain_near(np.array([self.probe_point]))[:, :])[0]
+        return 2.0 * self.mu * ep + self.lmbda * np.trace(ep) * np.eye(3)
 
     def __call__(self, st) -> None:
         m = self.model
@@ -149,6 +163,8 @@ class Recorder:
         mass.mult(self.tmp2, self.tmp)
         ke_ball = 0.5 * self.tmp.dot(self.tmp2)
         se = strain_energy(m.K, st.u, m.fixed_dofs)
+        if self.plastic is not None:   # 1/2 (eps - eps_p) : C : (eps - eps_p), not 1/2 u.K u
+            se += self.plastic.strain_energy_correction(st.u)
         row = [st.t, force, approach, a, vball, *probe_cols, self.sym * ke_ball, self.sym * ke, self.sym * se,
                self.sym * (ke + se)]
         if self.friction:
@@ -164,6 +180,8 @@ class Recorder:
                 self._fw_base += self._fw_last
             self._fw_last = fw
             row += [ft, self.c_t.dot(st.v), self.sym * (self._fw_base + fw)]
+        if self.plastic is not None:
+            row += [self.sym * float(getattr(st, "plastic_work", 0.0)), self.plastic.max_equivalent_plastic_strain()]
         self.rows.append([float(x) for x in row])
         while self._next_field < len(self.field_times) and st.t >= self.field_times[self._next_field] - 1e-15:
             self.fields.append((st.t, st.u.array_r.copy()))
@@ -176,8 +194,9 @@ class Recorder:
 def impact_results(ts: TimeSeries, normal_speed: float, gauge_names: Sequence[str], stats,
                    integrator: str) -> dict[str, Any]:
     """Scalar results of an FE run (full or reduced): restitution from the ball's centre-of-mass
-    velocity just after the first contact (over the arrival ``normal_speed``, m/s), energy balance,
-    peak stresses (of the gauges ``gauge_names``), integrator statistics."""
+    velocity just after the first contact (over the arrival ``normal_speed``, m/s), energy balance
+    (kinetic + elastic strain + friction and plastic dissipation), peak stresses (of the gauges
+    ``gauge_names``), plastic work and strain, integrator statistics."""
     f = ts["contact_force_N"]
     after = np.nonzero(f > 0)[0]
     if len(after):
@@ -187,10 +206,18 @@ def impact_results(ts: TimeSeries, normal_speed: float, gauge_names: Sequence[st
     else:
         i_out = len(f) - 1
         restitution = float("nan")
-    e = ts["total_energy_J"]
+    # energy balance: kinetic + elastic + what friction and plasticity dissipated stays constant
+    dissipated = sum(ts[c] for c in ("friction_dissipation_J", "plastic_dissipation_J") if c in ts)
+    e = ts["total_energy_J"] + dissipated
     e_in = e[0]
     i_peak = int(np.argmax(f))
+    plastic = {}
+    if "plastic_dissipation_J" in ts:
+        plastic = {"plastic_dissipation_J": float(ts["plastic_dissipation_J"][-1]),
+                   "plastic_dissipation_share": float(ts["plastic_dissipation_J"][-1] / e_in),
+                   "max_equivalent_plastic_strain": float(ts["max_equivalent_plastic_strain"][-1])}
     return {
+        **plastic,
         "restitution": restitution,
         "energy_initial_J": float(e_in),
         "energy_final_J": float(e[-1]),

@@ -267,3 +267,26 @@ def make_plan(scene: Scene) -> Plan:
                 contact_normal=scene.contact_normal, velocity=tuple(scene.impact.velocity),
                 friction=scene.contact.friction, probes=make_probe_spec(scene, planes, h_c, gap),
                 reasons=tuple(reasons.items()))
+
+
+#: first yield under a Hertz contact (von Mises, nu = 0.3): p0 = 1.60 Y on the axis at 0.48 a
+#: (Johnson, Contact Mechanics, 1985, section 6.2)
+FIRST_YIELD_PRESSURE_FACTOR = 1.60
+#: the yield stress of a typical liner steel (Cr-Mo, ~350 HB; scene/materials.toml "cr-mo-liner"),
+#: used to warn when an elastic scene's pressure would yield a real liner
+TYPICAL_LINER_YIELD = 0.95e9
+
+
+def elastic_limit_note(plan: Plan) -> Optional[str]:
+    """A note when an all-elastic scene's Hertz pressure exceeds first yield (p0 > 1.6 Y) of its
+    materials' yield stresses (none given: of a typical liner steel), else None."""
+    if plan.ball.material.plastic or plan.target.plastic:
+        return None
+    p0 = plan.hertz.p0
+    limit = FIRST_YIELD_PRESSURE_FACTOR * TYPICAL_LINER_YIELD
+    if p0 <= limit:
+        return None
+    return (f"elastic model beyond the elastic limit: Hertz p0 = {p0 / 1e9:.3g} GPa exceeds the first-yield pressure "
+            f"1.6 Y = {limit / 1e9:.3g} GPa of a typical liner steel (Y {TYPICAL_LINER_YIELD / 1e9:g} GPa); real steels "
+            f"yield here: set [block.material] / [liner.material] name = \"cr-mo-liner\" (or yield_stress) and "
+            f"use --method full for the elastic-plastic answer")

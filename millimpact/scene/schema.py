@@ -28,19 +28,67 @@ Vec3 = tuple[float, float, float]
 Vec2 = tuple[float, float]
 
 
+#: named materials (``material = "NAME"``): scene/materials.toml, every value with its source
+NAMED_MATERIALS: dict[str, dict] = tomllib.loads((Path(__file__).with_name("materials.toml")).read_text())
+
+
+def named_material(name: Any, where: str) -> dict:
+    """The fields of a named material; an unknown name is a :class:`SceneError` listing the names."""
+    if not isinstance(name, str) or name not in NAMED_MATERIALS:
+        raise SceneError(where, name, f"unknown material; named materials: {', '.join(NAMED_MATERIALS)}")
+    return dict(NAMED_MATERIALS[name])
+
+
 @dataclass(frozen=True)
 class Material:
-    """Linear elastic isotropic material (density kg/m^3, shear modulus Pa, Poisson ratio)."""
+    """Isotropic steel: density (kg/m^3), shear modulus (Pa), Poisson's ratio; optionally J2
+    plasticity with isotropic hardening: ``yield_stress`` (Pa; None = elastic), linear
+    ``hardening_modulus`` (Pa, 0 = perfectly plastic) or a tabulated ``flow_curve`` of
+    [equivalent plastic strain, flow stress (Pa)] pairs (from strain 0, increasing). A scene names
+    one of :data:`NAMED_MATERIALS` with ``material = "NAME"`` (or ``name = "NAME"`` in the table,
+    other keys overriding); ``source`` says where the values come from."""
 
     density: float = 7800.0
     shear_modulus: float = 70.0e9
     poisson: float = 0.3
+    yield_stress: Optional[float] = None
+    hardening_modulus: float = 0.0
+    flow_curve: Optional[tuple[tuple[float, float], ...]] = None
+    source: str = ""
 
     def validate(self, where: str) -> None:
         _positive(f"{where}.density", self.density, "kg/m^3")
         _positive(f"{where}.shear_modulus", self.shear_modulus, "Pa")
         if not (-1.0 < self.poisson < 0.5):
             raise SceneError(f"{where}.poisson", self.poisson, "must lie in (-1, 0.5)")
+        if self.yield_stress is not None:
+            _positive(f"{where}.yield_stress", self.yield_stress, "Pa (leave it out for an elastic material)")
+        _finite(f"{where}.hardening_modulus", self.hardening_modulus, "Pa")
+        if self.hardening_modulus < 0:
+            raise SceneError(f"{where}.hardening_modulus", self.hardening_modulus, "must be >= 0 Pa (0: perfectly plastic)")
+        if self.flow_curve is not None:
+            pts = self.flow_curve
+            if len(pts) < 2:
+                raise SceneError(f"{where}.flow_curve", [list(p) for p in pts], "must have at least two [strain, stress] pairs")
+            if pts[0][0] != 0.0 or any(b[0] <= a[0] for a, b in zip(pts, pts[1:])):
+                raise SceneError(f"{where}.flow_curve", [list(p) for p in pts],
+                                 "plastic strains must start at 0 and increase strictly")
+            if pts[0][1] <= 0 or any(b[1] < a[1] for a, b in zip(pts, pts[1:])):
+                raise SceneError(f"{where}.flow_curve", [list(p) for p in pts],
+                                 "flow stresses must be > 0 Pa and must not decrease")
+            if self.yield_stress is not None and self.yield_stress != pts[0][1]:
+                raise SceneError(f"{where}.yield_stress", self.yield_stress,
+                                 f"must equal the flow curve's first stress {pts[0][1]:g} Pa (or be left out)")
+
+    @property
+    def plastic(self) -> bool:
+        """True when the material yields (a yield stress or a flow curve is given)."""
+        return self.yield_stress is not None or self.flow_curve is not None
+
+    @property
+    def initial_yield_stress(self) -> Optional[float]:
+        """The stress at which yielding starts (Pa), None for an elastic material."""
+        return self.flow_curve[0][1] if self.flow_curve is not None else self.yield_stress
 
     @property
     def youngs_modulus(self) -> float:
@@ -421,6 +469,11 @@ def _coerce(tp: Any, value: Any, where: str) -> Any:
             return None
         inner = [a for a in args if a is not type(None)]
         return _coerce(inner[0], value, where)
+    if tp is Material and isinstance(value, str):            # material = "NAME"
+        return _from_dict(tp, named_material(value, where), where)
+    if tp is Material and isinstance(value, dict) and "name" in value:   # name = "NAME" + overrides
+        base = named_material(value["name"], f"{where}.name")
+        return _from_dict(tp, {**base, **{k: v for k, v in value.items() if k != "name"}}, where)
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
             raise SceneError(where, value, f"must be a table of {tp.__name__} fields")
@@ -538,6 +591,19 @@ def _paper_rig() -> Scene:
     )
 
 
+def _paper_rig_plastic() -> Scene:
+    """The rig with real steels: both bodies yield at 3 m/s (Hertz p0 4.9 GPa > 1.6 Y)."""
+    rig = _paper_rig()
+    ball = Ball(radius=0.015, material=_coerce(Material, "forged-ball-60hrc", "ball.material"))
+    block = dataclasses.replace(rig.block, material=_coerce(Material, "cr-mo-liner", "block.material"))
+    return dataclasses.replace(
+        rig, name="paper-rig-plastic", ball=ball, block=block,
+        description="The paper's rig with real steels (elastic-plastic, J2): a forged 60 HRC ball (Y 1.9 GPa) on a "
+                    "Cr-Mo liner-steel block (Y 0.95 GPa), 3 m/s; Hertz p0 4.9 GPa is 3x the block's first-yield "
+                    "pressure 1.6 Y. Material values and sources: scene/materials.toml. Run with --method full "
+                    "(the reduced methods are elastic for now).")
+
+
 def _hertz_halfspace() -> Scene:
     block = Block(length=0.100, thickness=0.100, height=0.100, support="back")
     return Scene(
@@ -603,6 +669,7 @@ def _liner_segment() -> Scene:
 
 BUILTIN_SCENES = {
     "paper-rig": _paper_rig,
+    "paper-rig-plastic": _paper_rig_plastic,
     "hertz-halfspace": _hertz_halfspace,
     "study-base": _study_base,
     "liner-segment": _liner_segment,

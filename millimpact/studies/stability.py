@@ -231,8 +231,8 @@ class _SphereSetup:
         self.scene = sphere_scene(scene, v)
         self.plan = make_plan(self.scene)
         md = create_mesh(self.scene, self.plan, MPI.COMM_WORLD)
-        self.model = create_fe_model(self.scene, self.plan, md, 1)
-        self.contact = create_contact(self.model)
+        self.model = create_fe_model(md, self.plan, 1)
+        self.contact = create_contact(self.model, self.plan)
         self.t_end = self.plan.gap / self.plan.hertz.speed + 1.5 * self.plan.hertz.contact_time
 
     def run(self, integrator: str, dt: float, options: dict) -> dict[str, Any]:

@@ -1,0 +1,170 @@
+"""Newmark with mass redistribution and a plastic contact zone: Newton with the contact inside.
+
+The equation of a step (average acceleration, u = u_{n+1}; :mod:`millimpact.integration.newmark`):
+
+    A u + f_c(u) = r + C^T x,     A = K + M / (beta dt^2),   r = M (c0 u_n + c1 v_n + c2 a_n),
+
+with f_c the zone's plastic force correction (``f_int = K u + f_c``; :mod:`millimpact.fem.plastic_zone`)
+and x the contact multipliers (normal, and tangential with friction). Newton iteration k linearises
+f_c at u_k with the consistent tangent dK_k and solves the contact problem of the linear step
+exactly, as the elastic scheme does:
+
+    (A + dK_k) u_{k+1} = r - f_c(u_k) + dK_k u_k + C^T x,    x from the LCP (or friction) on
+    S_k = C (A + dK_k)^-1 C^T,   u_{k+1} = u_pred,k + W_k x,
+
+so the contact active set is re-decided in every iteration (a semi-smooth Newton on plasticity and
+contact together). Converged when the residual |A u + f_c(u) - r - C^T x| is below ``plastic_rtol``
+(default 1e-8) of |r|. While no point yields the tangent is the elastic one and f_c is constant
+(the frozen plastic strain's), so such a step is the elastic step with one more right-hand side
+and converges in one iteration without refactorizing; a yielding step factorizes A + dK_k once
+per iteration and recomputes W_k (a solve per contact row). Each converged step books the plastic
+work of its return map (``stats.plastic_work_J``) and commits the zone's state; after separation
+the plastic strain stays frozen and the free vibration is linear about the residual state.
+
+A step whose Newton does not converge in ``plastic_max_iterations`` (default 25) raises
+:class:`SolverError` naming the step, the time and the residual.
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import solvers
+from ..errors import InputError, SolverError
+from .dynamics import IntegrationStats, LinearDynamics
+from .newmark import NewmarkScheme
+
+
+class PlasticNewmarkScheme(NewmarkScheme):
+    """Newmark (average acceleration, optional mass redistribution) with a :class:`NonlinearZone`."""
+
+    def __init__(self, system: LinearDynamics, redistribute: bool, options: Mapping, stats: IntegrationStats,
+                 comm: MPI.Comm):
+        # the state update is u_pred + W x (each iteration's tangent has its own W): "schur"
+        super().__init__(system, redistribute, {**dict(options), "contact_solve": "schur"}, stats, comm)
+        self.contact_solve = stats.contact_solve = "schur"
+        self.zone = system.plastic
+        self.rtol = float(solvers.get_option("plastic_rtol", options, 1e-8))
+        self.max_iterations = int(solvers.get_option("plastic_max_iterations", options, 25))
+        if not (self.rtol > 0 and self.max_iterations >= 1):
+            raise InputError(f"-impact_plastic_rtol {self.rtol} / -impact_plastic_max_iterations "
+                             f"{self.max_iterations}: must be > 0 and >= 1")
+        self._res, self._rhs = self.u.duplicate(), self.u.duplicate()
+
+    # --- one step -------------------------------------------------------------------------------
+    def step(self, dt: float, t_new: float, step: int, allow_reject: bool) -> bool:
+        op = self._ops(dt)
+        self._predictor_rhs(dt)
+        r_norm = max(self.r.norm(), 1e-300)
+        u_k = self.u.copy()
+        x = np.zeros(self.contact.n_c * (3 if self.frictional else 1))
+        work0 = self.stats.friction_work_J
+        work_step = 0.0
+        yielding_seen = False
+        for it in range(self.max_iterations + 1):
+            n_yield = self.comm.allreduce(self.zone.evaluate(u_k), op=MPI.SUM)
+            yielding_seen |= n_yield > 0
+            f_c = self.zone.force_correction()
+            residual = self._residual(op, u_k, f_c, x)
+            if it > 0 and residual <= self.rtol * r_norm:
+                break
+            if it == self.max_iterations:
+                raise SolverError(f"plastic Newton did not converge: residual {residual:.3e} N (of |r| {r_norm:.3e} N) "
+                                  f"after {it} iterations at step {step}, t = {t_new:.9g} s "
+                                  "(-impact_plastic_max_iterations, a smaller time.dt_contact)")
+            ksp, W, tangent = self._linearisation(op, u_k, f_c, n_yield)
+            solvers.solve_checked(ksp, self._rhs, self.u_pred, "plastic effective-matrix solve", step, t_new)
+            self.stats.n_solves += 1
+            q = self.contact.gap(self.u_pred)
+            gap_tol = self.gap_rtol * max(float(np.max(np.abs(q), initial=0.0)),
+                                          float(np.max(np.abs(self.contact.g0), initial=0.0)), 1e-300)
+            if it == 0 and allow_reject and not np.all(q >= -gap_tol):
+                self._release(tangent)
+                return False
+            x = self._contact(W, q, gap_tol, step)
+            work_step = self.stats.friction_work_J - work0      # only the last iteration's slip counts
+            self.stats.friction_work_J = work0
+            self.u_new.copy(u_k)
+            self._release(tangent)
+            f_c.destroy()
+        self.stats.friction_work_J = work0 + work_step
+        if yielding_seen:
+            self.stats.n_plastic_steps += 1
+            self.stats.n_plastic_iterations += it
+            self.stats.max_plastic_iterations = max(self.stats.max_plastic_iterations, it)
+        self.stats.plastic_work_J += self.zone.step_plastic_work()
+        self.zone.commit()
+        u_k.copy(self.u_new)
+        u_k.destroy()
+        scale = max(float(np.max(np.abs(self.contact.g0), initial=0.0)), 1e-300)
+        lam = x[: self.contact.n_c]
+        self._accept(lam, dt, step, t_new, self.gap_rtol * scale, scale)
+        return True
+
+    # --- pieces ---------------------------------------------------------------------------------
+    def _residual(self, op, u: PETSc.Vec, f_c: PETSc.Vec, x: np.ndarray) -> float:
+        """|A u + f_c(u) - r - C^T x| over the free dofs (N)."""
+        res = self._res
+        op.A.mult(u, res)
+        res.axpy(1.0, f_c)
+        res.axpy(-1.0, self.r)
+        if x.size:
+            self.contact.add_multiplier_force(x, res, -1.0)
+        res.array[self.fixed] = 0.0
+        return res.norm()
+
+    def _linearisation(self, op, u_k: PETSc.Vec, f_c: PETSc.Vec, n_yield: int):
+        """(ksp, W, owned objects) of iteration k and its right-hand side in self._rhs:
+        the elastic factorization while no point yields, else A + dK_k factorized anew."""
+        rhs = self._rhs
+        rhs.waxpy(-1.0, f_c, self.r)
+        if n_yield == 0:
+            rhs.array[self.fixed] = 0.0
+            return op.ksp_u, self._contact_operator(op), None
+        dK = self.zone.stiffness_correction()
+        dK.multAdd(u_k, rhs, rhs)
+        rhs.array[self.fixed] = 0.0
+        A_t = op.A.copy()
+        A_t.axpy(1.0, dK, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        dK.destroy()
+        ksp = solvers.create_effective_solver(A_t, self.petsc_options)
+        W = solvers.compute_contact_operator(ksp, self.contact.C)
+        self.stats.n_tangent_factorizations += 1
+        self.stats.n_w_columns += W.n_rhs
+        return ksp, W, (A_t, ksp, W)
+
+    def _contact(self, W: solvers.ContactOperator, q: np.ndarray, gap_tol: float, step: int) -> np.ndarray:
+        """The multipliers of the linear step and u_new = u_pred + W x (x = lambda, or [lambda; tau])."""
+        n_c = q.size
+        if n_c == 0 or np.all(q >= -gap_tol):
+            self.u_pred.copy(self.u_new)
+            if self.frictional:
+                self.tau, self.sliding = np.zeros(2 * n_c), np.zeros(n_c, dtype=bool)
+                return np.zeros(3 * n_c)
+            return np.zeros(n_c)
+        if self.frictional:
+            lam = self._friction_step(W, q, gap_tol, step)
+            return np.concatenate([lam, self.tau])
+        res = solvers.solve_lcp(W.S, q, self.active, gap_tol)
+        lam = self._broadcast(res.lam)
+        self.n_newton = res.iterations
+        lv = self.contact.B.createVecLeft()
+        solvers.scatter_into(lv, lam)
+        W.W.mult(lv, self.tmp)
+        lv.destroy()
+        self.u_new.waxpy(1.0, self.tmp, self.u_pred)
+        return lam
+
+    def _broadcast(self, a: np.ndarray) -> np.ndarray:
+        return self.comm.bcast(a, root=0) if self.comm.size > 1 else a
+
+    @staticmethod
+    def _release(owned) -> None:
+        if owned is not None:
+            A_t, ksp, W = owned
+            W.W.destroy()
+            ksp.destroy()
+            A_t.destroy()

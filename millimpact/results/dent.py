@@ -1,0 +1,87 @@
+"""The dent a plastic impact leaves, and the notes a plastic run prints.
+
+Residual state: after the impact the plastic strain eps_p is frozen and the bodies unload
+elastically; the static residual displacement balances the plastic strain's load,
+
+    K u_res = -f_c = int_zone B^T C eps_p dV     (:meth:`PlasticZone.frozen_force`),
+
+solved once with K regularised by a tiny multiple of M (s = 1e-9 of the ratio of their largest
+diagonals): the free ball's rigid motions are otherwise a null space of K; the block's answer
+changes by ~1e-9 relative. The dent is read off u_res along the struck face, from the contact
+point outwards (along +x, the side every symmetric model keeps): the depth profile
+d(r) = w(r) - w(r_far), w the displacement into the body along the contact normal and r_far =
+1.5 zone radii (elastic, beyond the dent). ``residual_dent_depth_m`` = d(0); ``residual_dent_radius_m``
+the radius where d first falls to 5 % of d(0) (the permanent indentation's edge).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..fem.model import FEModel
+from ..fem.probes import create_probe
+from ..integration import solvers
+from ..scene.plan import Plan
+
+#: the dent's edge: where the depth falls to this share of the depth at the contact point
+DENT_EDGE_SHARE = 0.05
+#: samples of the depth profile from the contact point to 1.5 zone radii
+PROFILE_SAMPLES = 61
+
+
+def residual_displacement(model: FEModel, zone):
+    """u_res (m, a PETSc Vec): the static residual state of the frozen plastic strain."""
+    f = zone.frozen_force()
+    f.scale(-1.0)
+    K = model.K.copy()
+    dk, dm = model.K.getDiagonal(), model.M.getDiagonal()
+    s = 1e-9 * dk.max()[1] / max(dm.max()[1], 1e-300)
+    K.axpy(s, model.M)
+    ksp = solvers.create_factored_solver(K, "impact_dent_", solvers.effective_solver_defaults(model.K.getComm().tompi4py()))
+    u = K.createVecRight()
+    solvers.solve_checked(ksp, f, u, "residual (dent) solve", 0, 0.0)
+    ksp.destroy()
+    K.destroy()
+    return u
+
+
+def dent_profile(model: FEModel, u_res, plan: Plan) -> tuple[np.ndarray, np.ndarray]:
+    """(r, d(r)) in m: the residual depth below the undeformed face, from the contact point out."""
+    n = np.asarray(plan.contact_normal, dtype=float)
+    p = np.asarray(plan.probes.contact_point, dtype=float)      # already just inside the body
+    r = np.linspace(0.0, 1.5 * plan.zone_radius, PROFILE_SAMPLES)
+    pts = p[None, :] + r[:, None] * np.array([1.0, 0.0, 0.0])[None, :]
+    probe = create_probe(model.V, pts, model.block_cells)
+    u_fn = model.function("u_res")
+    u_fn.vector.array[:] = u_res.array_r
+    u_fn.x.scatter_forward()
+    w = -(probe.values(u_fn.x.array) @ n)
+    ok = probe.found
+    return r[ok], (w - w[ok][-1])[ok]
+
+
+def residual_dent(model: FEModel, zone, plan: Plan) -> dict[str, Any]:
+    """Summary keys of the dent: depth (m), radius (m) and the profile (for the figure)."""
+    u = residual_displacement(model, zone)
+    r, d = dent_profile(model, u, plan)
+    u.destroy()
+    depth = float(d[0]) if len(d) else 0.0
+    radius = 0.0
+    if depth > 0:
+        below = np.nonzero(d <= DENT_EDGE_SHARE * depth)[0]
+        if len(below):
+            j = int(below[0])
+            radius = float(np.interp(DENT_EDGE_SHARE * depth, [d[j], d[j - 1]], [r[j], r[j - 1]])) if j else 0.0
+        else:
+            radius = float(r[-1])
+    return {"residual_dent_depth_m": depth, "residual_dent_radius_m": radius,
+            "residual_dent_profile": {"r_m": r.tolist(), "depth_m": d.tolist()}}
+
+
+def plastic_notes(zone, stats, sym_factor: float) -> str:
+    """One note line: plastic work, the largest plastic strain, Newton's effort."""
+    return (f"plasticity: plastic work {sym_factor * stats.plastic_work_J:.4g} J, max equivalent plastic strain "
+            f"{zone.max_equivalent_plastic_strain():.3g}; {stats.n_plastic_steps} yielding steps, Newton "
+            f"{stats.n_plastic_iterations} iterations (max {stats.max_plastic_iterations} a step), "
+            f"{stats.n_tangent_factorizations} tangent factorizations")

@@ -1,0 +1,104 @@
+"""Elastoplastic impacts (issue 15), full FE on a coarse hertz-halfspace (P1, h_c = a_max/2):
+energy with dissipation conserved, the plastic work and restitution in the physical range,
+below the yield-onset speed exactly elastic, MPI equals serial, and the failure modes."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from millimpact.results.timeseries import TimeSeries
+
+#: coarse, short: contact (~88 us) and a little rebound; the zone (4 a_max) holds the plastic region
+COARSE = ["hertz-halfspace", "--method", "full", "-q", "--set", "model.h_contact=5.8e-4",
+          "--set", "model.h_far=0.012", "--set", "time.end=2.0e-4"]
+
+
+def _run(tmp_path, name, *extra, np_=1):
+    out = tmp_path / name
+    r = run_cli("run", *COARSE, *extra, "--out", str(out), np=np_)
+    assert r.returncode == 0, r.stderr[-3000:]
+    return json.loads((out / "summary.json").read_text()), TimeSeries.read_csv(out / "timeseries.csv")
+
+
+@pytest.fixture(scope="module")
+def plastic(tmp_path_factory):
+    """Y = 1 GPa block under a 3 m/s steel ball: V/V_y ~ 17 (Thornton 1997: V_y = 0.18 m/s)."""
+    return _run(tmp_path_factory.mktemp("plastic"), "y1", "--set", "block.material.yield_stress=1e9")
+
+
+@pytest.fixture(scope="module")
+def elastic(tmp_path_factory):
+    return _run(tmp_path_factory.mktemp("elastic"), "el")
+
+
+def test_energy_with_plastic_work_is_conserved(plastic):
+    """kinetic + elastic strain + plastic work constant within 0.5 % (the issue's bound; the
+    scheme's own error is the release/impact O(dt) of the elastic case, ~0.02 %)."""
+    s, ts = plastic
+    e = ts["total_energy_J"] + ts["plastic_dissipation_J"]
+    assert np.max(np.abs(e / e[0] - 1)) < 5e-3
+    assert s["energy_drift_max_rel"] < 5e-3
+
+
+def test_plastic_impact_dissipates_and_rebounds_slower(plastic, elastic):
+    """At V/V_y ~ 17 FE studies of steel spheres give e ~ 0.8 with ~1/3 of the energy dissipated
+    (Wu, Li & Thornton 2005; the issue's figures); Thornton's 1997 model (which over-dissipates) a
+    lower bound of 0.58. Elastic: ~0.99 (Hunter's wave loss). The peak force drops below the
+    elastic one and the liner keeps a dent."""
+    s, ts = plastic
+    se, _ = elastic
+    assert 0.6 < s["restitution"] < 0.9 < se["restitution"]
+    assert 0.15 < s["plastic_dissipation_share"] < 0.45
+    assert s["peak_contact_force_N"] < se["peak_contact_force_N"]
+    assert s["max_equivalent_plastic_strain"] > 1e-3
+    assert 0 < s["residual_dent_depth_m"] < 0.5 * s["max_approach_m"]
+    # the permanent dent is about the size of the contact patch (a_max = 1.16 mm at 3 m/s)
+    assert 0.5e-3 < s["residual_dent_radius_m"] < 3e-3
+    # plastic work never decreases
+    assert np.all(np.diff(ts["plastic_dissipation_J"]) >= -1e-12)
+
+
+def test_below_yield_onset_is_elastic(tmp_path, elastic):
+    """V = 0.85 V_y: the Hertz pressure p0 = 4.92 GPa is below the first-yield pressure 1.6 Y
+    (Y = 3.6 GPa: 1.6 Y = 5.76 GPa, V_y = 3 (5.76/4.92)^(5/2) m/s): no point yields, and the run
+    is the elastic one (the same answers to solver round-off)."""
+    s, ts = _run(tmp_path, "below", "--set", "block.material.yield_stress=3.6e9")
+    se, tse = elastic
+    assert s["max_equivalent_plastic_strain"] == 0.0 and s["plastic_dissipation_J"] == 0.0
+    for key in ("peak_contact_force_N", "restitution", "max_approach_m"):
+        assert s[key] == pytest.approx(se[key], rel=1e-9), key
+
+
+@pytest.mark.mpi
+def test_plastic_mpi_equals_serial(tmp_path, plastic):
+    s2, _ = _run(tmp_path, "np2", "--set", "block.material.yield_stress=1e9", np_=2)
+    s1, _ = plastic
+    for key in ("peak_contact_force_N", "plastic_dissipation_J", "restitution", "max_equivalent_plastic_strain"):
+        assert s2[key] == pytest.approx(s1[key], rel=1e-9), key
+
+
+def test_newton_failure_is_one_line_and_writes_nothing(tmp_path):
+    out = tmp_path / "fail"
+    r = run_cli("run", *COARSE, "--set", "block.material.yield_stress=1e9", "--out", str(out),
+                "-impact_plastic_max_iterations", "1")
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    line = r.stderr.strip().splitlines()[-1]
+    assert "plastic Newton did not converge" in line and "at step" in line and "t = " in line
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("setting, field", [
+    ("block.material.yield_stress=-1e9", "block.material.yield_stress"),
+    ("block.material.yield_stress=0", "block.material.yield_stress"),
+    ("block.material.hardening_modulus=-1e9", "block.material.hardening_modulus"),
+    ("block.material.flow_curve=[[0.0,4e8],[0.1,3e8]]", "block.material.flow_curve"),
+    ("block.material.flow_curve=[[0.01,4e8],[0.1,5e8]]", "block.material.flow_curve"),
+    ("block.material=\"no-such-steel\"", "block.material"),
+])
+def test_bad_plastic_input_is_one_line(setting, field):
+    r = run_cli("run", "hertz-halfspace", "--method", "hertz", "--set", setting, "--out", "out/never")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and r.stderr.startswith(f"millimpact: error: {field}")
