@@ -7,7 +7,7 @@ full model. With ``free_phase = "modal"`` (default) the integrator runs while th
 (from the start to ``gap / v + 1.5 t_c`` with the contact step only, then in chunks of 2 t_c
 while a contact is active); once they are apart, the motion is the closed-form sum of the
 free-vibration modes of the reduced system up to ``free_modes_factor`` times the plan's f_cut
-(with the integrator's mass matrix; :func:`millimpact.reduction.craig_bampton.compute_free_modes`),
+(with the integrator's mass matrix; :func:`millimpact.reduction.free_modes.compute_free_modes`),
 recorded at once (vectorised over the times) on the integrator's free-step grid. A gap predicted
 to come back below the plan's initial gap (a second impact) hands the state back to the
 integrator. The energy above the modal cutoff at the switch is dropped and reported
@@ -30,7 +30,8 @@ from petsc4py import PETSc
 
 from ..fem.contact import ContactSet
 from ..integration import integrators
-from ..reduction.craig_bampton import ModalProjection, ReducedModel, compute_free_modes
+from ..reduction.free_modes import ModalProjection, compute_free_modes
+from ..reduction.reduced_model import ReducedModel
 from ..results.reduced_recorder import ReducedRecorder
 from ..scene.plan import Plan
 

@@ -46,7 +46,7 @@ from ..fem.model import create_fe_model
 from ..fem.probes import create_probe
 from ..scene.plan import Plan, make_plan
 from ..integration.solvers import create_factored_solver
-from ..reduction.craig_bampton import compute_modes, default_solver_options
+from ..reduction.eigen import compute_modes, default_solver_options
 from ..results.timeseries import TimeSeries
 from ..results.output import RunOutput
 from .options import float_option

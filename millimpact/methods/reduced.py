@@ -47,8 +47,10 @@ from ..fem.contact import ContactSet, create_contact
 from ..fem.model import FEModel, create_fe_model
 from ..geometry.mesh import create_mesh
 from ..integration import integrators
-from ..reduction.craig_bampton import (AUGMENTATION_PATTERNS, ReducedModel, create_nodal_zone_basis, partition_dofs,
-                                       reduce_model)
+from ..reduction.craig_bampton import reduce_model
+from ..reduction.reduced_model import ReducedModel
+from ..reduction.augmentation import AUGMENTATION_PATTERNS
+from ..reduction.partition import create_nodal_zone_basis, partition_dofs
 from ..reduction.nmm_zone import create_nmm_zone
 from ..results.fields import write_fields
 from ..results.output import RunOutput

@@ -65,7 +65,7 @@ from petsc4py import PETSc
 from ..geometry import builders as G
 from ..errors import InputError
 from ..fem.model import FEModel
-from .craig_bampton import DofPartition, ZoneBasis, partition_dofs, tagged_cells
+from .partition import DofPartition, ZoneBasis, partition_dofs, tagged_cells
 
 log = logging.getLogger(__name__)
 

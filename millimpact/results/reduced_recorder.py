@@ -1,9 +1,9 @@
 """The recorder of a reduced model: the full method's rows from reduced maps.
 
 A reduced run (:mod:`millimpact.methods.reduced`) integrates the coordinates q of a Galerkin
-projection u = T q (:class:`millimpact.reduction.craig_bampton.ReducedModel`) and, between
+projection u = T q (:class:`millimpact.reduction.reduced_model.ReducedModel`) and, between
 impacts, the modal coordinates eta of its free vibration, u = T Phi eta
-(:class:`millimpact.reduction.craig_bampton.ModalProjection`). :class:`ReducedRecorder` gives the
+(:class:`millimpact.reduction.free_modes.ModalProjection`). :class:`ReducedRecorder` gives the
 same time-series columns as :class:`millimpact.results.recorder.Recorder` from rows precomputed
 once per projection (probe rows P T, the ball's centre-of-mass row T^T c), energies as
 ``q . M_r q / 2`` and ``q . K_r q / 2``; u = T q is expanded only for the XDMF fields. Probe
@@ -27,7 +27,9 @@ from mpi4py import MPI
 
 from ..fem.contact import ContactSet
 from ..fem.probes import PointProbe
-from ..reduction.craig_bampton import ModalProjection, ReducedModel, gather_aij_dense, local_rows_to_aij
+from ..reduction.free_modes import ModalProjection
+from ..reduction.reduced_model import ReducedModel
+from ..reduction.distributed import gather_aij_dense, local_rows_to_aij
 from ..scene.plan import ProbeSpec
 from .recorder import Recorder
 

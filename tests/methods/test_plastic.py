@@ -4,7 +4,6 @@ below the yield-onset speed exactly elastic, MPI equals serial, and the failure 
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pytest

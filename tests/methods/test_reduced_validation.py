@@ -241,7 +241,7 @@ def test_reduced_block_frequencies_match_a_finer_p2_model():
     from millimpact.geometry.mesh import create_mesh
     from millimpact.fem.model import create_fe_model
     from millimpact.methods.reduced import build_reduced_model
-    from millimpact.reduction.craig_bampton import compute_free_modes
+    from millimpact.reduction.free_modes import compute_free_modes
 
     scene, plan = small_scene()
     md = create_mesh(scene, plan, MPI.COMM_WORLD)

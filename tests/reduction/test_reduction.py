@@ -91,7 +91,7 @@ def block_hz_reduced(red, k: int = 6) -> np.ndarray:
 
 def rigid_field(model, centre, kind: str):
     """A rigid motion of the ball (zero on the block and on fixed dofs) as a model vector."""
-    from millimpact.reduction.craig_bampton import partition_dofs
+    from millimpact.reduction.partition import partition_dofs
 
     V = model.V
     n_own = V.dofmap.index_map.size_local
@@ -156,7 +156,7 @@ def test_p1_improved_p2_frequency_nesting(p1, p2):
     f(P2) <= f(improved space) <= f(P1), and P1 converges towards P2 (a refinement check: P2 is
     the richer discretization of the same mesh)."""
     from millimpact.reduction.nmm_zone import create_nmm_zone
-    from millimpact.reduction.craig_bampton import partition_dofs
+    from millimpact.reduction.partition import partition_dofs
 
     f1, f2 = block_hz(p1), block_hz(p2)
     part = partition_dofs(p2)
@@ -206,7 +206,8 @@ def test_ball_rigid_motion_is_exact(kind, p1, p2, setup):
     """Constraint modes reproduce a rigid interface motion exactly in the ball's interior: the
     projection of a rigid motion is exact (T q = u) and strain-free."""
     from millimpact.reduction.nmm_zone import create_nmm_zone
-    from millimpact.reduction.craig_bampton import partition_dofs, reduce_model
+    from millimpact.reduction.craig_bampton import reduce_model
+    from millimpact.reduction.partition import partition_dofs
 
     scene, plan, _ = setup
     model = p1 if kind == "nodal" else p2
@@ -237,7 +238,7 @@ def test_nmm_zone_mass_null_space_and_remedies(p2):
     plane the u_x field keeps only 3 (its b^x_y, b^x_z are removed there), so 15 per zone and 30
     for ball + block. Each remedy makes it positive definite."""
     from millimpact.reduction.nmm_zone import create_nmm_zone
-    from millimpact.reduction.craig_bampton import partition_dofs
+    from millimpact.reduction.partition import partition_dofs
 
     part = partition_dofs(p2)
     ratios = {}
@@ -278,7 +279,7 @@ def test_nmm_reproduces_linear_fields(p2):
     a_i = c + A x_i, b_i = h_i A is the P2 interpolant of c + A x at every zone node. Where a
     remedy removes b (interface vertices), the vertex values stay exact (P1 lies in the space)."""
     from millimpact.reduction.nmm_zone import create_nmm_zone
-    from millimpact.reduction.craig_bampton import partition_dofs
+    from millimpact.reduction.partition import partition_dofs
 
     part = partition_dofs(p2)
     c = np.array([0.0, -2e-6, 3e-6])      # u_x = 0 on the x symmetry plane: c_x = 0, A[0] = 0
@@ -432,7 +433,8 @@ def free_rows_mismatch(n_times: int = 40) -> tuple[float, float]:
     from millimpact.scene.plan import make_plan
     from millimpact.methods.reduced import reduced_plan
     from millimpact.results.reduced_recorder import ReducedRecorder
-    from millimpact.reduction.craig_bampton import compute_free_modes, reduce_model
+    from millimpact.reduction.craig_bampton import reduce_model
+    from millimpact.reduction.free_modes import compute_free_modes
     from millimpact.scene.schema import builtin_scene
 
     scene = builtin_scene("paper-rig")
@@ -505,7 +507,9 @@ def test_mode_acceleration_recovers_free_mode_gauge_stresses(setup, p1):
     from millimpact.fem.contact import create_contact
     from millimpact.results.recorder import Recorder
     from millimpact.methods.reduced import reduced_plan
-    from millimpact.reduction.craig_bampton import compute_free_modes, local_rows_to_aij, reduce_model
+    from millimpact.reduction.craig_bampton import reduce_model
+    from millimpact.reduction.free_modes import compute_free_modes
+    from millimpact.reduction.distributed import local_rows_to_aij
 
     scene, plan, _ = setup
     _, _, radius, _ = reduced_plan(scene, plan)
