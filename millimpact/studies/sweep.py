@@ -1,0 +1,332 @@
+"""The sweep engine of studies: a study is a list of cases (a name, a value and a resolved scene); each case is
+one ordinary run written as a run folder, keyed by a hash of what determines its result (resolved scene, method,
+options) so a re-run computes only what changed. Cases run one after another, ``jobs`` at a time as processes,
+or under ``mpirun`` on all ranks. :func:`run_cases` returns the cases' summaries and series (:class:`CaseRun`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import re
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+
+from ..errors import InputError, MillimpactError
+from ..scene.schema import (BUILTIN_STUDIES, Scene, StudySpec, dump_scene, parse_value, resolve_scene,
+                            study_scene)
+
+
+# --- study definition ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class StudyCase:
+    """One case: its folder name, the scene value set, the value shown (u, mm, m/s) and the scene."""
+
+    index: int
+    folder: str
+    label: str              #: legend label, e.g. "v = 3 m/s"
+    value: Any              #: the value given to the scene field
+    x: float                #: the abscissa of trends and fits (the shown value); nan if not numeric
+    scene: Scene
+
+
+@dataclass(frozen=True)
+class Study:
+    """A one-parameter sweep: the field, how it is shown, its cases and, for the paper's studies,
+    the paper's conclusion."""
+
+    name: str
+    param: str
+    symbol: str             #: short name of the parameter (u, v, r, b or the field's last part)
+    xlabel: str             #: axis label with unit
+    base: str
+    cases: tuple[StudyCase, ...]
+    paper: Optional[StudySpec] = None
+
+
+def safe_name(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9.=+-]+", "_", text).strip("_")
+
+
+def split_values(text: str) -> list[str]:
+    """Split ``v1,v2,...`` at the commas outside brackets and quotes (values may be TOML arrays)."""
+    parts, depth, quote, cur = [], 0, "", []
+    for ch in text:
+        if quote:
+            quote = "" if ch == quote else quote
+        elif ch in "\"'":
+            quote = ch
+        elif ch == "[":
+            depth += 1
+        elif ch == "]":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append("".join(cur).strip())
+            cur = []
+            continue
+        cur.append(ch)
+    parts.append("".join(cur).strip())
+    return parts
+
+
+def parse_param(text: str) -> tuple[str, list[Any]]:
+    """``FIELD=v1,v2,...`` -> (field, [values parsed as TOML])."""
+    field_, sep, values = text.partition("=")
+    field_ = field_.strip()
+    if not sep or not field_ or not values.strip():
+        raise InputError(f"--param {text!r}: expected FIELD=v1,v2,... (e.g. --param ball.radius=0.015,0.02,0.025)")
+    raw = split_values(values)
+    if any(not r for r in raw):
+        raise InputError(f"--param {text!r}: an empty value in the list")
+    return field_, [parse_value(r) for r in raw]
+
+
+def apply_sets(scene: Scene, sets: Sequence[str], param: str) -> Scene:
+    for assignment in sets:
+        key, sep, value = assignment.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise InputError(f"--set {assignment!r}: expected FIELD=VALUE (e.g. --set model.h_far=0.008)")
+        if key == param or key.startswith(param + ".") or param.startswith(key + "."):
+            raise InputError(f"--set {key}: conflicts with the study parameter {param}")
+        scene = scene.with_value(key, parse_value(value))
+    return scene
+
+
+def with_param(base: Scene, param: str, value: Any) -> Scene:
+    """``base`` with ``param`` set to ``value``; a number for ``impact.velocity`` is the speed along
+    the base's direction (as the paper's velocity study)."""
+    if param == "impact.velocity" and isinstance(value, (int, float)) and not isinstance(value, bool):
+        n = base.impact.speed
+        return base.with_value(param, [c / n * float(value) for c in base.impact.velocity])
+    return base.with_value(param, value)
+
+
+def define_study(name: Optional[str], param: Optional[str] = None, base: Optional[str] = None,
+                 sets: Sequence[str] = (), end: Optional[float] = None,
+                 subset: Optional[Sequence[int]] = None) -> Study:
+    """The cases of a built-in study ``name`` or of a sweep ``param = "FIELD=v1,v2,..."`` of any
+    scene field on ``base`` (default study-base), with the ``--set`` overrides and an optional end
+    time (s) applied to every case; ``subset``: indices of the values to keep (reduced-size demos).
+    Every case scene is validated (and planned) here, so bad input is refused before anything runs."""
+    from ..scene.plan import make_plan
+
+    if param is None:
+        if name is None:
+            raise InputError("study: give a built-in study (" + ", ".join(BUILTIN_STUDIES)
+                             + ") or --param FIELD=v1,v2,...")
+        if name not in BUILTIN_STUDIES:
+            raise InputError(f"study {name!r}: unknown; built-in studies are {', '.join(BUILTIN_STUDIES)} "
+                             "(or use --param FIELD=v1,v2,...)")
+        if base is not None:
+            raise InputError(f"--base: the built-in study {name} runs on its own base ({BUILTIN_STUDIES[name].base})")
+        spec = BUILTIN_STUDIES[name]
+        symbol = spec.label.split()[0]
+        entries = []
+        for v, shown in zip(spec.values, spec.display):
+            scene = apply_sets(study_scene(spec, v), sets, spec.param)
+            unit = f" {spec.unit}" if spec.unit else ""
+            entries.append((v, float(shown), f"{symbol} = {shown:g}{unit}", safe_name(f"{symbol}{shown:g}{spec.unit}"), scene))
+        xlabel = f"{spec.label}" + (f" [{spec.unit}]" if spec.unit else "")
+        study_name, param_name, base_name, paper = name, spec.param, spec.base, spec
+    else:
+        field_, values = parse_param(param)
+        base_name = base or "study-base"
+        base_scene = apply_sets(resolve_scene(base_name), sets, field_)
+        symbol = field_.split(".")[-1]
+        if name is not None and name in BUILTIN_STUDIES:
+            raise InputError(f"study name {name!r} is a built-in study; with --param give another name or none")
+        entries = []
+        for v in values:
+            scene = with_param(base_scene, field_, v)
+            shown = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
+            text = f"{v:g}" if not math.isnan(shown) else (",".join(f"{c:g}" for c in v) if isinstance(v, list) else str(v))
+            entries.append((v, shown, f"{symbol} = {text}", safe_name(f"{symbol}={text}"), scene))
+        if len({e[3] for e in entries}) != len(entries):
+            raise InputError(f"--param {param!r}: repeated values")
+        study_name = name or f"param-{safe_name(field_)}"
+        xlabel, param_name, paper = field_, field_, None
+    if subset is not None:
+        entries = [entries[i] for i in subset]
+    cases = []
+    for i, (v, shown, label, folder, scene) in enumerate(entries):
+        if end is not None:
+            scene = scene.with_value("time.end", float(end))
+        scene = dataclasses.replace(scene, name=f"{study_name}-{folder}")
+        make_plan(scene)  # refuses sizes the plan cannot mesh (SceneError names the field)
+        cases.append(StudyCase(i, folder, label, v, shown, scene))
+    return Study(study_name, param_name, symbol, xlabel, base_name, tuple(cases), paper)
+
+
+def case_key(scene: Scene, method: str, options: dict) -> str:
+    """Hash of what determines a case's result: the resolved scene (TOML), method and options."""
+    text = dump_scene(scene) + f"\nmethod = {method!r}\noptions = {json.dumps(options, sort_keys=True, default=str)}\n"
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def cached_summary(folder: Path, key: str) -> Optional[dict]:
+    """The summary of a complete case folder computed with ``key``, else None."""
+    try:
+        s = json.loads((folder / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if s.get("study", {}).get("cache_key") != key or not (folder / "timeseries.csv").is_file():
+        return None
+    return s
+
+
+# --- running the cases ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CaseTask:
+    """What a worker needs to compute and write one case."""
+
+    scene: Scene
+    method: str
+    options: dict
+    folder: str
+    meta: dict
+    figures: bool
+    progress: bool
+
+
+def compute_case(task: CaseTask, comm=None) -> dict:
+    """Compute one case and write its run folder (staged: complete or absent). Returns a small
+    report: ``{"ok": True, "wall_time_s": ...}`` or ``{"ok": False, "error": ..., "input": bool}``
+    (errors are returned, not raised, so they cross process boundaries intact)."""
+    from ..results.timeseries import staged_output
+    from ..methods.run import build_summary, compute, write_run
+
+    try:
+        t0 = time.perf_counter()
+        out, plan = compute(task.scene, task.method, dict(task.options), task.progress)
+        wall = time.perf_counter() - t0
+        summary = build_summary(task.scene, plan, out, wall)
+        summary["study"] = task.meta
+        with staged_output(Path(task.folder), comm) as stage:
+            write_run(stage, task.scene, plan, out, summary, figures=task.figures, comm=comm)
+        return {"ok": True, "wall_time_s": wall}
+    except InputError as exc:
+        return {"ok": False, "input": True, "error": str(exc)}
+    except MillimpactError as exc:
+        return {"ok": False, "input": False, "error": f"{type(exc).__name__}: {exc}"}
+
+
+def _worker(task: CaseTask) -> dict:
+    """Process-pool entry: one case, serial."""
+    import logging
+
+    logging.basicConfig(level=logging.WARNING)
+    return compute_case(task, None)
+
+
+@dataclass
+class CaseRun:
+    """A case after the run: computed or taken from the cache, its summary and time series."""
+
+    case: StudyCase
+    status: str                         #: computed | cached | failed
+    summary: Optional[dict] = None
+    series: Any = None
+    error: str = ""
+    wall_time_s: float = math.nan       #: wall time of the computation (from the summary if cached)
+
+
+def say_root(comm, *args, **kw) -> None:
+    if comm is None or comm.rank == 0:
+        print(*args, **kw, flush=True)
+
+
+def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1, progress: bool = True,
+              force: bool = False, figures: bool = True, comm=None, quiet: bool = False) -> list[CaseRun]:
+    """Run (or take from the cache) every case of ``study`` into ``out/<case>``; prints one line a
+    case with the overall progress. ``comm`` (size > 1): each case runs on all its ranks."""
+    n = len(study.cases)
+    rank0 = comm is None or comm.rank == 0
+    keys = [case_key(c.scene, method, options) for c in study.cases]
+    todo: list[int] = []
+    runs: list[CaseRun] = [CaseRun(c, "pending") for c in study.cases]
+    if rank0:
+        for i, c in enumerate(study.cases):
+            s = None if force else cached_summary(out / c.folder, keys[i])
+            if s is not None:
+                runs[i].status, runs[i].summary = "cached", s
+                runs[i].wall_time_s = float(s.get("wall_time_s", math.nan))
+            else:
+                todo.append(i)
+    if comm is not None and comm.size > 1:
+        todo = comm.bcast(todo, root=0)
+    t_start = time.perf_counter()
+    done = 0
+    say = (lambda *a: None) if quiet else (lambda *a: say_root(comm, *a))
+    for i, r in enumerate(runs):
+        if r.status == "cached":
+            done += 1
+            say(f"  [{done}/{n}] {r.case.label:<22s} cached ({out / r.case.folder})")
+
+    def task(i: int) -> CaseTask:
+        c = study.cases[i]
+        meta = {"name": study.name, "param": study.param, "value": c.value, "x": c.x, "label": c.label,
+                "method_options": options, "cache_key": keys[i]}
+        return CaseTask(c.scene, method, dict(options), str(out / c.folder), meta, figures,
+                        progress and jobs == 1 and not quiet)
+
+    computed_walls: list[float] = []
+
+    def report(i: int, res: dict) -> None:
+        nonlocal done
+        done += 1
+        r = runs[i]
+        if res["ok"]:
+            r.status, r.wall_time_s = "computed", res["wall_time_s"]
+            computed_walls.append(res["wall_time_s"])
+            left = len(todo) - len(computed_walls)
+            elapsed = time.perf_counter() - t_start
+            # cases finish about jobs at a time: the time per finished case already includes that
+            eta = f", ~{elapsed / len(computed_walls) * left:.0f} s left" if left else ""
+            say(f"  [{done}/{n}] {r.case.label:<22s} computed in {res['wall_time_s']:.1f} s "
+                f"(elapsed {elapsed:.0f} s{eta})")
+        else:
+            r.status, r.error = "failed", res["error"]
+            say(f"  [{done}/{n}] {r.case.label:<22s} FAILED: {res['error']}")
+            if res.get("input"):
+                raise InputError(f"case {r.case.label}: {res['error']}")
+
+    if todo and jobs > 1 and len(todo) > 1:
+        import concurrent.futures as cf
+        import multiprocessing as mp
+
+        # each case serial: no threaded BLAS fighting over the cores the other cases use
+        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(var, "1")
+        # spawn, not fork: a forked child would inherit the parent's MPI/PETSc state
+        with cf.ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=mp.get_context("spawn")) as pool:
+            futures = {pool.submit(_worker, task(i)): i for i in todo}
+            try:
+                for fut in cf.as_completed(futures):
+                    report(futures[fut], fut.result())
+            except BaseException:
+                for f in futures:
+                    f.cancel()
+                raise
+    else:
+        for i in todo:
+            if progress and not quiet:
+                say(f"  [{done + 1}/{n}] {study.cases[i].label:<22s} computing ...")
+            report(i, compute_case(task(i), comm))
+    if rank0:
+        from ..results.timeseries import TimeSeries
+
+        for r in runs:
+            if r.status in ("computed", "cached"):
+                folder = out / r.case.folder
+                if r.summary is None:
+                    r.summary = json.loads((folder / "summary.json").read_text())
+                r.series = TimeSeries.read_csv(folder / "timeseries.csv")
+    return runs
+
+
