@@ -18,7 +18,7 @@ from mpi4py import MPI
 
 from _report import write_report
 from millimpact.methods.run import run_scene
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 
 A_MAX = 1.159e-3  # m, Hertz contact radius of the default impact (DESIGN.md section 3)
 

@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _scene(args):
-    from millimpact.scene.schema import builtin_scene
+    from millimpact.scene.builtin import builtin_scene
 
     s = builtin_scene("liner-segment")
     for k, v in (("model.h_far", args.h_far), ("time.end", args.t_end), ("outputs.xdmf", False)):

@@ -36,7 +36,7 @@ from millimpact.scene.plan import make_plan
 from millimpact.methods.reduced import REDUCED_ZONE_FACTOR
 from millimpact.results.timeseries import contact_metrics
 from millimpact.methods.run import compute
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 
 HERE = Path(__file__).resolve().parent
 GAUGE_WINDOW = 1e-3   # s shown of the gauge signal (40 ms of ringing is a solid band)

@@ -19,7 +19,7 @@ from mpi4py import MPI
 from _report import write_report
 from millimpact.geometry.mesh import create_mesh
 from millimpact.scene.plan import make_plan
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 from millimpact.methods.static import static_hertz
 
 

@@ -21,7 +21,7 @@ if __name__ == "__main__":
     args = p.parse_args()
 
     from millimpact.methods.run import run_scene
-    from millimpact.scene.schema import resolve_scene
+    from millimpact.scene.builtin import resolve_scene
 
     base = resolve_scene("study-base")
 

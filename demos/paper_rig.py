@@ -23,7 +23,7 @@ if __name__ == "__main__":
     args = p.parse_args()
 
     from millimpact.methods.run import run_scene
-    from millimpact.scene.schema import resolve_scene
+    from millimpact.scene.builtin import resolve_scene
 
     scene = resolve_scene("paper-rig")
     method = args.method or ("traditional" if args.small else "improved")

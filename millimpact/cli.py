@@ -71,7 +71,7 @@ def _is_number(text: str) -> bool:
 # --- commands ---------------------------------------------------------------------------------
 def cmd_hertz(args: argparse.Namespace) -> int:
     from .scene.plan import scene_hertz
-    from .scene.schema import resolve_scene
+    from .scene.builtin import resolve_scene
 
     scene = resolve_scene(args.scene)
     h = scene_hertz(scene)
@@ -83,7 +83,8 @@ def cmd_hertz(args: argparse.Namespace) -> int:
 
 def cmd_scene(args: argparse.Namespace) -> int:
     from .scene.plan import make_plan
-    from .scene.schema import BUILTIN_SCENES, BUILTIN_STUDIES, DEFAULT_SCENE, dump_scene, resolve_scene
+    from .scene.builtin import BUILTIN_SCENES, BUILTIN_STUDIES, DEFAULT_SCENE, resolve_scene
+    from .scene.toml_io import dump_scene
 
     if args.action == "list":
         say("built-in scenes:")
@@ -135,7 +136,7 @@ def cmd_scene(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
     method_entry(args.method)   # an unknown method: one line listing them, before any work
     from .methods.run import run_scene
-    from .scene.schema import DEFAULT_SCENE, resolve_scene
+    from .scene.builtin import DEFAULT_SCENE, resolve_scene
 
     scene = resolve_scene(args.scene)
     scene = _apply_sets(scene, args.set)
@@ -195,7 +196,7 @@ def _apply_sets(scene, sets: Optional[list[str]]):
 def cmd_mesh(args: argparse.Namespace) -> int:
     from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf
     from .scene.plan import make_plan
-    from .scene.schema import resolve_scene
+    from .scene.builtin import resolve_scene
 
     scene = resolve_scene(args.scene)
     scene = _apply_sets(scene, args.set)

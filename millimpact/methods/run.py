@@ -17,7 +17,8 @@ from ..results.output import RunOutput
 from ..results.reference import write_reference
 from ..results.timeseries import contact_metrics, staged_output, write_hdf5, write_summary
 from ..scene.plan import Plan, elastic_limit_note, make_plan
-from ..scene.schema import Scene, dump_scene, scene_to_dict
+from ..scene.schema import Scene
+from ..scene.toml_io import dump_scene, scene_to_dict
 from ..theory.hertz import HertzImpact, hertz_history
 from .registry import method_runner
 

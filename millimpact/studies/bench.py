@@ -135,7 +135,7 @@ def _worker(spec_json: str, out_dir: str) -> int:
     from ..scene.plan import make_plan
     from ..results.timeseries import contact_metrics
     from ..methods.run import compute
-    from ..scene.schema import resolve_scene
+    from ..scene.builtin import resolve_scene
 
     spec = json.loads(spec_json)
     scene = resolve_scene(spec["scene"])
@@ -267,7 +267,8 @@ def reference_specs(scene_name: str, end: float, quick: bool, base_far: float, a
 
 def cached_run(spec: RunSpec, cache: Path, say) -> RunResult:
     """A reference-level run from the cache, or run (and store) it."""
-    from ..scene.schema import resolve_scene, scene_to_dict
+    from ..scene.builtin import resolve_scene
+    from ..scene.toml_io import scene_to_dict
 
     scene = resolve_scene(spec.scene)
     for k, v in spec.sets.items():
@@ -417,7 +418,7 @@ def main(args: argparse.Namespace) -> int:
 
     from ..scene.plan import make_plan
     from ..results.timeseries import staged_output
-    from ..scene.schema import DEFAULT_SCENE, resolve_scene
+    from ..scene.builtin import DEFAULT_SCENE, resolve_scene
 
     if MPI.COMM_WORLD.size > 1:
         raise InputError("millimpact bench runs its own processes: start it without mpirun")

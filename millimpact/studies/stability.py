@@ -337,7 +337,7 @@ def sweep(integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = Fal
                 say(f"  bar {integ:16s} v {v:6g} m/s: " + " ".join(
                     f"{x.dt_rel:g}:{x.status[0].upper()}" for x in cases[-len(courants):]))
     if "sphere" in problems:
-        from ..scene.schema import resolve_scene
+        from ..scene.builtin import resolve_scene
 
         scene = scene if scene is not None else resolve_scene(None)
         for v in cfg.get("sphere_velocities", SPHERE_VELOCITIES):
@@ -507,7 +507,7 @@ def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
     from ..results.timeseries import staged_output
-    from ..scene.schema import resolve_scene
+    from ..scene.builtin import resolve_scene
 
     integ = [x.strip() for x in args.integrators.split(",") if x.strip()]
     bad = [x for x in integ if x not in INTEGRATORS]

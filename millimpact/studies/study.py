@@ -28,7 +28,8 @@ from typing import Any, Optional, Sequence
 
 
 from ..errors import InputError, MillimpactError
-from ..scene.schema import BUILTIN_STUDIES, parse_value
+from ..scene.schema import parse_value
+from ..scene.builtin import BUILTIN_STUDIES
 from ..methods.registry import method_entry
 from .sweep import CaseRun, Study, define_study, run_cases, say_root
 from .report import StudyAnalysis, write_study

@@ -18,8 +18,9 @@ from typing import Any, Optional, Sequence
 
 
 from ..errors import InputError, MillimpactError
-from ..scene.schema import (BUILTIN_STUDIES, Scene, StudySpec, dump_scene, parse_value, resolve_scene,
-                            study_scene)
+from ..scene.schema import Scene, parse_value
+from ..scene.builtin import BUILTIN_STUDIES, StudySpec, resolve_scene, study_scene
+from ..scene.toml_io import dump_scene
 
 
 # --- study definition ----------------------------------------------------------------------------

@@ -28,7 +28,7 @@ from millimpact.geometry.mesh import (create_liner_mesh, create_mesh, default_ca
                              mesh_report, tet_quality, write_mesh_xdmf)
 from millimpact.scene.liner_shape import LinerShape
 from millimpact.scene.plan import make_plan
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 
 comm = MPI.COMM_WORLD
 serial_only = pytest.mark.skipif(comm.size > 1, reason="checks rank-local connectivity / spawns mpirun")
@@ -351,7 +351,7 @@ def test_mpi_counts_equal_serial(rig, cache, tmp_path):
         from mpi4py import MPI
         from millimpact.geometry.mesh import create_mesh, facet_indices
         from millimpact.scene.plan import make_plan
-        from millimpact.scene.schema import builtin_scene
+        from millimpact.scene.builtin import builtin_scene
         scene = builtin_scene("paper-rig")
         for k, v in {COARSE!r}.items():
             scene = scene.with_value(k, v)

@@ -16,7 +16,7 @@ from conftest import run_cli
 from millimpact.errors import SceneError
 from millimpact.scene.plan import make_plan
 from millimpact.results.timeseries import TimeSeries
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 
 COARSE = {"model.h_far": 0.04, "model.h_contact": 0.004, "time.end": 3.2e-4}
 SETS = [a for k, v in COARSE.items() for a in ("--set", f"{k}={v}")]

@@ -33,7 +33,7 @@ serial = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial test (launch
 
 def small_scene(**extra):
     from millimpact.scene.plan import make_plan
-    from millimpact.scene.schema import builtin_scene
+    from millimpact.scene.builtin import builtin_scene
 
     scene = builtin_scene("paper-rig")
     for key, value in {**SMALL, **extra}.items():
@@ -316,7 +316,7 @@ def test_improved_under_mpi_matches_serial():
     code = f"""
 import json
 from mpi4py import MPI
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 from millimpact.scene.plan import make_plan
 from millimpact.methods import reduced as reduced_methods
 from millimpact.results.timeseries import contact_metrics
@@ -365,7 +365,7 @@ def test_augmentation_under_mpi_matches_serial():
     code = f"""
 import json
 from mpi4py import MPI
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 from millimpact.scene.plan import make_plan
 from millimpact.methods import reduced as reduced_methods
 from millimpact.results.timeseries import contact_metrics
@@ -402,7 +402,7 @@ def test_improved_slow_impact_runs():
     from millimpact.methods import reduced as reduced_methods
     from millimpact.scene.plan import make_plan
     from millimpact.results.timeseries import contact_metrics
-    from millimpact.scene.schema import builtin_scene
+    from millimpact.scene.builtin import builtin_scene
 
     scene = builtin_scene("study-base").with_value("impact.velocity", (0.0, -1.0, 0.0))
     plan = make_plan(scene)
@@ -420,7 +420,7 @@ def test_mass_redistribution_second_ring_serial_equals_mpi():
     the issue's 1e-6)."""
     code = '''
 from mpi4py import MPI
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 from millimpact.scene.plan import make_plan
 from millimpact.methods import reduced as reduced_methods
 from millimpact.results.timeseries import contact_metrics
@@ -447,7 +447,7 @@ def test_reduced_notes_give_the_full_run_of_the_same_mesh():
     from millimpact.geometry.mesh import cache_key, mesh_parameters
     from millimpact.scene.plan import make_plan
     from millimpact.methods.reduced import reduced_plan
-    from millimpact.scene.schema import builtin_scene
+    from millimpact.scene.builtin import builtin_scene
 
     base = builtin_scene("paper-rig")
     scene, plan, _, notes = reduced_plan(base, make_plan(base))

@@ -18,7 +18,7 @@ from mpi4py import MPI
 from conftest import run_mpi_script
 from millimpact.geometry.mesh import create_mesh
 from millimpact.scene.plan import make_plan
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 from millimpact.methods.static import static_hertz
 
 CAP = 1.0e-4   # m, cap displacement towards the block
@@ -81,7 +81,7 @@ def test_static_mpi_equals_serial(coarse):
 from mpi4py import MPI
 from millimpact.geometry.mesh import create_mesh
 from millimpact.scene.plan import make_plan
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 from millimpact.methods.static import static_hertz
 scene = builtin_scene("hertz-halfspace")
 plan = make_plan(scene)

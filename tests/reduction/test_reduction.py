@@ -26,7 +26,7 @@ serial = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial test (scipy 
 def setup():
     from millimpact.geometry.mesh import create_mesh
     from millimpact.scene.plan import make_plan
-    from millimpact.scene.schema import builtin_scene
+    from millimpact.scene.builtin import builtin_scene
 
     scene = builtin_scene("paper-rig")
     for key, value in SMALL.items():
@@ -358,7 +358,7 @@ def test_reduction_under_mpi_matches_serial(setup, traditional):
     code = f"""
 import json
 from mpi4py import MPI
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 from millimpact.scene.plan import make_plan
 from millimpact.methods import reduced as reduced_methods
 from millimpact.results.timeseries import contact_metrics
@@ -435,7 +435,7 @@ def free_rows_mismatch(n_times: int = 40) -> tuple[float, float]:
     from millimpact.results.reduced_recorder import ReducedRecorder
     from millimpact.reduction.craig_bampton import reduce_model
     from millimpact.reduction.free_modes import compute_free_modes
-    from millimpact.scene.schema import builtin_scene
+    from millimpact.scene.builtin import builtin_scene
 
     scene = builtin_scene("paper-rig")
     for key, value in SMALL.items():

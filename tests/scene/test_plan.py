@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from millimpact.scene.plan import make_plan
-from millimpact.scene.schema import Gauge, builtin_scene
+from millimpact.scene.schema import Gauge
+from millimpact.scene.builtin import builtin_scene
 
 PACKAGE = Path(__file__).resolve().parents[2] / "millimpact"
 

@@ -5,8 +5,9 @@ import pytest
 
 from millimpact.errors import SceneError
 from millimpact.scene.plan import make_plan
-from millimpact.scene.schema import (BUILTIN_SCENES, BUILTIN_STUDIES, Scene, builtin_scene, dump_scene, load_scene,
-                              scene_from_dict, study_scene)
+from millimpact.scene.schema import Scene
+from millimpact.scene.builtin import BUILTIN_SCENES, BUILTIN_STUDIES, builtin_scene, study_scene
+from millimpact.scene.toml_io import dump_scene, load_scene, scene_from_dict
 
 
 @pytest.mark.parametrize("name", list(BUILTIN_SCENES))

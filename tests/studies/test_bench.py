@@ -21,7 +21,7 @@ def test_hertz_modal_matches_full():
     from millimpact.scene.plan import make_plan
     from millimpact.results.timeseries import contact_metrics
     from millimpact.methods.run import compute
-    from millimpact.scene.schema import builtin_scene
+    from millimpact.scene.builtin import builtin_scene
 
     scene = builtin_scene("paper-rig")
     for key, value in SMALL.items():
@@ -107,7 +107,7 @@ from mpi4py import MPI
 from millimpact.scene.plan import make_plan
 from millimpact.results.timeseries import contact_metrics
 from millimpact.methods.run import compute
-from millimpact.scene.schema import builtin_scene
+from millimpact.scene.builtin import builtin_scene
 scene = builtin_scene("paper-rig")
 for k, v in {SMALL!r}.items():
     scene = scene.with_value(k, v)

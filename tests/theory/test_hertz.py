@@ -7,7 +7,8 @@ import pytest
 from millimpact.scene.plan import scene_hertz
 from millimpact.theory.hertz import (T_C_FACTOR, effective_modulus, hertz_history, hertz_impact, hertz_static,
                                      max_shear_on_axis)
-from millimpact.scene.schema import Material, builtin_scene
+from millimpact.scene.schema import Material
+from millimpact.scene.builtin import builtin_scene
 
 
 def test_default_scene_values():

@@ -1,0 +1,193 @@
+"""The built-in scenes (``paper-rig`` the default, ``paper-rig-plastic``, ``hertz-halfspace``, ``study-base``,
+``liner-segment``) and the paper's parameter studies; :func:`resolve_scene` takes a built-in name or a TOML file.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import SceneError
+
+Vec3 = tuple[float, float, float]
+Vec2 = tuple[float, float]
+from .schema import Ball, Block, ContactOptions, Gauge, Impact, Liner, Material, Outputs, Scene, TimeSpan, coerce_value
+from .toml_io import load_scene
+
+
+# --- built-in scenes -------------------------------------------------------------------------
+def _default_gauges(block: Block, radius: float) -> tuple[Gauge, ...]:
+    """Gauges A, B, C on the struck face near the impact (an assumption: the paper's Figure 4 with
+    their exact places is not available). A and B above the impact point along z, C beside it
+    along x, each measuring the in-plane normal stress along its direction."""
+    zc = 0.5 * block.height
+    d = 0.5 * radius
+    return (
+        Gauge("A", (0.0, 0.0, zc + d), (0.0, 0.0, 1.0)),
+        Gauge("B", (0.0, 0.0, zc + 2 * d), (0.0, 0.0, 1.0)),
+        Gauge("C", (min(d, 0.45 * block.length), 0.0, zc), (1.0, 0.0, 0.0)),
+    )
+
+
+def _paper_rig() -> Scene:
+    block = Block()
+    return Scene(
+        name="paper-rig",
+        description="The paper's test rig (Liu et al. 2022, Tables 1-2): r = 15 mm steel ball at 3 m/s "
+                    "normal to the 42 x 80 mm face of a 45 mm thick block clamped at its base; 40 ms.",
+        block=block,
+        gauges=_default_gauges(block, 0.015),
+        outputs=Outputs(field_times=(0.0, 45e-6, 90e-6, 1e-3)),
+    )
+
+
+def _paper_rig_plastic() -> Scene:
+    """The rig with real steels: both bodies yield at 3 m/s (Hertz p0 4.9 GPa > 1.6 Y)."""
+    rig = _paper_rig()
+    ball = Ball(radius=0.015, material=coerce_value(Material, "forged-ball-60hrc", "ball.material"))
+    block = dataclasses.replace(rig.block, material=coerce_value(Material, "cr-mo-liner", "block.material"))
+    return dataclasses.replace(
+        rig, name="paper-rig-plastic", ball=ball, block=block,
+        description="The paper's rig with real steels (elastic-plastic, J2): a forged 60 HRC ball (Y 1.9 GPa) on a "
+                    "Cr-Mo liner-steel block (Y 0.95 GPa), 3 m/s; Hertz p0 4.9 GPa is 3x the block's first-yield "
+                    "pressure 1.6 Y. Material values and sources: scene/materials.toml. Run with --method full "
+                    "(the reduced methods are elastic for now).")
+
+
+def _hertz_halfspace() -> Scene:
+    block = Block(length=0.100, thickness=0.100, height=0.100, support="back")
+    return Scene(
+        name="hertz-halfspace",
+        description="The default ball on a large block clamped at its back face: a half-space-like "
+                    "target whose impact Hertz theory describes (restitution ~0.99).",
+        block=block,
+        gauges=_default_gauges(block, 0.015),
+        time=TimeSpan(end=0.3e-3),
+    )
+
+
+def _study_base() -> Scene:
+    """The base of the paper's parameter studies (section 4): r = 20 mm, v = 3 m/s, b = 40 mm, u = 1."""
+    block = Block(thickness=0.040)
+    return Scene(
+        name="study-base",
+        description="Base case of the paper's parameter studies (section 4): r = 20 mm, v = 3 m/s, "
+                    "b = 40 mm, u = nu_ball / nu_block = 1.0; other values as the rig.",
+        ball=Ball(radius=0.020),
+        block=block,
+        gauges=_default_gauges(block, 0.020),
+    )
+
+
+#: the liner-segment scene's impact: speed (m/s) and angle (deg) between the velocity and the lifter
+#: face's inward normal, in the plane of incidence x = 0 (the ball comes down along the face)
+LINER_IMPACT_SPEED = 8.0
+LINER_IMPACT_ANGLE = 30.0
+
+
+def _liner_segment() -> Scene:
+    """A large ball striking a SAG liner's lifter face obliquely (sizes and sources in the description)."""
+    liner = Liner(length=0.40, width=0.50, thickness=0.075, n_lifters=1, lifter_height=0.20,
+                  lifter_top_width=0.10, lifter_face_angle=20.0, lifter_spacing=0.30, mill_radius=5.5,
+                  impact_lifter=0, impact_face="+z", impact_height=0.5, impact_x=0.0)
+    # velocity: LINER_IMPACT_ANGLE from the face's inward normal -n, tilted towards the plate (down
+    # the face): v = V (-cos(a) n - sin(a) s), s the face's up-slope direction in the y-z plane
+    _, n = liner.face_point()
+    up = (0.0, n[2], -n[1]) if n[2] > 0 else (0.0, -n[2], n[1])    # in-face, pointing away from the plate
+    a = math.radians(LINER_IMPACT_ANGLE)
+    v = tuple(round(LINER_IMPACT_SPEED * (-math.cos(a) * nc - math.sin(a) * uc), 12) + 0.0 for nc, uc in zip(n, up))
+    return Scene(
+        name="liner-segment",
+        description=(
+            "A 125 mm steel ball at 8 m/s striking a lifter face of a SAG-mill liner segment 30 deg off the "
+            "face normal (towards the plate), Coulomb friction mu = 0.2 (steel on wet steel). Sizes of a "
+            "36-40 ft (11-12 m) SAG mill, typical values of the liner-design literature (e.g. D. Royston, "
+            "SAG mill liner design and development, Min. Metall. Process. 24 (2007) 121-132): shell plate "
+            "75 mm thick (typical 75-100 mm), lifter 200 mm high (150-250 mm), 100 mm top, 20 deg face angle "
+            "(15-30 deg), Cr-Mo steel (elastic here: E = 182 GPa, nu = 0.3 as the rig), plate curved to the "
+            "mill's 5.5 m radius, 400 mm along the axis x 500 mm of arc; balls 100-150 mm thrown at up to "
+            "~10 m/s. Elastic on purpose: Hertz p0 ~6.9 GPa, far above the yield of real liner steel. "
+            "Half model: the plane of incidence x = 0 is a symmetry plane."),
+        ball=Ball(radius=0.0625),
+        liner=liner,
+        impact=Impact(velocity=v),
+        contact=ContactOptions(friction=0.2),
+        time=TimeSpan(end=0.6e-3),
+        outputs=Outputs(field_times=(0.0, 2.0e-4, 4.0e-4)),
+    )
+
+
+BUILTIN_SCENES = {
+    "paper-rig": _paper_rig,
+    "paper-rig-plastic": _paper_rig_plastic,
+    "hertz-halfspace": _hertz_halfspace,
+    "study-base": _study_base,
+    "liner-segment": _liner_segment,
+}
+DEFAULT_SCENE = "paper-rig"
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """A one-parameter sweep of the paper: ``param`` is a dotted scene field, ``values`` its values,
+    ``label``/``display`` how the figure names each case (e.g. u = nu_ball / nu_block)."""
+
+    name: str
+    base: str
+    param: str
+    values: tuple[float, ...]
+    label: str
+    display: tuple[float, ...]
+    unit: str
+    paper_conclusion: str
+
+
+BUILTIN_STUDIES = {
+    "poisson": StudySpec("poisson", "study-base", "ball.material.poisson", (0.15, 0.30, 0.45),
+                         "u = nu_ball / nu_block", (0.5, 1.0, 1.5), "",
+                         "(2) Poisson ratio changes little the contact-point displacement, velocity and "
+                         "acceleration but changes the stress; above u = 1.0 the stress grows less."),
+    "velocity": StudySpec("velocity", "study-base", "impact.velocity", (1.0, 3.0, 5.0),
+                          "v", (1.0, 3.0, 5.0), "m/s",
+                          "(3) displacement, velocity, acceleration and stress grow with v; above 3 m/s "
+                          "they grow less."),
+    "radius": StudySpec("radius", "study-base", "ball.radius", (0.015, 0.020, 0.025),
+                        "r", (15.0, 20.0, 25.0), "mm",
+                        "(4) displacement, velocity and stress grow with r, acceleration changes little; "
+                        "above 20 mm the stress changes greatly and the peak acceleration comes earlier."),
+    "thickness": StudySpec("thickness", "study-base", "block.thickness", (0.030, 0.040, 0.050),
+                           "b", (30.0, 40.0, 50.0), "mm",
+                           "(5) displacement and acceleration grow with b, stress amplitude falls; above "
+                           "40 mm the time of peak acceleration hardly changes."),
+}
+
+
+def builtin_scene(name: str) -> Scene:
+    """A built-in scene by name."""
+    try:
+        return BUILTIN_SCENES[name]()
+    except KeyError:
+        raise SceneError("scene", name, f"unknown built-in scene; known: {', '.join(BUILTIN_SCENES)} "
+                         "(or give a .toml file)") from None
+
+
+def resolve_scene(name_or_file: str | None) -> Scene:
+    """A built-in scene by name, or a TOML file by path; ``None`` gives the default scene."""
+    if name_or_file is None:
+        return builtin_scene(DEFAULT_SCENE)
+    if name_or_file in BUILTIN_SCENES:
+        return builtin_scene(name_or_file)
+    if name_or_file.endswith(".toml") or Path(name_or_file).exists():
+        return load_scene(name_or_file)
+    return builtin_scene(name_or_file)
+
+
+def study_scene(spec: StudySpec, value: float) -> Scene:
+    """The scene of one study case (velocity values are speeds along -y)."""
+    base = builtin_scene(spec.base)
+    if spec.param == "impact.velocity":
+        v = base.impact.velocity
+        n = base.impact.speed
+        return base.with_value("impact.velocity", [c / n * value for c in v])
+    return base.with_value(spec.param, value)

@@ -1,0 +1,62 @@
+"""Scenes in and out of TOML: plain data to a validated :class:`~.schema.Scene` and back (None values omitted:
+they mean 'the plan decides'), files read and written.
+"""
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from ..errors import SceneError
+
+Vec3 = tuple[float, float, float]
+Vec2 = tuple[float, float]
+from .schema import Block, Scene, from_table
+
+
+def scene_from_dict(data: dict) -> Scene:
+    """Build (and validate) a scene from a TOML-like dict; unknown keys and wrong types refused."""
+    return from_table(Scene, data, "")
+
+
+def scene_to_dict(scene: Scene) -> dict:
+    """The scene as plain TOML-able data (None values omitted: they mean 'the plan decides')."""
+    def clean(v: Any) -> Any:
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items() if x is not None}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        return v
+    d = clean(dataclasses.asdict(scene))
+    if scene.liner is not None and scene.block == Block():
+        d.pop("block", None)    # unused by a liner scene
+    return d
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read a scene TOML file."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise SceneError("scene", str(p), f"cannot be read ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError("scene", str(p), f"is not valid TOML ({exc})") from None
+    data.setdefault("name", p.stem)
+    return scene_from_dict(data)
+
+
+def dump_scene(scene: Scene) -> str:
+    """The scene as TOML text, with a header that states the units."""
+    import tomli_w
+
+    head = ("# millimpact scene. SI units: m, s, kg/m^3, Pa, m/s.\n"
+            "# Block: x in [-length/2, length/2], y in [-thickness, 0], z in [0, height]; struck face y = 0.\n"
+            "# Liner scenes: the [liner] table replaces the block (struck lifter face, contact normal = its normal).\n"
+            "# Omitted optional values (impact.point, impact.gap, time.dt_*, model.*) are chosen by the plan.\n")
+    return head + tomli_w.dumps(scene_to_dict(scene))
+
+
