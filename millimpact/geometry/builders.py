@@ -1,6 +1,8 @@
 """Geometry: gmsh (OpenCASCADE) models of the ball and the struck body, meshed with tetrahedra.
 
-Stage 3 of a run (DESIGN.md section 1). The builders are pure functions of their parameters that
+Stage 3 of a run (DESIGN.md section 1). This module holds what the builders share (tags, sizes,
+the gmsh session, zone splitting, size fields, meshing); the builders are :mod:`.block` (the rig)
+and :mod:`.liner` (a liner segment), pure functions of their parameters that
 act on the *current* gmsh session on one rank (rank 0); :mod:`millimpact.geometry.mesh` converts the result
 to DOLFINx once and caches it. Units are SI (metres) throughout.
 
@@ -51,10 +53,11 @@ import numpy as np
 
 from ..errors import MeshError
 from ..scene.plan import Plan
-from ..scene.liner_shape import LinerShape
-from ..scene.schema import Scene, Vec3
+from ..scene.schema import Vec3
 
 logger = logging.getLogger(__name__)
+
+
 
 #: bump when the builders change what they produce: part of the mesh cache key
 BUILDER_VERSION = 1
@@ -160,204 +163,20 @@ def gmsh_session(name: str = "millimpact") -> Iterator[None]:
             gmsh.option.setNumber("General.Terminal", terminal)
 
 
-# --- the impact model ------------------------------------------------------------------------------
-def build_impact_model(scene: Scene, plan: Plan, *, generate: bool = True) -> ModelInfo:
-    """Build ball + block in the current gmsh model, tag them, and (``generate``) mesh them.
-
-    The ball (radius ``scene.ball.radius``, m) is centred at ``scene.ball_centre(plan.gap)``; the
-    block spans ``[-L/2, L/2] x [-b, 0] x [0, H]``. Zones: spheres of ``plan.zone_radius`` around
-    the impact point ``scene.impact_point`` (block) and the ball's lowest point
-    ``(x_p, plan.gap, z_p)``. Raises :class:`MeshError` in one sentence if gmsh fails.
-    """
-    sizes = MeshSizes.from_plan(plan)
-    sizes.validate()
-    blk = scene.block
-    x_p, _, z_p = scene.impact_point
-    planes = tuple(plan.symmetry_planes)
-    for p in planes:
-        if p not in ("x", "z"):
-            raise MeshError(f"symmetry plane {p!r}: must be 'x' or 'z'")
-    contact_block = (x_p, 0.0, z_p)
-    contact_ball = (x_p, plan.gap, z_p)
-    centre = scene.ball_centre(plan.gap)
-    R = scene.ball.radius
-    _check_zone_fits("block", sizes.zone_radius, min(blk.length, blk.thickness, blk.height))
-    clearance = min(0.5 * blk.length - abs(x_p), blk.thickness, z_p, blk.height - z_p)
-    if clearance < sizes.zone_radius:
-        logger.warning("the contact zone (radius %.3g m) reaches another face of the block (%.3g m from the "
-                       "impact point): those faces are tagged as usual (support / block surface)",
-                       sizes.zone_radius, clearance)
-    _check_zone_fits("ball", sizes.zone_radius, R)
-    return _run_gmsh(lambda: _impact(blk, R, centre, contact_block, contact_ball, planes, sizes, generate))
-
-
-def _impact(blk, R, centre, contact_block, contact_ball, planes, sizes, generate) -> ModelInfo:
-    occ = gmsh.model.occ
-    x_p, _, z_p = contact_block
-    L, b, H = blk.length, blk.thickness, blk.height
-    box = occ.addBox(-0.5 * L, -b, 0.0, L, b, H)
-    ball = occ.addSphere(*centre, R)
-    scale = max(L, b, H, 2 * R)
-    lo, hi = (-L, -b - scale, -scale), (L, centre[1] + 2 * R + scale, H + scale)   # holds both bodies
-    block_zone, block_region, v_block = _split_body(box, contact_block, sizes.zone_radius,
-                                                    _keep_box(planes, x_p, z_p, scale, lo, hi), "block")
-    ball_zone, ball_region, v_ball = _split_body(ball, contact_ball, sizes.zone_radius,
-                                                 _keep_box(planes, x_p, z_p, scale, lo, hi), "ball")
-    occ.synchronize()
-
-    tol = 1e-9 * scale
-    support_plane = (2, 0.0) if blk.support == "base" else (1, -b)
-
-    def block_facet(s: int, in_zone: bool) -> int:
-        sym = _sym_tag(s, planes, x_p, z_p, tol)
-        if sym:
-            return sym
-        if _on_plane(s, *support_plane, tol):
-            return SUPPORT
-        if in_zone and _on_plane(s, 1, 0.0, tol):
-            return BLOCK_CONTACT
-        return BLOCK_SURFACE
-
-    def ball_facet(s: int, in_zone: bool) -> int:
-        return _sym_tag(s, planes, x_p, z_p, tol) or (BALL_CONTACT if in_zone else BALL_SURFACE)
-
-    volumes = _tag_groups(block_zone, block_region, ball_zone, ball_region, block_facet, ball_facet)
-    info = ModelInfo(contact_block=contact_block, contact_ball=contact_ball, volumes=volumes,
-                     symmetry_planes=planes, sizes=sizes, contact_vertices=(v_block, v_ball),
-                     block_volumes=tuple(block_zone + block_region), ball_volumes=tuple(ball_zone + ball_region))
-    _size_field([v_block, v_ball], sizes)
-    if generate:
-        info = _generate(info)
-    return info
-
-
-# --- the liner model -----------------------------------------------------------------------------
-def build_liner_model(liner: LinerShape, sizes: MeshSizes, *, lifter: int = 0, face: str = "+z",
-                      height_fraction: float = 0.5, x: float = 0.0, ball_radius: Optional[float] = None,
-                      gap: float = 0.0, symmetry_planes: Sequence[str] = (), generate: bool = True) -> ModelInfo:
-    """Build a liner segment (tagged as the block) with a contact zone on a lifter face, optionally
-    with a ball (radius ``ball_radius``, m) a ``gap`` (m) off the face along its normal, and mesh it.
-
-    The contact point is ``liner.lifter_face_point(lifter, face, height_fraction, x)``.
-    ``symmetry_planes`` may be ``("x",)``: keep ``x >= x`` (the liner is prismatic along x).
-    ``SUPPORT`` is the plate's back face (bolted to the mill shell). Sizes in m.
-    """
-    liner.validate_shape()
-    sizes.validate()
-    planes = tuple(symmetry_planes)
-    if any(p != "x" for p in planes):
-        raise MeshError(f"symmetry_planes = {planes!r}: a liner allows only ('x',)")
-    point, normal = liner.lifter_face_point(lifter, face, height_fraction, x)
-    _check_zone_fits("liner", sizes.zone_radius, min(liner.thickness, liner.lifter_top_width, liner.length))
-    ball = None
-    if ball_radius is not None:
-        _positive_size("ball_radius", ball_radius)
-        if not (math.isfinite(gap) and gap >= 0):
-            raise MeshError(f"gap = {gap!r} m: must be >= 0")
-        _check_zone_fits("ball", sizes.zone_radius, ball_radius)
-        ball = (ball_radius, tuple(p + (ball_radius + gap) * n for p, n in zip(point, normal)),
-                tuple(p + gap * n for p, n in zip(point, normal)))
-    return _run_gmsh(lambda: _liner(liner, sizes, point, ball, planes, generate))
-
-
-def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, generate) -> ModelInfo:
-    occ = gmsh.model.occ
-    L, w, t, R = liner.length, liner.width, liner.thickness, liner.mill_radius
-    x0 = -0.5 * L
-    # cross-section in the plane x = x0, then extruded along x
-    if R == 0:
-        plate = _polygon([(0.0, -t, 0.0), (0.0, -t, w), (0.0, 0.0, w), (0.0, 0.0, 0.0)], x0)
-    else:
-        alpha = 0.5 * w / R
-
-        def on(r: float, phi: float) -> tuple[float, float]:
-            return R - r * math.cos(phi), 0.5 * w + r * math.sin(phi)
-        pts = [on(R + t, -alpha), on(R + t, alpha), on(R, alpha), on(R, -alpha)]
-        tags = [occ.addPoint(x0, y, z) for y, z in pts]
-        ctr = occ.addPoint(x0, R, 0.5 * w)
-        curves = [occ.addCircleArc(tags[0], ctr, tags[1]), occ.addLine(tags[1], tags[2]),
-                  occ.addCircleArc(tags[2], ctr, tags[3]), occ.addLine(tags[3], tags[0])]
-        plate = occ.addPlaneSurface([occ.addCurveLoop(curves)])
-        occ.remove([(0, ctr)])
-    sections = [(2, plate)]
-    hb, ht, h = 0.5 * liner.lifter_base_width, 0.5 * liner.lifter_top_width, liner.lifter_height
-    d = liner.foot_depth
-    for c in liner.lifter_centres():
-        local = [(-hb, -d), (hb, -d), (hb, 0.0), (ht, h), (-ht, h), (-hb, 0.0)]   # (zeta, eta); foot overlaps the plate
-        sections.append((2, _polygon([(0.0, *liner.lifter_to_global(c, zt, et)) for zt, et in local], x0)))
-    if len(sections) > 1:
-        sections, _ = occ.fuse(sections[:1], sections[1:])
-    vols = []
-    for s in sections:
-        out = occ.extrude([s], L, 0.0, 0.0)
-        vols += [e for e in out if e[0] == 3]
-    if len(vols) != 1:
-        raise MeshError(f"the liner cross-section did not fuse into one body ({len(vols)} pieces)")
-    body = vols[0][1]
-    scale = max(L, w, t + liner.lifter_height, ball[0] * 2 if ball else 0.0)
-    lo = (-scale - L, -scale - t - 2 * R, -scale - w)
-    hi = (scale + L, scale + liner.lifter_height + 2 * R, scale + 2 * w)
-    if ball is not None:
-        rb, centre, _ = ball
-        sphere = occ.addSphere(*centre, rb)
-        overlap, _ = occ.intersect([(3, sphere)], [(3, body)], removeObject=False, removeTool=False)
-        common = sum(occ.getMass(*e) for e in overlap if e[0] == 3)
-        if overlap:
-            occ.remove(overlap, recursive=True)
-        if common > 1e-9 * rb**3:
-            raise MeshError(f"ball_radius = {rb:g} m: the ball overlaps the liner at this contact point "
-                            "(choose a smaller ball, a larger gap or a point higher on the lifter face)")
-    zone, region, v_liner = _split_body(body, point, sizes.zone_radius, _keep_box(planes, point[0], 0.0, scale, lo, hi),
-                                        "liner")
-    ball_zone, ball_region, v_ball = [], [], None
-    if ball is not None:
-        ball_zone, ball_region, v_ball = _split_body(sphere, ball[2], sizes.zone_radius,
-                                                     _keep_box(planes, point[0], 0.0, scale, lo, hi), "ball")
-    occ.synchronize()
-    tol = 1e-9 * scale
-
-    def on_support(s: int) -> bool:
-        if R == 0:
-            return _on_plane(s, 1, -t, tol)
-        pts = _surface_samples(s)
-        r = np.hypot(pts[:, 1] - R, pts[:, 2] - 0.5 * w)
-        return bool(np.all(np.abs(r - (R + t)) < tol))
-
-    def liner_facet(s: int, in_zone: bool) -> int:
-        if _sym_tag(s, planes, point[0], 0.0, tol):
-            return SYM_X
-        if on_support(s):
-            return SUPPORT
-        return BLOCK_CONTACT if in_zone else BLOCK_SURFACE
-
-    def ball_facet(s: int, in_zone: bool) -> int:
-        return _sym_tag(s, planes, point[0], 0.0, tol) or (BALL_CONTACT if in_zone else BALL_SURFACE)
-
-    volumes = _tag_groups(zone, region, ball_zone, ball_region, liner_facet, ball_facet)
-    vertices = [v_liner] + ([v_ball] if v_ball is not None else [])
-    info = ModelInfo(contact_block=tuple(point), contact_ball=ball[2] if ball else None, volumes=volumes,
-                     symmetry_planes=planes, sizes=sizes, contact_vertices=tuple(vertices),
-                     block_volumes=tuple(zone + region), ball_volumes=tuple(ball_zone + ball_region))
-    _size_field(vertices, sizes)
-    if generate:
-        info = _generate(info)
-    return info
-
-
 # --- shared pieces ---------------------------------------------------------------------------------
-def _positive_size(name: str, v: object) -> None:
+def positive_size(name: str, v: object) -> None:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
         raise MeshError(f"{name} = {v!r}: must be a finite number > 0 m")
 
 
-def _check_zone_fits(body: str, zone_radius: float, size: float) -> None:
+def check_zone_fits(body: str, zone_radius: float, size: float) -> None:
     # the plan keeps the zone below 0.45 of the smallest size; refuse only what cannot be built
     if zone_radius >= 0.5 * size:
         raise MeshError(f"zone_radius = {zone_radius:g} m: the contact zone is larger than the {body} "
                         f"(must be below half its smallest size, {0.5 * size:g} m)")
 
 
-def _run_gmsh(build: Callable[[], ModelInfo]) -> ModelInfo:
+def run_gmsh(build: Callable[[], ModelInfo]) -> ModelInfo:
     """Run a builder, turning gmsh's exceptions into one-sentence :class:`MeshError`."""
     try:
         return build()
@@ -367,7 +186,7 @@ def _run_gmsh(build: Callable[[], ModelInfo]) -> ModelInfo:
         raise MeshError(f"gmsh failed to build or mesh the model: {exc}") from exc
 
 
-def _polygon(points: Sequence[tuple[float, float, float]], x0: float) -> int:
+def polygon_face(points: Sequence[tuple[float, float, float]], x0: float) -> int:
     """A plane surface in x = x0 through (_, y, z) points (the first coordinate is ignored)."""
     occ = gmsh.model.occ
     tags = [occ.addPoint(x0, y, z) for _, y, z in points]
@@ -375,7 +194,7 @@ def _polygon(points: Sequence[tuple[float, float, float]], x0: float) -> int:
     return occ.addPlaneSurface([occ.addCurveLoop(lines)])
 
 
-def _keep_box(planes: Sequence[str], x_p: float, z_p: float, scale: float, lo: Sequence[float],
+def keep_box(planes: Sequence[str], x_p: float, z_p: float, scale: float, lo: Sequence[float],
               hi: Sequence[float]) -> Optional[int]:
     """A box holding the kept side of the symmetry planes (x >= x_p, z >= z_p), None if no plane."""
     if not planes:
@@ -386,7 +205,7 @@ def _keep_box(planes: Sequence[str], x_p: float, z_p: float, scale: float, lo: S
     return gmsh.model.occ.addBox(x0, y0, z0, x1 - x0, y1 - y0, z1 - z0)
 
 
-def _split_body(body: int, point: Vec3, zone_radius: float, keep: Optional[int],
+def split_body(body: int, point: Vec3, zone_radius: float, keep: Optional[int],
                 name: str) -> tuple[list[int], list[int], int]:
     """Cut ``body`` by the symmetry box ``keep``, then fragment it with the zone sphere (radius m,
     centred at the contact ``point``) and the point itself. Returns (zone volumes, region volumes,
@@ -422,7 +241,7 @@ def _split_body(body: int, point: Vec3, zone_radius: float, keep: Optional[int],
     return zone, region, points[0]
 
 
-def _surface_samples(s: int) -> np.ndarray:
+def surface_samples(s: int) -> np.ndarray:
     """Points on the underlying surface of gmsh surface ``s`` (a 3 x 3 grid in its parameters)."""
     lo, hi = gmsh.model.getParametrizationBounds(2, s)
     uv = [lo[i] + f * (hi[i] - lo[i]) for fu in (0.2, 0.5, 0.8) for fv in (0.2, 0.5, 0.8)
@@ -430,22 +249,22 @@ def _surface_samples(s: int) -> np.ndarray:
     return np.asarray(gmsh.model.getValue(2, s, uv)).reshape(-1, 3)
 
 
-def _on_plane(s: int, axis: int, value: float, tol: float) -> bool:
+def on_plane(s: int, axis: int, value: float, tol: float) -> bool:
     """Whether surface ``s`` lies in the plane x[axis] = value (m)."""
     if gmsh.model.getType(2, s) != "Plane":
         return False
-    return bool(np.all(np.abs(_surface_samples(s)[:, axis] - value) < tol))
+    return bool(np.all(np.abs(surface_samples(s)[:, axis] - value) < tol))
 
 
-def _sym_tag(s: int, planes: Sequence[str], x_p: float, z_p: float, tol: float) -> int:
-    if "x" in planes and _on_plane(s, 0, x_p, tol):
+def symmetry_tag(s: int, planes: Sequence[str], x_p: float, z_p: float, tol: float) -> int:
+    if "x" in planes and on_plane(s, 0, x_p, tol):
         return SYM_X
-    if "z" in planes and _on_plane(s, 2, z_p, tol):
+    if "z" in planes and on_plane(s, 2, z_p, tol):
         return SYM_Z
     return 0
 
 
-def _tag_groups(block_zone: list[int], block_region: list[int], ball_zone: list[int], ball_region: list[int],
+def tag_groups(block_zone: list[int], block_region: list[int], ball_zone: list[int], ball_region: list[int],
                 block_facet: Callable[[int, bool], int], ball_facet: Callable[[int, bool], int]) -> dict[int, float]:
     """Add the physical groups. Interfaces are surfaces bounding a zone and a region volume; each
     exterior surface is classified by the body's ``*_facet(surface, in_zone)``. Returns the OCC
@@ -481,7 +300,7 @@ def _tag_groups(block_zone: list[int], block_region: list[int], ball_zone: list[
     return volumes
 
 
-def _size_field(points: Sequence[int], sizes: MeshSizes) -> None:
+def size_field(points: Sequence[int], sizes: MeshSizes) -> None:
     """h = h_contact within fine_radius of the contact points, linear growth to h_far at
     fine_radius + SIZE_GROWTH_ZONE_RADII zone_radius, capped at h_far; first-order tets."""
     f = gmsh.model.mesh.field
@@ -505,7 +324,7 @@ def _size_field(points: Sequence[int], sizes: MeshSizes) -> None:
     opt("Mesh.Optimize", 1)
 
 
-def _generate(info: ModelInfo) -> ModelInfo:
+def generate_mesh(info: ModelInfo) -> ModelInfo:
     """Mesh the current model in 3D; refuse empty groups; renumber nodes contiguously."""
     t0 = time.perf_counter()
     gmsh.model.mesh.generate(3)

@@ -34,6 +34,8 @@ from dolfinx.io import XDMFFile, gmshio
 from . import builders as geo
 from ..errors import MeshError
 from ..scene.liner_shape import LinerShape
+from .block import build_impact_model
+from .liner import build_liner_model
 from .builders import CELL_TAG_NAMES, FACET_TAG_NAMES, MeshSizes, ModelInfo
 from ..scene.plan import Plan
 from ..scene.schema import Scene, Vec3
@@ -162,7 +164,7 @@ def create_mesh(scene: Scene, plan: Plan, comm: MPI.Comm = MPI.COMM_WORLD,
                 cache_dir: Union[Path, str, None] = None, *, use_cache: bool = True) -> MeshData:
     """The impact mesh (ball + block) of a scene and its plan, distributed over ``comm``.
 
-    Built by :func:`millimpact.geometry.build_impact_model` on rank 0 or loaded from the cache
+    Built by :func:`millimpact.geometry.block.build_impact_model` on rank 0 or loaded from the cache
     (see the module docstring for the directory; ``use_cache=False`` neither reads nor writes it).
     Raises :class:`MeshError` on every rank if the build fails.
     """
@@ -173,21 +175,21 @@ def create_mesh(scene: Scene, plan: Plan, comm: MPI.Comm = MPI.COMM_WORLD,
                                  x=ln.impact_x, ball_radius=scene.ball.radius, gap=plan.gap,
                                  symmetry_planes=tuple(plan.symmetry_planes))
     params = mesh_parameters(scene, plan)
-    return _create(params, lambda: geo.build_impact_model(scene, plan), plan.symmetry, comm, cache_dir, use_cache)
+    return _create(params, lambda: build_impact_model(scene, plan), plan.symmetry, comm, cache_dir, use_cache)
 
 
 def create_liner_mesh(liner: LinerShape, sizes: MeshSizes, comm: MPI.Comm = MPI.COMM_WORLD,
                       cache_dir: Union[Path, str, None] = None, *, use_cache: bool = True,
                       **placement: Any) -> MeshData:
     """A liner segment mesh (tagged as the block), optionally with a ball; ``placement`` goes to
-    :func:`millimpact.geometry.build_liner_model` (lifter, face, height_fraction, x, ball_radius,
+    :func:`millimpact.geometry.liner.build_liner_model` (lifter, face, height_fraction, x, ball_radius,
     gap, symmetry_planes). Cached like :func:`create_mesh`."""
     params = {"kind": "liner", **_builder_parameters(), "liner": {f.name: getattr(liner, f.name) for f in dataclasses.fields(LinerShape)},
               "sizes": dataclasses.asdict(sizes),
               "placement": {k: list(v) if isinstance(v, tuple) else v for k, v in sorted(placement.items())}}
     planes = tuple(placement.get("symmetry_planes", ()))
     symmetry = "half" if planes else "full"
-    return _create(params, lambda: geo.build_liner_model(liner, sizes, **placement), symmetry, comm, cache_dir,
+    return _create(params, lambda: build_liner_model(liner, sizes, **placement), symmetry, comm, cache_dir,
                    use_cache)
 
 

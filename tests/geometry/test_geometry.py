@@ -23,6 +23,7 @@ import dolfinx
 import dolfinx.cpp.mesh as cmesh
 
 from millimpact.geometry import builders as geo
+from millimpact.geometry.liner import build_liner_model
 from millimpact.errors import MeshError, SceneError
 from millimpact.geometry.mesh import (create_liner_mesh, create_mesh, default_cache_dir, facet_indices, locate_cells,
                              mesh_report, tet_quality, write_mesh_xdmf)
@@ -457,4 +458,4 @@ def test_liner_ball_overlap_is_refused():
     sizes = geo.MeshSizes(h_contact=5e-3, h_far=3e-2, zone_radius=1.2e-2, fine_radius=6e-3)
     with geo.gmsh_session("overlap-test"):
         with pytest.raises(MeshError, match="ball_radius"):
-            geo.build_liner_model(liner, sizes, height_fraction=0.1, ball_radius=0.2, generate=False)
+            build_liner_model(liner, sizes, height_fraction=0.1, ball_radius=0.2, generate=False)
