@@ -6,7 +6,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import solvers
+from .contact_operator import gather, scatter_into, stack_rows
 from ..errors import InputError
 from .dynamics import LinearDynamics
 
@@ -40,7 +40,7 @@ class ContactRows:
         self._f = B.createVecRight()
         # friction: C = [B; T] (3 n_c rows), the rows whose multipliers the step solves for
         self.T = T
-        self.C = solvers.stack_rows([B, T]) if T is not None else B
+        self.C = stack_rows([B, T]) if T is not None else B
         if T is not None:
             self._t = T.createVecLeft()
             self._cc = self.C.createVecLeft()
@@ -48,30 +48,30 @@ class ContactRows:
     def gap(self, u: PETSc.Vec) -> np.ndarray:
         """g0 + B u (m), replicated."""
         self.B.mult(u, self._c)
-        return self.g0 + solvers.gather(self._c)
+        return self.g0 + gather(self._c)
 
     def rate(self, v: PETSc.Vec) -> np.ndarray:
         """B v (m/s), replicated."""
         self.B.mult(v, self._c)
-        return solvers.gather(self._c)
+        return gather(self._c)
 
     def slip(self, du: PETSc.Vec) -> np.ndarray:
         """T du (m), replicated: relative tangential displacements [t1; t2]."""
         self.T.mult(du, self._t)
-        return solvers.gather(self._t)
+        return gather(self._t)
 
     def add_multiplier_force(self, x: np.ndarray, f: PETSc.Vec, scale: float = 1.0) -> None:
         """f += scale * C^T x for x = [lambda; tau] (friction, 3 n_c values), or B^T lambda."""
         if x.size == self.n_c:
             self.add_force(x, f, scale)
             return
-        solvers.scatter_into(self._cc, x)
+        scatter_into(self._cc, x)
         self.C.multTranspose(self._cc, self._f)
         f.axpy(scale, self._f)
 
     def add_force(self, lam: np.ndarray, f: PETSc.Vec, scale: float = 1.0) -> None:
         """f += scale * B^T lam."""
-        solvers.scatter_into(self._c, lam)
+        scatter_into(self._c, lam)
         self.B.multTranspose(self._c, self._f)
         f.axpy(scale, self._f)
 

@@ -17,7 +17,7 @@ with ``S = C A^-1 C^T`` (dense, replicated). The discrete law::
               ds_i != 0  =>  tau_i = -mu lambda_i ds_i / |ds_i|  (slip opposes the ball's relative slip).
 
 Solution: a fixed point on the slip bounds (normal/tangential alternation, as in Panagiotopoulos'
-process): for the current tau solve the normal LCP exactly (:func:`millimpact.integration.solvers.solve_lcp`);
+process): for the current tau solve the normal LCP exactly (:func:`millimpact.integration.solve_lcp`);
 for the resulting bounds mu lambda solve the Tresca problem (fixed bounds) exactly by a semi-smooth
 Newton method on the Alart-Curnier projection equation: a stick/slip active set (nodes inside their
 friction disc stick, the others slide) with a consistent linearization of the slip direction, damped
@@ -38,8 +38,8 @@ from typing import Optional
 
 import numpy as np
 
+from .lcp import solve_lcp
 from ..errors import SolverError
-from .solvers import solve_lcp
 
 #: relative tolerance of the fixed point and the slip directions
 FRICTION_RTOL = 1e-10

@@ -26,7 +26,7 @@ Methods (:data:`METHODS`):
 
 Each implicit step: one predictor solve with lambda = 0 using the factorization of
 ``A = K + M/(beta dt^2)`` (cached per step size, never refactored inside a step), the exact small
-LCP ``g = q + S lambda`` on the dense ``S = B A^-1 B^T`` (:func:`millimpact.integration.solvers.solve_lcp`,
+LCP ``g = q + S lambda`` on the dense ``S = B A^-1 B^T`` (:func:`millimpact.integration.lcp.solve_lcp`,
 replicated on every rank, rank 0's answer broadcast), then the final state from the PETSc
 saddle-point solve on the found active set (``-impact_contact_solve fieldsplit``, default), a
 monolithic LU of it (``lu``) or ``u = u_pred + W lambda`` (``schur``, cheapest: no further solve).

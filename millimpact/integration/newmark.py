@@ -18,6 +18,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import solvers
+from .contact_operator import ContactOperator, compute_contact_operator, scatter_into
+from .lcp import solve_lcp
+from .saddle_point import SaddlePointSolver
 from ..errors import InputError, SolverError
 from .contact_rows import ContactRows, broadcast
 from .dynamics import IntegrationStats, LinearDynamics
@@ -33,8 +36,8 @@ class StepOperators:
     dt: float
     A: PETSc.Mat
     ksp_u: PETSc.KSP
-    saddle: Optional[solvers.SaddlePointSolver]
-    contact: Optional[solvers.ContactOperator] = None
+    saddle: Optional[SaddlePointSolver]
+    contact: Optional[ContactOperator] = None
 
 
 class NewmarkScheme:
@@ -69,7 +72,7 @@ class NewmarkScheme:
         stats.contact_solve = cs
         self.petsc_options = dict(options)
         if cs == "lu":
-            self.petsc_options = {"pc_type": "lu", **solvers._normalize(options)}
+            self.petsc_options = {"pc_type": "lu", **solvers.normalize_options(options)}
         self.gap_rtol = float(solvers.get_option("gap_rtol", options, 1e-9))
         self.check_rtol = float(solvers.get_option("lambda_check_rtol", options, 1e-6))
         self.ops: dict[float, StepOperators] = {}
@@ -124,7 +127,7 @@ class NewmarkScheme:
             ksp_u = solvers.create_effective_solver(A, self.petsc_options)
             saddle = None
         else:
-            saddle = solvers.SaddlePointSolver(A, self.contact.B, self.petsc_options)
+            saddle = SaddlePointSolver(A, self.contact.B, self.petsc_options)
             ksp_u = saddle.ksp_u
         self.stats.n_factorizations += 1
         if self.comm.rank == 0:
@@ -135,10 +138,10 @@ class NewmarkScheme:
         self.ops[dt] = op
         return op
 
-    def _contact_operator(self, op: StepOperators) -> solvers.ContactOperator:
+    def _contact_operator(self, op: StepOperators) -> ContactOperator:
         if op.contact is None:
             t0 = time.perf_counter()
-            op.contact = solvers.compute_contact_operator(op.ksp_u, self.contact.C)
+            op.contact = compute_contact_operator(op.ksp_u, self.contact.C)
             self.stats.n_w_columns += op.contact.n_rhs
             if self.comm.rank == 0:
                 log.info("dt = %.4g s: W = A^-1 B^T for %d contact rows in %.2f s", op.dt, op.contact.n_rhs,
@@ -168,7 +171,7 @@ class NewmarkScheme:
         if n_c and not np.all(q >= -gap_tol) and self.frictional:
             lam = self._friction_step(C, q, gap_tol, step)
         elif n_c and not np.all(q >= -gap_tol):
-            res = broadcast(self.comm, solvers.solve_lcp(C.S, q, self.active, gap_tol))
+            res = broadcast(self.comm, solve_lcp(C.S, q, self.active, gap_tol))
             self.n_newton = res.iterations
             self.stats.n_lcp_fallback += res.method != "active-set"
             lam = res.lam
@@ -176,7 +179,7 @@ class NewmarkScheme:
                 self.u_pred.copy(self.u_new)
             elif self.contact_solve == "schur":
                 lv = self.contact.B.createVecLeft()
-                solvers.scatter_into(lv, lam)
+                scatter_into(lv, lam)
                 C.W.mult(lv, self.tmp)
                 lv.destroy()
                 self.u_new.waxpy(1.0, self.tmp, self.u_pred)
@@ -239,7 +242,7 @@ class NewmarkScheme:
             raise SolverError(f"non-finite state at step {step}, t = {t_new:.9g} s")
         self.lam, self.gap, self.active = lam, gap, lam > 0
 
-    def _friction_step(self, C: solvers.ContactOperator, q: np.ndarray, gap_tol: float, step: int) -> np.ndarray:
+    def _friction_step(self, C: ContactOperator, q: np.ndarray, gap_tol: float, step: int) -> np.ndarray:
         """Coulomb friction (:mod:`millimpact.integration.friction`): lambda, tau from the dense problem on
         S = C A^-1 C^T, then u_new = u_pred + W [lambda; tau]. Returns lambda (N); sets self.tau."""
         from . import friction
@@ -252,7 +255,7 @@ class NewmarkScheme:
         res = broadcast(self.comm, res)
         n_c = q.size
         x = np.concatenate([res.lam, res.tau])
-        solvers.scatter_into(self.contact._cc, x)
+        scatter_into(self.contact._cc, x)
         C.W.mult(self.contact._cc, self.tmp)
         self.u_new.waxpy(1.0, self.tmp, self.u_pred)
         ds = q_t + C.S[n_c:, :] @ x                 # slip increments over the step, m

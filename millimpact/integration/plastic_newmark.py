@@ -33,6 +33,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import solvers
+from .contact_operator import ContactOperator, compute_contact_operator, scatter_into
+from .lcp import solve_lcp
 from ..errors import InputError, SolverError
 from .dynamics import IntegrationStats, LinearDynamics
 from .newmark import NewmarkScheme
@@ -131,12 +133,12 @@ class PlasticNewmarkScheme(NewmarkScheme):
         A_t.axpy(1.0, dK, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
         dK.destroy()
         ksp = solvers.create_effective_solver(A_t, self.petsc_options)
-        W = solvers.compute_contact_operator(ksp, self.contact.C)
+        W = compute_contact_operator(ksp, self.contact.C)
         self.stats.n_tangent_factorizations += 1
         self.stats.n_w_columns += W.n_rhs
         return ksp, W, (A_t, ksp, W)
 
-    def _contact(self, W: solvers.ContactOperator, q: np.ndarray, gap_tol: float, step: int) -> np.ndarray:
+    def _contact(self, W: ContactOperator, q: np.ndarray, gap_tol: float, step: int) -> np.ndarray:
         """The multipliers of the linear step and u_new = u_pred + W x (x = lambda, or [lambda; tau])."""
         n_c = q.size
         if n_c == 0 or np.all(q >= -gap_tol):
@@ -148,11 +150,11 @@ class PlasticNewmarkScheme(NewmarkScheme):
         if self.frictional:
             lam = self._friction_step(W, q, gap_tol, step)
             return np.concatenate([lam, self.tau])
-        res = solvers.solve_lcp(W.S, q, self.active, gap_tol)
+        res = solve_lcp(W.S, q, self.active, gap_tol)
         lam = self._broadcast(res.lam)
         self.n_newton = res.iterations
         lv = self.contact.B.createVecLeft()
-        solvers.scatter_into(lv, lam)
+        scatter_into(lv, lam)
         W.W.mult(lv, self.tmp)
         lv.destroy()
         self.u_new.waxpy(1.0, self.tmp, self.u_pred)

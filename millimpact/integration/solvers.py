@@ -26,16 +26,15 @@ The same ``options`` mapping (keys relative to ``-impact_``, e.g. ``{"fieldsplit
 "lu"}``) configures all of them. Converged reasons are always checked; a failure raises
 :class:`millimpact.errors.SolverError` naming the reason, the step and the time.
 
-Also here: the dense contact operator ``W = A^-1 B^T`` and ``S = B W`` (one multi-right-hand-side
-solve per step size, :func:`compute_contact_operator`) and the exact small LCP of a contact step
-(:func:`solve_lcp`).
+Beside it: the dense contact operator ``W = A^-1 B^T`` and ``S = B W`` (one multi-right-hand-side
+solve per step size, :mod:`.contact_operator`), the saddle-point solver (:mod:`.saddle_point`) and
+the exact small LCP of a contact step (:mod:`.lcp`).
 """
 from __future__ import annotations
 
 import logging
 import math
 from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import Iterator, Mapping, Optional
 
 import numpy as np
@@ -55,6 +54,8 @@ W_CHUNK = 64
 
 _KSP_REASONS = {getattr(PETSc.KSP.ConvergedReason, k): k for k in dir(PETSc.KSP.ConvergedReason)
                 if not k.startswith("_") and isinstance(getattr(PETSc.KSP.ConvergedReason, k), int)}
+
+
 
 
 # ------------------------------------------------------------------------------------- options
@@ -92,7 +93,7 @@ def mass_solver_defaults() -> dict[str, str]:
             "ksp_max_it": "2000"}
 
 
-def _normalize(options: Optional[Mapping[str, object]]) -> dict[str, str]:
+def normalize_options(options: Optional[Mapping[str, object]]) -> dict[str, str]:
     """Keys relative to ``-impact_`` (a leading ``-`` or ``impact_`` is accepted); values as strings."""
     out: dict[str, str] = {}
     for k, v in (options or {}).items():
@@ -114,7 +115,7 @@ def petsc_options(defaults: Mapping[str, str], options: Optional[Mapping[str, ob
     Wrap ``setFromOptions()`` and ``setUp()`` of the objects that read them.
     """
     opts = PETSc.Options()
-    merged = {**defaults, **_normalize(options)}
+    merged = {**defaults, **normalize_options(options)}
     inserted = []
     for k, v in merged.items():
         name = prefix + k
@@ -135,7 +136,7 @@ def get_option(name: str, options: Optional[Mapping[str, object]], default: obje
     """
     opts = PETSc.Options()
     full = PREFIX + name
-    user = _normalize(options)
+    user = normalize_options(options)
     if opts.hasName(full):
         raw = opts.getString(full, "")
     elif name in user:
@@ -193,7 +194,7 @@ def solve_checked(ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec, what: str, step: i
     check_ksp(ksp, what, step, t)
 
 
-def _mark_symmetric(A: PETSc.Mat) -> None:
+def mark_symmetric(A: PETSc.Mat) -> None:
     A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     A.setOption(PETSc.Mat.Option.SPD, True)
 
@@ -203,12 +204,12 @@ def create_effective_solver(A: PETSc.Mat, options: Optional[Mapping[str, object]
 
     The factorization happens here, once; ``ksp.solve`` then only does triangular solves.
     """
-    _mark_symmetric(A)
+    mark_symmetric(A)
     ksp = PETSc.KSP().create(A.getComm())
     ksp.setOptionsPrefix(f"{PREFIX}fieldsplit_{SPLIT_U}_")
     ksp.setOperators(A)
     pre = f"fieldsplit_{SPLIT_U}_"
-    user = {k[len(pre):]: v for k, v in _normalize(options).items() if k.startswith(pre)}
+    user = {k[len(pre):]: v for k, v in normalize_options(options).items() if k.startswith(pre)}
     with petsc_options(effective_solver_defaults(A.getComm().tompi4py()), user, PREFIX + pre):
         ksp.setFromOptions()
         setup_checked(ksp, "factorization of the effective matrix")
@@ -280,7 +281,7 @@ def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
     ksp.setOptionsPrefix(PREFIX + "mass_")
     ksp.setOperators(Ms)
     pre = "mass_"
-    user = {k[len(pre):]: v for k, v in _normalize(options).items() if k.startswith(pre)}
+    user = {k[len(pre):]: v for k, v in normalize_options(options).items() if k.startswith(pre)}
     with petsc_options(mass_solver_defaults(), user, PREFIX + pre):
         ksp.setFromOptions()
         ksp.setUp()
@@ -288,338 +289,6 @@ def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
     ksp.destroy()
     Ms.destroy()
     rhs.destroy()
-
-
-# ----------------------------------------------------------------------- dense contact operator
-def gather(vec: PETSc.Vec) -> np.ndarray:
-    """A distributed Vec as a numpy array replicated on every rank (global order)."""
-    comm = vec.getComm().tompi4py()
-    loc = np.array(vec.getArray(readonly=True), dtype=float)
-    if comm.size == 1:
-        return loc
-    return np.concatenate(comm.allgather(loc))
-
-
-def scatter_into(vec: PETSc.Vec, values: np.ndarray) -> None:
-    """Set the owned part of ``vec`` from a replicated global array."""
-    r0, r1 = vec.getOwnershipRange()
-    vec.array[:] = values[r0:r1]
-
-
-def stack_rows(mats: list[PETSc.Mat]) -> PETSc.Mat:
-    """The matrices (same column layout) stacked by rows, ``[A_0; A_1; ...]``, in global row order
-    (row r of A_k becomes row sum(rows of A_0..A_k-1) + r, whichever rank owns it). Collective."""
-    comm = mats[0].getComm()
-    n_loc, n = mats[0].getSizes()[1]
-    rows = [m.getSize()[0] for m in mats]
-    C = PETSc.Mat().createAIJ(((PETSc.DECIDE, sum(rows)), (n_loc, n)), comm=comm)
-    C.setPreallocationNNZ((60, 60))
-    C.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-    off = 0
-    for m, nr in zip(mats, rows):
-        r0, r1 = m.getOwnershipRange()
-        for r in range(r0, r1):
-            cols, vals = m.getRow(r)
-            if len(cols):
-                C.setValues([off + r], cols, vals, addv=PETSc.InsertMode.INSERT_VALUES)
-        off += nr
-    C.assemble()
-    return C
-
-
-@dataclass
-class ContactOperator:
-    """``W = A^-1 B^T`` (n x n_c, distributed MPIDENSE with A's row layout and B's row layout as
-    column layout, so ``W.mult`` takes a multiplier Vec) and ``S = B W`` (n_c x n_c numpy,
-    symmetrised, replicated on all ranks). Units: W in m/N, S in m/N."""
-
-    W: PETSc.Mat
-    S: np.ndarray
-    n_rhs: int
-
-
-def compute_contact_operator(ksp_u: PETSc.KSP, B: PETSc.Mat, chunk: int = W_CHUNK) -> ContactOperator:
-    """W = A^-1 B^T for all candidate rows with the factorization of ``ksp_u`` (multi-RHS solves of
-    ``chunk`` columns), and the small dense S = B W replicated on every rank.
-
-    Memory: W holds n x n_c doubles (150k x 300 -> 360 MB) per step size.
-    """
-    comm = B.getComm().tompi4py()
-    (m_loc, n_c), (n_loc, n) = B.getSizes()
-    pc = ksp_u.getPC()
-    F = pc.getFactorMatrix() if pc.getType() in ("lu", "cholesky") else None
-    W = PETSc.Mat().createDense(((n_loc, n), (m_loc, n_c)), comm=B.getComm())
-    W.setUp()
-    Wa = W.getDenseArray()          # local rows x all columns, a view
-    Bt = B.transpose(PETSc.Mat())
-    ai, aj, av = Bt.getValuesCSR()  # local rows of B^T, global column indices
-    rows = np.repeat(np.arange(n_loc), np.diff(ai))
-    for j0 in range(0, n_c, chunk):
-        j1 = min(n_c, j0 + chunk)
-        k = j1 - j0
-        if F is not None:
-            R = PETSc.Mat().createDense(((n_loc, n), (PETSc.DECIDE, k)), comm=B.getComm())
-            R.setUp()
-            Ra = R.getDenseArray()
-            Ra[:] = 0.0
-            sel = (aj >= j0) & (aj < j1)
-            Ra[rows[sel], aj[sel] - j0] = av[sel]
-            R.assemble()
-            X = R.duplicate()
-            try:
-                F.matSolve(R, X)
-            except PETSc.Error as e:
-                raise SolverError(f"W = A^-1 B^T: MatMatSolve failed (PETSc error {e.ierr})") from e
-            Wa[:, j0:j1] = X.getDenseArray()
-            R.destroy()
-            X.destroy()
-        else:   # an iterative u-block solver: one solve per column
-            b = ksp_u.getOperators()[0].createVecLeft()
-            x = b.duplicate()
-            for j in range(j0, j1):
-                b.set(0.0)
-                sel = aj == j
-                b.array[rows[sel]] = av[sel]
-                solve_checked(ksp_u, b, x, "W = A^-1 B^T column solve", 0, 0.0)
-                Wa[:, j] = x.array_r
-    W.assemble()
-    Bt.destroy()
-    Sm = B.matMult(W)
-    Sloc = np.array(Sm.getDenseArray(), dtype=float)
-    S = np.vstack(comm.allgather(Sloc)) if comm.size > 1 else Sloc
-    Sm.destroy()
-    S = 0.5 * (S + S.T)      # A is symmetric: remove the rounding asymmetry
-    return ContactOperator(W=W, S=S, n_rhs=n_c)
-
-
-# ------------------------------------------------------------------------------ saddle point
-def _diag_aij(comm: PETSc.Comm, m_loc: int, m: int, values: np.ndarray) -> PETSc.Mat:
-    D = PETSc.Mat().createAIJ(((m_loc, m), (m_loc, m)), nnz=(1, 0), comm=comm)
-    D.setUp()
-    r0, r1 = D.getOwnershipRange()
-    for i in range(r0, r1):
-        D.setValue(i, i, float(values[i]))
-    D.assemble()
-    return D
-
-
-class SaddlePointSolver:
-    """The contact saddle-point solve on an active set, fixed size over all candidate rows.
-
-    ``[[A, B_m^T], [B_m, D]] [u; mu] = [r; -g0_m]`` with ``B_m`` = B with the inactive rows zeroed,
-    ``D`` = 1 on inactive rows and 0 on active ones, ``g0_m`` = g0 on active rows: inactive
-    multipliers are exactly 0 and ``lambda_A = -mu_A``. A MatNest whose ``A`` block is the very
-    matrix factorized by :attr:`ksp_u`: changing the active set changes only the other blocks, so
-    the factorization is reused (one Cholesky per step size, checked by the tests).
-
-    With the default PCFIELDSPLIT the u-block KSP *is* :attr:`ksp_u` (prefix
-    ``impact_fieldsplit_u_``), also used for the predictor solves and for W. With another
-    ``-impact_pc_type`` (e.g. ``lu``) the nest is converted to AIJ and factorized at every change
-    of the active set, and :attr:`ksp_u` is a separate effective-matrix solver.
-    """
-
-    def __init__(self, A: PETSc.Mat, B: PETSc.Mat, options: Optional[Mapping[str, object]] = None):
-        self.A, self.B = A, B
-        self.options = dict(options or {})
-        comm = A.getComm()
-        self.comm = comm
-        self.m_loc, self.n_c = B.getSizes()[0]
-        _mark_symmetric(A)
-        self.Bt = B.transpose(PETSc.Mat())
-        self.Bm = B.copy()
-        self.Btm = self.Bt.copy()
-        self.mask = B.createVecLeft()
-        self.mask.set(0.0)
-        self.Bm.diagonalScale(L=self.mask)
-        self.Btm.diagonalScale(R=self.mask)
-        self.D = _diag_aij(comm, self.m_loc, self.n_c, np.ones(self.n_c))
-        self.N = PETSc.Mat().createNest([[A, self.Btm], [self.Bm, self.D]], comm=comm)
-        self.active = np.zeros(self.n_c, dtype=bool)
-        self.Sp = _diag_aij(comm, self.m_loc, self.n_c, np.ones(self.n_c))
-        self.n_factorizations = 0
-        self.n_solves = 0
-        self.max_schur_iterations = 0   #: inner (Schur block) iterations of a solve, maximum
-        self._mono: Optional[PETSc.KSP] = None
-        self._mono_mat: Optional[PETSc.Mat] = None
-
-        defaults = saddle_solver_defaults(comm.tompi4py())
-        self.ksp = PETSc.KSP().create(comm)
-        self.ksp.setOptionsPrefix(PREFIX)
-        self.ksp.setOperators(self.N)
-        pc = self.ksp.getPC()
-        with petsc_options(defaults, self.options):
-            pc_type = PETSc.Options().getString(PREFIX + "pc_type", "fieldsplit")
-            self.fieldsplit = pc_type == "fieldsplit"
-            if self.fieldsplit:
-                isu, isl = self.N.getNestISs()[0]
-                pc.setType("fieldsplit")
-                pc.setFieldSplitIS((SPLIT_U, isu), (SPLIT_LAM, isl))
-                pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, self.Sp)
-                self.ksp.setFromOptions()
-                setup_checked(self.ksp, "saddle-point solver")
-                subs = pc.getFieldSplitSubKSP()
-                self.ksp_u, self.ksp_s = subs[0], subs[1]
-                setup_checked(self.ksp_u, "factorization of the effective matrix (fieldsplit u block)")
-                self.n_factorizations += 1
-                setup_checked(self.ksp_s, "Schur-complement preconditioner")
-        if not self.fieldsplit:
-            self.ksp_u = create_effective_solver(A, self.options)
-            self.n_factorizations += 1
-        self._ready = self.fieldsplit    # the initial nest (no active row) matches its Schur matrix
-        self._rhs_u = A.createVecLeft()
-        self._rhs_l = B.createVecLeft()
-        self._x_u = A.createVecRight()
-        self._x_l = B.createVecLeft()
-        self._b = PETSc.Vec().createNest([self._rhs_u, self._rhs_l], comm=comm)
-        self._x = PETSc.Vec().createNest([self._x_u, self._x_l], comm=comm)
-
-    def set_active(self, active: np.ndarray, S: np.ndarray, step: int = 0, t: float = 0.0) -> None:
-        """Impose the constraints ``active`` (bool, replicated) using the dense S = B A^-1 B^T."""
-        active = np.asarray(active, dtype=bool)
-        if self._ready and np.array_equal(active, self.active):
-            return
-        self._ready = True
-        self.active = active.copy()
-        m = active.astype(float)
-        scatter_into(self.mask, m)
-        self.B.copy(self.Bm, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        self.Bm.diagonalScale(L=self.mask)
-        self.Bt.copy(self.Btm, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        self.Btm.diagonalScale(R=self.mask)
-        dv = self.B.createVecLeft()
-        scatter_into(dv, 1.0 - m)
-        self.D.setDiagonal(dv)
-        dv.destroy()
-        if self.fieldsplit:
-            # Schur complement of the masked system: -S on the active block, 1 on inactive rows
-            ia = np.flatnonzero(active)
-            Sp = PETSc.Mat().createAIJ(((self.m_loc, self.n_c), (self.m_loc, self.n_c)),
-                                       nnz=(self.m_loc, self.n_c - self.m_loc), comm=self.comm)
-            r0, r1 = Sp.getOwnershipRange()
-            for i in range(r0, r1):
-                if active[i]:
-                    Sp.setValues([i], ia.astype(PETSc.IntType), -S[i, ia])
-                else:
-                    Sp.setValue(i, i, 1.0)
-            Sp.assemble()
-            self.Sp.destroy()
-            self.Sp = Sp
-            self.ksp.getPC().setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, self.Sp)
-            # New state of the nest only (never N.assemble(): it would bump A's state and force a
-            # refactorization): PCFieldSplit re-reads the blocks and the Schur preconditioner.
-            self.N.stateIncrease()
-            self.ksp.setOperators(self.N)
-        else:
-            if self._mono is not None:
-                self._mono.destroy()
-                self._mono_mat.destroy()
-            Nm = self.N.convert("aij", PETSc.Mat())
-            ksp = PETSc.KSP().create(self.comm)
-            ksp.setOptionsPrefix(PREFIX)
-            ksp.setOperators(Nm)
-            with petsc_options(saddle_solver_defaults(self.comm.tompi4py()), self.options):
-                ksp.setFromOptions()
-                setup_checked(ksp, "monolithic saddle-point factorization", step, t)
-            self.n_factorizations += 1
-            self._mono = ksp
-            self._mono_mat = Nm
-
-    def solve(self, r: PETSc.Vec, g0: np.ndarray, u: PETSc.Vec, step: int, t: float) -> np.ndarray:
-        """Solve on the current active set: ``u`` (m) in place; returns lambda (N, replicated)."""
-        r.copy(self._rhs_u)
-        scatter_into(self._rhs_l, -np.where(self.active, g0, 0.0))
-        if self.fieldsplit:
-            solve_checked(self.ksp, self._b, self._x, "contact saddle-point solve", step, t)
-            check_ksp(self.ksp_s, "Schur-complement solve", step, t)
-            self.max_schur_iterations = max(self.max_schur_iterations, self.ksp_s.getIterationNumber())
-            xu, xl = self._x_u, self._x_l
-        else:
-            bb = self._mono_mat.createVecLeft()
-            xx = self._mono_mat.createVecRight()
-            n_loc = self._rhs_u.getLocalSize()
-            bb.array[:n_loc] = self._rhs_u.array_r
-            bb.array[n_loc:] = self._rhs_l.array_r
-            solve_checked(self._mono, bb, xx, "monolithic contact saddle-point solve", step, t)
-            self._x_u.array[:] = xx.array_r[:n_loc]
-            self._x_l.array[:] = xx.array_r[n_loc:]
-            xu, xl = self._x_u, self._x_l
-        self.n_solves += 1
-        xu.copy(u)
-        lam = -gather(xl)
-        lam[~self.active] = 0.0
-        return lam
-
-    def destroy(self) -> None:
-        """Free the PETSc objects (with the fieldsplit, the factorization in :attr:`ksp_u` goes with
-        :attr:`ksp`)."""
-        objs = [self._mono, self._mono_mat, self.ksp, self.N, self.Bm, self.Btm, self.Bt, self.D, self.Sp,
-                self.mask, self._b, self._x]
-        if not self.fieldsplit:
-            objs.append(self.ksp_u)
-        for o in objs:
-            if o is not None:
-                o.destroy()
-
-
-# ------------------------------------------------------------------------------------ the LCP
-@dataclass
-class LCPResult:
-    """Solution of the contact LCP: multipliers (N), active set, semi-smooth Newton iterations."""
-
-    lam: np.ndarray
-    active: np.ndarray
-    iterations: int
-    method: str
-
-
-def solve_lcp(S: np.ndarray, q: np.ndarray, active0: Optional[np.ndarray] = None, gap_tol: float = 0.0,
-              max_iter: int = 50) -> LCPResult:
-    """Exact solution of the contact LCP  ``g = q + S lam >= 0, lam >= 0, lam . g = 0``.
-
-    ``S = B A^-1 B^T`` (symmetric positive definite for independent constraint rows), ``q`` the
-    predicted gaps (m). Primal-dual active set = semi-smooth Newton on
-    ``lam - max(0, lam - c g) = 0`` (Hintermueller, Ito, Kunisch 2002), warm-started from
-    ``active0`` (the previous step's set: usually 1-2 iterations). It terminates finitely for
-    M-matrices; for a general SPD S it can cycle, which is detected (a repeated active set or
-    ``max_iter``), and the problem is then solved as the equivalent non-negative least-squares
-    problem ``min ||L^T lam + L^-1 q||, lam >= 0`` with ``S = L L^T`` by Lawson-Hanson (finite
-    termination). Deterministic: equal inputs give bit-equal outputs on every rank.
-    """
-    n = q.size
-    active = np.zeros(n, dtype=bool) if active0 is None else np.asarray(active0, dtype=bool).copy()
-    seen: set[bytes] = set()
-    for it in range(1, max_iter + 1):
-        lam = np.zeros(n)
-        ia = np.flatnonzero(active)
-        if ia.size:
-            lam[ia] = _spd_solve(S[np.ix_(ia, ia)], -q[ia])
-        g = q + S @ lam
-        lam_tol = 1e-12 * float(np.max(np.abs(lam))) if n else 0.0
-        new = (active & (lam > -lam_tol)) | (~active & (g < -gap_tol))
-        if np.array_equal(new, active):
-            lam[lam < 0] = 0.0
-            return LCPResult(lam, lam > 0, it, "active-set")
-        key = new.tobytes()
-        if key in seen:
-            break
-        seen.add(key)
-        active = new
-    from scipy.linalg import cholesky, solve_triangular
-    from scipy.optimize import nnls
-
-    L = cholesky(S, lower=True)
-    lam, _ = nnls(L.T, -solve_triangular(L, q, lower=True), maxiter=max(50, 10 * n))
-    return LCPResult(lam, lam > 0, max_iter, "nnls")
-
-
-def _spd_solve(S: np.ndarray, b: np.ndarray) -> np.ndarray:
-    try:
-        from scipy.linalg import cho_factor, cho_solve
-
-        return cho_solve(cho_factor(S), b)
-    except np.linalg.LinAlgError as e:
-        raise SolverError("contact Schur complement S_AA is not positive definite: dependent constraint "
-                          "rows in B (e.g. two rows on the same node and direction)") from e
 
 
 # ----------------------------------------------------------------------------- eigenvalues
@@ -652,7 +321,7 @@ def estimate_max_eigenvalue(K: PETSc.Mat, m_lumped: PETSc.Vec, B: Optional[PETSc
     eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
     eps.setDimensions(1)
     eps.setTolerances(1e-8, 1000)
-    with petsc_options({}, {k[4:]: v for k, v in _normalize(options).items() if k.startswith("eps_")},
+    with petsc_options({}, {k[4:]: v for k, v in normalize_options(options).items() if k.startswith("eps_")},
                        PREFIX + "eps_"):
         eps.setFromOptions()
         eps.solve()

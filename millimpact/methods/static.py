@@ -42,7 +42,9 @@ from ..fem.model import create_fe_model
 from ..fem.probes import create_probe
 from ..scene.plan import Plan
 from ..scene.schema import Scene
-from ..integration.solvers import compute_contact_operator, create_effective_solver, solve_lcp
+from ..integration.solvers import create_effective_solver
+from ..integration.lcp import solve_lcp
+from ..integration.contact_operator import compute_contact_operator
 
 #: the loaded cap: ball surface within this angle (rad) of the pole opposite the contact point
 CAP_HALF_ANGLE = np.radians(30.0)

@@ -22,7 +22,7 @@ from petsc4py import PETSc
 
 from millimpact.integration.bar import BarCase, run_bar, summarize
 from millimpact.integration.integrators import TimeSchedule, kinetic_energy, redistribute_mass
-from millimpact.integration.solvers import solve_lcp
+from millimpact.integration.lcp import solve_lcp
 
 CASE = BarCase()
 #: one contact step relative to the exact contact duration (dt = h/c, duration = 2L/c)

@@ -65,7 +65,7 @@ def test_mu_zero_is_the_lcp():
     X = rng.normal(size=(3 * n, 3 * n))
     S = X @ X.T / (3 * n) + 0.5 * np.eye(3 * n)
     q = rng.normal(size=n)
-    from millimpact.integration.solvers import solve_lcp
+    from millimpact.integration.lcp import solve_lcp
 
     res = solve_friction(S, q, rng.normal(size=2 * n), 0.0)
     assert np.array_equal(res.tau, np.zeros(2 * n))

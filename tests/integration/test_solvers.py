@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from millimpact.integration.solvers import solve_lcp, solve_mass
+from millimpact.integration.solvers import solve_mass
+from millimpact.integration.lcp import solve_lcp
 
 
 def _aij(A: np.ndarray) -> PETSc.Mat:
