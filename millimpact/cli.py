@@ -201,12 +201,12 @@ def cmd_mesh(args: argparse.Namespace) -> int:
     scene = resolve_scene(args.scene)
     scene = _apply_sets(scene, args.set)
     plan = make_plan(scene)
-    md = create_mesh(scene, plan, _comm())
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}-mesh"
     if world_rank() == 0:
         out.mkdir(parents=True, exist_ok=True)
+    md = create_mesh(scene, plan, _comm(), export=out / "mesh.msh")
     write_mesh_xdmf(md, out / "mesh.xdmf")
-    say(f"mesh of scene '{scene.name}' -> {out}/mesh.xdmf")
+    say(f"mesh of scene '{scene.name}' -> {out}/mesh.msh (gmsh, physical groups: meshes/README.md), {out}/mesh.xdmf")
     for name, value in mesh_report(md):
         say(f"  {name:<28s} {value}")
     return 0

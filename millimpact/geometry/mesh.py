@@ -161,26 +161,29 @@ def _builder_parameters() -> dict[str, Any]:
 
 # --- creation ------------------------------------------------------------------------------------
 def create_mesh(scene: Scene, plan: Plan, comm: MPI.Comm = MPI.COMM_WORLD,
-                cache_dir: Union[Path, str, None] = None, *, use_cache: bool = True) -> MeshData:
+                cache_dir: Union[Path, str, None] = None, *, use_cache: bool = True,
+                export: Union[Path, str, None] = None) -> MeshData:
     """The impact mesh (ball + block) of a scene and its plan, distributed over ``comm``.
 
     Built by :func:`millimpact.geometry.block.build_impact_model` on rank 0 or loaded from the cache
     (see the module docstring for the directory; ``use_cache=False`` neither reads nor writes it).
-    Raises :class:`MeshError` on every rank if the build fails.
+    Raises :class:`MeshError` on every rank if the build fails. ``export``: also write the gmsh
+    model (with its physical groups: the mesh contract, meshes/README.md) to this .msh file.
     """
     if scene.liner is not None:
         ln = scene.liner
         return create_liner_mesh(ln, MeshSizes.from_plan(plan), comm, cache_dir, use_cache=use_cache,
                                  lifter=ln.impact_lifter, face=ln.impact_face, height_fraction=ln.impact_height,
                                  x=ln.impact_x, ball_radius=scene.ball.radius, gap=plan.gap,
-                                 symmetry_planes=tuple(plan.symmetry_planes))
+                                 symmetry_planes=tuple(plan.symmetry_planes), export=export)
     params = mesh_parameters(scene, plan)
-    return _create(params, lambda: build_impact_model(scene, plan), plan.symmetry, comm, cache_dir, use_cache)
+    return _create(params, lambda: build_impact_model(scene, plan), plan.symmetry, comm, cache_dir, use_cache,
+                   export)
 
 
 def create_liner_mesh(liner: LinerShape, sizes: MeshSizes, comm: MPI.Comm = MPI.COMM_WORLD,
                       cache_dir: Union[Path, str, None] = None, *, use_cache: bool = True,
-                      **placement: Any) -> MeshData:
+                      export: Union[Path, str, None] = None, **placement: Any) -> MeshData:
     """A liner segment mesh (tagged as the block), optionally with a ball; ``placement`` goes to
     :func:`millimpact.geometry.liner.build_liner_model` (lifter, face, height_fraction, x, ball_radius,
     gap, symmetry_planes). Cached like :func:`create_mesh`."""
@@ -190,11 +193,11 @@ def create_liner_mesh(liner: LinerShape, sizes: MeshSizes, comm: MPI.Comm = MPI.
     planes = tuple(placement.get("symmetry_planes", ()))
     symmetry = "half" if planes else "full"
     return _create(params, lambda: build_liner_model(liner, sizes, **placement), symmetry, comm, cache_dir,
-                   use_cache)
+                   use_cache, export)
 
 
 def _create(params: dict, build: Callable[[], ModelInfo], symmetry: str, comm: MPI.Comm,
-            cache_dir: Union[Path, str, None], use_cache: bool) -> MeshData:
+            cache_dir: Union[Path, str, None], use_cache: bool, export: Union[Path, str, None] = None) -> MeshData:
     t0 = time.perf_counter()
     key = cache_key(params)
     directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
@@ -207,6 +210,8 @@ def _create(params: dict, build: Callable[[], ModelInfo], symmetry: str, comm: M
                     info = _build(build, key, symmetry)
                     if use_cache:
                         _store(directory, key, params, info)
+                if export is not None:
+                    gmsh.write(str(export))
                 status = ("ok", info)
             except MeshError as exc:
                 status = ("error", str(exc))
@@ -223,6 +228,32 @@ def _create(params: dict, build: Callable[[], ModelInfo], symmetry: str, comm: M
                     key[:12], info.n_cells_total, info.n_vertices, info.h_contact, info.h_contact_measured,
                     info.min_quality, "loaded" if info.cached else "built", info.setup_time)
     return MeshData(mesh, cell_tags, facet_tags, info)
+
+
+#: the physical groups a mesh must have for millimpact (meshes/README.md): every cell group and the
+#: facet groups the model and contact read
+REQUIRED_CELL_TAGS = tuple(CELL_TAG_NAMES)
+REQUIRED_FACET_TAGS = (geo.BALL_CONTACT, geo.BLOCK_CONTACT, geo.BALL_INTERFACE, geo.BLOCK_INTERFACE, geo.SUPPORT)
+
+
+def load_msh(path: Union[Path, str], comm: MPI.Comm = MPI.COMM_WORLD):
+    """Read a gmsh .msh file that follows the mesh contract (meshes/README.md) and distribute it:
+    returns (mesh, cell_tags, facet_tags). A missing physical group is a :class:`MeshError` naming
+    it (one line). (``gmshio.read_from_msh`` is broken in this DOLFINx build: gmsh.merge on rank 0.)"""
+    path = Path(path)
+    if comm.rank == 0 and not path.is_file():
+        raise MeshError(f"mesh file {path}: no such file")
+    with geo.gmsh_session(f"millimpact-load-{path.stem}"):
+        if comm.rank == 0:
+            gmsh.merge(str(path))
+        mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
+    have_c = set().union(*comm.allgather(set(int(v) for v in np.unique(cell_tags.values))))
+    have_f = set().union(*comm.allgather(set(int(v) for v in np.unique(facet_tags.values))))
+    missing = [f"cell group {t} ({CELL_TAG_NAMES[t]})" for t in REQUIRED_CELL_TAGS if t not in have_c] + \
+              [f"facet group {t} ({FACET_TAG_NAMES[t]})" for t in REQUIRED_FACET_TAGS if t not in have_f]
+    if missing:
+        raise MeshError(f"mesh file {path}: missing physical {', '.join(missing)} (see meshes/README.md)")
+    return mesh, cell_tags, facet_tags
 
 
 def _build(build: Callable[[], ModelInfo], key: str, symmetry: str) -> MeshInfo:
