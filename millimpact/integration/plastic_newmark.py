@@ -130,7 +130,12 @@ class PlasticNewmarkScheme(NewmarkScheme):
         dK.multAdd(u_k, rhs, rhs)
         rhs.array[self.fixed] = 0.0
         A_t = op.A.copy()
-        A_t.axpy(1.0, dK, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        try:
+            A_t.axpy(1.0, dK, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        except PETSc.Error:   # a projected tangent whose pattern is not inside A's
+            A_t.destroy()
+            A_t = op.A.copy()
+            A_t.axpy(1.0, dK, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
         dK.destroy()
         ksp = solvers.create_effective_solver(A_t, self.petsc_options)
         W = compute_contact_operator(ksp, self.contact.C)

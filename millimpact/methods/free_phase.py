@@ -125,7 +125,7 @@ def _add_stats(total: dict, stats) -> None:
             total.setdefault(k, v)
         elif k.startswith("max_"):
             total[k] = max(total.get(k, v), v)
-        elif k.startswith("n_") or k == "wall_time":
+        elif k.startswith("n_") or k == "wall_time" or k.endswith("_J"):
             total[k] = total.get(k, 0) + v
         else:
             total.setdefault(k, v)

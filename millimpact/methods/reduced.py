@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import logging
 import time
+from types import SimpleNamespace
 from pathlib import Path
 from typing import Any, NamedTuple, Optional
 
@@ -45,6 +46,8 @@ from petsc4py import PETSc
 from ..errors import InputError
 from ..fem.contact import ContactSet, create_contact
 from ..fem.model import FEModel, create_fe_model
+from ..fem.plastic_zone import create_plastic_zone
+from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
 from ..geometry.mesh import create_mesh
 from ..integration import integrators
 from ..reduction.craig_bampton import reduce_model
@@ -52,6 +55,8 @@ from ..reduction.reduced_model import ReducedModel
 from ..reduction.augmentation import AUGMENTATION_PATTERNS
 from ..reduction.partition import create_nodal_zone_basis, partition_dofs
 from ..reduction.nmm_zone import create_nmm_zone
+from ..reduction.plastic_projection import ProjectedPlasticZone
+from ..results.dent import plastic_notes, residual_dent
 from ..results.fields import write_fields
 from ..results.output import RunOutput
 from ..results.recorder import impact_results
@@ -195,19 +200,19 @@ def initial_state(red: ReducedModel, velocity) -> tuple[PETSc.Vec, PETSc.Vec]:
 
 
 def refuse_plastic(method: str, plan: Plan) -> None:
-    """The reduced methods are elastic for now: a plastic material is one line naming the way out."""
+    """For a method without plasticity (hertz-modal: a rigid ball on the block's modes), a plastic
+    material is one line naming the way out."""
     plastic = [name for name, mat in (("ball.material", plan.ball.material), ("the struck body's material", plan.target))
                if mat.plastic]
     if plastic:
-        raise InputError(f"--method {method}: {' and '.join(plastic)} yield (yield_stress / flow_curve); plasticity "
-                         "runs with --method full for now (the reduced methods are elastic)")
+        raise InputError(f"--method {method}: {' and '.join(plastic)} yield (yield_stress / flow_curve); --method "
+                         f"{method} is elastic; use --method improved, traditional or full")
 
 
 def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str) -> RunOutput:
     """One reduced run of a scene (``method`` in :data:`REDUCED_METHODS`)."""
     comm = MPI.COMM_WORLD
     options = dict(options)
-    refuse_plastic(method, plan)
     opt = read_reduced_options(method, scene, plan, options)
 
     scene, plan, cand_radius, plan_notes = reduced_plan(scene, plan)
@@ -220,17 +225,27 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     red = build_reduced_model(model, opt.kind, f_cut=opt.f_cut, n_modes=opt.n_modes, remedy=opt.remedy,
                               augment=opt.augment)
     system = reduced_system(red, contact, plan.friction)
+    zone = create_plastic_zone(model, [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)])
+    plastic = ProjectedPlasticZone(zone, red) if zone is not None else None
+    system.plastic = plastic
+    free_phase = opt.free_phase
+    if plastic is not None and free_phase == "modal":
+        # the closed-form modal phase is linear about zero; with frozen plastic strain the free
+        # vibration is about the residual state: the integrator steps it (f_c is constant there)
+        free_phase = "step"
+        plan_notes = plan_notes + ["plastic materials: the free vibration after separation is stepped "
+                                   "(the closed-form modal phase is elastic-only)"]
     q0, qd0 = initial_state(red, plan.velocity)
     t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
 
     t1 = time.perf_counter()
     rec = ReducedRecorder(red, contact, plan.probes, scene.outputs.field_times if scene.outputs.xdmf else (),
-                          opt.recovery)
+                          opt.recovery, plastic)
     red.release_recovery()
     t_rows = time.perf_counter() - t1
     t1 = time.perf_counter()
     run = integrate_reduced(red, system, q0, qd0, contact, plan, opt.t_end, rec, integrator=opt.integrator,
-                            options=options, progress=progress, free_phase=opt.free_phase,
+                            options=options, progress=progress, free_phase=free_phase,
                             # the free modes follow the output grid (dt_free = 1 / (10 plan.f_cut)),
                             # not a -f_cut option, which sets the reduction's cutoff alone
                             f_free=opt.free_factor * plan.f_cut, min_span=opt.min_span)
@@ -250,6 +265,10 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
         "zone_radius_m": plan.zone_radius, "candidate_radius_m": cand_radius,
     }
     notes = reduced_notes(method, opt, model, red) + plan_notes + mode_notes(red)
+    if zone is not None:
+        stats = SimpleNamespace(**run["stats"])
+        notes.append(plastic_notes(zone, stats, model.sym_factor))
+        results.update(residual_dent(model, zone, plan))
     writers = []
     if rec.fields:
         fields = list(rec.fields)

@@ -41,6 +41,7 @@ class Recorder:
         #: the plastic zone (:class:`millimpact.fem.plastic_zone.PlasticZone`), None if elastic:
         #: strain energy with the plastic strain, plastic work and the largest plastic strain
         self.plastic = plastic
+        self._pw_base, self._pw_last = 0.0, 0.0
         self.liner = probes.liner
         self.gauge_names = probes.gauge_names
         V = model.V
@@ -181,7 +182,12 @@ class Recorder:
             self._fw_last = fw
             row += [ft, self.c_t.dot(st.v), self.sym * (self._fw_base + fw)]
         if self.plastic is not None:
-            row += [self.sym * float(getattr(st, "plastic_work", 0.0)), self.plastic.max_equivalent_plastic_strain()]
+            # cumulative per integrate() call, as the friction work: restarted segments continue the sum
+            pw = float(getattr(st, "plastic_work", 0.0))
+            if pw < self._pw_last:
+                self._pw_base += self._pw_last
+            self._pw_last = pw
+            row += [self.sym * (self._pw_base + pw), self.plastic.max_equivalent_plastic_strain()]
         self.rows.append([float(x) for x in row])
         while self._next_field < len(self.field_times) and st.t >= self.field_times[self._next_field] - 1e-15:
             self.fields.append((st.t, st.u.array_r.copy()))

@@ -61,8 +61,8 @@ class ReducedRecorder(Recorder):
     """
 
     def __init__(self, red: ReducedModel, contact: ContactSet, probes: ProbeSpec, field_times: tuple[float, ...],
-                 recovery: str = "mode-acceleration"):
-        super().__init__(red.model, contact, probes, field_times)
+                 recovery: str = "mode-acceleration", plastic=None):
+        super().__init__(red.model, contact, probes, field_times, plastic)
         self._c_full = self.c_y
         self._probe_full = self.probe
         # mode-acceleration rows of the probes (ReducedModel.mode_acceleration_rows): displacement

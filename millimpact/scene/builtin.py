@@ -51,8 +51,7 @@ def _paper_rig_plastic() -> Scene:
         rig, name="paper-rig-plastic", ball=ball, block=block,
         description="The paper's rig with real steels (elastic-plastic, J2): a forged 60 HRC ball (Y 1.9 GPa) on a "
                     "Cr-Mo liner-steel block (Y 0.95 GPa), 3 m/s; Hertz p0 4.9 GPa is 3x the block's first-yield "
-                    "pressure 1.6 Y. Material values and sources: scene/materials.toml. Run with --method full "
-                    "(the reduced methods are elastic for now).")
+                    "pressure 1.6 Y. Material values and sources: scene/materials.toml.")
 
 
 def _hertz_halfspace() -> Scene:
