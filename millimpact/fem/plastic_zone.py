@@ -228,6 +228,24 @@ class PlasticZone:
             out[i] = value if value is not None else 0.0
         return out
 
+    def boundary_plastic_strain(self, interface_facets: np.ndarray) -> float:
+        """The largest committed alpha in the zone cells that touch the zone/region interface
+        (``interface_facets``, local facet indices): > 0 means the plastic region reached the zone's
+        boundary, where the model turns linear (global over ranks)."""
+        mesh = self.V.mesh
+        tdim = mesh.topology.dim
+        mesh.topology.create_connectivity(tdim - 1, tdim)
+        f2c = mesh.topology.connectivity(tdim - 1, tdim)
+        touching = set()
+        for f in np.asarray(interface_facets, dtype=np.int32):
+            touching.update(int(c) for c in f2c.links(f))
+        local = 0.0
+        for k, cells in enumerate(self.cells):
+            mask = np.isin(cells, np.fromiter(touching, dtype=np.int32, count=len(touching)))
+            if mask.any():
+                local = max(local, float(self.alpha[k].reshape(len(cells), self.n_q)[mask].max()))
+        return self.comm.allreduce(local, op=MPI.MAX)
+
     def max_equivalent_plastic_strain(self) -> float:
         """Largest committed alpha over all zones and ranks."""
         local = max((float(a.max()) for a in self.alpha if a.size), default=0.0)

@@ -23,7 +23,7 @@ from ..geometry.mesh import create_mesh
 from ..integration import integrators
 from ..results.fields import write_fields
 from ..results.output import RunOutput
-from ..results.dent import plastic_notes, residual_dent
+from ..results.dent import plastic_notes, residual_dent, zone_boundary_note
 from ..results.recorder import Recorder, impact_results
 from ..scene.plan import Plan
 from ..scene.schema import Scene
@@ -83,6 +83,9 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
     if plastic is not None:
         notes.append(plastic_notes(plastic, stats, model.sym_factor))
         results.update(residual_dent(model, plastic, plan))
+        keys, more = zone_boundary_note(model, plastic, plan)
+        results.update(keys)
+        notes += more
     fields = rec.fields
     writers = []
     if fields:

@@ -56,7 +56,7 @@ from ..reduction.augmentation import AUGMENTATION_PATTERNS
 from ..reduction.partition import create_nodal_zone_basis, partition_dofs
 from ..reduction.nmm_zone import create_nmm_zone
 from ..reduction.plastic_projection import ProjectedPlasticZone
-from ..results.dent import plastic_notes, residual_dent
+from ..results.dent import plastic_notes, residual_dent, zone_boundary_note
 from ..results.fields import write_fields
 from ..results.output import RunOutput
 from ..results.recorder import impact_results
@@ -269,6 +269,9 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
         stats = SimpleNamespace(**run["stats"])
         notes.append(plastic_notes(zone, stats, model.sym_factor))
         results.update(residual_dent(model, zone, plan))
+        keys, more = zone_boundary_note(model, zone, plan)
+        results.update(keys)
+        notes += more
     writers = []
     if rec.fields:
         fields = list(rec.fields)

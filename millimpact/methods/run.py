@@ -100,6 +100,12 @@ def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: d
                                      window=(0.0, min(t_end, 2e-3)))
         plots.plot_gauges(out.series, folder / "gauges.png", title=f"{title}: strain gauges")
         plots.plot_energy(out.series, folder / "energy.png", title=f"{title}: energy")
+        if "plastic_dissipation_J" in out.series:
+            plots.plot_force_approach(out.series, folder / "force_approach.png", title=f"{title}: force against approach")
+            if "residual_dent_profile" in out.results:
+                plots.plot_dent(out.results["residual_dent_profile"], folder / "dent.png",
+                                out.results["residual_dent_depth_m"], out.results["residual_dent_radius_m"],
+                                title=f"{title}: residual dent")
         if "tangential_force_N" in out.series:
             plots.plot_friction(out.series, folder / "friction.png", scene.contact.friction,
                                 title=f"{title}: friction (mu = {scene.contact.friction:g})")

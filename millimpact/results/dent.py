@@ -21,6 +21,8 @@ import numpy as np
 
 from ..fem.model import FEModel
 from ..fem.probes import create_probe
+from ..geometry.builders import BALL_INTERFACE, BLOCK_INTERFACE
+from ..geometry.mesh import facet_indices
 from ..integration import solvers
 from ..scene.plan import Plan
 
@@ -77,6 +79,23 @@ def residual_dent(model: FEModel, zone, plan: Plan) -> dict[str, Any]:
             radius = float(r[-1])
     return {"residual_dent_depth_m": depth, "residual_dent_radius_m": radius,
             "residual_dent_profile": {"r_m": r.tolist(), "depth_m": d.tolist()}}
+
+
+#: plastic strain below this at the zone boundary counts as elastic there (round-off of the return map)
+BOUNDARY_ALPHA_TOL = 1e-6
+
+
+def zone_boundary_note(model: FEModel, zone, plan: Plan) -> tuple[dict[str, Any], list[str]]:
+    """Whether the zone's boundary stayed elastic: summary keys and, if not, a warning note naming
+    a zone radius to use (1.5x the plan's)."""
+    facets = facet_indices(model.meshdata, (BALL_INTERFACE, BLOCK_INTERFACE))
+    alpha = zone.boundary_plastic_strain(facets)
+    keys = {"zone_boundary_max_equivalent_plastic_strain": alpha, "zone_boundary_elastic": alpha <= BOUNDARY_ALPHA_TOL}
+    if alpha <= BOUNDARY_ALPHA_TOL:
+        return keys, [f"plasticity stayed inside the contact zone (radius {plan.zone_radius * 1e3:.4g} mm): its "
+                      "boundary is elastic"]
+    return keys, [f"WARNING: plastic strain {alpha:.3g} at the contact zone's boundary (radius {plan.zone_radius * 1e3:.4g} "
+                  f"mm), where the model is linear: rerun with --set model.zone_radius={1.5 * plan.zone_radius:.4g}"]
 
 
 def plastic_notes(zone, stats, sym_factor: float) -> str:

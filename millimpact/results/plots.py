@@ -216,3 +216,46 @@ def plot_friction(ts: TimeSeries, path: Path, mu: float, title: str = "") -> Non
     fig.suptitle(title or "Friction")
     fig.savefig(path, dpi=130)
     plt.close(fig)
+
+
+def plot_force_approach(ts: TimeSeries, path: Path, title: str = "") -> None:
+    """Contact force against approach over the first impact: loading and unloading (the loop a DEM
+    contact law is fitted to; its area is the energy the contact kept: plastic work and waves)."""
+    plt = _plt()
+    f, d = ts["contact_force_N"], ts["approach_m"]
+    on = np.nonzero(f > 0)[0]
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    if len(on):
+        sel = slice(max(on[0] - 1, 0), min(on[-1] + 2, len(f)))
+        i_peak = int(np.argmax(f))
+        fs, fu = value_unit("contact_force_N", f)
+        ds, du = value_unit("approach_m", d[sel])
+        ax.plot(d[sel.start:i_peak + 1] * ds, f[sel.start:i_peak + 1] * fs, lw=2, label="loading")
+        ax.plot(d[i_peak:sel.stop] * ds, f[i_peak:sel.stop] * fs, lw=2, label="unloading")
+        ax.set_xlabel(f"approach [{du}]")
+        ax.set_ylabel(f"contact force [{fu}]")
+        ax.legend()
+    ax.grid(alpha=0.3)
+    ax.set_title(title or "Force against approach")
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def plot_dent(profile: dict, path: Path, depth: float, radius: float, title: str = "") -> None:
+    """The residual dent: depth below the undeformed face against the distance from the contact
+    point (``profile`` = {"r_m": [...], "depth_m": [...]}, the summary's residual_dent_profile)."""
+    plt = _plt()
+    r, d = np.asarray(profile["r_m"]), np.asarray(profile["depth_m"])
+    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
+    rs, ru = value_unit("r_m", r)
+    ds, du = value_unit("depth_m", d if d.size else np.zeros(1))
+    ax.plot(r * rs, -d * ds, lw=2)
+    ax.axvline(radius * rs, color="0.5", ls="--", lw=1, label=f"dent radius {radius * rs:.3g} {ru}")
+    ax.axhline(-depth * ds, color="0.7", ls=":", lw=1, label=f"depth {depth * ds:.3g} {du}")
+    ax.set_xlabel(f"distance from the contact point along the face [{ru}]")
+    ax.set_ylabel(f"surface height [{du}]")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title(title or "Residual dent")
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

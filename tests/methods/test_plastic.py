@@ -117,3 +117,13 @@ def test_improved_equals_full_p2_of_the_same_mesh(tmp_path):
     assert abs(si["restitution"] - sf["restitution"]) < 0.01
     assert si["residual_dent_depth_m"] == pytest.approx(sf["residual_dent_depth_m"], rel=0.02)
     assert si["plastic_dissipation_J"] == pytest.approx(sf["plastic_dissipation_J"], rel=0.03)
+
+
+def test_zone_boundary_check(tmp_path, plastic):
+    """The plan's zone (4 a_max) holds the plastic region at V/V_y ~ 17: its boundary stays elastic;
+    a zone of 1.4 a_max does not, and the notes say so with a radius to use."""
+    s, _ = plastic
+    assert s["zone_boundary_elastic"] and s["zone_boundary_max_equivalent_plastic_strain"] == 0.0
+    small, _ = _run(tmp_path, "small-zone", "--set", "block.material.yield_stress=1e9", "--set", "model.zone_radius=0.0016")
+    assert not small["zone_boundary_elastic"]
+    assert any(n.startswith("WARNING: plastic strain") and "model.zone_radius=0.0024" in n for n in small["notes"])
