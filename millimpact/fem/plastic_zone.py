@@ -206,17 +206,23 @@ class PlasticZone:
         """The last evaluated return-mapping results per zone (None for an empty zone)."""
         return self._trial
 
-    def plastic_strain_near(self, points: np.ndarray) -> np.ndarray:
-        """The committed plastic strain (Mandel, (n_points, 6)) at the zone's quadrature point
-        nearest each point (global over ranks; zeros where the zone is farther than a cell)."""
+    def quadrature_points(self) -> list[np.ndarray]:
+        """The physical coordinates (m) of each zone's quadrature points on this rank, (n, 3) arrays
+        in the order of :meth:`trial`'s values."""
         if not hasattr(self, "_qp_xyz"):
             X = fem.Expression(ufl.SpatialCoordinate(self.V.mesh), basix.make_quadrature(
                 basix.CellType.tetrahedron, self.q_degree)[0])
             self._qp_xyz = [X.eval(c).reshape(-1, 3) if len(c) else np.zeros((0, 3)) for c in self.cells]
+        return self._qp_xyz
+
+    def plastic_strain_near(self, points: np.ndarray) -> np.ndarray:
+        """The committed plastic strain (Mandel, (n_points, 6)) at the zone's quadrature point
+        nearest each point (global over ranks; zeros where the zone is farther than a cell)."""
+        qps = self.quadrature_points()
         out = np.zeros((len(points), 6))
         for i, x in enumerate(np.asarray(points, dtype=float)):
             best = (np.inf, -1, -1)
-            for k, xyz in enumerate(self._qp_xyz):
+            for k, xyz in enumerate(qps):
                 if len(xyz):
                     d = np.linalg.norm(xyz - x, axis=1)
                     j = int(np.argmin(d))

@@ -96,3 +96,25 @@ if MPI.COMM_WORLD.rank == 0:
     # same mesh, direct solves: equal to solver round-off (the issue's 1e-6)
     for got, want in zip(vals, (r.force, r.contact_radius, r.approach, r.block_indentation)):
         assert got == pytest.approx(want, rel=1e-6)
+
+
+def test_first_yield_pressure_and_place():
+    """Quasi-static indentation (issue 15): where and at which pressure a von Mises material first
+    yields under the FE contact, from the elastic stresses at the quadrature points of the block's
+    zone (P2, h_c = a_max/2, h_far 8 mm). Johnson (Contact Mechanics 6.2, nu = 0.3): p0 = 1.60 Y,
+    on the axis at depth 0.48 a. Tolerances: 5 % on the pressure (the issue's); the place within
+    a quarter of a (the quadrature points lie ~h/2 = a/4 apart). Measured: 1.602 Y, 0.54 a, 0.12 a
+    off the axis."""
+    from millimpact.theory.hertz import effective_modulus
+
+    scene = builtin_scene("hertz-halfspace")
+    a_max = make_plan(scene).hertz.a_max
+    scene = scene.with_value("model.h_contact", a_max / 2).with_value("model.h_far", 0.008)
+    plan = make_plan(scene)
+    r = static_hertz(scene, plan, create_mesh(scene, plan, MPI.COMM_WORLD), CAP, degree=2)
+    e_star = effective_modulus(scene.ball.material, scene.block.material)
+    a = (3 * r.force * scene.ball.radius / (4 * e_star)) ** (1 / 3)
+    p0 = 3 * r.force / (2 * math.pi * a * a)
+    assert p0 / r.max_von_mises == pytest.approx(1.60, rel=0.05)
+    assert r.max_von_mises_depth / a == pytest.approx(0.48, abs=0.25)
+    assert r.max_von_mises_offset / a < 0.25
