@@ -135,6 +135,9 @@ def cmd_scene(args: argparse.Namespace) -> int:
 
 def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
     method_entry(args.method)   # an unknown method: one line listing them, before any work
+    from .integration.solvers import check_type_options
+
+    check_type_options(petsc)   # -..._ksp_type nosuch: one line, not a PETSc error number later
     from .methods.run import run_scene
     from .scene.builtin import DEFAULT_SCENE, resolve_scene
 

@@ -136,3 +136,12 @@ def test_first_run_form_compilation_is_one_line(tmp_path):
 def test_set_without_value_is_one_line(bad):
     r = run_cli("run", "--method", "hertz", "--set", bad, "--out", "out/never")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "expected FIELD=VALUE" in r.stderr
+
+
+@pytest.mark.parametrize("option, value", [("-impact_fieldsplit_u_ksp_type", "nosuch"), ("-impact_pc_type", "lux"),
+                                           ("-impact_reduction_block_pc_factor_mat_solver_type", "mumpsy")])
+def test_unknown_petsc_type_is_one_line(option, value):
+    """A misspelled KSP / PC / factorization type is refused before any work, naming the option
+    (PETSc failed later with 'PETSc error 86' and a stack)."""
+    r = run_cli("run", "--method", "hertz", option, value, "--out", "out/never")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and f"{option} {value}: unknown" in r.stderr

@@ -343,3 +343,26 @@ def estimate_max_eigenvalue(K: PETSc.Mat, m_lumped: PETSc.Vec, B: Optional[PETSc
     Kp.destroy()
     d.destroy()
     return lam
+
+
+#: the PETSc option suffixes whose values name a type, with the names PETSc knows (petsc4py's
+#: enumerations; the solver packages are those Debian's PETSc is built with, NOTES-dolfinx-0.5.md)
+_TYPE_OPTIONS = {
+    "ksp_type": ("KSP", PETSc.KSP.Type),
+    "pc_type": ("PC", PETSc.PC.Type),
+    "pc_factor_mat_solver_type": ("factorization package", PETSc.Mat.SolverType),
+}
+
+
+def check_type_options(options: Mapping[str, object]) -> None:
+    """Refuse a PETSc option that names an unknown KSP, PC or factorization package (one line naming
+    the option, its value and the known names) before any work; PETSc itself would fail later with
+    only an error number."""
+    from ..errors import InputError
+
+    for key, value in options.items():
+        for suffix, (what, enum) in _TYPE_OPTIONS.items():
+            if key.endswith(suffix):
+                known = sorted({str(getattr(enum, k)).lower() for k in dir(enum) if not k.startswith("_")})
+                if str(value).lower() not in known:
+                    raise InputError(f"-{key} {value}: unknown {what} type; PETSc knows: {', '.join(known)}")
