@@ -423,9 +423,9 @@ def main(argv: Optional[list[str]] = None) -> int:
             print(f"millimpact: failed on rank {world_rank()}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     except KeyboardInterrupt as exc:
-        code = 143 if isinstance(exc, Terminated) else 130
+        code = getattr(exc, "exit_code", 143 if isinstance(exc, Terminated) else 130)
         if world_rank() == 0:
-            print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {_INTERRUPT_NOTE[0]}",
+            print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {str(exc) or _INTERRUPT_NOTE[0]}",
                   file=sys.stderr)
         return code
     except BrokenPipeError:

@@ -220,6 +220,10 @@ def compute_case(task: CaseTask, comm=None) -> dict:
 def _worker(task: CaseTask) -> dict:
     """Process-pool entry: one case, serial."""
     import logging
+    import signal
+
+    # Ctrl-C reaches the whole process group: the parent stops the workers, they stay quiet
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     logging.basicConfig(level=logging.WARNING)
     return compute_case(task, None)
@@ -235,6 +239,16 @@ class CaseRun:
     series: Any = None
     error: str = ""
     wall_time_s: float = math.nan       #: wall time of the computation (from the summary if cached)
+
+
+class StudyInterrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM during a study: the finished cases stay (each case folder is complete or
+    absent), the workers are stopped; the message says how many cases are done."""
+
+    def __init__(self, done: int, total: int, code: int):
+        super().__init__(f"{done} of {total} cases done (their folders are complete); rerun the same command to "
+                         "finish the rest")
+        self.exit_code = code
 
 
 def say_root(comm, *args, **kw) -> None:
@@ -310,15 +324,26 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
             try:
                 for fut in cf.as_completed(futures):
                     report(futures[fut], fut.result())
-            except BaseException:
+            except BaseException as exc:
                 for f in futures:
                     f.cancel()
+                # stop the running cases now (their staged output is discarded with them): the
+                # executor has no public handle on its processes, and waiting would take minutes
+                for proc in list(getattr(pool, "_processes", {}).values()):
+                    proc.terminate()
+                pool.shutdown(wait=True, cancel_futures=True)
+                if isinstance(exc, KeyboardInterrupt):
+                    raise StudyInterrupted(done, n, getattr(exc, "exit_code", 143 if type(exc).__name__ == "Terminated"
+                                                            else 130)) from None
                 raise
     else:
-        for i in todo:
-            if progress and not quiet:
-                say(f"  [{done + 1}/{n}] {study.cases[i].label:<22s} computing ...")
-            report(i, compute_case(task(i), comm))
+        try:
+            for i in todo:
+                if progress and not quiet:
+                    say(f"  [{done + 1}/{n}] {study.cases[i].label:<22s} computing ...")
+                report(i, compute_case(task(i), comm))
+        except KeyboardInterrupt as exc:
+            raise StudyInterrupted(done, n, 143 if type(exc).__name__ == "Terminated" else 130) from None
     if rank0:
         from ..results.timeseries import TimeSeries
 
