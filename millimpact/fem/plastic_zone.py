@@ -94,6 +94,8 @@ class PlasticZone:
         self.alpha = [np.zeros(k) for k in n]
         self._trial = None
         self._elastic = [z.material.elastic_matrix() for z in self.zones]
+        self.version = 0          #: bumped by commit() when the plastic state changed
+        self._cache: dict = {}
 
     # --- state --------------------------------------------------------------------------------
     def _set_displacement(self, u_vec) -> None:
@@ -135,11 +137,16 @@ class PlasticZone:
         """Accept the last evaluated state (end of a converged step)."""
         if self._trial is None:
             return
+        changed = False
         for k, res in enumerate(self._trial):
             if res is not None:
+                changed |= bool(res.yielding.any())
                 self.plastic_strain[k] = res.plastic_strain.copy()
                 self.alpha[k] = res.alpha.copy()
         self._trial = None
+        # the state's version (global): outputs of an unchanged plastic state are cached
+        if self.comm.allreduce(changed, op=MPI.LOR):
+            self.version += 1
 
     # --- operators ----------------------------------------------------------------------------
     def force_correction(self):
@@ -181,18 +188,18 @@ class PlasticZone:
     def strain_energy_correction(self, u_vec) -> float:
         """E_el - 1/2 u.K u (J): the elastic strain energy with the committed plastic strain is
         1/2 int (eps - eps_p) : C : (eps - eps_p) dV = 1/2 u.K u + int_zone (-eps : C : eps_p
-        + 1/2 eps_p : C : eps_p) dV (global sum)."""
-        self._set_displacement(u_vec)
-        dens = []
-        for k in range(len(self.zones)):
-            if not len(self.cells[k]):
-                dens.append(np.zeros(0))
-                continue
-            eps = self._strain.eval(self.cells[k]).reshape(-1, 6)
-            ep = self.plastic_strain[k]
-            Cep = ep @ self._elastic[k]
-            dens.append(-np.einsum("pi,pi->p", eps, Cep) + 0.5 * np.einsum("pi,pi->p", ep, Cep))
-        return self.integrate(dens)
+        + 1/2 eps_p : C : eps_p) dV (global sum). The first integral is linear in u,
+        u . f_frozen with f_frozen = -int B^T C eps_p (:meth:`frozen_force`): both terms are kept per
+        plastic state, so a row costs a dot product while the state does not change."""
+        key = ("energy", self.version)
+        if key not in self._cache:
+            frozen = self.frozen_force()
+            const = self.integrate([0.5 * np.einsum("pi,pi->p", ep, ep @ C)
+                                    for ep, C in zip(self.plastic_strain, self._elastic)])
+            self._cache = {k: v for k, v in self._cache.items() if k[1] == self.version}
+            self._cache[key] = (frozen, const)
+        frozen, const = self._cache[key]
+        return u_vec.dot(frozen) + const
 
     def step_plastic_work(self) -> float:
         """The plastic work of the evaluated (trial) state over the step, int_zone sigma : d eps_p dV
@@ -218,6 +225,9 @@ class PlasticZone:
     def plastic_strain_near(self, points: np.ndarray) -> np.ndarray:
         """The committed plastic strain (Mandel, (n_points, 6)) at the zone's quadrature point
         nearest each point (global over ranks; zeros where the zone is farther than a cell)."""
+        key = ("near", self.version, np.asarray(points, dtype=float).tobytes())
+        if key in self._cache:
+            return self._cache[key]
         qps = self.quadrature_points()
         out = np.zeros((len(points), 6))
         for i, x in enumerate(np.asarray(points, dtype=float)):
@@ -232,6 +242,7 @@ class PlasticZone:
             value = self.plastic_strain[best[1]][best[2]] if self.comm.rank == owner and best[1] >= 0 else None
             value = self.comm.bcast(value, root=owner)
             out[i] = value if value is not None else 0.0
+        self._cache[key] = out
         return out
 
     def boundary_plastic_strain(self, interface_facets: np.ndarray) -> float:
@@ -254,8 +265,11 @@ class PlasticZone:
 
     def max_equivalent_plastic_strain(self) -> float:
         """Largest committed alpha over all zones and ranks."""
-        local = max((float(a.max()) for a in self.alpha if a.size), default=0.0)
-        return self.comm.allreduce(local, op=MPI.MAX)
+        key = ("max_alpha", self.version)
+        if key not in self._cache:
+            local = max((float(a.max()) for a in self.alpha if a.size), default=0.0)
+            self._cache[key] = self.comm.allreduce(local, op=MPI.MAX)
+        return self._cache[key]
 
 
 def create_plastic_zone(model, zone_materials) -> "PlasticZone | None":
