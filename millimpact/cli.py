@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Optional
 
-from .console import say, world_rank
+from .console import enable_stages, say, world_rank
 from .errors import InputError, MillimpactError
 from .results.output_folder import prepare_output
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
@@ -149,6 +149,7 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
     out = prepare_output(out, "--out", force=args.force)   # before any computing: a typo costs a second
     _INTERRUPT_NOTE[0] = f"nothing written to {shown}/" + (" (its earlier content is kept)" if replacing else "")
     comm = _comm()
+    enable_stages(not args.quiet)
     if args.method == "hertz":
         say("note: --method hertz is the quasi-static Hertz model (1 DOF), the lightest method.")
     options = dict(petsc)

@@ -21,3 +21,42 @@ def say(*args, **kw) -> None:
     """``print`` on rank 0 only."""
     if world_rank() == 0:
         print(*args, **kw)
+
+
+#: whether commands report their stages (set by the CLI: on unless -q)
+STAGES = {"enabled": False, "t0": None}
+
+
+def enable_stages(on: bool) -> None:
+    """Turn the one-line-per-stage reports on (the CLI, unless -q) or off (the library's default)."""
+    import time
+
+    STAGES["enabled"] = bool(on)
+    STAGES["t0"] = time.perf_counter()
+
+
+class stage:
+    """``with stage("meshing"):`` prints ``[  1.2 s] meshing ...`` on rank 0 (stderr) and, at the
+    end, the stage's time; silent unless :func:`enable_stages` turned the reports on."""
+
+    def __init__(self, what: str):
+        self.what = what
+
+    def __enter__(self):
+        import sys
+        import time
+
+        self.t = time.perf_counter()
+        if STAGES["enabled"] and world_rank() == 0:
+            print(f"[{self.t - STAGES['t0']:7.1f} s] {self.what} ...", file=sys.stderr, flush=True)
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        import sys
+        import time
+
+        if STAGES["enabled"] and exc_type is None and world_rank() == 0:
+            now = time.perf_counter()
+            print(f"[{now - STAGES['t0']:7.1f} s] {self.what}: done in {now - self.t:.2f} s", file=sys.stderr,
+                  flush=True)
+        return False

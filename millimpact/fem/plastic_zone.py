@@ -158,7 +158,14 @@ class PlasticZone:
 
     def frozen_force(self):
         """f_c of the committed plastic strain alone, -int_zone B^T C eps_p dV (N): the load that
-        the residual (unloaded, elastic) state balances; a PETSc Vec of V."""
+        the residual (unloaded, elastic) state balances, and f_c(u) at any u where no point yields;
+        a new PETSc Vec of V (assembled once per plastic state)."""
+        key = ("frozen", self.version)
+        if key not in self._cache:
+            self._cache[key] = self._assemble_frozen_force()
+        return self._cache[key].copy()
+
+    def _assemble_frozen_force(self):
         sc = self.stress_correction.x.array.reshape(-1, 6)
         sc[:] = 0.0
         for k in range(len(self.zones)):

@@ -49,12 +49,15 @@ class NonlinearZone(Protocol):
     """What an integrator needs of a nonlinear internal force ``f_int(u) = K u + f_c(u)``:
     ``evaluate(u)`` computes the trial state at u from the committed one and returns how many
     points are nonlinear (yielding) on this rank; then ``force_correction()`` gives f_c (N, a Vec
-    like u) and ``stiffness_correction()`` dK = d f_c / du (a Mat); ``step_plastic_work()`` the
+    like u) and ``stiffness_correction()`` dK = d f_c / du (a Mat); ``frozen_force()`` is f_c of the
+    committed state where no point yields (a new Vec); ``step_plastic_work()`` the
     plastic work of the trial state over the step (J, global); ``commit()`` accepts the trial state."""
 
     def evaluate(self, u: PETSc.Vec) -> int: ...
 
     def force_correction(self) -> PETSc.Vec: ...
+
+    def frozen_force(self) -> PETSc.Vec: ...
 
     def stiffness_correction(self) -> PETSc.Mat: ...
 

@@ -45,6 +45,7 @@ The step-size rule's safety margin is :attr:`TimeSchedule.margin`.
 from __future__ import annotations
 
 import logging
+import math
 import sys
 import time
 from typing import Callable, Mapping, Optional
@@ -115,12 +116,16 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
                                plastic_work=stats.plastic_work_J))
 
     notify(0.0, 0.0, 0)
-    bar = None
+    bar, plain = None, None
+    t_scale, t_unit = (1e3, "ms") if schedule.t_end >= 1e-3 else (1e6, "\u00b5s")
     if progress and comm.rank == 0 and sys.stderr.isatty():
         from tqdm import tqdm
 
-        bar = tqdm(total=schedule.t_end * 1e6, unit="us", desc=method, file=sys.stderr,
-                   bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} us [{elapsed}<{remaining}]")
+        bar = tqdm(total=schedule.t_end * t_scale, unit=t_unit, desc=method, file=sys.stderr,
+                   bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} " + t_unit + " simulated [{elapsed}<{remaining}]")
+    elif progress and comm.rank == 0:
+        # not a terminal (a log, CI, a pipe): a plain line every 10 % of the simulated time
+        plain = {"next": 0.1, "t0": time.perf_counter()}
     k, step, t = 0, 0, 0.0
     prev_active = integ.lam > 0
     force_contact = False
@@ -151,7 +156,11 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
             prev_active = active
             notify(t, dt, step)
             if bar is not None:
-                bar.update(dt * 1e6)
+                bar.update(dt * t_scale)
+            elif plain is not None and t >= plain["next"] * schedule.t_end * (1 - 1e-12):
+                print(f"  {method}: {100 * t / schedule.t_end:3.0f} % ({t * t_scale:.3g} of {schedule.t_end * t_scale:.3g} "
+                      f"{t_unit} simulated, {time.perf_counter() - plain['t0']:.1f} s)", file=sys.stderr, flush=True)
+                plain["next"] = math.floor(10 * t / schedule.t_end + 1e-9) / 10 + 0.1
             if getattr(integ, "diverged", False):
                 stats.diverged, stats.diverged_at = True, t
                 if comm.rank == 0:

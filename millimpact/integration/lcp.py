@@ -8,21 +8,11 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
-from petsc4py import PETSc
 
 from ..errors import SolverError
 
 log = logging.getLogger(__name__)
 
-#: Prefix of all PETSc options of the integrators.
-PREFIX = "impact_"
-#: Split names of the saddle-point system (so the u block's prefix is ``impact_fieldsplit_u_``).
-SPLIT_U, SPLIT_LAM = "u", "lam"
-#: Columns of B^T per multi-right-hand-side solve when forming W (bounds the dense RHS memory).
-W_CHUNK = 64
-
-_KSP_REASONS = {getattr(PETSc.KSP.ConvergedReason, k): k for k in dir(PETSc.KSP.ConvergedReason)
-                if not k.startswith("_") and isinstance(getattr(PETSc.KSP.ConvergedReason, k), int)}
 
 
 

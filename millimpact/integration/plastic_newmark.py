@@ -55,6 +55,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
             raise InputError(f"-impact_plastic_rtol {self.rtol} / -impact_plastic_max_iterations "
                              f"{self.max_iterations}: must be > 0 and >= 1")
         self._res, self._rhs = self.u.duplicate(), self.u.duplicate()
+        self._yielded_last = True     # the first step evaluates the zone at u_0
 
     # --- one step -------------------------------------------------------------------------------
     def step(self, dt: float, t_new: float, step: int, allow_reject: bool) -> bool:
@@ -67,13 +68,18 @@ class PlasticNewmarkScheme(NewmarkScheme):
         work_step = 0.0
         yielding_seen = False
         for it in range(self.max_iterations + 1):
-            n_yield = self.comm.allreduce(self.zone.evaluate(u_k), op=MPI.SUM)
+            if it == 0 and not self._yielded_last:
+                # u_n is the committed state and did not yield: f_c(u_n) is the frozen plastic
+                # strain's (cached), no return map needed before the first solve
+                n_yield, f_c = 0, self.zone.frozen_force()
+            else:
+                n_yield = self.comm.allreduce(self.zone.evaluate(u_k), op=MPI.SUM)
+                f_c = self.zone.force_correction()
             yielding_seen |= n_yield > 0
-            f_c = self.zone.force_correction()
-            residual = self._residual(op, u_k, f_c, x)
-            if it > 0 and residual <= self.rtol * r_norm:
+            if it > 0 and self._residual(op, u_k, f_c, x) <= self.rtol * r_norm:
                 break
             if it == self.max_iterations:
+                residual = self._residual(op, u_k, f_c, x)
                 raise SolverError(f"plastic Newton did not converge: residual {residual:.3e} N (of |r| {r_norm:.3e} N) "
                                   f"after {it} iterations at step {step}, t = {t_new:.9g} s "
                                   "(-impact_plastic_max_iterations, a smaller time.dt_contact)")
@@ -99,6 +105,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
             self.stats.max_plastic_iterations = max(self.stats.max_plastic_iterations, it)
         self.stats.plastic_work_J += self.zone.step_plastic_work()
         self.zone.commit()
+        self._yielded_last = yielding_seen
         u_k.copy(self.u_new)
         u_k.destroy()
         scale = max(float(np.max(np.abs(self.contact.g0), initial=0.0)), 1e-300)

@@ -13,18 +13,9 @@ from petsc4py import PETSc
 
 log = logging.getLogger(__name__)
 
-#: Prefix of all PETSc options of the integrators.
-PREFIX = "impact_"
-#: Split names of the saddle-point system (so the u block's prefix is ``impact_fieldsplit_u_``).
-SPLIT_U, SPLIT_LAM = "u", "lam"
-#: Columns of B^T per multi-right-hand-side solve when forming W (bounds the dense RHS memory).
-W_CHUNK = 64
-
-_KSP_REASONS = {getattr(PETSc.KSP.ConvergedReason, k): k for k in dir(PETSc.KSP.ConvergedReason)
-                if not k.startswith("_") and isinstance(getattr(PETSc.KSP.ConvergedReason, k), int)}
 
 
-from .solvers import check_ksp, create_effective_solver, mark_symmetric, petsc_options, saddle_solver_defaults, setup_checked, solve_checked
+from .solvers import PREFIX, SPLIT_LAM, SPLIT_U, check_ksp, create_effective_solver, mark_symmetric, petsc_options, saddle_solver_defaults, setup_checked, solve_checked
 from .contact_operator import gather, scatter_into
 
 

@@ -14,6 +14,7 @@ from typing import Any
 
 from mpi4py import MPI
 
+from ..console import stage
 from ..errors import InputError
 from ..fem.contact import create_contact
 from ..fem.model import create_fe_model
@@ -49,10 +50,12 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
         raise InputError(f"option candidate_radius = {radius!r}: must be a length in m") from None
     if radius is not None and not radius > 0:
         raise InputError(f"option candidate_radius = {radius!r}: must be > 0 m")
-    md = create_mesh(scene, plan, comm)
+    with stage("meshing (gmsh, or the mesh cache)"):
+        md = create_mesh(scene, plan, comm)
     t_mesh = time.perf_counter() - t0
-    model = create_fe_model(md, plan, degree)
-    contact = create_contact(model, plan, radius=radius)
+    with stage(f"assembling the P{degree} model and the contact rows"):
+        model = create_fe_model(md, plan, degree)
+        contact = create_contact(model, plan, radius=radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
     plastic = create_plastic_zone(model, [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)])
     system = integrators.LinearDynamics(M=model.M, K=model.K, B=contact.B, g0=contact.g0,
@@ -63,8 +66,9 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
     v0 = model.ball_velocity(plan.velocity)
     rec = Recorder(model, contact, plan.probes, scene.outputs.field_times if scene.outputs.xdmf else (), plastic)
     schedule = integrators.TimeSchedule(t_end, plan.dt_contact, plan.dt_free)
-    stats = integrators.integrate(system, u0, v0, schedule, method=integrator, observer=rec,
-                                  options=options, progress=progress)
+    with stage(f"time loop to {t_end * 1e3:.3g} ms ({integrator})"):
+        stats = integrators.integrate(system, u0, v0, schedule, method=integrator, observer=rec,
+                                      options=options, progress=progress)
     ts = rec.series()
     wall = time.perf_counter() - t0
 

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 from typing import Any, Optional
 
+from ..console import stage
 from ..results import plots
 from ..results.output import RunOutput
 from ..results.reference import write_reference
@@ -124,7 +125,7 @@ def run_scene(scene: Scene, method: str, out_dir: Optional[Path], options: Optio
     wall = time.perf_counter() - t0
     summary = build_summary(scene, plan, out, wall)
     if out_dir is not None:
-        with staged_output(Path(out_dir), comm) as stage:
-            summary["files"] = write_run(stage, scene, plan, out, summary, comm=comm,
+        with stage("writing results and figures"), staged_output(Path(out_dir), comm) as folder:
+            summary["files"] = write_run(folder, scene, plan, out, summary, comm=comm,
                                          reference=reference)
     return summary

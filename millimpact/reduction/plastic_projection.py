@@ -38,6 +38,12 @@ class ProjectedPlasticZone:
         f.destroy()
         return r
 
+    def frozen_force(self) -> PETSc.Vec:
+        f = self.zone.frozen_force()
+        r = self.red.restrict(f)
+        f.destroy()
+        return r
+
     def stiffness_correction(self) -> PETSc.Mat:
         dK = self.zone.stiffness_correction()
         dK_r = dK.PtAP(self.red.Gr)

@@ -8,8 +8,6 @@ from typing import Any
 
 from ..errors import SceneError
 
-Vec3 = tuple[float, float, float]
-Vec2 = tuple[float, float]
 
 
 #: named materials (``material = "NAME"``): scene/materials.toml, every value with its source

@@ -10,8 +10,6 @@ from typing import Any
 
 from ..errors import SceneError
 
-Vec3 = tuple[float, float, float]
-Vec2 = tuple[float, float]
 from .schema import Block, Scene, from_table
 
 
