@@ -99,8 +99,15 @@ def cmd_scene(args: argparse.Namespace) -> int:
     if args.action == "export":
         sys.stdout.write(dump_scene(scene))
         return 0
-    # show: resolved scene with units, and the plan
+    # show: resolved scene with units, and the plan of the method that will run
+    method_entry(args.method)
     plan = make_plan(scene)
+    method_notes: list[str] = []
+    if args.method in method_names("reduced") and args.method != "hertz-modal":
+        from .methods.reduced import REDUCED_METHODS, reduced_plan
+
+        scene, plan, _, method_notes = reduced_plan(scene, plan)
+        method_notes = [f"P{REDUCED_METHODS[args.method][0]} ({REDUCED_METHODS[args.method][1]} zone)"] + method_notes
     b, k, i = scene.ball, scene.block, scene.impact
     say(f"scene '{scene.name}': {scene.description}")
     say(f"  ball    radius {b.radius*1e3:g} mm, mass {b.mass*1e3:.4g} g, rho {b.material.density:g} kg/m^3, "
@@ -127,9 +134,15 @@ def cmd_scene(args: argparse.Namespace) -> int:
         say(f"  gauge {g.name}  at ({', '.join(f'{c*1e3:g}' for c in g.position)}) mm, "
              f"direction ({', '.join(f'{c:g}' for c in g.direction)})")
     say(f"  time    end {scene.time.end*1e3:g} ms")
-    say("plan (derived from the Hertz estimate; override in [model], [time], impact.gap):")
+    say(f"plan of --method {args.method} (derived from the Hertz estimate; override in [model], [time], impact.gap):")
     for name, value, why in plan.table():
+        if name == "degree" and method_notes:
+            value, why = method_notes[0].split(" ", 1)[0], "the method's"
+        if name == "zone_radius" and method_notes:
+            why = "the reduced methods' (note below)"
         say(f"  {name:<12s} {value:<28s} {why}")
+    for note in method_notes[1:]:
+        say(f"  note: {note}")
     return 0
 
 
@@ -304,6 +317,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "with units and the plan; export NAME|FILE: TOML to stdout, to edit.")
     s.add_argument("action", choices=["list", "show", "export"])
     s.add_argument("name", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
+    s.add_argument("--method", default=DEFAULT_METHOD, metavar="METHOD",
+                   help=f"show: the plan of this method (default {DEFAULT_METHOD}; the reduced methods shrink the zone)")
 
     m = sub.add_parser("mesh", help="mesh a scene (gmsh) and write it as XDMF with its tags",
                        description="Build (or take from the cache in meshes/) the graded two-body mesh of "

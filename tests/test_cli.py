@@ -145,3 +145,16 @@ def test_unknown_petsc_type_is_one_line(option, value):
     (PETSc failed later with 'PETSc error 86' and a stack)."""
     r = run_cli("run", "--method", "hertz", option, value, "--out", "out/never")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and f"{option} {value}: unknown" in r.stderr
+
+
+def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path):
+    """`scene show` printed the full P1 plan (zone 4.64 mm) while the default improved run uses P2
+    and 2.90 mm: it now shows the plan of --method (default the run's default), as the run notes."""
+    r = run_cli("scene", "show")
+    assert r.returncode == 0 and "plan of --method improved" in r.stdout
+    zone = [l for l in r.stdout.splitlines() if l.strip().startswith("zone_radius")][0]
+    assert "2.898 mm" in zone and "P2" in [l for l in r.stdout.splitlines() if l.strip().startswith("degree")][0]
+    r = run_cli("scene", "show", "--method", "full")
+    assert "4.637 mm" in [l for l in r.stdout.splitlines() if l.strip().startswith("zone_radius")][0]
+    run = run_cli("run", "--set", "time.end=1e-4", "-q", "--out", str(tmp_path / "r"))
+    assert "2.898 mm" in run.stdout                     # the run's notes say the same zone
