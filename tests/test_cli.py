@@ -158,3 +158,24 @@ def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path):
     assert "4.637 mm" in [l for l in r.stdout.splitlines() if l.strip().startswith("zone_radius")][0]
     run = run_cli("run", "--set", "time.end=1e-4", "-q", "--out", str(tmp_path / "r"))
     assert "2.898 mm" in run.stdout                     # the run's notes say the same zone
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--set", "ball.radius=10"], "ball.radius = 10.0: must lie in [0.0001, 1] m"),
+    (["--set", "ball.radius=1e-9"], "ball.radius = 1e-09: must lie in"),
+    (["--set", "impact.velocity=[0,-1000,0]"], "its speed 1000 m/s must be at most 100 m/s"),
+])
+def test_out_of_range_scene_names_what_the_user_gave(args, words):
+    """A 10 m ball or a 1000 m/s impact named model.zone_radius (a field the user never set); a 1 nm
+    ball ran silently. Now the field the user gave, its range, one line; `hertz` says the same."""
+    r = run_cli("run", "--method", "hertz", *args, "--out", "out/never")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and words in r.stderr
+
+
+def test_empty_scene_file_and_one_value_study_are_refused(tmp_path):
+    empty = tmp_path / "empty.toml"
+    empty.write_text("")
+    r = run_cli("run", str(empty), "--method", "hertz", "--out", str(tmp_path / "never"))
+    assert r.returncode == 2 and "is empty" in r.stderr and r.stderr.count("\n") == 1
+    r = run_cli("study", "--param", "ball.radius=0.02", "--out", str(tmp_path / "never2"))
+    assert r.returncode == 2 and "at least two values" in r.stderr and r.stderr.count("\n") == 1

@@ -100,6 +100,13 @@ class Material:
         return math.sqrt(self.youngs_modulus / self.density)
 
 
+#: balls the model covers, m: lab test spheres from 0.1 mm to SAG-mill grinding balls (<= 150 mm) with margin
+BALL_RADIUS_RANGE = (1e-4, 1.0)
+#: impact speeds the model covers, m/s: mill impacts are below ~15 m/s; beyond ~100 m/s small-strain
+#: contact (and the quasi-static Hertz sizing of the plan) no longer describes the impact
+MAX_IMPACT_SPEED = 100.0
+
+
 @dataclass(frozen=True)
 class Ball:
     """The grinding ball: a sphere of ``radius`` (m)."""
@@ -109,6 +116,9 @@ class Ball:
 
     def validate(self) -> None:
         _positive("ball.radius", self.radius, "m")
+        if not (BALL_RADIUS_RANGE[0] <= self.radius <= BALL_RADIUS_RANGE[1]):
+            raise SceneError("ball.radius", self.radius, f"must lie in [{BALL_RADIUS_RANGE[0]:g}, {BALL_RADIUS_RANGE[1]:g}] m "
+                             "(test and grinding balls; a small-contact impact model)")
         self.material.validate("ball.material")
 
     @property
@@ -325,6 +335,9 @@ class Scene:
         imp, blk = self.impact, self.block
         for i, c in enumerate(imp.velocity):
             _finite(f"impact.velocity[{i}]", c, "m/s")
+        if imp.speed > MAX_IMPACT_SPEED:
+            raise SceneError("impact.velocity", list(imp.velocity), f"its speed {imp.speed:g} m/s must be at most "
+                             f"{MAX_IMPACT_SPEED:g} m/s (small-strain contact; mill impacts are below ~15 m/s)")
         self.contact.validate()
         if self.liner is not None:
             self._validate_liner()

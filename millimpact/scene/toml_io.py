@@ -43,6 +43,8 @@ def load_scene(path: str | Path) -> Scene:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError("scene", str(p), f"is not valid TOML ({exc})") from None
+    if not data:
+        raise SceneError("scene", str(p), "is empty; start from a built-in scene: millimpact scene export paper-rig > my.toml")
     data.setdefault("name", p.stem)
     return scene_from_dict(data)
 

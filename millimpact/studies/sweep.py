@@ -84,6 +84,9 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
     raw = split_values(values)
     if any(not r for r in raw):
         raise InputError(f"--param {text!r}: an empty value in the list")
+    if len(raw) < 2:
+        raise InputError(f"--param {text!r}: a study needs at least two values (one value: millimpact run --set "
+                         f"{field_}={raw[0]})")
     return field_, [parse_value(r) for r in raw]
 
 
