@@ -31,7 +31,7 @@ from ..errors import InputError, MillimpactError
 from ..scene.schema import parse_value
 from ..scene.builtin import BUILTIN_STUDIES
 from ..methods.registry import method_entry
-from .sweep import CaseRun, Study, define_study, run_cases, say_root
+from .sweep import StudyInterrupted, CaseRun, Study, define_study, run_cases, say_root
 from .report import StudyAnalysis, write_study
 
 
@@ -138,10 +138,16 @@ def run_study(name: Optional[str] = None, param: Optional[str] = None, base: Opt
     if rank0:
         out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    runs = run_cases(study, out, chosen, options, jobs=jobs, progress=sys.stdout.isatty(), force=force,
-                     figures=case_figures, comm=comm, quiet=quiet)
-    wall = time.perf_counter() - t0
-    a = write_study(study, runs, out, chosen, method_note, wall) if rank0 else None
+    try:
+        runs = run_cases(study, out, chosen, options, jobs=jobs, progress=sys.stdout.isatty(), force=force,
+                         figures=case_figures, comm=comm, quiet=quiet)
+        wall = time.perf_counter() - t0
+        a = write_study(study, runs, out, chosen, method_note, wall) if rank0 else None
+    except StudyInterrupted:
+        raise
+    except KeyboardInterrupt as exc:   # outside the case loop (before it, or during the report)
+        done = sum((out / c.folder / "summary.json").is_file() for c in study.cases)
+        raise StudyInterrupted(done, len(study.cases), 143 if type(exc).__name__ == "Terminated" else 130) from None
     res = StudyResult(study, runs, a, out, wall)
     if rank0:
         n_comp = sum(r.status == "computed" for r in runs)

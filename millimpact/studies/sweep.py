@@ -250,7 +250,7 @@ class StudyInterrupted(KeyboardInterrupt):
 
     def __init__(self, done: int, total: int, code: int):
         super().__init__(f"{done} of {total} cases done (their folders are complete); rerun the same command to "
-                         "finish the rest")
+                         "finish the rest" + (" and write the study's report" if done == total else ""))
         self.exit_code = code
 
 

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import ROOT, mpi_env
 
-ARGS = ["study", "velocity", "--end", "2e-4", "--jobs", "2", "--no-case-figures", "--method", "traditional", "-q"]
+ARGS = ["study", "velocity", "--end", "1e-3", "--jobs", "2", "--no-case-figures", "--method", "traditional", "-q"]
 
 
 def _children(pid: int) -> list[int]:
