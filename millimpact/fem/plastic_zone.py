@@ -138,6 +138,7 @@ class PlasticZone:
         if self._trial is None:
             return
         changed = False
+        self._stress = [res.stress.copy() if res is not None else None for res in self._trial]
         for k, res in enumerate(self._trial):
             if res is not None:
                 changed |= bool(res.yielding.any())
@@ -269,6 +270,23 @@ class PlasticZone:
             if mask.any():
                 local = max(local, float(self.alpha[k].reshape(len(cells), self.n_q)[mask].max()))
         return self.comm.allreduce(local, op=MPI.MAX)
+
+    def cell_fields(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(local zone cells, their largest committed equivalent plastic strain, their largest von
+        Mises stress of the last committed step (Pa)): the cellwise fields written to XDMF."""
+        from .plasticity import von_mises as vm_of
+
+        cells, alpha, vm = [], [], []
+        for k, c in enumerate(self.cells):
+            if not len(c):
+                continue
+            cells.append(c)
+            alpha.append(self.alpha[k].reshape(len(c), self.n_q).max(axis=1))
+            stress = getattr(self, "_stress", [None] * len(self.cells))[k]
+            vm.append(vm_of(stress).reshape(len(c), self.n_q).max(axis=1) if stress is not None else np.zeros(len(c)))
+        if not cells:
+            return np.zeros(0, np.int32), np.zeros(0), np.zeros(0)
+        return np.concatenate(cells), np.concatenate(alpha), np.concatenate(vm)
 
     def max_equivalent_plastic_strain(self) -> float:
         """Largest committed alpha over all zones and ranks."""

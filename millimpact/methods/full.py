@@ -93,7 +93,7 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
     fields = rec.fields
     writers = []
     if fields:
-        writers.append(lambda folder: write_fields(model, fields, folder / "fields.xdmf"))
+        writers.append(lambda folder: write_fields(model, fields, folder / "fields.xdmf", rec.plastic_fields))
     return RunOutput(method, ts, results, model_info, extra_writers=writers, notes=notes)
 
 

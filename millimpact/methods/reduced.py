@@ -287,7 +287,7 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     writers = []
     if rec.fields:
         fields = list(rec.fields)
-        writers.append(lambda folder: write_fields(model, fields, Path(folder) / "fields.xdmf"))
+        writers.append(lambda folder: write_fields(model, fields, Path(folder) / "fields.xdmf", rec.plastic_fields))
     return RunOutput(method, ts, results, model_info, extra_writers=writers, notes=notes)
 
 

@@ -62,5 +62,8 @@ class ProjectedPlasticZone:
     def plastic_strain_near(self, points: np.ndarray) -> np.ndarray:
         return self.zone.plastic_strain_near(points)
 
+    def cell_fields(self):
+        return self.zone.cell_fields()
+
     def max_equivalent_plastic_strain(self) -> float:
         return self.zone.max_equivalent_plastic_strain()

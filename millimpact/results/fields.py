@@ -2,14 +2,19 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
 from ..fem.model import FEModel
 
 
-def write_fields(model: FEModel, fields: list[tuple[float, np.ndarray]], path: Path) -> None:
-    """XDMF of the displacement (m) at the recorded times, with cell tags (collective)."""
+def write_fields(model: FEModel, fields: list[tuple[float, np.ndarray]], path: Path,
+                 plastic_fields: Optional[list] = None) -> None:
+    """XDMF of the displacement (m) at the recorded times, with cell tags (collective); for a
+    plastic run also the cellwise (DG0) largest equivalent plastic strain and von Mises stress (Pa)
+    of the contact zones' quadrature points (``plastic_fields``: one (cells, alpha, von Mises) per
+    time, from :meth:`millimpact.fem.plastic_zone.PlasticZone.cell_fields`)."""
     from dolfinx.io import XDMFFile
 
     mesh = model.V.mesh
@@ -25,9 +30,23 @@ def write_fields(model: FEModel, fields: list[tuple[float, np.ndarray]], path: P
     with XDMFFile(mesh.comm, str(path), "w") as xdmf:
         xdmf.write_mesh(mesh)
         xdmf.write_meshtags(model.meshdata.cell_tags)
-        for t, arr in fields:
+        cellwise = []
+        if plastic_fields:
+            Q0 = fem.FunctionSpace(mesh, ("DG", 0))
+            for name in ("equivalent_plastic_strain", "von_mises_Pa"):
+                f = fem.Function(Q0)
+                f.name = name
+                cellwise.append(f)
+        for i, (t, arr) in enumerate(fields):
             u.vector.array[:] = arr
             u.x.scatter_forward()
             if out_fn is not u:
                 out_fn.interpolate(u)
             xdmf.write_function(out_fn, t)
+            if cellwise and i < len(plastic_fields):
+                cells, alpha, vm = plastic_fields[i]
+                for f, values in zip(cellwise, (alpha, vm)):
+                    f.x.array[:] = 0.0
+                    f.x.array[cells] = values     # DG0: one dof per cell, dof index = cell index
+                    f.x.scatter_forward()
+                    xdmf.write_function(f, t)

@@ -42,6 +42,8 @@ class Recorder:
         #: strain energy with the plastic strain, plastic work and the largest plastic strain
         self.plastic = plastic
         self._pw_base, self._pw_last = 0.0, 0.0
+        #: per recorded field time: (zone cells, equivalent plastic strain, von Mises stress) of a plastic run
+        self.plastic_fields: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self.liner = probes.liner
         self.gauge_names = probes.gauge_names
         V = model.V
@@ -191,6 +193,8 @@ class Recorder:
         self.rows.append([float(x) for x in row])
         while self._next_field < len(self.field_times) and st.t >= self.field_times[self._next_field] - 1e-15:
             self.fields.append((st.t, st.u.array_r.copy()))
+            if self.plastic is not None:   # the zone's cellwise plastic strain and von Mises stress
+                self.plastic_fields.append(self.plastic.cell_fields())
             self._next_field += 1
 
     def series(self) -> TimeSeries:

@@ -127,3 +127,19 @@ def test_zone_boundary_check(tmp_path, plastic):
     small, _ = _run(tmp_path, "small-zone", "--set", "block.material.yield_stress=1e9", "--set", "model.zone_radius=0.0016")
     assert not small["zone_boundary_elastic"]
     assert any(n.startswith("WARNING: plastic strain") and "model.zone_radius=0.0024" in n for n in small["notes"])
+
+
+def test_plastic_fields_in_xdmf(tmp_path):
+    """fields.xdmf carries the cellwise equivalent plastic strain and von Mises stress beside the
+    displacement; at the end its largest plastic strain is the time series' (the same quadrature
+    points), and the von Mises stress stays within the flow stress (perfect plasticity: <= Y)."""
+    import h5py
+
+    s, _ = _run(tmp_path, "fields", "--set", "block.material.yield_stress=1e9", "--set", "outputs.field_times=[1.9e-4]")
+    with h5py.File(tmp_path / "fields" / "fields.h5") as h5:
+        f = h5["Function"]
+        assert {"displacement_m", "equivalent_plastic_strain", "von_mises_Pa"} <= set(f)
+        alpha = max(float(np.max(f["equivalent_plastic_strain"][k][...])) for k in f["equivalent_plastic_strain"])
+        vm = max(float(np.max(f["von_mises_Pa"][k][...])) for k in f["von_mises_Pa"])
+    assert alpha == pytest.approx(s["max_equivalent_plastic_strain"], rel=1e-12)
+    assert 0 < vm <= 1e9 * (1 + 1e-9)
