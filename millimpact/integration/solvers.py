@@ -228,8 +228,47 @@ def setup_checked(ksp: PETSc.KSP, what: str, step: int = 0, t: float = 0.0) -> N
     # PC.getFailedReason; before this check such a failure surfaced at the first solve)
     failed = ksp.getConvergedReason() < 0
     if failed:
-        raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) failed in set-up{_pc_failure(pc)} "
+        codes = _pc_failure(pc)
+        if _retry_mumps_workspace(ksp, what):
+            return
+        raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) failed in set-up{codes} "
                           f"at step {step}, t = {t:.9g} s")
+
+
+#: MUMPS ICNTL(14) (percentage of extra workspace over the analysis' estimate) tried after a
+#: factorization fails with INFOG(1) = -8 / -9 (workspace too small; MUMPS user guide, section 8):
+#: seen intermittently under mpirun -n 2 at the default (PETSc passes MUMPS's own, 20-35 %)
+MUMPS_WORKSPACE_RETRIES = (100, 400)
+
+
+def _retry_mumps_workspace(ksp: PETSc.KSP, what: str) -> bool:
+    """Refactorize a MUMPS factorization that ran out of workspace with a larger ICNTL(14); True
+    (and a warning saying so) if one of :data:`MUMPS_WORKSPACE_RETRIES` succeeded. Collective:
+    INFOG is the same on every rank."""
+    pc = ksp.getPC()
+    try:
+        if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+            return False
+        if pc.getFactorMatrix().getMumpsInfog(1) not in (-8, -9):
+            return False
+    except Exception:  # no factor matrix: not a MUMPS workspace failure
+        return False
+    prefix = ksp.getOptionsPrefix() or ""
+    opts = PETSc.Options()
+    for percent in MUMPS_WORKSPACE_RETRIES:
+        opts[f"{prefix}mat_mumps_icntl_14"] = percent
+        try:
+            pc.reset()
+            ksp.setUp()
+            ok = pc.getFactorMatrix().getMumpsInfog(1) == 0
+        except PETSc.Error:
+            ok = False
+        if ok:
+            if MPI.COMM_WORLD.rank == 0:
+                log.warning("%s: MUMPS ran out of workspace (INFOG(1) -8/-9); refactorized with "
+                            "-%smat_mumps_icntl_14 %d", what, prefix, percent)
+            return True
+    return False
 
 
 def create_factored_solver(A: PETSc.Mat, prefix: str, options: Optional[Mapping[str, object]] = None) -> PETSc.KSP:
