@@ -29,6 +29,7 @@ import basix
 import numpy as np
 import ufl
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -86,7 +87,8 @@ class PlasticZone:
         dxz = dx(tuple(z.cell_tag for z in self.zones))
         v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
         self._f_form = fem.form(ufl.inner(self.stress_correction, mandel_strain(v)) * dxz)
-        self._k_form = fem.form(ufl.inner(ufl.dot(self.tangent_correction, mandel_strain(du)), mandel_strain(v)) * dxz)
+        self._k_integrand = ufl.inner(ufl.dot(self.tangent_correction, mandel_strain(du)), mandel_strain(v))
+        self._quad = quad
         self._int_form = fem.form(self.density * dxz)
         # committed and trial state per zone: plastic strain (n, 6), alpha (n,)
         n = [len(c) * self.n_q for c in self.cells]
@@ -115,7 +117,7 @@ class PlasticZone:
         tc = self.tangent_correction.x.array.reshape(-1, 6, 6)
         sc[:] = 0.0
         tc[:] = 0.0
-        trial, n_yield = [], 0
+        trial, n_yield, yielding_cells = [], 0, []
         for k, zone in enumerate(self.zones):
             if not len(self.cells[k]):
                 trial.append(None)
@@ -128,9 +130,13 @@ class PlasticZone:
                 tc[slots] = res.tangent - self._elastic[k][None, :, :]
             trial.append(res)
             n_yield += int(np.count_nonzero(res.yielding))
+            if tangent:
+                yielding_cells.append(self.cells[k][res.yielding.reshape(len(self.cells[k]), self.n_q).any(axis=1)])
         self.stress_correction.x.scatter_forward()
         self.tangent_correction.x.scatter_forward()
         self._trial = trial
+        if tangent:
+            self._yielding_cells = np.unique(np.concatenate(yielding_cells)) if yielding_cells else np.zeros(0, np.int32)
         return n_yield
 
     def commit(self) -> None:
@@ -177,9 +183,16 @@ class PlasticZone:
         return self.force_correction()
 
     def stiffness_correction(self):
-        """dK = int_zone B^T (C_t - C) B dV (N/m, a PETSc Mat of V's pattern; zero Dirichlet rows and
-        columns, so K + dK keeps K's unit diagonal there)."""
-        A = fem_petsc.assemble_matrix(self._k_form, bcs=self.bcs, diagonal=0.0)
+        """dK = int_zone B^T (C_t - C) B dV (N/m, a PETSc Mat on V; zero Dirichlet rows and
+        columns, so K + dK keeps K's unit diagonal there) of the last evaluated state. C_t = C
+        where a point does not yield, so the integral runs over the cells with a yielding point
+        only: the matrix has their dofs' pattern (a few % of the zone's at first yield), which
+        keeps its assembly and its projection (PtAP) small."""
+        mesh = self.V.mesh
+        cells = np.asarray(getattr(self, "_yielding_cells", np.zeros(0, np.int32)), dtype=np.int32)
+        tags = dmesh.meshtags(mesh, mesh.topology.dim, cells, np.ones(len(cells), dtype=np.int32))
+        dxy = ufl.Measure("dx", domain=mesh, subdomain_data=tags, metadata=self._quad)(1)
+        A = fem_petsc.assemble_matrix(fem.form(self._k_integrand * dxy), bcs=self.bcs, diagonal=0.0)
         A.assemble()
         return A
 
@@ -270,6 +283,21 @@ class PlasticZone:
             if mask.any():
                 local = max(local, float(self.alpha[k].reshape(len(cells), self.n_q)[mask].max()))
         return self.comm.allreduce(local, op=MPI.MAX)
+
+    def plastic_extent(self, point, tol: float) -> dict[int, float]:
+        """Per zone (keyed by its cell tag), the largest distance (m) from ``point`` of a quadrature
+        point whose committed alpha exceeds ``tol`` (0 where none does; global over ranks): the
+        measured radius of the plastic region about the first contact point."""
+        qps = self.quadrature_points()
+        out = {}
+        for k in range(len(self.cells)):
+            local = 0.0
+            if len(self.cells[k]):
+                hot = self.alpha[k] > tol
+                if hot.any():
+                    local = float(np.linalg.norm(qps[k][hot] - np.asarray(point, dtype=float), axis=1).max())
+            out[self.zones[k].cell_tag] = self.comm.allreduce(local, op=MPI.MAX)
+        return out
 
     def cell_fields(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(local zone cells, their largest committed equivalent plastic strain, their largest von

@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from types import SimpleNamespace
 from typing import Any, Optional
 
 import numpy as np
@@ -75,6 +76,7 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
     out: dict[str, Any] = {"modal_rows": 0, "energy_dropped_J": 0.0, "free_modes": 0, "free_modes_time": 0.0,
                            "free_modes_f_max_Hz": f_free, "mode": free_phase}
     modal: Optional[ModalProjection] = None
+    offset: Optional[SimpleNamespace] = None     # plastic runs: the residual state q_s
     comm = red.comm
     while t < t_end * (1 - 1e-12):
         t_stop = t_end if free_phase == "step" else min(t_end, t_first if not segments else t + chunk)
@@ -93,8 +95,14 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
             out["free_modes_time"] = time.perf_counter() - t0
             out["free_modes"] = modal.n_global
             gap_rows = modal.rows_dense(contact.B)
-        res = _free_vibration(modal, gap_rows, contact.g0, q, qd, t, t_end, plan, rec,
-                              chunk if min_span is None else min_span)
+        if system.plastic is not None and (offset is None or offset.version != system.plastic.version):
+            t0 = time.perf_counter()
+            offset = residual_offset(red, system, contact)
+            out["residual_state_time"] = out.get("residual_state_time", 0.0) + time.perf_counter() - t0
+        q_free = q if offset is None else _minus(q, offset.q)
+        g0 = contact.g0 if offset is None else contact.g0 + offset.gap_shift
+        res = _free_vibration(modal, gap_rows, g0, q_free, qd, t, t_end, plan, rec,
+                              chunk if min_span is None else min_span, offset)
         if res is None:          # a gap closes soon: keep stepping
             continue
         t_new, q_new, qd_new, n_rows, dropped = res
@@ -103,7 +111,7 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
         segments.append(("modal", t, t_new))
         t = t_new
         if q_new is not None:
-            q, qd = q_new, qd_new
+            q, qd = (q_new, qd_new) if offset is None else (_plus(q_new, offset.q), qd_new)
             rec.set_projection(red)
     out["segments"] = segments
     stats_sum["t_end"] = t_end
@@ -112,6 +120,33 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
         log.info("free phase: %d modal rows, %d modes up to %.4g kHz, %.3g J dropped at the switches",
                  out["modal_rows"], out["free_modes"], f_free / 1e3, out["energy_dropped_J"])
     return out
+
+
+def residual_offset(red: ReducedModel, system: integrators.LinearDynamics, contact: ContactSet) -> SimpleNamespace:
+    """The residual state of a plastic run's committed plastic strain (the static offset of its
+    free vibration): ``q`` = q_s with K_r q_s = -f_frozen
+    (:meth:`millimpact.reduction.plastic_projection.ProjectedPlasticZone.residual_state`), the
+    contact gaps it shifts (``gap_shift`` = B_r q_s, replicated, m) and the plastic state's
+    ``version`` it belongs to."""
+    plastic = system.plastic
+    q_s = plastic.residual_state(red.K, red.M)
+    shift = system.B.createVecLeft()
+    system.B.mult(q_s, shift)
+    gap_shift = np.concatenate(red.comm.allgather(shift.array_r.copy()))
+    shift.destroy()
+    return SimpleNamespace(q=q_s, gap_shift=gap_shift, version=plastic.version)
+
+
+def _minus(a: PETSc.Vec, b: PETSc.Vec) -> PETSc.Vec:
+    c = a.copy()
+    c.axpy(-1.0, b)
+    return c
+
+
+def _plus(a: PETSc.Vec, b: PETSc.Vec) -> PETSc.Vec:
+    c = a.copy()
+    c.axpy(1.0, b)
+    return c
 
 
 def _add_stats(total: dict, stats) -> None:
@@ -154,11 +189,14 @@ def _run_steps(system, q, qd, t0: float, t1: float, plan: Plan, rec: ReducedReco
 
 
 def _free_vibration(modal: ModalProjection, gap_rows: np.ndarray, g0: np.ndarray, q: PETSc.Vec, qd: PETSc.Vec,
-                    t0: float, t_end: float, plan: Plan, rec: ReducedRecorder, min_span: float):
+                    t0: float, t_end: float, plan: Plan, rec: ReducedRecorder, min_span: float,
+                    offset: Optional[SimpleNamespace] = None):
     """Closed-form free vibration from (q, qd) at t0, recorded on the free-step grid until t_end or
     until a gap is predicted below the plan's initial gap. None if that happens within
     ``min_span`` (stay with the integrator); else (t_stop, q, qd at t_stop or None at t_end, rows,
-    energy dropped at the switch in J)."""
+    energy dropped at the switch in J). With a plastic ``offset`` (:func:`residual_offset`), q is
+    the motion about the residual state q_s (the gaps ``g0`` include its shift; the recorder adds
+    it back) and the returned q is too."""
     comm = modal.comm
     eta_v, etad_v = modal.project(q), modal.project(qd)
     eta0 = np.concatenate(comm.allgather(eta_v.array_r.copy()))
@@ -203,7 +241,7 @@ def _free_vibration(modal: ModalProjection, gap_rows: np.ndarray, g0: np.ndarray
     last = len(times) if k_stop is None else k_stop        # rows 0 .. last-1
     for k0 in range(0, last, 2048):
         idx = np.arange(k0, min(last, k0 + 2048))
-        rec.record_free(modal, times[idx], *state(times[idx] - t0))
+        rec.record_free(modal, times[idx], *state(times[idx] - t0), offset=offset)
     lo, hi = eta_v.getOwnershipRange()
     u, v = modal.create_vector(), modal.create_vector()
     if k_stop is None:

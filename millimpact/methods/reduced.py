@@ -240,12 +240,6 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     plastic = ProjectedPlasticZone(zone, red) if zone is not None else None
     system.plastic = plastic
     free_phase = opt.free_phase
-    if plastic is not None and free_phase == "modal":
-        # the closed-form modal phase is linear about zero; with frozen plastic strain the free
-        # vibration is about the residual state: the integrator steps it (f_c is constant there)
-        free_phase = "step"
-        plan_notes = plan_notes + ["plastic materials: the free vibration after separation is stepped "
-                                   "(the closed-form modal phase is elastic-only)"]
     q0, qd0 = initial_state(red, plan.velocity)
     t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
 

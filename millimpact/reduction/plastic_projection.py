@@ -12,10 +12,18 @@ linear and modal.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from petsc4py import PETSc
 
+from ..integration.solvers import create_factored_solver, effective_solver_defaults, mark_symmetric, solve_checked
 from .reduced_model import ReducedModel
+
+#: the residual state's solve regularizes the free ball's rigid motions by this shift of
+#: (K_r + (2 pi f)^2 M_r): 1 Hz against a lowest elastic mode of kHz (3.2 kHz on the rig's ball)
+#: changes the elastic part by (f / f_1)^2 ~ 1e-7 (the rigid part is absorbed by the free modes)
+RESIDUAL_SHIFT_HZ = 1.0
 
 
 class ProjectedPlasticZone:
@@ -43,6 +51,34 @@ class ProjectedPlasticZone:
         r = self.red.restrict(f)
         f.destroy()
         return r
+
+    @property
+    def version(self) -> int:
+        """Counts the committed plastic states (changes when a step yields)."""
+        return self.zone.version
+
+    def residual_state(self, K: PETSc.Mat, M: PETSc.Mat) -> PETSc.Vec:
+        """The static state q_s that the frozen plastic strain holds when the bodies are apart and
+        at rest, K_r q_s = -f_frozen (the residual, unloaded state: its dent and residual stress).
+
+        After separation the motion is the free vibration about q_s: M q'' + K (q - q_s) = 0
+        (:mod:`millimpact.methods.free_phase`). The free ball makes K_r singular; f_frozen is
+        self-equilibrated (rigid motions do no work on it), so the solve uses
+        K_r + (2 pi RESIDUAL_SHIFT_HZ)^2 M_r, which fixes the rigid part near zero (any rigid
+        offset is carried by the rigid free modes). Prefix ``residual_`` (Cholesky: CHOLMOD in
+        serial, MUMPS under MPI)."""
+        A = K.copy()
+        A.axpy((2.0 * math.pi * RESIDUAL_SHIFT_HZ) ** 2, M, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        mark_symmetric(A)
+        ksp = create_factored_solver(A, "residual_", effective_solver_defaults(K.getComm().tompi4py()))
+        b = self.frozen_force()
+        b.scale(-1.0)
+        q = K.createVecRight()
+        solve_checked(ksp, b, q, "residual state (K_r q_s = -f_frozen)", 0, 0.0)
+        ksp.destroy()
+        A.destroy()
+        b.destroy()
+        return q
 
     def stiffness_correction(self) -> PETSc.Mat:
         dK = self.zone.stiffness_correction()

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..fem.model import FEModel
 from ..fem.probes import create_probe
-from ..geometry.builders import BALL_INTERFACE, BLOCK_INTERFACE
+from ..geometry.builders import BALL_INTERFACE, BALL_ZONE, BLOCK_INTERFACE, BLOCK_ZONE
 from ..geometry.mesh import facet_indices
 from ..integration import solvers
 from ..scene.plan import Plan
@@ -90,12 +90,21 @@ def zone_boundary_note(model: FEModel, zone, plan: Plan) -> tuple[dict[str, Any]
     a zone radius to use (1.5x the plan's)."""
     facets = facet_indices(model.meshdata, (BALL_INTERFACE, BLOCK_INTERFACE))
     alpha = zone.boundary_plastic_strain(facets)
-    keys = {"zone_boundary_max_equivalent_plastic_strain": alpha, "zone_boundary_elastic": alpha <= BOUNDARY_ALPHA_TOL}
+    extents = zone.plastic_extent(plan.impact_point, BOUNDARY_ALPHA_TOL)
+    ball_r, target_r = extents.get(BALL_ZONE, 0.0), extents.get(BLOCK_ZONE, 0.0)
+    a = plan.hertz.a_max
+    keys = {"zone_boundary_max_equivalent_plastic_strain": alpha, "zone_boundary_elastic": alpha <= BOUNDARY_ALPHA_TOL,
+            "plastic_zone_radius_m": {"ball": ball_r, "struck_body": target_r,
+                                      "predicted": plan.plastic_radius, "contact_zone": plan.zone_radius}}
+    extent = (f"plastic region: {target_r * 1e3:.3g} mm ({target_r / a:.3g} a_max) from the impact point in the struck "
+              f"body, {ball_r * 1e3:.3g} mm in the ball; predicted {plan.plastic_radius * 1e3:.3g} mm "
+              f"(Johnson's cavity model on Thornton's contact radius)")
     if alpha <= BOUNDARY_ALPHA_TOL:
-        return keys, [f"plasticity stayed inside the contact zone (radius {plan.zone_radius * 1e3:.4g} mm): its "
-                      "boundary is elastic"]
-    return keys, [f"WARNING: plastic strain {alpha:.3g} at the contact zone's boundary (radius {plan.zone_radius * 1e3:.4g} "
-                  f"mm), where the model is linear: rerun with --set model.zone_radius={1.5 * plan.zone_radius:.4g}"]
+        return keys, [extent, f"plasticity stayed inside the contact zone (radius {plan.zone_radius * 1e3:.4g} mm): "
+                              "its boundary is elastic"]
+    return keys, [extent, f"WARNING: plastic strain {alpha:.3g} at the contact zone's boundary (radius "
+                          f"{plan.zone_radius * 1e3:.4g} mm), where the model is linear: rerun with "
+                          f"--set model.zone_radius={1.5 * plan.zone_radius:.4g}"]
 
 
 def plastic_notes(zone, stats, sym_factor: float) -> str:

@@ -151,11 +151,33 @@ class ReducedRecorder(Recorder):
                 M=gather_aij_dense(modal.M_scheme, comm), K=gather_aij_dense(modal.K, comm))
         return self._maps[key]
 
+    def _offset_terms(self, red, offset) -> SimpleNamespace:
+        """What the residual state q_s of a plastic run (``offset``: :func:`millimpact.methods.
+        free_phase.residual_offset`) adds to every free-phase row: the ball's displacement row
+        c.q_s, the probes' values and gradients (a static state: no mode-acceleration term), its
+        elastic strain energy 1/2 q_s.K_r.q_s + the plastic correction (the motion about q_s adds
+        1/2 eta.Lambda.eta: the cross term is eta.Phi^T (K_r q_s + f_frozen) = 0), and the model
+        vector T q_s for the fields; cached per plastic state."""
+        key = ("offset", offset.version, id(offset.q))
+        if key not in self._maps:
+            c_y, _, _, _, probe, _ = self._maps[id(red)]
+            arr = offset.q.array_r
+            Kq = red.K.createVecLeft()
+            red.K.mult(offset.q, Kq)
+            se = 0.5 * Kq.dot(offset.q) + self.plastic.strain_energy_correction(offset.q)
+            Kq.destroy()
+            self._maps[key] = SimpleNamespace(c=c_y.dot(offset.q), vals=probe.values(arr),
+                                              grads=probe.gradients(arr), se=se, u=red.expand(offset.q))
+        return self._maps[key]
+
     def record_free(self, modal: ModalProjection, times: np.ndarray, eta: np.ndarray, etad: np.ndarray,
-                    etadd: np.ndarray) -> None:
+                    etadd: np.ndarray, offset=None) -> None:
         """Rows of a closed-form free phase at ``times`` from the replicated modal states (m x n_t),
         all at once: the rows :meth:`__call__` would give for each (no contact force, zero
-        multipliers; the same formulas on m-column maps), plus the XDMF fields at their times."""
+        multipliers; the same formulas on m-column maps), plus the XDMF fields at their times.
+        With a plastic run's residual state ``offset`` the modal states are the motion about it
+        (:meth:`_offset_terms`); the plastic work and strain stay at their values (frozen)."""
+        off = self._offset_terms(modal.red, offset) if offset is not None else None
         self.set_projection(modal)
         d = self._dense_maps(modal)
         n_t = len(times)
@@ -171,6 +193,11 @@ class ReducedRecorder(Recorder):
         vb = d.mask[:, None] * etad
         ke_ball = 0.5 * np.einsum("it,it->t", vb, d.M @ vb)
         se = 0.5 * np.einsum("it,it->t", eta, d.K @ eta)
+        if off is not None:
+            approach = approach - off.c
+            vals[0] = vals[0] + off.vals[None]
+            grads = grads + off.grads[None]
+            se = se + off.se
         zero = np.zeros(n_t)
         cols = [times, zero, approach, zero, vball, *self.probe_columns(*vals, grads), self.sym * ke_ball, self.sym * ke, self.sym * se, self.sym * (ke + se)]
         if self.friction:
@@ -178,6 +205,11 @@ class ReducedRecorder(Recorder):
             self._fw_base += self._fw_last
             self._fw_last = 0.0
             cols += [zero, d.ct @ etad, np.full(n_t, self.sym * self._fw_base)]
+        if self.plastic is not None:
+            # the plastic strain is frozen while apart: the work and the strain keep their values
+            self._pw_base += self._pw_last
+            self._pw_last = 0.0
+            cols += [np.full(n_t, self.sym * self._pw_base), np.full(n_t, self.plastic.max_equivalent_plastic_strain())]
         self.rows.extend(np.column_stack(cols).tolist())
         lo, hi = modal.Phi.getOwnershipRangeColumn()
         while self._next_field < len(self.field_times):
@@ -187,7 +219,11 @@ class ReducedRecorder(Recorder):
             x = modal.create_vector()
             x.array[:] = eta[lo:hi, k]
             u = modal.expand(x)
+            if off is not None:
+                u.axpy(1.0, off.u)
             self.fields.append((float(times[k]), u.array_r.copy()))
+            if self.plastic is not None:
+                self.plastic_fields.append(self.plastic.cell_fields())
             u.destroy()
             x.destroy()
             self._next_field += 1

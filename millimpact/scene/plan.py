@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..theory.hertz import HertzImpact, effective_modulus, hertz_impact
+from ..theory.thornton import plastic_zone_radius
 from .schema import Ball, Material, Scene, Vec3
 
 #: elements across the Hertz contact radius a_max: ~4 gives ~1 % on F_max (DESIGN.md section 3)
@@ -39,6 +40,16 @@ def scene_hertz(scene: Scene) -> HertzImpact:
     e_star = effective_modulus(scene.ball.material, scene.target_material)
     return hertz_impact(scene.ball.radius, scene.ball.mass, scene.normal_speed, e_star,
                         scene.target_material.poisson)
+
+
+def predict_plastic_radius(h: HertzImpact, materials: tuple[Material, ...]) -> float:
+    """The radius (m) of the plastic region an impact ``h`` leaves about the impact point: the
+    largest of Johnson's expanding-cavity radius c over the plastic ``materials`` (each with its
+    initial yield stress; :func:`millimpact.theory.thornton.plastic_zone_radius` on Thornton's
+    contact radius); 0 when none yields."""
+    radii = [plastic_zone_radius(h.radius, h.mass, h.speed, h.e_star, m.initial_yield_stress, m.poisson)[1]
+             for m in materials if m.plastic]
+    return max(radii, default=0.0)
 
 
 @dataclass(frozen=True)
@@ -101,6 +112,9 @@ class Plan:
     friction: float               #: Coulomb coefficient between ball and struck body
     probes: ProbeSpec             #: what a recorder observes, and where
     reasons: tuple[tuple[str, str], ...] = ()
+    #: predicted radius of the plastic region about the impact point (m; 0 if the materials are
+    #: elastic or the impact stays below the yield onset): :func:`predict_plastic_radius`
+    plastic_radius: float = 0.0
 
     @property
     def normal_speed(self) -> float:
@@ -122,6 +136,9 @@ class Plan:
             ("f_cut", f"{self.f_cut/1e3:.4g} kHz", why.get("f_cut", "")),
             ("degree", f"P{self.degree}", why.get("degree", "")),
         ]
+        if self.plastic_radius > 0:
+            rows.insert(3, ("plastic_radius", f"{self.plastic_radius*1e3:.4g} mm ({self.plastic_radius/self.hertz.a_max:.3g} a_max)",
+                            why.get("plastic_radius", "")))
         return rows
 
 
@@ -240,6 +257,8 @@ def make_plan(scene: Scene) -> Plan:
     smallest = min(scene.ball.radius, *body)
     h_far = m.h_far if m.h_far is not None else smallest / 4.0
     reasons["h_far"] = "user" if m.h_far is not None else "smallest body size / 4"
+    c_p = predict_plastic_radius(h, (scene.ball.material, scene.target_material))
+    reasons["plastic_radius"] = "Johnson's cavity model on Thornton's contact radius (theory/thornton.py)"
     zone = m.zone_radius if m.zone_radius is not None else ZONE_RADIUS_FACTOR * h.a_max
     reasons["zone_radius"] = "user" if m.zone_radius is not None else f"{ZONE_RADIUS_FACTOR:g} a_max (holds the contact patch)"
     limit = 0.45 * smallest
@@ -266,7 +285,7 @@ def make_plan(scene: Scene) -> Plan:
                 ball=scene.ball, target=scene.target_material, impact_point=scene.impact_point,
                 contact_normal=scene.contact_normal, velocity=tuple(scene.impact.velocity),
                 friction=scene.contact.friction, probes=make_probe_spec(scene, planes, h_c, gap),
-                reasons=tuple(reasons.items()))
+                reasons=tuple(reasons.items()), plastic_radius=c_p)
 
 
 #: first yield under a Hertz contact (von Mises, nu = 0.3): p0 = 1.60 Y on the axis at 0.48 a

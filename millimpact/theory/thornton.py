@@ -46,3 +46,46 @@ def restitution_thornton(speed, v_y: float):
          * (r / (r + 2.0 * np.sqrt(6.0 / 5.0 - r**2 / 5.0))) ** 0.25)
     e = np.where(v <= v_y, 1.0, e)
     return float(e) if e.ndim == 0 else e
+
+
+def max_approach_thornton(radius: float, mass: float, speed: float, e_star: float, p_y: float) -> float:
+    """The largest approach delta_max (m) of Thornton's loading law: Hertz up to the approach
+    delta_y = R (pi p_y / (2 E*))^2 where the peak pressure reaches p_y, then the flat-topped
+    pressure's linear law F = F_y + pi p_y R (delta - delta_y) (Thornton 1997, eqs. 8-11); the
+    ball's kinetic energy m V^2 / 2 (``mass`` the impacting mass, kg) is its work to delta_max:
+
+        m V^2 / 2 = (8/15) E* R^(1/2) delta_y^(5/2) + F_y s + pi p_y R s^2 / 2,   s = delta_max - delta_y.
+
+    Below the yield onset it is Hertz's delta_max."""
+    d_y = radius * (math.pi * p_y / (2.0 * e_star)) ** 2
+    w_y = 8.0 / 15.0 * e_star * math.sqrt(radius) * d_y**2.5
+    energy = 0.5 * mass * speed**2
+    if energy <= w_y:
+        return (15.0 * mass * speed**2 / (16.0 * e_star * math.sqrt(radius))) ** 0.4
+    f_y = 4.0 / 3.0 * e_star * math.sqrt(radius) * d_y**1.5
+    k = math.pi * p_y * radius
+    s = (-f_y + math.sqrt(f_y**2 + 2.0 * k * (energy - w_y))) / k
+    return d_y + s
+
+
+def plastic_zone_radius(radius: float, mass: float, speed: float, e_star: float, yield_stress: float,
+                        nu: float = 0.3) -> tuple[float, float]:
+    """(a_p, c): the largest contact radius a_p = (R delta_max)^(1/2) of Thornton's law
+    (:func:`max_approach_thornton`, p_y = 1.6 Y) and the radius c of the plastic zone under it
+    from Johnson's expanding-cavity model of a spherical indenter (Johnson, Contact Mechanics,
+    1985, section 6.3, eq. 6.40 with tan(beta) = a / R and E* for an elastic indenter):
+
+        (c / a)^3 = [E* a / (Y R) + 4 (1 - 2 nu)] / (6 (1 - nu))
+
+    both in m; c is measured from the first contact point (the core's centre). Below the
+    yield onset there is no plastic zone: c = 0. The model is for the fully plastic regime
+    (E* a / (Y R) >~ 3); near the onset (a subsurface plastic core) it over-estimates c, which
+    errs on the safe side when c sizes the contact zone."""
+    p_y = FIRST_YIELD_PRESSURE_FACTOR * yield_stress
+    d = max_approach_thornton(radius, mass, speed, e_star, p_y)
+    a = math.sqrt(radius * d)
+    d_y = radius * (math.pi * p_y / (2.0 * e_star)) ** 2
+    if d <= d_y * (1.0 + 1e-12):
+        return a, 0.0
+    ratio3 = (e_star * a / (yield_stress * radius) + 4.0 * (1.0 - 2.0 * nu)) / (6.0 * (1.0 - nu))
+    return a, a * ratio3 ** (1.0 / 3.0)
