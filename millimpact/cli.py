@@ -140,7 +140,7 @@ def cmd_scene(args: argparse.Namespace) -> int:
             value, why = method_notes[0].split(" ", 1)[0], "the method's"
         if name == "zone_radius" and method_notes:
             why = "the reduced methods' (note below)"
-        say(f"  {name:<12s} {value:<28s} {why}")
+        say(f"  {name:<14s} {value:<28s} {why}")
     for note in method_notes[1:]:
         say(f"  note: {note}")
     return 0

@@ -59,7 +59,7 @@ def run_hertz(scene: Scene, plan: Plan) -> RunOutput:
                                    "peak_contact_stress_Pa": float(p.max())},
                      {"dofs": 1, "description": "quasi-static Hertz contact, 1 DOF"},
                      notes=["Hertz: quasi-static, half-space target, no wave or vibration losses (restitution 1)."]
-                     + (["Hertz is elastic: the materials' yield stress is not used (--method full for plasticity)"]
+                     + (["Hertz is elastic: the materials' yield stress is not used (--method improved or full for plasticity)"]
                         if plan.ball.material.plastic or plan.target.plastic else []))
 
 

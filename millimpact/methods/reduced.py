@@ -62,7 +62,7 @@ from ..results.fields import write_fields
 from ..results.output import RunOutput
 from ..results.recorder import impact_results
 from ..results.reduced_recorder import ReducedRecorder
-from ..scene.plan import Plan, make_plan
+from ..scene.plan import PLASTIC_ZONE_MARGIN, Plan, make_plan
 from ..scene.schema import Scene
 from .free_phase import FREE_MODES_FACTOR, integrate_reduced
 from .options import float_option, int_option
@@ -75,10 +75,6 @@ log = logging.getLogger(__name__)
 #: carry the dynamics). The full method's 4 a_max (plan.py) would make the NMM zone 1.5k vertices,
 #: 15.6k coordinates at the default scene, and the time loop as dear as the full P1 model's.
 REDUCED_ZONE_FACTOR = 2.5
-#: with plastic materials the zone must hold the plastic region: at 3 m/s on a Y ~ 1 GPa steel
-#: (V/V_y ~ 17) plastic strain reached 2.5 a_max (paper-rig-plastic: 0.0016 at the boundary, the
-#: run's warning), and stayed inside 4 a_max (the full method's zone, tests/methods/test_plastic.py)
-PLASTIC_ZONE_FACTOR = 4.0
 #: contact candidates of the reduced methods within this many a_max of the contact axis: the
 #: Hertz patch is a_max (the finite block's patch is a little smaller); at least 2 h_contact
 #: inside the zone (mass redistribution must not reach the interface coordinates)
@@ -145,15 +141,16 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
     a = plan.hertz.a_max
     notes = []
     if scene.model.zone_radius is None:
-        plastic = plan.ball.material.plastic or plan.target.plastic
-        factor = PLASTIC_ZONE_FACTOR if plastic else REDUCED_ZONE_FACTOR
-        # the candidates plus 3 contact elements (coarse meshes: h_contact > a_max / 4)
-        zone = max(factor * a, REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact)
+        # the candidates plus 3 contact elements (coarse meshes: h_contact > a_max / 4); with
+        # plastic materials the plastic region with its margin (plan.py PLASTIC_ZONE_MARGIN)
+        plastic = PLASTIC_ZONE_MARGIN * plan.plastic_radius
+        zone = max(REDUCED_ZONE_FACTOR * a, REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact, plastic)
         scene = scene.with_value("model.zone_radius", zone)
+        c_p = plan.plastic_radius
         plan = make_plan(scene)
-        notes.append(f"contact zone radius {zone * 1e3:.4g} mm = {zone / a:.3g} a_max (reduced methods' "
-                     f"default{', plastic materials: the zone holds the plastic region' if plastic else ''}; "
-                     f"full on the same mesh: --set model.zone_radius={zone!r})")
+        notes.append(f"contact zone radius {zone * 1e3:.4g} mm = {zone / a:.3g} a_max (reduced methods' default"
+                     + (f", {PLASTIC_ZONE_MARGIN:g} x the predicted plastic radius {c_p * 1e3:.3g} mm" if zone == plastic else "")
+                     + f"; full on the same mesh: --set model.zone_radius={zone!r})")
     radius = min(REDUCED_CANDIDATE_FACTOR * a, plan.zone_radius - 2.0 * plan.h_contact)
     if radius < 1.2 * a:
         raise InputError(f"model.zone_radius = {plan.zone_radius:g} m: too small for the contact candidates "

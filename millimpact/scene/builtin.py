@@ -50,7 +50,8 @@ def _paper_rig_plastic() -> Scene:
         description="The paper's rig with real steels (elastic-plastic, J2): a forged 60 HRC ball (Y 1.9 GPa) on a "
                     "Cr-Mo liner-steel block (Y 0.95 GPa), 3 m/s; Hertz p0 4.9 GPa is 3x the block's first-yield "
                     "pressure 1.6 Y. Material values and sources: scene/materials.toml. 2 ms (the impact and the first ringing; the "
-                    "reduced methods step the plastic run's free vibration, so --set time.end=0.04 for the rig's 40 ms is slow).")
+                    "reduced methods continue the free vibration about the residual state in closed form, so "
+                    "--set time.end=0.04 gives the rig's 40 ms at little cost; full FE steps it).")
 
 
 def _hertz_halfspace() -> Scene:
@@ -88,7 +89,8 @@ def _liner_segment() -> Scene:
     """A large ball striking a SAG liner's lifter face obliquely (sizes and sources in the description)."""
     liner = Liner(length=0.40, width=0.50, thickness=0.075, n_lifters=1, lifter_height=0.20,
                   lifter_top_width=0.10, lifter_face_angle=20.0, lifter_spacing=0.30, mill_radius=5.5,
-                  impact_lifter=0, impact_face="+z", impact_height=0.5, impact_x=0.0)
+                  impact_lifter=0, impact_face="+z", impact_height=0.5, impact_x=0.0,
+                  material=coerce_value(Material, "cr-mo-liner", "liner.material"))
     # velocity: LINER_IMPACT_ANGLE from the face's inward normal -n, tilted towards the plate (down
     # the face): v = V (-cos(a) n - sin(a) s), s the face's up-slope direction in the y-z plane
     _, n = liner.face_point()
@@ -103,11 +105,13 @@ def _liner_segment() -> Scene:
             "36-40 ft (11-12 m) SAG mill, typical values of the liner-design literature (e.g. D. Royston, "
             "SAG mill liner design and development, Min. Metall. Process. 24 (2007) 121-132): shell plate "
             "75 mm thick (typical 75-100 mm), lifter 200 mm high (150-250 mm), 100 mm top, 20 deg face angle "
-            "(15-30 deg), Cr-Mo steel (elastic here: E = 182 GPa, nu = 0.3 as the rig), plate curved to the "
-            "mill's 5.5 m radius, 400 mm along the axis x 500 mm of arc; balls 100-150 mm thrown at up to "
-            "~10 m/s. Elastic on purpose: Hertz p0 ~6.9 GPa, far above the yield of real liner steel. "
+            "(15-30 deg), plate curved to the mill's 5.5 m radius, 400 mm along the axis x 500 mm of arc; balls "
+            "100-150 mm thrown at up to ~10 m/s. Real steels, elastic-plastic (J2): a Cr-Mo liner steel (Y 0.95 "
+            "GPa) and a forged 60 HRC ball (Y 1.9 GPa), values and sources in scene/materials.toml; Hertz p0 "
+            "~6.9 GPa is 4.5x the liner's first-yield pressure. The elastic case (the paper's steel in both "
+            "bodies): --set ball.material=paper-steel --set liner.material=paper-steel. "
             "Half model: the plane of incidence x = 0 is a symmetry plane."),
-        ball=Ball(radius=0.0625),
+        ball=Ball(radius=0.0625, material=coerce_value(Material, "forged-ball-60hrc", "ball.material")),
         liner=liner,
         impact=Impact(velocity=v),
         contact=ContactOptions(friction=0.2),
@@ -138,7 +142,7 @@ class StudySpec:
     label: str
     display: tuple[float, ...]
     unit: str
-    paper_conclusion: str
+    paper_conclusion: str       #: "" for a study that is not the paper's
 
 
 BUILTIN_STUDIES = {
@@ -154,6 +158,8 @@ BUILTIN_STUDIES = {
                         "r", (15.0, 20.0, 25.0), "mm",
                         "(4) displacement, velocity and stress grow with r, acceleration changes little; "
                         "above 20 mm the stress changes greatly and the peak acceleration comes earlier."),
+    "velocity-plastic": StudySpec("velocity-plastic", "paper-rig-plastic", "impact.velocity",
+                                  (0.1, 0.3, 1.0, 3.0, 10.0), "v", (0.1, 0.3, 1.0, 3.0, 10.0), "m/s", ""),
     "thickness": StudySpec("thickness", "study-base", "block.thickness", (0.030, 0.040, 0.050),
                            "b", (30.0, 40.0, 50.0), "mm",
                            "(5) displacement and acceleration grow with b, stress amplitude falls; above "

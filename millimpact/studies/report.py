@@ -9,7 +9,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Optional, Any, Sequence
 
 import numpy as np
 
@@ -429,6 +429,20 @@ def study_markdown(study: Study, runs: Sequence[CaseRun], a: StudyAnalysis, meth
     return "\n".join(lines)
 
 
+def thornton_curve(scene) -> Optional[tuple[float, str]]:
+    """(V_y, label) of Thornton's curve for a scene whose materials yield: the yield-onset speed of
+    the softer plastic material (theory/thornton.py); None when both are elastic."""
+    from ..theory.hertz import effective_modulus
+    from ..theory.thornton import yield_onset_velocity
+
+    ys = [m.initial_yield_stress for m in (scene.ball.material, scene.target_material) if m.plastic]
+    if not ys:
+        return None
+    y = min(ys)
+    vy = yield_onset_velocity(y, effective_modulus(scene.ball.material, scene.target_material), scene.ball.material.density)
+    return vy, f"Thornton 1997 (Y = {y / 1e9:.3g} GPa, V_y = {vy:.3g} m/s; a lower bound of FE)"
+
+
 def write_study(study: Study, runs: Sequence[CaseRun], out: Path, method: str, method_note: str, wall: float) -> StudyAnalysis:
     """The study's figures, tables, text and ``study.json`` (last) in ``out`` (rank 0)."""
     from . import study_figures as study_plots
@@ -457,6 +471,11 @@ def write_study(study: Study, runs: Sequence[CaseRun], out: Path, method: str, m
             quantities = [(name, a.values(key), a.values(hkey)) for key, name, hkey, _ in FITTED]
             study_plots.plot_study_trends(a.x, study.xlabel, quantities, out / "trends.png",
                                           f"{title}: peaks against {study.symbol}")
+        e = a.values("restitution")
+        if study.param == "impact.velocity" and len(ok) >= 2 and np.sum(np.isfinite(e)) >= 2:
+            speeds = np.array([r.case.scene.normal_speed for r in ok])
+            study_plots.plot_study_restitution(speeds, e, out / "restitution.png", f"{title}: restitution",
+                                               thornton_curve(study.cases[0].scene))
     csv_text, md_table = peaks_table(study, runs, a)
     write_text(out / "peaks.csv", csv_text)
     write_text(out / "peaks.md", md_table)

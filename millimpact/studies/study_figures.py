@@ -2,7 +2,9 @@
 
 ``contact_point.png`` the paper's four contact-point panels around the impact, ``contact_point_run.png``
 the same over the whole run, ``contact_force.png`` the contact force of each case with its Hertz curve,
-``trends.png`` the peaks against the parameter (log-log) beside Hertz's scaling laws.
+``trends.png`` the peaks against the parameter (log-log) beside Hertz's scaling laws,
+``restitution.png`` (a speed sweep) the restitution against the impact speed beside Thornton's
+elastic-plastic curve and the elastic line.
 Called by rank 0 after the cases are computed.
 """
 from __future__ import annotations
@@ -142,6 +144,34 @@ def plot_study_trends(x: np.ndarray, xlabel: str, quantities: Sequence[tuple[str
     ax.set_yticklabels([f"{v:g}" for v in ticks])
     ax.set_xlabel(xlabel)
     ax.set_ylabel("peak / peak of the first case")
+    ax.set_title(title)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def plot_study_restitution(speed: np.ndarray, e: np.ndarray, path: Path, title: str,
+                           thornton: Optional[tuple[float, str]] = None) -> None:
+    """Restitution against impact speed (log axis), with Thornton's 1997 curve for the yield-onset
+    speed ``thornton = (V_y in m/s, label)`` (none for elastic materials) and the elastic e = 1."""
+    from ..theory.thornton import restitution_thornton
+
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    ax.plot(speed, e, "o-", color="C0", label="millimpact")
+    lo, hi = float(np.min(speed)), float(np.max(speed))
+    v = np.geomspace(lo / 1.5, hi * 1.5, 200)
+    ax.plot(v, np.ones_like(v), ":", color="0.4", lw=1.0, label="elastic, quasi-static (e = 1)")
+    if thornton is not None:
+        vy, label = thornton
+        ax.plot(v, restitution_thornton(v, vy), "--", color="C3", lw=1.2, label=label)
+        if lo / 1.5 < vy < hi * 1.5:
+            ax.axvline(vy, color="C3", lw=0.6, alpha=0.5)
+    ax.set_xscale("log")
+    ax.set_xlabel("impact speed [m/s]")
+    ax.set_ylabel("restitution e")
+    ax.set_ylim(0.0, 1.05)
     ax.set_title(title)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)

@@ -137,7 +137,7 @@ def define_study(name: Optional[str], param: Optional[str] = None, base: Optiona
             unit = f" {spec.unit}" if spec.unit else ""
             entries.append((v, float(shown), f"{symbol} = {shown:g}{unit}", safe_name(f"{symbol}{shown:g}{spec.unit}"), scene))
         xlabel = f"{spec.label}" + (f" [{spec.unit}]" if spec.unit else "")
-        study_name, param_name, base_name, paper = name, spec.param, spec.base, spec
+        study_name, param_name, base_name, paper = name, spec.param, spec.base, spec if spec.paper_conclusion else None
     else:
         field_, values = parse_param(param)
         base_name = base or "study-base"

@@ -18,7 +18,10 @@ from millimpact.scene.plan import make_plan
 from millimpact.results.timeseries import TimeSeries
 from millimpact.scene.builtin import builtin_scene
 
-COARSE = {"model.h_far": 0.04, "model.h_contact": 0.004, "time.end": 3.2e-4}
+#: elastic (the paper's steel): the scene is plastic by default, these tests check the elastic
+#: contact and friction laws against Hertz and Maw-Barber-Fawcett
+COARSE = {"model.h_far": 0.04, "model.h_contact": 0.004, "time.end": 3.2e-4,
+          "ball.material": "paper-steel", "liner.material": "paper-steel"}
 SETS = [a for k, v in COARSE.items() for a in ("--set", f"{k}={v}")]
 
 
@@ -42,8 +45,12 @@ def test_scene_geometry_and_plan():
     assert np.linalg.norm(c - np.array(s.impact_point)) == pytest.approx(s.ball.radius)
     plan = make_plan(s)
     assert plan.symmetry == "half" and plan.symmetry_planes == ("x",)
-    # Hertz (normal component): a_max ~ 6.75 mm for a 125 mm ball at 6.93 m/s
-    assert plan.hertz.a_max == pytest.approx(6.75e-3, rel=0.01)
+    # Hertz (normal component): a_max ~ 6.75 mm for a 125 mm ball of the paper's steel at 6.93 m/s
+    paper = s.with_value("ball.material", "paper-steel").with_value("liner.material", "paper-steel")
+    assert make_plan(paper).hertz.a_max == pytest.approx(6.75e-3, rel=0.01)
+    # the default is plastic: a Cr-Mo liner under a forged ball, whose plastic region sizes the zone
+    assert s.liner.material.plastic and s.ball.material.plastic
+    assert plan.plastic_radius > plan.hertz.a_max and plan.zone_radius >= 1.75 * plan.plastic_radius
 
 
 @pytest.mark.parametrize("field, value, words", [
@@ -127,7 +134,7 @@ def test_maw_barber_fawcett_gross_sliding():
     assert jt / jn == pytest.approx(-mu, rel=1e-3)    # slip directions in the plane of incidence
     on = ts["contact_force_N"] > 0.02 * ts["contact_force_N"].max()
     assert np.allclose(ts["tangential_force_N"][on] / ts["contact_force_N"][on], -mu, rtol=1e-3)
-    m = builtin_scene("liner-segment").ball.mass
+    m = _scene().ball.mass
     dv = ts["ball_tangential_velocity_m_s"][-1] - ts["ball_tangential_velocity_m_s"][0]
     assert dv == pytest.approx(jt / m, rel=1e-3)        # momentum of the free ball
 

@@ -163,3 +163,23 @@ def test_help_lists_the_studies_and_the_default_method():
     assert r.returncode == 0, r.stderr
     for name in ("poisson", "velocity", "radius", "thickness", "improved"):
         assert name in r.stdout
+    assert "velocity-plastic" in r.stdout and "paper-rig-plastic" in r.stdout
+
+
+def test_plastic_speed_sweep_draws_restitution_against_thornton(tmp_path):
+    """A speed sweep of a plastic scene (the velocity-plastic study's kind, here on the
+    half-space with a Y = 1 GPa block: V_y = 0.18 m/s, Thornton 1997): below the yield onset the
+    impact is elastic (e of the elastic half-space, ~0.99, and no plastic work); at 3 m/s
+    (V/V_y ~ 17) e falls (FE ~0.8, Wu, Li & Thornton 2005) and the study draws restitution.png
+    with Thornton's curve."""
+    out = tmp_path / "vp"
+    # each case on the plan's mesh of its own speed (h_contact = a_max / 4): a mesh sized for 3 m/s
+    # is too coarse for 0.1 m/s (a_max 3x smaller) and overshoots the first-yield pressure there
+    r = run_cli("study", "--param", "impact.velocity=0.1,3", "--base", "hertz-halfspace", "--method", "full",
+                "--no-case-figures", "--set", "block.material.yield_stress=1e9",
+                "--set", "model.h_far=0.012", "--end", "2.5e-4", "--out", str(out))
+    assert r.returncode == 0, r.stderr[-3000:]
+    (x0, slow), (x1, fast) = _cases(out)
+    assert slow["plastic_dissipation_J"] == 0.0 and slow["restitution"] > 0.97
+    assert fast["plastic_dissipation_J"] > 0.1 * fast["energy_initial_J"] and 0.7 < fast["restitution"] < 0.9
+    assert (out / "restitution.png").stat().st_size > 0

@@ -30,3 +30,39 @@ def test_restitution_values_and_limits():
         assert restitution_thornton(v, vy) == pytest.approx(e, abs=0.01)
     hi = restitution_thornton([1e3 * vy, 1e4 * vy], vy)
     assert hi[1] / hi[0] == pytest.approx(10 ** -0.25, rel=1e-2)
+
+
+def test_thornton_max_approach_does_the_impact_energy_of_work():
+    """delta_max of Thornton's loading law: Hertz's below the yield onset; above it the work of the
+    law (Hertz to delta_y, then F_y + pi p_y R (delta - delta_y)), integrated numerically, equals
+    the impact energy m V^2 / 2."""
+    from millimpact.theory.hertz import hertz_impact
+    from millimpact.theory.thornton import max_approach_thornton
+
+    R, m, E = 0.015, 0.11, 115e9
+    p_y = 1.6e9
+    slow = hertz_impact(R, m, 0.05, E)
+    assert slow.p0 < p_y
+    assert max_approach_thornton(R, m, 0.05, E, p_y) == pytest.approx(slow.delta_max, rel=1e-12)
+    v = 3.0
+    d = max_approach_thornton(R, m, v, E, p_y)
+    d_y = R * (np.pi * p_y / (2 * E)) ** 2
+    x = np.linspace(0.0, d, 200001)
+    f = np.where(x <= d_y, 4 / 3 * E * np.sqrt(R) * x**1.5,
+                 4 / 3 * E * np.sqrt(R) * d_y**1.5 + np.pi * p_y * R * (x - d_y))
+    assert np.trapz(f, x) == pytest.approx(0.5 * m * v**2, rel=1e-6)
+    assert d > hertz_impact(R, m, v, E).delta_max       # the capped pressure lets the ball in deeper
+
+
+def test_plastic_zone_radius_follows_the_cavity_model():
+    """Johnson's cavity model (Contact Mechanics, eq. 6.40): (c/a)^3 = (E* a/(Y R) + 4(1-2nu)) / (6(1-nu));
+    no plastic zone below the yield onset; the zone grows with speed and as the yield stress falls."""
+    from millimpact.theory.thornton import max_approach_thornton, plastic_zone_radius
+
+    R, m, E, Y = 0.015, 0.11, 115e9, 1e9
+    assert plastic_zone_radius(R, m, 0.05, E, Y)[1] == 0.0
+    a, c = plastic_zone_radius(R, m, 3.0, E, Y)
+    assert a == pytest.approx(np.sqrt(R * max_approach_thornton(R, m, 3.0, E, 1.6 * Y)), rel=1e-12)
+    assert (c / a) ** 3 == pytest.approx((E * a / (Y * R) + 4 * 0.4) / (6 * 0.7), rel=1e-12)
+    assert c > a
+    assert plastic_zone_radius(R, m, 10.0, E, Y)[1] > c > plastic_zone_radius(R, m, 3.0, E, 2 * Y)[1]
