@@ -1,6 +1,7 @@
 """Thornton's 1997 elastic-perfectly-plastic impact model against independent references."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from scipy import optimize
 
