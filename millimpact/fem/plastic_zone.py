@@ -299,6 +299,27 @@ class PlasticZone:
             out[self.zones[k].cell_tag] = self.comm.allreduce(local, op=MPI.MAX)
         return out
 
+    def section(self, point, normal, plane_normal, half_width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The committed alpha on a section: the quadrature points within ``half_width`` (m) of the
+        plane through ``point`` with unit normal ``plane_normal``, as (s, depth, alpha) gathered on
+        rank 0 (empty on the others): s (m) along ``plane_normal x normal`` in the plane, depth (m)
+        along ``-normal`` (into the struck body positive, the ball at negative depth)."""
+        p, n, m = (np.asarray(v, dtype=float) for v in (point, normal, plane_normal))
+        t = np.cross(m, n)
+        qps = self.quadrature_points()
+        parts = []
+        for k in range(len(self.cells)):
+            if len(self.cells[k]):
+                d = qps[k] - p
+                near = np.abs(d @ m) <= half_width
+                parts.append(np.column_stack([d[near] @ t, -(d[near] @ n), self.alpha[k][near]]))
+        local = np.concatenate(parts) if parts else np.zeros((0, 3))
+        every = self.comm.gather(local, root=0)
+        if self.comm.rank != 0:
+            return np.zeros(0), np.zeros(0), np.zeros(0)
+        data = np.concatenate(every)
+        return data[:, 0], data[:, 1], data[:, 2]
+
     def cell_fields(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(local zone cells, their largest committed equivalent plastic strain, their largest von
         Mises stress of the last committed step (Pa)): the cellwise fields written to XDMF."""

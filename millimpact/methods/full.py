@@ -24,7 +24,7 @@ from ..geometry.mesh import create_mesh
 from ..integration import integrators
 from ..results.fields import write_fields
 from ..results.output import RunOutput
-from ..results.dent import plastic_notes, residual_dent, zone_boundary_note
+from ..results.dent import plastic_report
 from ..results.recorder import Recorder, impact_results
 from ..scene.plan import Plan
 from ..scene.schema import Scene
@@ -84,14 +84,13 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
         "mpi_ranks": comm.size,
     }
     notes = [f"full FE, P{degree}, {model.n_dofs_global} dofs, {plan.symmetry} model, integrator {integrator}"]
+    writers = []
     if plastic is not None:
-        notes.append(plastic_notes(plastic, stats, model.sym_factor))
-        results.update(residual_dent(model, plastic, plan))
-        keys, more = zone_boundary_note(model, plastic, plan)
+        keys, more, writer = plastic_report(model, plastic, plan, stats)
         results.update(keys)
         notes += more
+        writers.append(writer)
     fields = rec.fields
-    writers = []
     if fields:
         writers.append(lambda folder: write_fields(model, fields, folder / "fields.xdmf", rec.plastic_fields))
     return RunOutput(method, ts, results, model_info, extra_writers=writers, notes=notes)

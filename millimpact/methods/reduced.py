@@ -57,7 +57,7 @@ from ..reduction.augmentation import AUGMENTATION_PATTERNS
 from ..reduction.partition import create_nodal_zone_basis, partition_dofs
 from ..reduction.nmm_zone import create_nmm_zone
 from ..reduction.plastic_projection import ProjectedPlasticZone
-from ..results.dent import plastic_notes, residual_dent, zone_boundary_note
+from ..results.dent import plastic_report
 from ..results.fields import write_fields
 from ..results.output import RunOutput
 from ..results.recorder import impact_results
@@ -268,14 +268,12 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
         "zone_radius_m": plan.zone_radius, "candidate_radius_m": cand_radius,
     }
     notes = reduced_notes(method, opt, model, red) + plan_notes + mode_notes(red)
+    writers = []
     if zone is not None:
-        stats = SimpleNamespace(**run["stats"])
-        notes.append(plastic_notes(zone, stats, model.sym_factor))
-        results.update(residual_dent(model, zone, plan))
-        keys, more = zone_boundary_note(model, zone, plan)
+        keys, more, writer = plastic_report(model, zone, plan, SimpleNamespace(**run["stats"]))
         results.update(keys)
         notes += more
-    writers = []
+        writers.append(writer)
     if rec.fields:
         fields = list(rec.fields)
         writers.append(lambda folder: write_fields(model, fields, Path(folder) / "fields.xdmf", rec.plastic_fields))

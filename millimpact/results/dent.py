@@ -81,6 +81,19 @@ def residual_dent(model: FEModel, zone, plan: Plan) -> dict[str, Any]:
             "residual_dent_profile": {"r_m": r.tolist(), "depth_m": d.tolist()}}
 
 
+def plastic_section(zone, plan: Plan, h_contact: float) -> dict[str, Any]:
+    """The equivalent plastic strain on the section through the contact axis (the plane x = x_p,
+    which holds the contact normal of the block and of every liner face, and is the symmetry
+    plane of a half model): the zone's quadrature points within h_contact / 2 of it, gathered on
+    rank 0 (``s_m``, ``depth_m``, ``alpha``; :meth:`PlasticZone.section`), for
+    :func:`millimpact.results.plots.plot_plastic_section`."""
+    s, d, alpha = zone.section(plan.impact_point, plan.contact_normal, (1.0, 0.0, 0.0), 0.5 * h_contact)
+    if "z" in plan.symmetry_planes:     # a quarter model keeps z >= z_p: mirror the other half in
+        s, d, alpha = np.concatenate([s, -s]), np.concatenate([d, d]), np.concatenate([alpha, alpha])
+    return {"s_m": s, "depth_m": d, "alpha": alpha, "a_max_m": plan.hertz.a_max, "zone_radius_m": plan.zone_radius,
+            "predicted_radius_m": plan.plastic_radius}
+
+
 #: plastic strain below this at the zone boundary counts as elastic there (round-off of the return map)
 BOUNDARY_ALPHA_TOL = 1e-6
 
@@ -113,3 +126,22 @@ def plastic_notes(zone, stats, sym_factor: float) -> str:
             f"{zone.max_equivalent_plastic_strain():.3g}; {stats.n_plastic_steps} yielding steps, Newton "
             f"{stats.n_plastic_iterations} iterations (max {stats.max_plastic_iterations} a step), "
             f"{stats.n_tangent_factorizations} tangent factorizations")
+
+
+def plastic_report(model: FEModel, zone, plan: Plan, stats) -> tuple[dict[str, Any], list[str], Any]:
+    """What a plastic run adds to its output: summary keys (the dent, the zone check, the plastic
+    radii), note lines, and a writer of ``plastic_zone.png`` (rank 0; the section is gathered
+    here, collectively)."""
+    from .plots import plot_plastic_section
+
+    notes = [plastic_notes(zone, stats, model.sym_factor)]
+    keys = residual_dent(model, zone, plan)
+    more_keys, more = zone_boundary_note(model, zone, plan)
+    keys.update(more_keys)
+    section = plastic_section(zone, plan, plan.h_contact)
+    rank = model.V.mesh.comm.rank
+
+    def write(folder) -> None:
+        if rank == 0:
+            plot_plastic_section(section, folder / "plastic_zone.png")
+    return keys, notes + more, write

@@ -259,3 +259,49 @@ def plot_dent(profile: dict, path: Path, depth: float, radius: float, title: str
     ax.set_title(title or "Residual dent")
     fig.savefig(path, dpi=130)
     plt.close(fig)
+
+
+def plot_plastic_section(section: dict, path: Path, title: str = "") -> None:
+    """The plastic zone on the section through the contact axis: the equivalent plastic strain of
+    the zone's quadrature points near the plane (``section`` from
+    :func:`millimpact.results.dent.plastic_section`), filled contours over the distance from the
+    contact axis and the depth (the struck body below the face, the ball above), with the Hertz
+    contact radius a_max, the predicted plastic radius and the contact zone's boundary."""
+    import matplotlib.tri as mtri
+
+    plt = _plt()
+    s, d, alpha = (np.asarray(section[k]) for k in ("s_m", "depth_m", "alpha"))
+    zone = float(section["zone_radius_m"])
+    fig, ax = plt.subplots(figsize=(7.5, 5.5), constrained_layout=True)
+    sc, unit = value_unit("r_m", np.array([zone]))
+    top = float(alpha.max()) if alpha.size else 0.0
+    if alpha.size >= 3 and top > 0:
+        tri = mtri.Triangulation(s * sc, d * sc)
+        # drop the long, thin triangles Delaunay makes across the gap between the two bodies
+        xy = np.column_stack([s, d]) * sc
+        edges = np.max([np.linalg.norm(xy[tri.triangles[:, i]] - xy[tri.triangles[:, (i + 1) % 3]], axis=1)
+                        for i in range(3)], axis=0)
+        tri.set_mask(edges > 4.0 * np.median(edges))
+        levels = np.linspace(0.0, top, 11)
+        levels[0] = 1e-6 * top
+        cf = ax.tricontourf(tri, alpha, levels=levels, cmap="viridis", extend="neither")
+        fig.colorbar(cf, ax=ax, label="equivalent plastic strain")
+    else:
+        ax.text(0.5, 0.5, "no plastic strain", transform=ax.transAxes, ha="center")
+    th = np.linspace(0.0, 2.0 * np.pi, 200)
+    for r, style, label in ((zone, "k-", f"contact zone, radius {zone * sc:.3g} {unit}"),
+                            (float(section["predicted_radius_m"]), "C1--", "predicted plastic radius (cavity model)")):
+        if r > 0:
+            ax.plot(r * sc * np.cos(th), r * sc * np.sin(th), style, lw=1.0, label=label)
+    a = float(section["a_max_m"]) * sc
+    ax.plot([-a, a], [0.0, 0.0], color="C3", lw=3, label=f"Hertz contact diameter 2 a_max")
+    ax.axhline(0.0, color="0.5", lw=0.5)
+    ax.set_xlim(-1.1 * zone * sc, 1.1 * zone * sc)
+    ax.set_ylim(1.1 * zone * sc, -1.1 * zone * sc)       # depth down
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"distance from the contact axis in the section [{unit}]")
+    ax.set_ylabel(f"depth below the struck face [{unit}] (ball above)")
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title(title or "Plastic zone on the section through the contact axis")
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
