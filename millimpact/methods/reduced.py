@@ -62,7 +62,7 @@ from ..results.fields import write_fields
 from ..results.output import RunOutput
 from ..results.recorder import impact_results
 from ..results.reduced_recorder import ReducedRecorder
-from ..scene.plan import PLASTIC_ZONE_MARGIN, Plan, make_plan
+from ..scene.plan import PLASTIC_ZONE_CAP, PLASTIC_ZONE_MARGIN, Plan, make_plan, zone_radius_limit
 from ..scene.schema import Scene
 from .free_phase import FREE_MODES_FACTOR, integrate_reduced
 from .options import float_option, int_option
@@ -145,11 +145,13 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
         # plastic materials the plastic region with its margin (plan.py PLASTIC_ZONE_MARGIN)
         plastic = PLASTIC_ZONE_MARGIN * plan.plastic_radius
         zone = max(REDUCED_ZONE_FACTOR * a, REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact, plastic)
+        if zone == plastic:     # as the plan: no more than the bodies allow
+            zone = min(zone, PLASTIC_ZONE_CAP * zone_radius_limit(scene))
         scene = scene.with_value("model.zone_radius", zone)
         c_p = plan.plastic_radius
         plan = make_plan(scene)
         notes.append(f"contact zone radius {zone * 1e3:.4g} mm = {zone / a:.3g} a_max (reduced methods' default"
-                     + (f", {PLASTIC_ZONE_MARGIN:g} x the predicted plastic radius {c_p * 1e3:.3g} mm" if zone == plastic else "")
+                     + (f", {zone / c_p:.3g} x the predicted plastic radius {c_p * 1e3:.3g} mm" if c_p > 0 and zone >= 0.9 * plastic else "")
                      + f"; full on the same mesh: --set model.zone_radius={zone!r})")
     radius = min(REDUCED_CANDIDATE_FACTOR * a, plan.zone_radius - 2.0 * plan.h_contact)
     if radius < 1.2 * a:

@@ -32,6 +32,8 @@ ZONE_RADIUS_FACTOR = 4.0
 #: prediction (1.23 at Y 0.38 GPa, 1.33 at 1 GPa, 1.07 at 2 GPa, 0.69 at 3 GPa near the onset; the
 #: rig with both steels plastic 1.32): 1.75 keeps the largest inside with a few elements to spare
 PLASTIC_ZONE_MARGIN = 1.75
+#: ... but at most this share of the zone-radius limit (:func:`zone_radius_limit`)
+PLASTIC_ZONE_CAP = 0.98
 #: initial gap in units of delta_max (the flight to contact is exact, so it only needs to be > 0)
 GAP_FACTOR = 0.05
 #: steps per contact duration while in contact
@@ -46,6 +48,23 @@ def scene_hertz(scene: Scene) -> HertzImpact:
     e_star = effective_modulus(scene.ball.material, scene.target_material)
     return hertz_impact(scene.ball.radius, scene.ball.mass, scene.normal_speed, e_star,
                         scene.target_material.poisson)
+
+
+def smallest_size(scene: Scene) -> float:
+    """The smallest body size of a scene (m): the ball radius, the block's sides, or the liner's
+    length, plate thickness and lifter top."""
+    if scene.liner is not None:
+        ln = scene.liner
+        body = (ln.length, ln.thickness, ln.lifter_top_width)
+    else:
+        body = (scene.block.length, scene.block.thickness, scene.block.height)
+    return min(scene.ball.radius, *body)
+
+
+def zone_radius_limit(scene: Scene) -> float:
+    """The contact zone must stay below this radius (m): 0.45 of the smallest body size, so the
+    zone sphere does not reach the far side of the ball or the body."""
+    return 0.45 * smallest_size(scene)
 
 
 def predict_plastic_radius(h: HertzImpact, materials: tuple[Material, ...]) -> float:
@@ -255,12 +274,7 @@ def make_plan(scene: Scene) -> Plan:
 
     h_c = m.h_contact if m.h_contact is not None else h.a_max / ELEMENTS_ACROSS_CONTACT
     reasons["h_contact"] = "user" if m.h_contact is not None else f"a_max / {ELEMENTS_ACROSS_CONTACT:g} (~1 % on F_max)"
-    if scene.liner is not None:   # the liner's smallest sizes: plate thickness, lifter top, length
-        ln = scene.liner
-        body = (ln.length, ln.thickness, ln.lifter_top_width)
-    else:
-        body = (scene.block.length, scene.block.thickness, scene.block.height)
-    smallest = min(scene.ball.radius, *body)
+    smallest = smallest_size(scene)
     h_far = m.h_far if m.h_far is not None else smallest / 4.0
     reasons["h_far"] = "user" if m.h_far is not None else "smallest body size / 4"
     c_p = predict_plastic_radius(h, (scene.ball.material, scene.target_material))
@@ -269,7 +283,15 @@ def make_plan(scene: Scene) -> Plan:
     reasons["zone_radius"] = ("user" if m.zone_radius is not None else
                               f"{ZONE_RADIUS_FACTOR:g} a_max (holds the contact patch)" if zone == ZONE_RADIUS_FACTOR * h.a_max
                               else f"{PLASTIC_ZONE_MARGIN:g} plastic_radius (holds the plastic region)")
-    limit = 0.45 * smallest
+    limit = zone_radius_limit(scene)
+    if m.zone_radius is None and zone > PLASTIC_ZONE_CAP * limit:
+        # the margins ask for more than the bodies allow (a fast impact of a small ball): take what
+        # they allow; the contact candidates need 1.2 a_max + 2 h_contact (checked by the
+        # methods), and a plastic run's zone-boundary check says whether the plastic region stayed
+        # inside
+        zone = PLASTIC_ZONE_CAP * limit
+        reasons["zone_radius"] = (f"{zone / h.a_max:.3g} a_max: capped by the bodies' size "
+                                  f"(0.45 x the smallest, {limit:g} m)")
     if zone >= limit:
         raise SceneError("model.zone_radius", zone, f"the contact zone must be smaller than {limit:g} m for this scene")
     fine = min(1.5 * h.a_max, zone)
