@@ -48,7 +48,7 @@ from ..errors import InputError
 from ..fem.contact import ContactSet, create_contact
 from ..fem.model import FEModel, create_fe_model
 from ..fem.plastic_zone import create_plastic_zone
-from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
+from ..geometry.builders import BALL_ZONE, BLOCK_ZONE, SIZE_GROWTH_ZONE_RADII
 from ..geometry.mesh import create_mesh
 from ..integration import integrators
 from ..reduction.craig_bampton import reduce_model
@@ -141,10 +141,15 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
     a = plan.hertz.a_max
     notes = []
     if scene.model.zone_radius is None:
-        # the candidates plus 3 contact elements (coarse meshes: h_contact > a_max / 4); with
-        # plastic materials the plastic region with its margin (plan.py PLASTIC_ZONE_MARGIN)
+        # the candidates plus 3 contact elements (coarse meshes: h_contact > a_max / 4) and plus
+        # one element of the size the mesh has at the zone's boundary (slow impacts: a_max is small
+        # against h_far and the size grows fast beyond fine_radius: the interface cells would reach
+        # the candidates; the rig at 0.1 m/s needs 5 a_max); with plastic materials the plastic
+        # region with its margin (plan.py PLASTIC_ZONE_MARGIN)
         plastic = PLASTIC_ZONE_MARGIN * plan.plastic_radius
-        zone = max(REDUCED_ZONE_FACTOR * a, REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact, plastic)
+        zone = max(REDUCED_ZONE_FACTOR * a, plastic, REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact)
+        for _ in range(30):     # a fixed point: the boundary size grows with the zone, but slower
+            zone = max(zone, REDUCED_CANDIDATE_FACTOR * a + boundary_element_size(plan, zone))
         if zone == plastic:     # as the plan: no more than the bodies allow
             zone = min(zone, PLASTIC_ZONE_CAP * zone_radius_limit(scene))
         scene = scene.with_value("model.zone_radius", zone)
@@ -163,6 +168,15 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
                  f"dt_contact {plan.dt_contact * 1e6:.4g} us (t_c / {plan.hertz.contact_time / plan.dt_contact:.3g}), "
                  f"dt_free {plan.dt_free * 1e6:.4g} us")
     return scene, plan, radius, notes
+
+
+def boundary_element_size(plan: Plan, zone: float) -> float:
+    """The element size (m) the mesh has at distance ``zone`` from the contact point when the zone
+    radius is ``zone``: h_contact within fine_radius, then the linear growth to h_far over
+    SIZE_GROWTH_ZONE_RADII zone radii (:mod:`millimpact.geometry.builders`)."""
+    fine = min(1.5 * plan.hertz.a_max, zone)
+    grow = (plan.h_far - plan.h_contact) * max(0.0, zone - fine) / (SIZE_GROWTH_ZONE_RADII * zone)
+    return min(plan.h_far, plan.h_contact + grow)
 
 
 def build_reduced_model(model: FEModel, kind: str, *, f_cut: Optional[float], n_modes: Optional[int],
