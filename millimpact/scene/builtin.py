@@ -46,12 +46,12 @@ def _paper_rig_plastic() -> Scene:
     ball = Ball(radius=0.015, material=coerce_value(Material, "forged-ball-60hrc", "ball.material"))
     block = dataclasses.replace(rig.block, material=coerce_value(Material, "cr-mo-liner", "block.material"))
     return dataclasses.replace(
-        rig, name="paper-rig-plastic", ball=ball, block=block, time=TimeSpan(end=2e-3),
+        rig, name="paper-rig-plastic", ball=ball, block=block,
         description="The paper's rig with real steels (elastic-plastic, J2): a forged 60 HRC ball (Y 1.9 GPa) on a "
                     "Cr-Mo liner-steel block (Y 0.95 GPa), 3 m/s; Hertz p0 4.9 GPa is 3x the block's first-yield "
-                    "pressure 1.6 Y. Material values and sources: scene/materials.toml. 2 ms (the impact and the first ringing; the "
-                    "reduced methods continue the free vibration about the residual state in closed form, so "
-                    "--set time.end=0.04 gives the rig's 40 ms at little cost; full FE steps it).")
+                    "pressure 1.6 Y. Material values and sources: scene/materials.toml. 40 ms as the rig (the reduced methods continue "
+                    "the free vibration about the residual state in closed form; full FE steps it: --set time.end=2e-3 "
+                    "for the impact and the first ringing).")
 
 
 def _hertz_halfspace() -> Scene:
