@@ -9,6 +9,9 @@ FROM debian:bookworm-slim
 WORKDIR /opt/millimpact
 COPY packages.txt dev pyproject.toml README.md ./
 COPY millimpact ./millimpact
+# build time only (not kept in the image): a CA bundle for pip behind a TLS-intercepting proxy
+# (docker/build-image.sh mounts the host's and passes --build-arg PIP_CERT=/run/build-ca.crt)
+ARG PIP_CERT
 # the same packages.txt and the same install steps as the README's commands
 RUN ./dev install && rm -rf /var/lib/apt/lists/*
 ENV PATH=/opt/millimpact/.venv/bin:$PATH \
