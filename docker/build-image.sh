@@ -190,62 +190,76 @@ say "build: podman build ${build_flags[*]} ${extra[*]} -t $image $repo"
 t0=$SECONDS
 "${podman[@]}" build "${build_flags[@]}" "${extra[@]}" -t "$image" -f "$repo/Dockerfile" "$repo"
 say "build: done in $((SECONDS - t0)) s"
+"${podman[@]}" image prune -f > /dev/null   # earlier builds of the tag (the layer cache stays)
 
 # ---------------------------------------------------------------- 3. the entry point
-# in_image CMD...: CMD with the image's entry point replaced (CMD[0] is the program), /out mounted
+config() {  # one line per element of the image's .Config.FIELD (Entrypoint, Cmd, Env)
+    "${podman[@]}" image inspect --format "{{range .Config.$1}}{{println .}}{{end}}" "$image" | sed '/^$/d'
+}
+
+# in_image ENTRY [ARG...]: run the image with $build_dir/out mounted at /out; ENTRY "" keeps the
+# image's entry point, no ARG keeps its CMD (as docker/podman run do)
 in_image() {
+    local entry="$1"; shift
     if [ "$how" = podman ]; then
-        "${podman[@]}" run --rm "${run_flags[@]}" --shm-size 1g -v "$build_dir/out:/out" \
-            --entrypoint "$1" "$image" "${@:2}"
+        local ep=(); [ -n "$entry" ] && ep=(--entrypoint "$entry")
+        "${podman[@]}" run --rm "${run_flags[@]}" --shm-size 1g -v "$build_dir/out:/out" "${ep[@]}" "$image" "$@"
     else
-        chroot_run "$@"
+        chroot_run "$entry" "$@"
     fi
 }
 
 chroot_run() {
-    # podman create + mount, then chroot with the image's Env and WorkingDir, in a private mount
-    # namespace: /proc, /dev, /sys and /out are mounted only for this process tree
-    local ctr mnt env=() workdir
+    # podman create + podman mount, then chroot into the image's file system with exactly its Env,
+    # WorkingDir, Entrypoint and Cmd, in a private mount namespace (unshare): /proc, /dev, /sys (hwloc
+    # reads the CPU topology there) and /out are mounted for this process tree only and vanish with it
+    local entry="$1"; shift
+    local ctr mnt workdir env=() argv=() rc=0
+    mapfile -t env < <(config Env)
+    if [ -n "$entry" ]; then argv=("$entry"); else mapfile -t argv < <(config Entrypoint); fi
+    if [ $# -gt 0 ]; then argv+=("$@"); else mapfile -t -O "${#argv[@]}" argv < <(config Cmd); fi
+    workdir="$("${podman[@]}" image inspect --format '{{.Config.WorkingDir}}' "$image")"
     ctr="$("${podman[@]}" create "$image")"
     mnt="$("${podman[@]}" mount "$ctr")"
-    mapfile -t env < <("${podman[@]}" image inspect --format '{{range .Config.Env}}{{println .}}{{end}}' "$image" | sed '/^$/d')
-    workdir="$("${podman[@]}" image inspect --format '{{.Config.WorkingDir}}' "$image")"
-    local rc=0
     unshare --mount --propagation private /bin/bash -euc '
-        mnt="$1" out="$2" workdir="$3"; shift 3
+        mnt="$1" out="$2"; shift 2
         mount -t proc proc "$mnt/proc"
         mount --rbind /dev "$mnt/dev"
         mount --rbind /sys "$mnt/sys"
-        mkdir -p "$mnt$workdir" "$mnt/out"
+        mkdir -p "$mnt/out"
         mount --bind "$out" "$mnt/out"
-        exec chroot "$mnt" /usr/bin/env -i "$@"
-    ' _ "$mnt" "$build_dir/out" "$workdir" "${env[@]}" HOME=/root \
-        /bin/sh -c 'cd "$0" && exec "$@"' "$workdir" "$@" || rc=$?
+        exec chroot "$mnt" "$@"
+    ' _ "$mnt" "$build_dir/out" /usr/bin/env -i "${env[@]}" HOME=/root \
+        /bin/sh -c 'mkdir -p "$0" && cd "$0" && exec "$@"' "${workdir:-/}" "${argv[@]}" || rc=$?
     "${podman[@]}" umount "$ctr" > /dev/null
     "${podman[@]}" rm "$ctr" > /dev/null
+    if grep -q " $mnt" /proc/mounts; then say "warning: mounts left under $mnt"; fi
     return $rc
 }
 
-entrypoint="$("${podman[@]}" image inspect --format '{{join .Config.Entrypoint " "}}' "$image")"
+entrypoint="$(config Entrypoint | paste -sd' ')"
+cmd="$(config Cmd | paste -sd' ')"
 [ "$entrypoint" = millimpact ] || die "the image's entry point is '$entrypoint', not millimpact"
+out1="$(sed -n 's|.*--out /out/\([^ ]*\).*|\1|p' <<< "$cmd")"
+[ -n "$out1" ] || die "the image's CMD '$cmd' writes nothing under /out"
 
 fmax() {  # the top-level peak_contact_force_N of a summary.json (indent 2; no jq or Python on the host)
     sed -n 's/^  "peak_contact_force_N": *\([-0-9.eE+]*\),*$/\1/p' "$1"
 }
 
-version="$(in_image millimpact --version)"
+version="$(in_image "" --version)"
 say "millimpact --version in the image: $version"
 
-rm -rf "$build_dir/out/paper-rig"
-say "entry point ($how): millimpact run --out /out/paper-rig"
+rm -rf "${build_dir:?}/out/$out1"
+say "entry point ($how): $entrypoint $cmd (the image's ENTRYPOINT and CMD)"
 t0=$SECONDS
-in_image millimpact run --out /out/paper-rig
+in_image ""
 serial_s=$((SECONDS - t0))
-f1="$(fmax "$build_dir/out/paper-rig/summary.json")"
-[ -n "$f1" ] || die "no peak_contact_force_N in $build_dir/out/paper-rig/summary.json"
+f1="$(fmax "$build_dir/out/$out1/summary.json")"
+[ -n "$f1" ] || die "no peak_contact_force_N in $build_dir/out/$out1/summary.json"
 
 if [ "${MILLIMPACT_NP2:-1}" = 1 ]; then
-    rm -rf "$build_dir/out/np2"
+    rm -rf "${build_dir:?}/out/np2"
     say "mpirun -n 2 millimpact run --out /out/np2 ($how)"
     t0=$SECONDS
     in_image mpirun -n 2 millimpact run --out /out/np2
@@ -260,7 +274,7 @@ echo
 say "image $image: $size ($bytes bytes, podman image ls)"
 say "entry point ran with: $how$([ "$how" = podman ] && echo " run ${run_flags[*]}")"
 say "version: $version"
-say "F_max (paper-rig, serial): $f1 N ($serial_s s, $build_dir/out/paper-rig/summary.json)"
+say "F_max (default scene, serial): $f1 N = $(awk -v a="$f1" 'BEGIN { printf "%.2f", a / 1e3 }') kN ($serial_s s, /out/$out1/summary.json = $build_dir/out/$out1/summary.json)"
 if [ -n "${f2:-}" ]; then
-    say "F_max (paper-rig, mpirun -n 2): $f2 N ($np2_s s); serial - np2 = $(awk -v a="$f1" -v b="$f2" 'BEGIN { printf "%.3g", a - b }') N"
+    say "F_max (default scene, mpirun -n 2): $f2 N ($np2_s s); serial - np2 = $(awk -v a="$f1" -v b="$f2" 'BEGIN { printf "%.3g", a - b }') N"
 fi

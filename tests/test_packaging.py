@@ -107,3 +107,15 @@ def test_build_script_reads_f_max_from_a_summary(tmp_path):
     out = subprocess.run(["bash", "-c", f'{fn}\nfmax "$1"', "_", str(summary)], check=True,
                          capture_output=True, text=True).stdout
     assert out.strip() == "13438.191882743053"
+
+
+def test_slim_image_keeps_what_the_form_compiler_needs():
+    """FFCx compiles forms with gcc at run time (cffi): the C toolchain, libc's, gcc's and Python's
+    headers and the archives a shared object links with (libc6-dev's, gcc's) stay in the image."""
+    pk = _packages()
+    assert "build-essential" in pk and "python3-dev" in pk
+    docker = (ROOT / "Dockerfile").read_text()
+    excluded = [l for l in docker.splitlines() if "path-exclude" in l or "rm -" in l or "-delete" in l]
+    for kept in ("/usr/include/python", "/usr/include/x86_64-linux-gnu", "/usr/lib/gcc/*'", "/usr/bin"):
+        assert not any(kept in l and "! -path" not in l for l in excluded), kept
+    assert "! -path '/usr/lib/gcc/*'" in docker and "dpkg -L libc6-dev" in docker
