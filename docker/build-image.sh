@@ -10,10 +10,11 @@
 # 2. podman build of the repository's Dockerfile, with the first of these that works in this sandbox:
 #    podman's defaults; runc with explicit --ulimit values (crun here cannot set the rlimits podman
 #    asks for, nor run with cgroup v1 + v2 controllers mounted together); --isolation chroot;
-# 3. the entry point, `millimpact run --out /out/paper-rig`, with `podman run --rm` (same choice of
-#    runtime) or, if no container starts, the fallback: podman create + podman mount, then chroot
-#    into the mounted image with exactly the image's environment, working directory and entry point,
-#    /proc, /dev and /sys mounted in a private mount namespace (gone when the run ends);
+# 3. the image as configured, ENTRYPOINT + CMD (`millimpact run --out /out/paper-rig`), with
+#    `podman run --rm` (same choice of runtime) or, if no container starts, the fallback: podman
+#    create + podman mount, then chroot into the mounted image with exactly the image's environment,
+#    working directory, entry point and CMD, /proc, /dev, /sys and /out mounted in a private mount
+#    namespace (gone when the run ends);
 # 4. prints `millimpact --version`, F_max from /out/paper-rig/summary.json, the image size, and (unless
 #    MILLIMPACT_NP2=0) F_max of `mpirun -n 2 millimpact run --out /out/np2`.
 #
