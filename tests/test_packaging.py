@@ -32,3 +32,90 @@ def test_readme_and_ci_use_the_dev_script():
     readme = (ROOT / "README.md").read_text()
     assert "./dev run" in readme and "./dev test" in readme
     assert "./dev test" in (ROOT / ".ci" / "run").read_text()
+
+
+# docker/build-image.sh builds the image with podman and runs it (docs/docker.md); these checks are
+# cheap and build nothing (a build downloads ~450 MB and takes minutes)
+SCRIPT = ROOT / "docker" / "build-image.sh"
+
+
+def _dockerfile_copies():
+    """Sources of the Dockerfile's COPY lines (the last word of each is the destination)."""
+    copied = []
+    for line in (ROOT / "Dockerfile").read_text().splitlines():
+        words = line.split()
+        if words and words[0] == "COPY":
+            copied += [w.rstrip("/") for w in words[1:-1] if not w.startswith("--")]
+    return copied
+
+
+def test_build_script_is_an_executable_bash_script():
+    import os
+    import subprocess
+
+    assert SCRIPT.is_file() and os.access(SCRIPT, os.X_OK)
+    assert SCRIPT.read_text().startswith("#!/usr/bin/env bash\n")
+    subprocess.run(["bash", "-n", str(SCRIPT)], check=True)
+
+
+def test_dockerfile_copies_what_dev_install_needs():
+    import fnmatch
+    import tomllib
+
+    copied = _dockerfile_copies()
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    # ./dev reads packages.txt and pip-installs the project: pyproject.toml, its readme, its packages
+    needed = {"dev", "packages.txt", "pyproject.toml", project["project"]["readme"]}
+    needed |= {p.rstrip("*") for p in project["tool"]["setuptools"]["packages"]["find"]["include"]}
+    assert needed <= set(copied), needed - set(copied)
+    dev = (ROOT / "dev").read_text()
+    assert "done < packages.txt" in dev and "pip install -q --no-build-isolation --no-deps -e ." in dev
+    # .dockerignore leaves out none of it
+    ignored = [l.strip() for l in (ROOT / ".dockerignore").read_text().splitlines()
+               if l.strip() and not l.startswith("#")]
+    for name in copied:
+        assert (ROOT / name).exists(), name
+        assert not any(fnmatch.fnmatch(name, p.rstrip("/")) for p in ignored), name
+
+
+def test_build_script_matches_the_dockerfile():
+    script = SCRIPT.read_text()
+    docker = (ROOT / "Dockerfile").read_text()
+    base = next(l.split()[1] for l in docker.splitlines() if l.startswith("FROM"))
+    assert f"base=docker.io/library/{base}\n" in script      # the base it makes when podman has none
+    assert 'ENTRYPOINT ["millimpact"]' in docker and '[ "$entrypoint" = millimpact ]' in script
+    assert "ARG PIP_CERT" in docker and "--build-arg PIP_CERT=" in script
+    assert '-f "$repo/Dockerfile" "$repo"' in script
+    # build artefacts (debootstrap tree, podman storage) stay outside the repository
+    assert "MILLIMPACT_BUILD_DIR:-/var/tmp/" in script and "must be outside the repository" in script
+
+
+def test_build_script_reads_f_max_from_a_summary(tmp_path):
+    """The script's fmax() (sed, no Python on the host) on a summary.json written the way runs write it."""
+    import json
+    import subprocess
+
+    from millimpact.results.timeseries import jsonable
+
+    summary = tmp_path / "summary.json"
+    summary.write_text(json.dumps(jsonable({"scene": "paper-rig", "peak_contact_force_N": 13438.191882743053,
+                                            "hertz": {"peak_contact_force_N": 1.0}}), indent=2) + "\n")
+    lines = SCRIPT.read_text().splitlines()
+    start = lines.index(next(l for l in lines if l.startswith("fmax()")))
+    end = lines.index("}", start)
+    fn = "\n".join(lines[start:end + 1])
+    out = subprocess.run(["bash", "-c", f'{fn}\nfmax "$1"', "_", str(summary)], check=True,
+                         capture_output=True, text=True).stdout
+    assert out.strip() == "13438.191882743053"
+
+
+def test_slim_image_keeps_what_the_form_compiler_needs():
+    """FFCx compiles forms with gcc at run time (cffi): the C toolchain, libc's, gcc's and Python's
+    headers and the archives a shared object links with (libc6-dev's, gcc's) stay in the image."""
+    pk = _packages()
+    assert "build-essential" in pk and "python3-dev" in pk
+    docker = (ROOT / "Dockerfile").read_text()
+    excluded = [l for l in docker.splitlines() if "path-exclude" in l or "rm -" in l or "-delete" in l]
+    for kept in ("/usr/include/python", "/usr/include/x86_64-linux-gnu", "/usr/lib/gcc/*'", "/usr/bin"):
+        assert not any(kept in l and "! -path" not in l for l in excluded), kept
+    assert "! -path '/usr/lib/gcc/*'" in docker and "dpkg -L libc6-dev" in docker
