@@ -229,7 +229,7 @@ def cmd_mesh(args: argparse.Namespace) -> int:
     return 0
 
 
-EXTRA_COMMANDS = ("study", "bench", "stability", "compare")
+EXTRA_COMMANDS = ("study", "table", "bench", "stability", "compare")
 
 
 def _command_module(name: str):

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass
 from types import SimpleNamespace
 from pathlib import Path
 from typing import Any, NamedTuple, Optional
@@ -230,12 +231,30 @@ def refuse_plastic(method: str, plan: Plan) -> None:
                          f"{method} is elastic; use --method improved, traditional or full")
 
 
-def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str) -> RunOutput:
-    """One reduced run of a scene (``method`` in :data:`REDUCED_METHODS`)."""
-    comm = MPI.COMM_WORLD
-    options = dict(options)
-    opt = read_reduced_options(method, scene, plan, options)
+@dataclass
+class ReducedSetup:
+    """What the impacts on one mesh share (a run, or the cases of a contact table): the reduced
+    plan's scene and plan, the options, the mesh, the full model, its contact rows and the
+    reduction (its offline cost, s, in ``timings``)."""
 
+    method: str
+    scene: Scene
+    plan: Plan
+    opt: ReducedOptions
+    md: Any
+    model: FEModel
+    contact: ContactSet
+    red: ReducedModel
+    cand_radius: float
+    notes: list[str]
+    timings: dict[str, float]
+
+
+def build_reduced_setup(scene: Scene, plan: Plan, options: dict[str, Any], method: str,
+                        comm: MPI.Comm = MPI.COMM_WORLD) -> ReducedSetup:
+    """The offline part of a reduced run: reduced plan, mesh, model, contact rows, reduction
+    (``options``: the run's options; the reduced run's own keys are taken out of it)."""
+    opt = read_reduced_options(method, scene, plan, options)
     scene, plan, cand_radius, plan_notes = reduced_plan(scene, plan)
     t0 = time.perf_counter()
     with stage("meshing (gmsh, or the mesh cache)"):
@@ -248,42 +267,64 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     with stage("reduction (SLEPc modes, Craig-Bampton)"):
         red = build_reduced_model(model, opt.kind, f_cut=opt.f_cut, n_modes=opt.n_modes, remedy=opt.remedy,
                                   augment=opt.augment)
+    t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
+    return ReducedSetup(method, scene, plan, opt, md, model, contact, red, cand_radius, plan_notes,
+                        {"mesh": t_mesh, "assemble": t_assemble, "reduction_offline": t_reduce})
+
+
+def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str) -> RunOutput:
+    """One reduced run of a scene (``method`` in :data:`REDUCED_METHODS`)."""
+    options = dict(options)
+    setup = build_reduced_setup(scene, plan, options, method)
+    return run_reduced_case(setup, setup.scene, setup.plan, options, progress, release=True)
+
+
+def run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dict[str, Any], progress: bool,
+                     t_end: Optional[float] = None, release: bool = False) -> RunOutput:
+    """One impact on a built reduced model: ``scene``/``plan`` (the same mesh sizes, zone and
+    gap as the setup's; their own velocity, time steps and probes) from rest but the ball's
+    velocity to ``t_end`` (default the setup's). A fresh plastic zone per impact. ``release``
+    frees the reduction's recovery data once the recorder has it (a single run)."""
+    comm = setup.model.V.mesh.comm
+    opt, model, contact, red, method = setup.opt, setup.model, setup.contact, setup.red, setup.method
+    t_end = opt.t_end if t_end is None else t_end
+    t0 = time.perf_counter()
     system = reduced_system(red, contact, plan.friction)
     zone = create_plastic_zone(model, [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)])
     plastic = ProjectedPlasticZone(zone, red) if zone is not None else None
     system.plastic = plastic
     free_phase = opt.free_phase
     q0, qd0 = initial_state(red, plan.velocity)
-    t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
+    t_case = time.perf_counter() - t0
 
     t1 = time.perf_counter()
     rec = ReducedRecorder(red, contact, plan.probes, scene.outputs.field_times if scene.outputs.xdmf else (),
                           opt.recovery, plastic)
-    red.release_recovery()
+    if release:
+        red.release_recovery()
     t_rows = time.perf_counter() - t1
     t1 = time.perf_counter()
-    with stage(f"time loop to {opt.t_end * 1e3:.3g} ms ({opt.integrator}, free phase {free_phase})"):
-        run = integrate_reduced(red, system, q0, qd0, contact, plan, opt.t_end, rec, integrator=opt.integrator,
-                                options=options, progress=progress, free_phase=free_phase,
+    with stage(f"time loop to {t_end * 1e3:.3g} ms ({opt.integrator}, free phase {free_phase})"):
+        run = integrate_reduced(red, system, q0, qd0, contact, plan, t_end, rec, integrator=opt.integrator,
+                                options=dict(options), progress=progress, free_phase=free_phase,
                                 # the free modes follow the output grid (dt_free = 1 / (10 plan.f_cut)),
                                 # not a -f_cut option, which sets the reduction's cutoff alone
                                 f_free=opt.free_factor * plan.f_cut, min_span=opt.min_span)
     t_integrate = time.perf_counter() - t1
     ts = rec.series()
     results = impact_results(ts, plan.normal_speed, plan.probes.gauge_names, run["stats"], opt.integrator)
-    results["timings_s"] = {"mesh": t_mesh, "assemble": t_assemble, "reduction_offline": t_reduce,
+    results["timings_s"] = {**setup.timings, "reduction_offline": setup.timings["reduction_offline"] + t_case,
                             "free_modes_offline": run["free_modes_time"], "output_rows": t_rows,
-                            "integrate": t_integrate,
-                            "reduction_detail": dict(red.timings)}
+                            "integrate": t_integrate, "reduction_detail": dict(red.timings)}
     results["free_phase"] = {k: v for k, v in run.items() if k not in ("stats",)}
     model_info = {
         "method": method, "degree": opt.degree, "dofs": model.n_dofs_global, "reduced_dofs": red.n_global,
         "reduction": red.report(), "contact_candidates": contact.n, "symmetry": plan.symmetry,
         "symmetry_factor": model.sym_factor, "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model,
-        "ball_mass_exact_kg": plan.ball.mass, "mesh": md.info.to_json(), "mpi_ranks": comm.size,
-        "zone_radius_m": plan.zone_radius, "candidate_radius_m": cand_radius,
+        "ball_mass_exact_kg": plan.ball.mass, "mesh": setup.md.info.to_json(), "mpi_ranks": comm.size,
+        "zone_radius_m": plan.zone_radius, "candidate_radius_m": setup.cand_radius,
     }
-    notes = reduced_notes(method, opt, model, red) + plan_notes + mode_notes(red)
+    notes = reduced_notes(method, opt, model, red) + setup.notes + mode_notes(red)
     writers = []
     if zone is not None:
         keys, more, writer = plastic_report(model, zone, plan, SimpleNamespace(**run["stats"]))

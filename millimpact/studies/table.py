@@ -1,0 +1,354 @@
+"""``millimpact table``: DEM contact tables, one impact per (speed, angle[, radius]), the reduction reused.
+
+DEM codes describe a ball-liner contact by a few numbers: normal and tangential restitution against
+impact speed and angle, a force law, the energy the liner keeps. A table runs one impact per case
+and writes them as rows (:mod:`.table_report`: ``contact_table.csv`` / ``.json`` / ``.h5``, figures,
+fitted laws).
+
+Cases. The angle is measured from the face normal n, in the plane the scene's impact vector defines
+(the scene's tangential direction; for a normal scene, the plane x = x_p through the impact point,
+which holds n for the block and every liner face and keeps the half model's symmetry plane):
+``v = V (-cos(angle) n + sin(angle) t)``. Each case runs the impact only: to ``gap / v_n +
+CUT_CONTACT_TIMES t_c`` (Hertz t_c of its normal speed), not the scene's end time.
+
+Reuse. Cases of one radius whose normal speeds lie within a factor BAND_RATIO share one mesh and one
+offline reduction (the reduced methods): the band's mesh has h_contact = a_max / 4 of its slowest
+case and the zone (and contact candidates) of its fastest, one gap and one symmetry (the least
+symmetric case's), so every case of the band runs on the same reduced model from its own initial
+velocity (:func:`millimpact.methods.reduced.run_reduced_case`). ``full`` and ``hertz`` run each case
+as a standalone run (no reduction to reuse).
+
+Reruns. Each finished case is kept as ``cases/<key>.json`` (key: a hash of the case's resolved
+scene, the method, its options and the version); a rerun computes only missing or changed cases,
+and an interrupted table keeps the finished ones.
+
+Parallel. Under ``mpirun -n N``, ``--ranks-per-case K`` splits MPI_COMM_WORLD into N / K groups of K
+ranks (``Comm.Split``); the groups take the next case from a shared counter (an MPI window,
+``Fetch_and_op``), so a slow case does not idle the others; each group keeps the reduced models of
+the bands it has met. Rank 0 gathers the rows and prints the progress.
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError, MillimpactError
+from ..scene.builtin import resolve_scene
+from ..scene.plan import ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, make_plan, scene_hertz
+from ..scene.schema import Scene, parse_value
+from ..methods.free_phase import FIRST_SPAN_CONTACTS
+from ..scene.toml_io import dump_scene
+
+HELP = "DEM contact tables: restitution and force laws over impact speed x angle (x radius)"
+
+DESCRIPTION = __doc__
+
+#: cases whose normal speeds lie within this factor share a mesh and a reduction (a_max ~ v^(2/5):
+#: a factor 2 in speed is 1.32 in a_max, so the slowest case has 4 and the fastest 5.3 elements
+#: across its contact radius)
+BAND_RATIO = 2.0
+#: each case runs to gap / v_n + this many Hertz contact times: past the separation (plastic and
+#: finite-body contacts last up to ~1.1 t_c; a contact still on at the end is flagged in the status
+#: column), and exactly the reduced methods' first integrator segment, so no free-vibration modes
+#: are computed for the rest (2.8 s a case on the rig)
+CUT_CONTACT_TIMES = FIRST_SPAN_CONTACTS
+#: methods whose offline reduction the cases of a band share
+REUSED_METHODS = ("improved", "traditional", "modal-p2")
+
+
+@dataclass(frozen=True)
+class TableCase:
+    """One impact of a table: speed (m/s), angle from the face normal (deg), ball radius (m), its
+    scene (with the band's mesh sizes) and key."""
+
+    index: int
+    speed: float
+    angle: float
+    radius: float
+    band: int
+    scene: Scene
+    key: str
+    band_scene: Optional[Scene] = None   #: the band's fastest case: its reduction serves the band
+
+
+# --- input --------------------------------------------------------------------------------------------
+def parse_list(text: Optional[str], option: str, low: float, high: float, low_open: bool, high_open: bool,
+               unit: str) -> list[float]:
+    """Comma-separated numbers of ``option``, each in the range; one :class:`InputError` line otherwise."""
+    rng = f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'} {unit}".rstrip()
+    if text is None or not text.strip():
+        raise InputError(f"{option}: give a comma-separated list of numbers in {rng}")
+    out = []
+    for part in text.split(","):
+        try:
+            v = float(part)
+        except ValueError:
+            raise InputError(f"{option} {text!r}: {part.strip()!r} is not a number (a comma-separated list in {rng})") from None
+        if not math.isfinite(v) or v < low or v > high or (low_open and v == low) or (high_open and v == high):
+            raise InputError(f"{option} {text!r}: {v:g} is outside {rng}")
+        out.append(v)
+    return out
+
+
+def tangent_direction(scene: Scene) -> np.ndarray:
+    """The unit direction t of a table's oblique velocities: the scene's tangential direction, or
+    for a normal scene e_x x n (in the plane x = x_p, which holds n for the block and liner faces)."""
+    n = np.asarray(scene.contact_normal, dtype=float)
+    v = np.asarray(scene.impact.velocity, dtype=float)
+    vt = v - (v @ n) * n
+    if np.linalg.norm(vt) > 1e-9 * np.linalg.norm(v):
+        return vt / np.linalg.norm(vt)
+    t = np.cross([1.0, 0.0, 0.0], n)
+    return t / np.linalg.norm(t)
+
+
+def case_velocity(scene: Scene, speed: float, angle_deg: float) -> list[float]:
+    """v = V (-cos(angle) n + sin(angle) t), m/s."""
+    n = np.asarray(scene.contact_normal, dtype=float)
+    a = math.radians(angle_deg)
+    v = speed * (-math.cos(a) * n + math.sin(a) * tangent_direction(scene))
+    return [float(round(c, 15)) + 0.0 for c in v]
+
+
+def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], radii: Sequence[float],
+                 method: str, options: dict) -> list[TableCase]:
+    """The table's cases, grouped in bands that share a mesh (module docstring), each case's scene
+    carrying its band's h_contact, zone radius, gap and symmetry."""
+    raw = []
+    for r in radii:
+        b = base.with_value("ball.radius", r) if r != base.ball.radius else base
+        for v in speeds:
+            for a in angles:
+                raw.append((v, a, r, b.with_value("impact.velocity", case_velocity(b, v, a))))
+    # bands per radius by normal speed
+    cases, band = [], -1
+    for r in radii:
+        mine = sorted([c for c in raw if c[2] == r], key=lambda c: c[3].normal_speed)
+        start = None
+        groups: list[list] = []
+        for c in mine:
+            if start is None or c[3].normal_speed > BAND_RATIO * start:
+                groups.append([])
+                start = c[3].normal_speed
+            groups[-1].append(c)
+        for g in groups:
+            band += 1
+            slow = min(g, key=lambda c: c[3].normal_speed)[3]
+            fast = max(g, key=lambda c: c[3].normal_speed)[3]
+            hs, hf = scene_hertz(slow), scene_hertz(fast)
+            sets = {"model.h_contact": base.model.h_contact or hs.a_max / ELEMENTS_ACROSS_CONTACT,
+                    "impact.gap": base.impact.gap or GAP_FACTOR * hs.delta_max,
+                    # the reduction's cutoff for the shortest contact of the band
+                    "model.f_cut": base.model.f_cut or F_CUT_FACTOR / hf.contact_time}
+            syms = {make_plan(c[3]).symmetry for c in g}
+            sym = "full" if "full" in syms else ("half" if "half" in syms else "quarter")
+            sets["model.symmetry"] = sym
+            zone = base.model.zone_radius or _band_zone(fast, sets, method)
+            sets["model.zone_radius"] = zone
+            for k, val in sets.items():
+                fast = fast.with_value(k, val)
+            for v, a, rr, sc in g:
+                for k, val in sets.items():
+                    sc = sc.with_value(k, val)
+                cases.append((v, a, rr, band, sc, fast))
+    cases.sort(key=lambda c: (c[2], c[0], c[1]))
+    return [TableCase(i, v, a, r, b, sc, case_key(sc, method, options), fast)
+            for i, (v, a, r, b, sc, fast) in enumerate(cases)]
+
+
+def _band_zone(fast: Scene, sets: dict, method: str) -> Optional[float]:
+    """The contact-zone radius of a band: the method's zone for its fastest case (m)."""
+    sc = fast
+    for k, val in sets.items():
+        sc = sc.with_value(k, val)
+    plan = make_plan(sc)
+    if method in REUSED_METHODS:
+        from ..methods.reduced import reduced_plan
+
+        return reduced_plan(sc, plan)[1].zone_radius
+    return plan.zone_radius
+
+
+def case_key(scene: Scene, method: str, options: dict) -> str:
+    text = json.dumps({"scene": dump_scene(scene), "method": method, "options": sorted(options.items()),
+                       "version": __version__}, sort_keys=True, default=str)
+    return hashlib.sha1(text.encode()).hexdigest()[:16]
+
+
+# --- one case -----------------------------------------------------------------------------------------
+def case_t_end(scene: Scene) -> float:
+    plan = make_plan(scene)
+    return plan.gap / plan.normal_speed + CUT_CONTACT_TIMES * plan.hertz.contact_time
+
+
+def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) -> dict[str, Any]:
+    """The row of one case (:func:`millimpact.studies.table_report.case_row`), computing it on
+    ``comm``; a reduced method reuses (or builds and keeps in ``setups``) its band's reduction."""
+    from ..methods.run import compute
+    from .table_report import case_row
+
+    t0 = time.perf_counter()
+    scene = case.scene.with_value("outputs.xdmf", False).with_value("time.end", case_t_end(case.scene))
+    plan = make_plan(scene)
+    reused = False
+    if method in REUSED_METHODS:
+        from ..methods.reduced import build_reduced_setup, run_reduced_case
+
+        if case.band not in setups:
+            # built for the band's fastest case: its contact candidates cover every case's patch
+            fast = case.band_scene.with_value("outputs.xdmf", False).with_value("time.end", scene.time.end)
+            setups[case.band] = build_reduced_setup(fast, make_plan(fast), dict(options), method, comm)
+        else:
+            reused = True
+        # the case's scene carries the band's mesh sizes, zone, gap, cutoff and symmetry: its plan
+        # describes the setup's mesh with its own velocity, time steps and probes
+        out = run_reduced_case(setups[case.band], scene, plan, dict(options), False, t_end=scene.time.end)
+    else:
+        out, _ = compute(scene, method, dict(options), False)
+    row = case_row(case, plan, out, time.perf_counter() - t0)
+    row["reduction_reused"] = reused
+    return row
+
+
+# --- the table ----------------------------------------------------------------------------------------
+def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequence[float],
+              radii: Optional[Sequence[float]], method: str, options: dict, out: Path, sets: Sequence[str] = (),
+              ranks_per_case: int = 1, quiet: bool = False) -> list[dict]:
+    """Compute (or take from ``out/cases``) every case and write the table (rank 0). Returns the rows."""
+    from mpi4py import MPI
+
+    from ..methods.registry import method_entry
+    from .sweep import apply_sets
+    from .table_report import write_table
+
+    world = MPI.COMM_WORLD
+    if ranks_per_case < 1 or ranks_per_case > world.size or world.size % ranks_per_case:
+        raise InputError(f"--ranks-per-case {ranks_per_case}: must divide the number of ranks ({world.size}) "
+                         f"and be between 1 and {world.size}")
+    method_entry(method)
+    base = apply_sets(resolve_scene(scene_name), sets, "impact.velocity")
+    cases = define_cases(base, speeds, angles, radii or [base.ball.radius], method, options)
+    folder = out / "cases"
+    say = (lambda *a: None) if quiet or world.rank != 0 else (lambda *a: print(*a, flush=True))
+    if world.rank == 0:
+        folder.mkdir(parents=True, exist_ok=True)
+    world.barrier()
+    done = {c.index: json.loads((folder / f"{c.key}.json").read_text()) for c in cases
+            if (folder / f"{c.key}.json").is_file()}
+    todo = [c for c in cases if c.index not in done]
+    n_bands = len({c.band for c in cases})
+    say(f"table {base.name}: {len(speeds)} speeds x {len(angles)} angles x {len(radii or [0])} radii = {len(cases)} "
+        f"cases in {n_bands} mesh band(s), method {method}; {len(done)} from {folder}, {len(todo)} to compute "
+        f"on {world.size // ranks_per_case} group(s) of {ranks_per_case} rank(s)")
+    group = world.Split(world.rank // ranks_per_case, world.rank)
+    rows = _compute(todo, method, options, folder, world, group, say)
+    gathered = world.gather(rows, root=0)
+    if world.rank != 0:
+        return []
+    for part in gathered:
+        for r in part:
+            done[r["case"]] = r
+    all_rows = [done[c.index] for c in cases if c.index in done]
+    write_table(out, base, cases, all_rows, method, options)
+    return all_rows
+
+
+def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
+    """This group's share of ``todo``: the next case from the shared counter until none is left."""
+    from mpi4py import MPI
+
+    # [next case, cases done] on world rank 0 (Allocate: Create fails outside mpirun in Open MPI)
+    win = MPI.Win.Allocate(16 if world.rank == 0 else 0, 8, comm=world)
+    if world.rank == 0:
+        win.Lock(0)
+        np.frombuffer(win.tomemory(), dtype="i8")[:] = 0
+        win.Unlock(0)
+    world.barrier()
+    one, got = np.ones(1, dtype="i8"), np.zeros(1, dtype="i8")
+    setups: dict = {}
+    rows = []
+    t0 = time.perf_counter()
+    try:
+        while True:
+            if group.rank == 0:
+                win.Lock(0)
+                win.Fetch_and_op(one, got, 0, 0, MPI.SUM)
+                win.Unlock(0)
+            idx = group.bcast(int(got[0]), root=0)
+            if idx >= len(todo):
+                break
+            case = todo[idx]
+            try:
+                row = run_case(case, method, options, setups, group)
+            except (MillimpactError, RuntimeError, ValueError, ArithmeticError) as exc:
+                row = {"case": case.index, "key": case.key, "impact_speed_m_s": case.speed,
+                       "impact_angle_deg": case.angle, "ball_radius_m": case.radius,
+                       "status": f"failed: {type(exc).__name__}: {str(exc).splitlines()[0][:300]}"}
+            if group.rank == 0:
+                tmp = folder / f".{case.key}.{os.getpid()}.tmp"
+                tmp.write_text(json.dumps(row, indent=1, default=float))
+                os.replace(tmp, folder / f"{case.key}.json")
+                win.Lock(0)
+                win.Fetch_and_op(one, got, 0, 1, MPI.SUM)
+                win.Unlock(0)
+                rows.append(row)
+                n_done = int(got[0]) + 1
+                el = time.perf_counter() - t0
+                say(f"  [{n_done}/{len(todo)}] v = {case.speed:g} m/s, angle {case.angle:g} deg: e_n "
+                    f"{row.get('restitution_normal', float('nan')):.4f}, {row['status']}, "
+                    f"{row.get('wall_time_s', 0.0):.1f} s{' (reduction reused)' if row.get('reduction_reused') else ''}"
+                    f" (elapsed {el:.0f} s, ~{el / n_done * (len(todo) - n_done):.0f} s left)")
+    finally:
+        world.barrier()
+        win.Free()
+    return rows
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
+    p.add_argument("--velocity", required=True, metavar="V1,V2,...", help="impact speeds, m/s (> 0, <= 100)")
+    p.add_argument("--angle", default="0", metavar="A1,A2,...",
+                   help="angles from the face normal, deg, in [0, 90) (default 0)")
+    p.add_argument("--radius", metavar="R1,R2,...", help="ball radii, m (default the scene's)")
+    p.add_argument("--method", default="improved", help="solution method (default improved; the reduced methods "
+                                                        "reuse one reduction per mesh band)")
+    p.add_argument("--out", help="output folder (default out/table-SCENE); finished cases in it are reused")
+    p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="override a scene field")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
+    p.add_argument("--ranks-per-case", type=int, default=1, metavar="K",
+                   help="under mpirun: ranks per case (divides the rank count; default 1)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+
+
+def main(args: argparse.Namespace) -> int:
+    speeds = parse_list(args.velocity, "--velocity", 0.0, 100.0, True, False, "m/s")
+    angles = parse_list(args.angle, "--angle", 0.0, 90.0, False, True, "deg")
+    radii = parse_list(args.radius, "--radius", 1e-4, 1.0, False, False, "m") if args.radius else None
+    options: dict[str, Any] = {}
+    for o in args.option:
+        k, sep, v = o.partition("=")
+        if not sep or not k.strip():
+            raise InputError(f"--option {o!r}: expected KEY=VALUE")
+        options[k.strip()] = parse_value(v)
+    name = args.scene or "paper-rig"
+    out = Path(args.out) if args.out else Path("out") / f"table-{Path(name).stem}"
+    rows = run_table(args.scene, speeds, angles, radii, args.method, options, out, args.set,
+                     args.ranks_per_case, args.quiet)
+    failed = [r for r in rows if not str(r.get("status", "")).startswith("ok")]
+    if rows and not args.quiet:
+        print(f"  results in {out}/ (contact_table.csv, contact_table.json, contact_table.h5, contact_laws.json, "
+              f"e_n_speed.png, e_t_angle.png, force_speed.png)", flush=True)
+    if failed:
+        raise MillimpactError(f"{len(failed)} of {len(rows)} case(s) failed; see the status column of {out}/contact_table.csv")
+    return 0

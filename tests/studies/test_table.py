@@ -1,0 +1,160 @@
+"""``millimpact table`` (issue 16): one impact per (speed, angle), the reduction reused per mesh band.
+
+Cases on the coarse half-space (h_contact = 0.58 mm = a_max / 2 at 3 m/s, h_far = 12 mm: ~9k
+DOFs, improved ~1.3k reduced coordinates); every tolerance's source is at its assertion.
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from millimpact.scene.builtin import builtin_scene
+from millimpact.studies.table import case_t_end, case_velocity
+
+COARSE = ["--set", "model.h_contact=5.8e-4", "--set", "model.h_far=0.012"]
+#: v = 3 m/s normal and 30 deg oblique, and the normal impact at the oblique one's normal speed
+#: (3 cos 30 = 2.598 m/s): one mesh band (normal speeds within a factor 2)
+SPEEDS, ANGLES = "2.598076211353316,3", "0,30"
+
+
+def _rows(out):
+    return json.loads((out / "contact_table.json").read_text())["rows"]
+
+
+@pytest.fixture(scope="module")
+def table(tmp_path_factory):
+    out = tmp_path_factory.mktemp("table") / "t"
+    r = run_cli("table", "hertz-halfspace", "--velocity", SPEEDS, "--angle", ANGLES, *COARSE, "--out", str(out))
+    assert r.returncode == 0, r.stderr[-3000:]
+    return out, r
+
+
+def test_table_files_and_reuse(table):
+    out, r = table
+    rows = _rows(out)
+    assert len(rows) == 4 and all(row["status"] == "ok" for row in rows)
+    # one band: one reduction, reused by the three other cases
+    assert sum(row["reduction_reused"] for row in rows) == 3
+    lines = (out / "contact_table.csv").read_text().splitlines()
+    assert lines[0].startswith("# millimpact") and any(l.startswith("# restitution_tangential [-]") for l in lines)
+    assert lines[[l.startswith("#") for l in lines].index(False)].startswith("impact_speed_m_s,impact_angle_deg")
+    import h5py
+    with h5py.File(out / "contact_table.h5") as h5:
+        assert h5["peak_normal_force_N"].attrs["unit"] == "N" and len(h5["restitution_normal"]) == 4
+    laws = json.loads((out / "contact_laws.json").read_text())
+    assert "hertz_stiffness" in laws and "restitution_power_law" in laws
+    for f in ("e_n_speed.png", "e_t_angle.png", "force_speed.png"):
+        assert (out / f).stat().st_size > 0
+
+
+def test_frictionless_oblique_impact_is_the_normal_impact_of_its_normal_speed(table):
+    """Without friction the normal and tangential motions decouple: the 30 deg impact at 3 m/s is
+    the normal impact at 2.598 m/s (same mesh) in e_n, peak force and duration, to the time-step
+    error (the steps follow each case's Hertz t_c, t_c / 100: ~1e-3), with no tangential impulse;
+    and the normal impulse is the ball's momentum change m v_n (1 + e_n) (Newton's second law)."""
+    out, _ = table
+    rows = _rows(out)
+    obl = [r for r in rows if r["impact_angle_deg"] == 30 and r["impact_speed_m_s"] == 3][0]
+    nor = [r for r in rows if r["impact_angle_deg"] == 0 and abs(r["impact_speed_m_s"] - 2.598076211353316) < 1e-12][0]
+    assert obl["normal_velocity_in_m_s"] == pytest.approx(nor["normal_velocity_in_m_s"], rel=1e-12)
+    assert obl["restitution_normal"] == pytest.approx(nor["restitution_normal"], abs=2e-3)
+    assert obl["peak_normal_force_N"] == pytest.approx(nor["peak_normal_force_N"], rel=2e-3)
+    assert obl["tangential_impulse_N_s"] == 0.0 and obl["restitution_tangential"] == 1.0
+    m = builtin_scene("hertz-halfspace").ball.mass
+    for row in rows:
+        # the trapezoidal impulse against the momentum change: 1 % (the pulse's ~100 samples)
+        assert row["normal_impulse_N_s"] == pytest.approx(m * row["normal_velocity_in_m_s"] * (1 + row["restitution_normal"]), rel=0.01)
+
+
+def test_normal_case_equals_the_standalone_run(table, tmp_path):
+    """A table case is the standalone run of its scene on the same mesh, cut to the impact:
+    the same numbers to round-off (the same model, reduction and steps; the band's reduction is
+    built for its fastest case, this one)."""
+    out, _ = table
+    row = [r for r in _rows(out) if r["impact_angle_deg"] == 0 and r["impact_speed_m_s"] == 3][0]
+    assert json.loads((out / "cases" / f"{row['key']}.json").read_text())["case"] == row["case"]
+    # the band's mesh: h_contact (given), zone, gap, cutoff and symmetry of the table's case scene
+    r = run_cli("run", "hertz-halfspace", *COARSE, *_band_sets(out, row), "-q", "--out", str(tmp_path / "run"))
+    assert r.returncode == 0, r.stderr[-2000:]
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert s["restitution"] == pytest.approx(row["restitution_normal"], rel=1e-9)
+    assert s["peak_contact_force_N"] == pytest.approx(row["peak_normal_force_N"], rel=1e-9)
+
+
+def _band_sets(out, row):
+    """--set arguments that give the standalone run the table case's band settings."""
+    from millimpact.studies.table import define_cases
+    base = builtin_scene("hertz-halfspace").with_value("model.h_contact", 5.8e-4).with_value("model.h_far", 0.012)
+    cases = define_cases(base, [2.598076211353316, 3.0], [0.0, 30.0], [base.ball.radius], "improved", {})
+    case = [c for c in cases if c.key == row["key"]][0]
+    sc = case.scene
+    return ["--set", f"model.zone_radius={sc.model.zone_radius!r}", "--set", f"impact.gap={sc.impact.gap!r}",
+            "--set", f"model.f_cut={sc.model.f_cut!r}", "--set", f"model.symmetry={sc.model.symmetry}",
+            "--set", f"time.end={case_t_end(sc)!r}"]
+
+
+def test_rerun_computes_only_missing_cases(table, tmp_path):
+    import shutil
+    out, _ = table
+    copy = tmp_path / "t"
+    shutil.copytree(out, copy)
+    rows = _rows(copy)
+    (copy / "cases" / f"{rows[1]['key']}.json").unlink()
+    r = run_cli("table", "hertz-halfspace", "--velocity", SPEEDS, "--angle", ANGLES, *COARSE, "--out", str(copy))
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "3 from" in r.stdout and "1 to compute" in r.stdout
+    again = _rows(copy)
+    assert again[1]["restitution_normal"] == pytest.approx(rows[1]["restitution_normal"], rel=1e-9)
+
+
+def test_gross_sliding_with_friction(tmp_path):
+    """mu = 0.05 at 60 deg: tan(60) = 1.73 >> 7/2 mu (1 + e) ~ 0.35, Maw-Barber-Fawcett's gross
+    sliding: the tangential impulse is -mu times the normal one (to the slip-detection tolerance,
+    1e-3), and e_t = 1 - 7/2 mu (1 + e_n) / tan(angle) follows from it (rigid-ball spin)."""
+    out = tmp_path / "f"
+    r = run_cli("table", "hertz-halfspace", "--velocity", "3", "--angle", "60", *COARSE, "--set", "contact.friction=0.05",
+                "--out", str(out))
+    assert r.returncode == 0, r.stderr[-2000:]
+    (row,) = _rows(out)
+    assert row["tangential_impulse_N_s"] / row["normal_impulse_N_s"] == pytest.approx(-0.05, rel=1e-3)
+    e_t = 1 - 3.5 * 0.05 * (1 + row["restitution_normal"]) / math.tan(math.radians(60))
+    assert row["restitution_tangential"] == pytest.approx(e_t, rel=0.01)
+    assert row["rebound_spin_rad_s"] > 0 and row["friction_dissipation_J"] > 0
+
+
+@pytest.mark.mpi
+def test_mpi_table_equals_serial(table, tmp_path):
+    """mpirun -n 2 --ranks-per-case 1: the two groups share the cases; the rows equal the serial
+    table's (1e-9 relative: each case is the same serial computation)."""
+    out, _ = table
+    r = run_cli("table", "hertz-halfspace", "--velocity", SPEEDS, "--angle", ANGLES, *COARSE, "--ranks-per-case", "1",
+                "--out", str(tmp_path / "np2"), np=2)
+    assert r.returncode == 0, r.stderr[-3000:]
+    a, b = _rows(out), _rows(tmp_path / "np2")
+    for ra, rb in zip(a, b):
+        for k in ("restitution_normal", "peak_normal_force_N", "normal_impulse_N_s", "max_approach_m"):
+            assert rb[k] == pytest.approx(ra[k], rel=1e-9), k
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--velocity", ""], "--velocity"),
+    (["--velocity", "1,x"], "'x' is not a number"),
+    (["--velocity", "0,1"], "outside (0, 100] m/s"),
+    (["--velocity", "1", "--angle", "90"], "outside [0, 90) deg"),
+    (["--velocity", "1", "--ranks-per-case", "3"], "--ranks-per-case 3"),
+])
+def test_bad_input_one_line(args, words, tmp_path):
+    r = run_cli("table", "hertz-halfspace", *args, "--out", str(tmp_path / "x"))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and words in r.stderr, r.stderr
+
+
+def test_case_velocity_angle():
+    s = builtin_scene("paper-rig")
+    v = np.array(case_velocity(s, 2.0, 30.0))
+    n = np.array(s.contact_normal)
+    assert np.linalg.norm(v) == pytest.approx(2.0) and -v @ n == pytest.approx(2.0 * math.cos(math.radians(30)))
+    assert v[0] == 0.0          # in the plane x = x_p: the half model's symmetry plane
