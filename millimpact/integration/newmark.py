@@ -75,7 +75,11 @@ class NewmarkScheme:
             self.petsc_options = {"pc_type": "lu", **solvers.normalize_options(options)}
         self.gap_rtol = float(solvers.get_option("gap_rtol", options, 1e-9))
         self.check_rtol = float(solvers.get_option("lambda_check_rtol", options, 1e-6))
-        self.ops: dict[float, StepOperators] = {}
+        # step operators per dt; shared between calls when the system keeps a cache (same mass
+        # treatment and contact solve: they determine the operators)
+        self._shared_ops = system.operator_cache is not None
+        self.ops: dict[float, StepOperators] = (system.operator_cache.setdefault((cs, redistribute), {})
+                                                if self._shared_ops else {})
         self.u = system.M.createVecRight()
         self.v, self.a = self.u.duplicate(), self.u.duplicate()
         self.u_new, self.u_pred = self.u.duplicate(), self.u.duplicate()
@@ -115,6 +119,9 @@ class NewmarkScheme:
     def _ops(self, dt: float) -> StepOperators:
         if dt in self.ops:
             return self.ops[dt]
+        for known in self.ops:      # the same step from another schedule's grid, to round-off
+            if abs(known - dt) <= 1e-12 * dt:
+                return self.ops[known]
         c0 = 1.0 / (self.beta * dt * dt)
         A = self.sys.K.copy()
         try:
@@ -273,6 +280,8 @@ class NewmarkScheme:
         return self.contact.rate(self.v)
 
     def destroy(self) -> None:
+        if self._shared_ops:     # the system's cache keeps them for the next call
+            return
         for op in self.ops.values():
             if op.saddle is not None:
                 op.saddle.destroy()

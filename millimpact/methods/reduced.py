@@ -248,12 +248,17 @@ class ReducedSetup:
     cand_radius: float
     notes: list[str]
     timings: dict[str, float]
+    #: the contact dynamics shared by the impacts (``share_operators``): their step factorizations
+    #: and contact operators W are kept between impacts of the same time step
+    system: Optional[integrators.LinearDynamics] = None
 
 
 def build_reduced_setup(scene: Scene, plan: Plan, options: dict[str, Any], method: str,
-                        comm: MPI.Comm = MPI.COMM_WORLD) -> ReducedSetup:
+                        comm: MPI.Comm = MPI.COMM_WORLD, share_operators: bool = False) -> ReducedSetup:
     """The offline part of a reduced run: reduced plan, mesh, model, contact rows, reduction
-    (``options``: the run's options; the reduced run's own keys are taken out of it)."""
+    (``options``: the run's options; the reduced run's own keys are taken out of it).
+    ``share_operators``: one contact dynamics for every impact on this setup, whose factorized
+    step operators are reused by impacts with the same time step (a contact table's band)."""
     opt = read_reduced_options(method, scene, plan, options)
     scene, plan, cand_radius, plan_notes = reduced_plan(scene, plan)
     t0 = time.perf_counter()
@@ -268,8 +273,12 @@ def build_reduced_setup(scene: Scene, plan: Plan, options: dict[str, Any], metho
         red = build_reduced_model(model, opt.kind, f_cut=opt.f_cut, n_modes=opt.n_modes, remedy=opt.remedy,
                                   augment=opt.augment)
     t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
+    system = None
+    if share_operators:
+        system = reduced_system(red, contact, plan.friction)
+        system.operator_cache = {}
     return ReducedSetup(method, scene, plan, opt, md, model, contact, red, cand_radius, plan_notes,
-                        {"mesh": t_mesh, "assemble": t_assemble, "reduction_offline": t_reduce})
+                        {"mesh": t_mesh, "assemble": t_assemble, "reduction_offline": t_reduce}, system)
 
 
 def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str) -> RunOutput:
@@ -289,7 +298,7 @@ def run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dic
     opt, model, contact, red, method = setup.opt, setup.model, setup.contact, setup.red, setup.method
     t_end = opt.t_end if t_end is None else t_end
     t0 = time.perf_counter()
-    system = reduced_system(red, contact, plan.friction)
+    system = setup.system if setup.system is not None else reduced_system(red, contact, plan.friction)
     zone = create_plastic_zone(model, [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)])
     plastic = ProjectedPlasticZone(zone, red) if zone is not None else None
     system.plastic = plastic
