@@ -59,6 +59,7 @@ conclusions and Hertz's scaling laws (F ~ v^(6/5) R^2, t_c ~ v^(-1/5) R).
 Built-in studies (the paper's section 4 run on scene study-base: r = 20 mm, v = 3 m/s, b = 40 mm,
 u = 1; velocity-plastic is the restitution e(V) of paper-rig-plastic, with restitution.png beside
 Thornton's curve):
+
 {chr(10).join(f"  {n:<17s} {s.label} = {', '.join(f'{v:g}' for v in s.display)} {s.unit} (on {s.base})" for n, s in BUILTIN_STUDIES.items())}
 
 Examples:

@@ -53,7 +53,21 @@ from ..scene.toml_io import dump_scene
 
 HELP = "DEM contact tables: restitution and force laws over impact speed x angle (x radius)"
 
-DESCRIPTION = __doc__
+DESCRIPTION = """\
+Run one impact per (speed, angle[, radius]) of SCENE and write a DEM contact table: contact_table.csv
+(with units and definitions in its # header), contact_table.json, contact_table.h5, the fitted laws
+(contact_laws.json: e_n power law, Thornton's V_y, Hertz E*) and figures (e_n against speed, e_t
+against tan(angle)/mu, peak force against speed). The angle is measured from the face normal in the
+plane of the scene's impact vector. Each case runs the impact only. With improved, traditional and
+modal-p2, cases whose normal speeds lie within a factor 2 share one mesh, one reduction and its
+factorizations. Finished cases are kept in DIR/cases/ and a rerun computes only what is missing.
+Under mpirun, --ranks-per-case K makes groups of K ranks that take cases from a shared counter.
+
+Examples:
+  millimpact table paper-rig --velocity 0.5,1,2,4,8 --angle 0,15,30,45,60
+  millimpact table liner-segment --velocity 2,4,8 --angle 0,30,60 --out out/liner-table
+  mpirun -n 4 millimpact table paper-rig --velocity 1,3 --angle 0,30 --ranks-per-case 1
+"""
 
 #: cases whose normal speeds lie within this factor share a mesh and a reduction (a_max ~ v^(2/5):
 #: a factor 2 in speed is 1.32 in a_max, so the slowest case has 4 and the fastest 5.3 elements
