@@ -1,37 +1,15 @@
-"""``.. scene-fields::``: the table of every scene field (dotted name, type, default, unit, range),
-generated from the schema's dataclasses so it cannot drift from the code."""
+"""``.. scene-fields::``: the table of every scene field (dotted name, type, default, unit, range,
+meaning), generated from the schema's dataclasses and millimpact/scene/field_docs.py so it cannot
+drift from the code (tests/scene/test_field_docs.py checks that both list the same fields)."""
 from __future__ import annotations
-
-import dataclasses
-import typing
 
 from docutils import nodes
 from docutils.parsers.rst import Directive
 
 
-def _rows(cls, prefix=""):
-    hints = typing.get_type_hints(cls)
-    for f in dataclasses.fields(cls):
-        tp = hints[f.name]
-        inner = [a for a in typing.get_args(tp) if a is not type(None)]
-        target = inner[0] if inner else tp
-        if dataclasses.is_dataclass(target) and f.name != "gauges":
-            yield from _rows(target, f"{prefix}{f.name}.")
-            continue
-        if f.default is not dataclasses.MISSING:
-            default = repr(f.default)
-        elif f.default_factory is not dataclasses.MISSING:
-            default = repr(f.default_factory())
-        else:
-            default = "(required)"
-        meta = f.metadata or {}
-        yield (f"{prefix}{f.name}", getattr(tp, "__name__", str(tp)).replace("typing.", ""), default,
-               meta.get("unit", ""), meta.get("range", ""), meta.get("doc", ""))
-
-
 class SceneFields(Directive):
     def run(self):
-        from millimpact.scene.schema import Scene
+        from millimpact.scene.field_docs import scene_field_rows
 
         table = nodes.table()
         group = nodes.tgroup(cols=6)
@@ -52,7 +30,7 @@ class SceneFields(Directive):
             into += r
 
         row(("field", "type", "default", "unit", "allowed", "meaning"), head)
-        for cells in _rows(Scene):
+        for cells in scene_field_rows():
             row(cells, body)
         return [table]
 
