@@ -34,9 +34,14 @@ def run_hertz(scene: Scene, plan: Plan) -> RunOutput:
     zeros_f, zeros_a = np.zeros_like(t_flight), np.zeros_like(t_after)
     t = np.concatenate([t_flight, t_gap + hist.time, t_gap + t_after])
     force = np.concatenate([zeros_f, hist.force, zeros_a])
-    approach = np.concatenate([zeros_f, hist.approach, zeros_a])
+    # approach_m as every method defines it (results/recorder.py): the ball centre's travel towards
+    # the face less the initial gap, negative in flight and after the rebound; the overlap
+    # (Hertz's delta) is its positive part
+    approach = np.concatenate([h.speed * t_flight - plan.gap, hist.approach,
+                               -hist.rebound_speed * (t_after - hist.contact_time)])
+    overlap = np.maximum(approach, 0.0)
     vel = np.concatenate([np.full_like(t_flight, h.speed), hist.velocity, np.full_like(t_after, -hist.rebound_speed)])
-    a = np.sqrt(h.radius * approach)
+    a = np.sqrt(h.radius * overlap)
     with np.errstate(divide="ignore", invalid="ignore"):
         p = np.where(a > 0, 3 * force / (2 * np.pi * a * a), 0.0)
     acc_ball = -force / h.mass
@@ -47,12 +52,12 @@ def run_hertz(scene: Scene, plan: Plan) -> RunOutput:
         "approach_m": approach,
         "contact_radius_m": a,
         "ball_velocity_m_s": vel,
-        "contact_point_displacement_m": share * approach,
+        "contact_point_displacement_m": share * overlap,
         "contact_point_velocity_m_s": np.where(in_contact, share * vel, 0.0),
         "contact_point_acceleration_m_s2": np.where(in_contact, share * acc_ball, 0.0),
         "contact_point_stress_Pa": -p,
         "ball_kinetic_energy_J": 0.5 * h.mass * vel**2,
-        "strain_energy_J": 0.4 * h.k * approach**2.5,
+        "strain_energy_J": 0.4 * h.k * overlap**2.5,
     })
     ts.columns["total_energy_J"] = ts["ball_kinetic_energy_J"] + ts["strain_energy_J"]
     return RunOutput("hertz", ts, {"restitution": hist.rebound_speed / h.speed,
