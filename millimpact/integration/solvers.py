@@ -57,14 +57,24 @@ _KSP_REASONS = {getattr(PETSc.KSP.ConvergedReason, k): k for k in dir(PETSc.KSP.
 
 
 # ------------------------------------------------------------------------------------- options
+#: MUMPS ICNTL(14), extra workspace in % over the analysis' estimate, of the effective-matrix
+#: factorizations under MPI (memory: the factors' workspace doubles at most; here tens of MB)
+MUMPS_WORKSPACE_PERCENT = "100"
+
+
 def effective_solver_defaults(comm: MPI.Comm) -> dict[str, str]:
     """Defaults of the effective-matrix solve, keys relative to ``-impact_fieldsplit_u_``.
 
     A direct factorization reused for every step of a given size (NOTES: factor 17 s / solve
     0.2 s at 143k DOFs; iterative solvers were 5-10x slower than a reused factorization).
     """
-    return {"ksp_type": "preonly", "pc_type": "cholesky",
-            "pc_factor_mat_solver_type": "cholmod" if comm.size == 1 else "mumps"}
+    if comm.size == 1:
+        return {"ksp_type": "preonly", "pc_type": "cholesky", "pc_factor_mat_solver_type": "cholmod"}
+    # MUMPS under MPI with 100 % extra workspace over its analysis' estimate (ICNTL(14), default
+    # 20-35 %): the estimate fell short intermittently under mpirun -n 2 (INFOG(1) -9, INFO(2) 9297:
+    # 1 in 20 runs of the MPI tests, benchmarks/mpi_stress.sh, even with the refactorization retry)
+    return {"ksp_type": "preonly", "pc_type": "cholesky", "pc_factor_mat_solver_type": "mumps",
+            "mat_mumps_icntl_14": MUMPS_WORKSPACE_PERCENT}
 
 
 def saddle_solver_defaults(comm: MPI.Comm) -> dict[str, str]:
@@ -76,6 +86,7 @@ def saddle_solver_defaults(comm: MPI.Comm) -> dict[str, str]:
          "pc_fieldsplit_schur_fact_type": "full", "pc_fieldsplit_schur_precondition": "user",
          "fieldsplit_lam_ksp_type": "preonly", "fieldsplit_lam_pc_type": "lu",
          "fieldsplit_lam_pc_factor_mat_solver_type": "mumps",
+         "fieldsplit_lam_mat_mumps_icntl_14": MUMPS_WORKSPACE_PERCENT,
          # used only with -impact_pc_type lu (monolithic): MUMPS pivots on the zero block
          "pc_factor_mat_solver_type": "mumps"}
     d.update({f"fieldsplit_{SPLIT_U}_{k}": v for k, v in effective_solver_defaults(comm).items()})
@@ -238,7 +249,7 @@ def setup_checked(ksp: PETSc.KSP, what: str, step: int = 0, t: float = 0.0) -> N
 #: MUMPS ICNTL(14) (percentage of extra workspace over the analysis' estimate) tried after a
 #: factorization fails with INFOG(1) = -8 / -9 (workspace too small; MUMPS user guide, section 8):
 #: seen intermittently under mpirun -n 2 at the default (PETSc passes MUMPS's own, 20-35 %)
-MUMPS_WORKSPACE_RETRIES = (100, 400)
+MUMPS_WORKSPACE_RETRIES = (200, 400)
 
 
 def _retry_mumps_workspace(ksp: PETSc.KSP, what: str) -> bool:
