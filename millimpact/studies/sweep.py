@@ -232,6 +232,32 @@ def _worker(task: CaseTask) -> dict:
     return compute_case(task, None)
 
 
+def stop_workers(procs: list, grace_s: float = 1.0) -> None:
+    """Stop pool workers: SIGTERM, then SIGKILL for those still alive after ``grace_s``. A worker
+    that has initialised PETSc has PETSc's signal handler, which answers SIGTERM with MPI_Abort;
+    in an MPI singleton that call can hang for ever, keeping the worker (and the pipes it holds)
+    alive after the study has exited."""
+    for proc in procs:
+        proc.terminate()
+    deadline = time.monotonic() + grace_s
+    for proc in procs:
+        proc.join(max(0.0, deadline - time.monotonic()))
+    for proc in procs:
+        if proc.is_alive():
+            proc.kill()
+            proc.join(5.0)
+
+
+def remove_stages(out: Path, folders: list[str]) -> None:
+    """Remove the staging folders (``.<case>.partial-*``, see ``staged_output``) that stopped
+    workers left: never complete, and not the user's."""
+    import shutil
+
+    for folder in folders:
+        for stage in out.glob(f".{folder}.partial-*"):
+            shutil.rmtree(stage, ignore_errors=True)
+
+
 @dataclass
 class CaseRun:
     """A case after the run: computed or taken from the cache, its summary and time series."""
@@ -330,11 +356,11 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
             except BaseException as exc:
                 for f in futures:
                     f.cancel()
-                # stop the running cases now (their staged output is discarded with them): the
-                # executor has no public handle on its processes, and waiting would take minutes
-                for proc in list(getattr(pool, "_processes", {}).values()):
-                    proc.terminate()
+                # stop the running cases now: the executor has no public handle on its processes,
+                # and waiting would take minutes
+                stop_workers(list((getattr(pool, "_processes", None) or {}).values()))
                 pool.shutdown(wait=True, cancel_futures=True)
+                remove_stages(out, [study.cases[i].folder for i in todo])
                 if isinstance(exc, KeyboardInterrupt):
                     raise StudyInterrupted(done, n, getattr(exc, "exit_code", 143 if type(exc).__name__ == "Terminated"
                                                             else 130)) from None

@@ -11,7 +11,8 @@ import pytest
 
 from conftest import ROOT, mpi_env
 
-ARGS = ["study", "velocity", "--end", "1e-3", "--jobs", "2", "--no-case-figures", "--method", "traditional", "-q"]
+# 3 ms per case: ~10 s each, so the signal (2 s after the workers start) lands while they compute
+ARGS = ["study", "velocity", "--end", "3e-3", "--jobs", "2", "--no-case-figures", "--method", "traditional", "-q"]
 
 
 def _children(pid: int) -> list[int]:
@@ -45,3 +46,13 @@ def test_study_interrupt_stops_workers_and_rerun_finishes(tmp_path, sig, code):
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     assert (out / "study.md").is_file()
+
+
+def test_gmsh_import_keeps_ctrl_c():
+    """gmsh 4.8's module sets SIGINT to SIG_DFL on import: Ctrl-C would kill a study outright
+    (exit -2, no message, orphaned workers). Importing millimpact's geometry puts Python's handler
+    back. In a fresh interpreter: pytest's process has its own handlers."""
+    code = ("import signal, millimpact.geometry.mesh, gmsh; "
+            "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)")
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=mpi_env(), capture_output=True, text=True, timeout=120)
+    assert r.stdout.strip() == "True", r.stderr[-2000:]
