@@ -19,6 +19,15 @@ def mpi_env() -> dict[str, str]:
     return env
 
 
+def default_sigint() -> None:
+    """``preexec_fn`` of a child that must answer Ctrl-C as a user's terminal would: a test run
+    started in the background by a shell (``./dev test &``) ignores SIGINT, and a child inherits
+    that (Python then installs no KeyboardInterrupt handler)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def run_cli(*args: str, np: int = 1, timeout: float = 600) -> subprocess.CompletedProcess:
     """``millimpact ARGS`` (under ``mpirun -n np`` when np > 1), captured."""
     cmd = [sys.executable, "-m", "millimpact.cli", *args]

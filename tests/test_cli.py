@@ -179,3 +179,20 @@ def test_empty_scene_file_and_one_value_study_are_refused(tmp_path):
     assert r.returncode == 2 and "is empty" in r.stderr and r.stderr.count("\n") == 1
     r = run_cli("study", "--param", "ball.radius=0.02", "--out", str(tmp_path / "never2"))
     assert r.returncode == 2 and "at least two values" in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_options_nothing_used_are_warned(tmp_path):
+    """A misspelled PETSc option or one for a solver the method does not have is named in a
+    warning; options a solver or the method did read are not (PetscOptionsUsed, method settings)."""
+    used = ["-impact_fieldsplit_u_pc_factor_mat_solver_type", "mumps",   # the effective-matrix solver
+            "-impact_gap_rtol", "1e-9",                                  # read by the integrator
+            "-candidate_radius", "0.002"]                                # a setting of method full
+    r = run_cli("run", "hertz-halfspace", "--method", "full", "--set", "time.end=2e-5", "--out", str(tmp_path / "r"),
+                "-impact_nonsense", "3", *used)
+    assert r.returncode == 0, r.stderr[-2000:]
+    line = [l for l in r.stdout.splitlines() if "nothing in this run used" in l]
+    assert len(line) == 1 and "-impact_nonsense" in line[0], r.stdout
+    assert not any(o in line[0] for o in used[::2]), line[0]
+    r = run_cli("study", "velocity", "--method", "hertz", "--option", "nosuch=3", "-q", "--out", str(tmp_path / "s"))
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stderr.count("nothing in this run used") == 1 and "-nosuch" in r.stderr, r.stderr

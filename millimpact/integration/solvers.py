@@ -115,6 +115,64 @@ def normalize_options(options: Optional[Mapping[str, object]]) -> dict[str, str]
     return out
 
 
+# ------------------------------------------------------------------------------ option usage
+#: full names (no dash) of inserted options that a PETSc object read, and the ``get_option``
+#: names read from the caller's options, since the last :func:`reset_option_usage` (this process)
+_USED_NAMES: set[str] = set()
+_READ_KEYS: set[str] = set()
+_OPTIONS_USED_FN: list = []
+
+
+def _petsc_options_used():
+    """``PetscOptionsUsed`` from the PETSc library petsc4py is linked to (petsc4py 3.18 does not
+    wrap it), or None where it cannot be found (then nothing is reported unused)."""
+    if not _OPTIONS_USED_FN:
+        fn = None
+        try:
+            import ctypes
+
+            fn = ctypes.CDLL(PETSc.__file__).PetscOptionsUsed   # dlsym searches its dependencies
+            fn.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
+            fn.restype = ctypes.c_int
+        except (OSError, AttributeError):
+            fn = None
+        _OPTIONS_USED_FN.append(fn)
+    return _OPTIONS_USED_FN[0]
+
+
+def _option_used(name: str) -> bool:
+    import ctypes
+
+    fn = _petsc_options_used()
+    used = ctypes.c_int(0)
+    return fn is not None and fn(None, name.encode(), ctypes.byref(used)) == 0 and bool(used.value)
+
+
+def note_option_read(key: str) -> None:
+    """Record that a method read its setting ``key`` from the caller's options."""
+    _READ_KEYS.add(normalize_options({key: ""}).popitem()[0])
+
+
+def reset_option_usage() -> None:
+    """Forget which options were used (call before a run)."""
+    _USED_NAMES.clear()
+    _READ_KEYS.clear()
+
+
+def unused_options(options: Optional[Mapping[str, object]]) -> Optional[list[str]]:
+    """The keys of ``options`` (as given, without a leading dash) that no PETSc object, no
+    :func:`get_option` and no method setting read since :func:`reset_option_usage`: misspelled,
+    or for a solver the run did not have. None when PETSc's usage record is not reachable."""
+    if _petsc_options_used() is None:
+        return None
+    unused = []
+    for key in options or {}:
+        k = next(iter(normalize_options({key: ""})))
+        if PREFIX + k not in _USED_NAMES and k not in _READ_KEYS:
+            unused.append(str(key).lstrip("-"))
+    return unused
+
+
 @contextmanager
 def petsc_options(defaults: Mapping[str, str], options: Optional[Mapping[str, object]] = None,
                   prefix: str = PREFIX) -> Iterator[None]:
@@ -124,7 +182,9 @@ def petsc_options(defaults: Mapping[str, str], options: Optional[Mapping[str, ob
     Wrap ``setFromOptions()`` and ``setUp()`` of the objects that read them.
     """
     opts = PETSc.Options()
-    merged = {**defaults, **normalize_options(options)}
+    user = normalize_options(options)
+    merged = {**defaults, **user}
+    user_names = {prefix + k for k in user}
     inserted = []
     for k, v in merged.items():
         name = prefix + k
@@ -135,6 +195,8 @@ def petsc_options(defaults: Mapping[str, str], options: Optional[Mapping[str, ob
         yield
     finally:
         for name in inserted:
+            if name in user_names and _option_used(name):
+                _USED_NAMES.add(name)
             opts.delValue(name)
 
 
@@ -150,6 +212,7 @@ def get_option(name: str, options: Optional[Mapping[str, object]], default: obje
         raw = opts.getString(full, "")
     elif name in user:
         raw = user[name]
+        _READ_KEYS.add(name)
     else:
         return default
     if isinstance(default, bool):

@@ -28,6 +28,7 @@ from ..results.dent import plastic_report
 from ..results.recorder import Recorder, impact_results
 from ..scene.plan import Plan
 from ..scene.schema import Scene
+from .options import take
 
 log = logging.getLogger(__name__)
 
@@ -40,10 +41,10 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
     info) makes this run the very model that run reduces (same massless contact nodes)."""
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
-    degree = int(options.pop("degree", None) or plan.degree)
-    integrator = options.pop("integrator", None) or "newmark-mr"
-    t_end = float(options.pop("t_end", None) or scene.time.end)
-    radius = options.pop("candidate_radius", None)
+    degree = int(take(options, "degree") or plan.degree)
+    integrator = take(options, "integrator") or "newmark-mr"
+    t_end = float(take(options, "t_end") or scene.time.end)
+    radius = take(options, "candidate_radius")
     try:
         radius = float(radius) if radius not in (None, "") else None
     except (TypeError, ValueError):

@@ -49,7 +49,7 @@ from ..integration.solvers import create_factored_solver
 from ..reduction.eigen import compute_modes, default_solver_options
 from ..results.timeseries import TimeSeries
 from ..results.output import RunOutput
-from .options import float_option
+from .options import float_option, take
 from .reduced import refuse_plastic
 from ..scene.schema import Scene
 
@@ -244,8 +244,8 @@ def run_hertz_modal(scene: Scene, plan: Plan, options: dict[str, Any], progress:
     options = dict(options)
     refuse_plastic("hertz-modal", plan)
     t_wall = time.perf_counter()
-    options.pop("degree", None)
-    options.pop("integrator", None)
+    take(options, "degree")
+    take(options, "integrator")
 
     t_end = float_option(options, "t_end", scene.time.end)
     f_cut = float_option(options, "f_cut", plan.f_cut)

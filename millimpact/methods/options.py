@@ -5,12 +5,20 @@ from __future__ import annotations
 from typing import Optional
 
 from ..errors import InputError
+from ..integration.solvers import note_option_read
+
+
+def take(options: dict, key: str):
+    """Pop the method setting ``key`` (None if absent) and record it as read (so it is not
+    reported as an option nothing used)."""
+    note_option_read(key)
+    return options.pop(key, None)
 
 
 def _typed_option(options: dict, key: str, default, kind: type, what: str):
     """Pop a method option converted by ``kind`` (``default`` if absent or empty); a bad value is
     an :class:`InputError` naming the option."""
-    value = options.pop(key, None)
+    value = take(options, key)
     if value is None or value == "":
         return default
     try:

@@ -66,7 +66,7 @@ from ..results.reduced_recorder import ReducedRecorder
 from ..scene.plan import PLASTIC_ZONE_CAP, PLASTIC_ZONE_MARGIN, Plan, make_plan, zone_radius_limit
 from ..scene.schema import Scene
 from .free_phase import FREE_MODES_FACTOR, integrate_reduced
-from .options import float_option, int_option
+from .options import float_option, int_option, take
 
 log = logging.getLogger(__name__)
 
@@ -111,22 +111,22 @@ def read_reduced_options(method: str, scene: Scene, plan: Plan, options: dict[st
     """Take a reduced run's own keys out of ``options`` (the rest goes to the integrator); a bad
     value is an :class:`InputError` naming the option."""
     degree, kind = REDUCED_METHODS[method]
-    asked = options.pop("degree", None)
+    asked = take(options, "degree")
     if asked not in (None, "", degree, str(degree)):
         raise InputError(f"--degree {asked}: method {method} uses P{degree} (P1: --method full or traditional)")
-    integrator = options.pop("integrator", None) or "newmark-mr"
+    integrator = take(options, "integrator") or "newmark-mr"
     t_end = float_option(options, "t_end", scene.time.end)
     n_modes = int_option(options, "modes", scene.model.modes)
     f_cut = float_option(options, "f_cut", plan.f_cut)
-    remedy = str(options.pop("nmm_remedy", None) or "interface")
-    recovery = str(options.pop("recovery", None) or "mode-acceleration")
+    remedy = str(take(options, "nmm_remedy") or "interface")
+    recovery = str(take(options, "recovery") or "mode-acceleration")
     if recovery not in ("mode-acceleration", "modal"):
         raise InputError(f"option recovery = {recovery!r}: choose mode-acceleration or modal")
-    augment = str(options.pop("augment", None) or "none")
+    augment = str(take(options, "augment") or "none")
     augment = tuple(a for a in augment.split(",") if a and a != "none")
     if any(a not in AUGMENTATION_PATTERNS for a in augment):
         raise InputError(f"option augment = {','.join(augment)}: choose from none, {', '.join(AUGMENTATION_PATTERNS)}")
-    free_phase = str(options.pop("free_phase", None) or "modal")
+    free_phase = str(take(options, "free_phase") or "modal")
     if free_phase not in ("modal", "step"):
         raise InputError(f"option free_phase = {free_phase!r}: choose modal or step")
     free_factor = float_option(options, "free_modes_factor", FREE_MODES_FACTOR)

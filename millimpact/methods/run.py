@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 from ..console import stage
+from ..integration.solvers import reset_option_usage, unused_options
 from ..results import plots
 from ..results.output import RunOutput
 from ..results.reference import write_reference
@@ -39,10 +40,16 @@ def compute(scene: Scene, method: str, options: Optional[dict] = None, progress:
     output and the plan it used."""
     runner = method_runner(method)
     plan = make_plan(scene)
-    out = runner(scene, plan, options or {}, progress)
+    left = dict(options or {})           # the runner pops its own settings; the rest are solver options
+    reset_option_usage()
+    out = runner(scene, plan, left, progress)
     note = elastic_limit_note(plan)
     if note:
         out.notes.append(note)
+    unused = unused_options(left)
+    if unused:
+        out.notes.append("warning: options that nothing in this run used (misspelled, or for a solver "
+                         f"method {method} does not have): {', '.join('-' + k for k in unused)}")
     return out, plan
 
 

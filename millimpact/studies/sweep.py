@@ -11,6 +11,7 @@ import json
 import math
 import os
 import re
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -213,7 +214,8 @@ def compute_case(task: CaseTask, comm=None) -> dict:
         summary["study"] = task.meta
         with staged_output(Path(task.folder), comm) as stage:
             write_run(stage, task.scene, plan, out, summary, figures=task.figures, comm=comm)
-        return {"ok": True, "wall_time_s": wall}
+        warnings = [n for n in summary.get("notes", []) if n.startswith("warning: options")]
+        return {"ok": True, "wall_time_s": wall, "warnings": warnings}
     except InputError as exc:
         return {"ok": False, "input": True, "error": str(exc)}
     except MillimpactError as exc:
@@ -320,11 +322,16 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
                         progress and jobs == 1 and not quiet)
 
     computed_walls: list[float] = []
+    warned: set[str] = set()
 
     def report(i: int, res: dict) -> None:
         nonlocal done
         done += 1
         r = runs[i]
+        for w in res.get("warnings", []):   # the same for every case: said once, even with -q
+            if w not in warned and rank0:
+                warned.add(w)
+                print(f"millimpact: {w}", file=sys.stderr, flush=True)
         if res["ok"]:
             r.status, r.wall_time_s = "computed", res["wall_time_s"]
             computed_walls.append(res["wall_time_s"])

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from conftest import ROOT, mpi_env, run_cli
+from conftest import ROOT, default_sigint, mpi_env, run_cli
 from millimpact.errors import InputError
 from millimpact.results.output_folder import MARKER, is_millimpact_output, prepare_output
 from millimpact.results.timeseries import staged_output
@@ -68,7 +68,8 @@ def test_interrupted_run_leaves_nothing(tmp_path, sig, code):
     line, and leaves no folder that could be taken for a result."""
     out = tmp_path / "run"
     p = subprocess.Popen([sys.executable, "-m", "millimpact.cli", "run", "-q", "--out", str(out)], cwd=ROOT,
-                         env=mpi_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         env=mpi_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=default_sigint)
     time.sleep(6.0)   # past the imports (~2 s), inside meshing, reduction or the time loop (~15 s in all)
     p.send_signal(sig)
     _, err = p.communicate(timeout=120)

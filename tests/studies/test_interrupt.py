@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from conftest import ROOT, mpi_env
+from conftest import ROOT, default_sigint, mpi_env
 
 # 3 ms per case: ~10 s each, so the signal (2 s after the workers start) lands while they compute
 ARGS = ["study", "velocity", "--end", "3e-3", "--jobs", "2", "--no-case-figures", "--method", "traditional", "-q"]
@@ -24,7 +24,7 @@ def _children(pid: int) -> list[int]:
 def test_study_interrupt_stops_workers_and_rerun_finishes(tmp_path, sig, code):
     out = tmp_path / "study"
     p = subprocess.Popen([sys.executable, "-m", "millimpact.cli", *ARGS, "--out", str(out)], cwd=ROOT, env=mpi_env(),
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
     deadline = time.time() + 60
     while time.time() < deadline and len(_children(p.pid)) < 3:   # the resource tracker and two workers are up
         time.sleep(0.5)
@@ -54,5 +54,6 @@ def test_gmsh_import_keeps_ctrl_c():
     back. In a fresh interpreter: pytest's process has its own handlers."""
     code = ("import signal, millimpact.geometry.mesh, gmsh; "
             "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)")
-    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=mpi_env(), capture_output=True, text=True, timeout=120)
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=mpi_env(), capture_output=True, text=True, timeout=120,
+                       preexec_fn=default_sigint)
     assert r.stdout.strip() == "True", r.stderr[-2000:]
