@@ -106,6 +106,9 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
             raise SolverError(f"eigensolver ({prefix}): {nconv} of {nev} modes converged, "
                               f"reason {eps.getConvergedReason()}")
         lam, vecs = sorted_eigenpairs(eps, K_ii)
+        if not dense:
+            st.destroy()   # the Python handle alone keeps it, and with it the caller's factorization (see
+                           # integration.solvers.destroy_petsc_tree)
         done = (n_modes is not None or dense or nconv >= n or lam[min(nev, len(lam)) - 1] > lam_cut)
         if done:
             break
