@@ -24,14 +24,12 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional, Sequence
-
+from typing import Optional, Sequence
 
 from ..errors import InputError, MillimpactError
-from ..scene.schema import parse_value
 from ..scene.builtin import BUILTIN_STUDIES
 from ..methods.registry import method_entry
-from .sweep import StudyInterrupted, CaseRun, Study, define_study, run_cases, say_root
+from .sweep import StudyInterrupted, CaseRun, Study, define_study, parse_method_options, run_cases, say_root
 from .report import StudyAnalysis, write_study
 
 
@@ -172,12 +170,7 @@ def main(args: argparse.Namespace) -> int:
         from mpi4py import MPI
 
         comm = MPI.COMM_WORLD
-    options: dict[str, Any] = {}
-    for o in args.option:
-        k, sep, v = o.partition("=")
-        if not sep or not k.strip():
-            raise InputError(f"--option {o!r}: expected KEY=VALUE (e.g. --option modes=20)")
-        options[k.strip()] = parse_value(v)
+    options = parse_method_options(args.option)
     res = run_study(args.name, args.param, args.base, args.set, args.end, args.method, options, args.out,
                     args.jobs, args.force, not args.no_case_figures, args.quiet, comm=comm)
     if res.failed:

@@ -91,6 +91,18 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
     return field_, [parse_value(r) for r in raw]
 
 
+def parse_method_options(items: Sequence[str]) -> dict[str, Any]:
+    """``--option KEY=VALUE`` arguments as a dict of method options (values typed like scene
+    values); a malformed one is one line."""
+    options: dict[str, Any] = {}
+    for o in items:
+        k, sep, v = o.partition("=")
+        if not sep or not k.strip():
+            raise InputError(f"--option {o!r}: expected KEY=VALUE (e.g. --option modes=20)")
+        options[k.strip()] = parse_value(v)
+    return options
+
+
 def apply_sets(scene: Scene, sets: Sequence[str], param: str) -> Scene:
     for assignment in sets:
         key, sep, value = assignment.partition("=")

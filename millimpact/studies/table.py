@@ -47,7 +47,7 @@ from .. import __version__
 from ..errors import InputError, MillimpactError
 from ..scene.builtin import resolve_scene
 from ..scene.plan import ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan, scene_hertz
-from ..scene.schema import Scene, parse_value
+from ..scene.schema import Scene
 from ..methods.free_phase import FIRST_SPAN_CONTACTS
 from ..integration.solvers import destroy_petsc_tree, release_petsc_garbage
 from ..scene.toml_io import dump_scene
@@ -367,12 +367,9 @@ def main(args: argparse.Namespace) -> int:
     speeds = parse_list(args.velocity, "--velocity", 0.0, 100.0, True, False, "m/s")
     angles = parse_list(args.angle, "--angle", 0.0, 90.0, False, True, "deg")
     radii = parse_list(args.radius, "--radius", 1e-4, 1.0, False, False, "m") if args.radius else None
-    options: dict[str, Any] = {}
-    for o in args.option:
-        k, sep, v = o.partition("=")
-        if not sep or not k.strip():
-            raise InputError(f"--option {o!r}: expected KEY=VALUE")
-        options[k.strip()] = parse_value(v)
+    from .sweep import parse_method_options
+
+    options = parse_method_options(args.option)
     name = args.scene or "paper-rig"
     out = Path(args.out) if args.out else Path("out") / f"table-{Path(name).stem}"
     rows = run_table(args.scene, speeds, angles, radii, args.method, options, out, args.set,
