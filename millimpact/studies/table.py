@@ -273,7 +273,8 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
     world.barrier()
     done = {c.index: json.loads((folder / f"{c.key}.json").read_text()) for c in cases
             if (folder / f"{c.key}.json").is_file()}
-    todo = [c for c in cases if c.index not in done]
+    # computed band after band (a group keeps only its current band's reduction), listed by speed
+    todo = sorted([c for c in cases if c.index not in done], key=lambda c: (c.band, c.index))
     n_bands = len({c.band for c in cases})
     say(f"table {base.name}: {len(speeds)} speeds x {len(angles)} angles x {len(radii or [0])} radii = {len(cases)} "
         f"cases in {n_bands} mesh band(s), method {method}; {len(done)} from {folder}, {len(todo)} to compute "
