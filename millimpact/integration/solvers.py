@@ -102,13 +102,17 @@ def mass_solver_defaults() -> dict[str, str]:
             "ksp_max_it": "2000"}
 
 
+def option_key(key: object) -> str:
+    """An option's key relative to ``-impact_`` (a leading ``-`` or ``impact_`` is accepted)."""
+    k = str(key).lstrip("-")
+    return k[len(PREFIX):] if k.startswith(PREFIX) else k
+
+
 def normalize_options(options: Optional[Mapping[str, object]]) -> dict[str, str]:
-    """Keys relative to ``-impact_`` (a leading ``-`` or ``impact_`` is accepted); values as strings."""
+    """Keys relative to ``-impact_`` (:func:`option_key`); values as strings."""
     out: dict[str, str] = {}
     for k, v in (options or {}).items():
-        k = str(k).lstrip("-")
-        if k.startswith(PREFIX):
-            k = k[len(PREFIX):]
+        k = option_key(k)
         if isinstance(v, bool):
             v = "true" if v else "false"
         out[k] = "" if v is None else str(v)
@@ -122,10 +126,10 @@ def release_petsc_garbage(comm=None) -> None:
 
     petsc4py 3.18 does not destroy an object on a parallel communicator when its handle is
     collected (a destroy can be collective, and collection order differs between ranks): it parks
-    it until ``PETSc.garbage_cleanup``. Without this a process that runs impact after impact (a
-    contact table, a study's serial cases) keeps every dropped reduction, factorization and
-    eigensolver: a 100-case table grew a rank to 12 GB and was killed. Call it where all ranks of
-    ``comm`` are at the same point (between cases)."""
+    it until ``PETSc.garbage_cleanup``. A process that runs impact after impact (a contact table's
+    cases) calls this between them, where all ranks of ``comm`` are at the same point. (On this
+    machine's serial runs it found nothing to free: the memory a dropped reduction keeps needs
+    :func:`destroy_petsc_tree`.)"""
     import gc
 
     gc.collect()
@@ -197,7 +201,7 @@ def _option_used(name: str) -> bool:
 
 def note_option_read(key: str) -> None:
     """Record that a method read its setting ``key`` from the caller's options."""
-    _READ_KEYS.add(normalize_options({key: ""}).popitem()[0])
+    _READ_KEYS.add(option_key(key))
 
 
 def reset_option_usage() -> None:
@@ -212,12 +216,8 @@ def unused_options(options: Optional[Mapping[str, object]]) -> Optional[list[str
     or for a solver the run did not have. None when PETSc's usage record is not reachable."""
     if _petsc_options_used() is None:
         return None
-    unused = []
-    for key in options or {}:
-        k = next(iter(normalize_options({key: ""})))
-        if PREFIX + k not in _USED_NAMES and k not in _READ_KEYS:
-            unused.append(str(key).lstrip("-"))
-    return unused
+    return [str(key).lstrip("-") for key in options or {}
+            if PREFIX + option_key(key) not in _USED_NAMES and option_key(key) not in _READ_KEYS]
 
 
 @contextmanager
