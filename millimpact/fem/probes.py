@@ -144,3 +144,55 @@ def von_mises(s: np.ndarray) -> np.ndarray:
     """Von Mises stress of stress tensors (…, 3, 3), Pa."""
     dev = s - np.trace(s, axis1=-2, axis2=-1)[..., None, None] * np.eye(3) / 3.0
     return np.sqrt(1.5 * np.sum(dev * dev, axis=(-2, -1)))
+
+
+def patch_indicator(V: fem.FunctionSpace, M, body_dofs: np.ndarray, point: np.ndarray, direction: np.ndarray,
+                    radius: float):
+    """The nodal indicator chi of a patch, directed: chi_(i,k) = d_k for the nodes i of a body
+    (``body_dofs``) within ``radius`` of ``point``, 0 elsewhere; and the uniform field e_(i,k) = d_k
+    (vectors of ``M``'s layout). The radius grows by sqrt(2) until at least four nodes are inside
+    (a mesh coarser than the radius). Returns (chi, e, nodes inside, radius used); collective.
+    See :func:`patch_momentum_row`."""
+    comm = V.mesh.comm
+    bs = V.dofmap.index_map_bs
+    n_owned = V.dofmap.index_map.size_local
+    X = V.tabulate_dof_coordinates()[:n_owned]
+    nodes = np.unique(np.asarray(body_dofs) // bs)
+    dist = np.linalg.norm(X[nodes] - np.asarray(point, dtype=float)[None, :], axis=1)
+    r = float(radius)
+    while True:
+        inside = nodes[dist <= r]
+        n_in = comm.allreduce(len(inside), op=MPI.SUM)
+        if n_in >= 4 or r > 1e3 * radius:
+            break
+        r *= np.sqrt(2.0)
+    d = np.asarray(direction, dtype=float)
+    chi, e = M.createVecRight(), M.createVecRight()
+    chi.set(0.0)
+    e.set(0.0)
+    for k in range(bs):
+        chi.array[inside * bs + k] = d[k]
+        e.array[np.arange(n_owned) * bs + k] = d[k]
+    return chi, e, n_in, r
+
+
+def patch_momentum_row(mass, chi, e):
+    """The row c with ``c . v`` the velocity along d of the patch's centre of mass,
+
+        c = M chi / (e . M chi),   c . v = chi^T M v / m_patch,
+
+    chi and e from :func:`patch_indicator`, M the mass the time integrator uses: chi^T M v is the
+    patch's momentum along d (chi interpolates the indicator of the patch: the nodes inside and
+    a one-element fringe) and e . M chi its mass. So ``c . a`` is the resultant force on the
+    patch over its mass, chi^T (f_contact - K u) / m_patch: it follows the contact force and the
+    stresses around the patch, smooth in time, while the contact node's own velocity jumps at
+    first contact (a massless node under mass redistribution takes the contact impulse alone)
+    and its acceleration spikes at onset and release (issue 18). For the contact point
+    (:class:`millimpact.results.recorder.Recorder`) the patch is the half-ball of radius a_max
+    under the impact point; ``benchmarks/contact_point_convergence.py`` measures its convergence
+    under dt and h. Collective; the caller destroys c."""
+    c = mass.createVecLeft()
+    mass.mult(chi, c)
+    m_patch = c.dot(e)
+    c.scale(1.0 / m_patch)
+    return c

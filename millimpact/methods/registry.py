@@ -21,6 +21,10 @@ class MethodEntry(NamedTuple):
     summary: str
     module: str        #: module under millimpact.methods
     function: str = "run"
+    #: what the contact point's velocity and acceleration are: "patch" (the centre of mass of the
+    #: half-ball of radius a_max under it: FE models) or "surface" (the surface point of the
+    #: quasi-static Hertz solution, share * d(delta)/dt: the Hertz models, which have no patch)
+    contact_point_kinematics: str = "patch"
 
 
 METHODS: tuple[MethodEntry, ...] = (
@@ -32,8 +36,10 @@ METHODS: tuple[MethodEntry, ...] = (
                 "run_traditional"),
     MethodEntry("modal-p2", "reduced", "as traditional on the P2 model", "reduced", "run_modal_p2"),
     MethodEntry("full", "fe", "unreduced P1/P2 finite elements: the reference", "full"),
-    MethodEntry("hertz-modal", "reduced", "Hertz spring (rigid ball) on the block's modes", "hertz_modal"),
-    MethodEntry("hertz", "analytical", "quasi-static Hertz, 1 DOF: the lightest model", "hertz"),
+    MethodEntry("hertz-modal", "reduced", "Hertz spring (rigid ball) on the block's modes", "hertz_modal",
+                contact_point_kinematics="surface"),
+    MethodEntry("hertz", "analytical", "quasi-static Hertz, 1 DOF: the lightest model", "hertz",
+                contact_point_kinematics="surface"),
 )
 
 #: the method of ``millimpact run`` when none is given: within 0.3 % of full P2 on the same mesh

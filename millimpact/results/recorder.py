@@ -21,9 +21,10 @@ import numpy as np
 from ..fem.contact import ContactSet
 from ..fem.model import FEModel
 from ..fem.plasticity import from_mandel
-from ..fem.probes import create_probe, stress_from_gradient, von_mises
+from ..fem.probes import create_probe, patch_indicator, patch_momentum_row, stress_from_gradient, von_mises
 from ..integration.integrators import strain_energy
 from ..scene.plan import ProbeSpec
+from .band_limit import gaussian_low_pass
 from .timeseries import TimeSeries
 
 
@@ -70,6 +71,17 @@ class Recorder:
             self.c_t.scale(1.0 / self.ball_mass_model)
             self.t_proj = contact.tangents @ self.t_v    # components of t_v in the rows' basis (t1, t2)
             self._fw_base, self._fw_last = 0.0, 0.0
+        # the contact point's velocity and acceleration (into the struck body positive): those of
+        # the centre of mass of the half-ball of radius a_max under it (fem.probes.patch_momentum_row),
+        # with the mass the integrator uses (rebuilt in __call__ when it is not M); radius 0: the
+        # surface node's values
+        self.c_patch, self._patch_mass = None, None
+        self.band_limit_hz = probes.band_limit_hz
+        if probes.patch_radius > 0:
+            direction = -np.asarray(self.n if self.liner else (0.0, 1.0, 0.0), dtype=float)
+            self._chi, self._e, self.patch_nodes, self.patch_radius = patch_indicator(
+                V, model.M, model.block_dofs, np.asarray(probes.contact_point), direction, probes.patch_radius)
+            self.c_patch, self._patch_mass = patch_momentum_row(model.M, self._chi, self._e), model.M
         self.ball_mask = model.M.createVecRight()
         self.ball_mask.set(0.0)
         self.ball_mask.array[model.ball_dofs] = 1.0
@@ -114,12 +126,14 @@ class Recorder:
         return self.probe.values(u_loc), self.probe.gradients(u_loc)
 
     def probe_columns(self, vals_u: np.ndarray, vals_v: np.ndarray, vals_a: np.ndarray,
-                      grads: np.ndarray) -> list[np.ndarray]:
+                      grads: np.ndarray, patch: Optional[tuple[np.ndarray, np.ndarray]] = None) -> list[np.ndarray]:
         """The probe columns of the rows for n_t states at once: from the displacement, velocity
         and acceleration values (n_t, points, 3) and displacement gradients (n_t, points, 3, 3) at
         the probes (the contact point first, then the gauges), the contact point's displacement,
         velocity, acceleration and normal stress (along the impact direction, into the block or
-        liner positive), its von Mises stress and each gauge's stress E d.eps.d, each (n_t,)."""
+        liner positive), its von Mises stress and each gauge's stress E d.eps.d, each (n_t,).
+        ``patch`` (velocity, acceleration), each (n_t,): the patch's centre-of-mass values that
+        replace the probe's velocity and acceleration (see ``c_patch``)."""
         s = stress_from_gradient(grads[:, 0], self.mu, self.lmbda)
         if self.plastic is not None:   # sigma = C (eps - eps_p): the contact point lies in the plastic zone
             s = s - self._plastic_stress_offset()
@@ -130,6 +144,8 @@ class Recorder:
         else:   # along the contact normal n, into the liner positive
             n = self.n
             normal = [-(vals_u[:, 0] @ n), -(vals_v[:, 0] @ n), -(vals_a[:, 0] @ n), np.einsum("i,tij,j->t", n, s, n)]
+        if patch is not None:
+            normal[1], normal[2] = patch
         return normal + [von_mises(s)] + gauges
 
     def _plastic_stress_offset(self) -> np.ndarray:
@@ -156,14 +172,23 @@ class Recorder:
         vals_u, grads = self._displacement_probe(st)
         vals_v = self.probe.values(self._local(st.v).copy())
         vals_a = self.probe.values(self._local(st.a).copy())
-        probe_cols = [float(c[0]) for c in self.probe_columns(vals_u[None], vals_v[None], vals_a[None], grads[None])]
+        patch = None
+        if self.c_patch is not None:
+            mass = getattr(st, "mass", None)
+            if mass is not None and mass is not self._patch_mass and mass.getSize()[1] == self._chi.getSize():
+                self.c_patch.destroy()    # the scheme's mass (newmark-mr: massless contact dofs)
+                self.c_patch, self._patch_mass = patch_momentum_row(mass, self._chi, self._e), mass
+            patch = (np.array([self.c_patch.dot(st.v)]), np.array([self.c_patch.dot(st.a)]))
+        probe_cols = [float(c[0]) for c in self.probe_columns(vals_u[None], vals_v[None], vals_a[None], grads[None],
+                                                              patch)]
         # energies: kinetic with the mass the scheme integrates (st.mass: redistributed for
         # newmark-mr, whose massless contact dofs carry no momentum), strain 1/2 u.K u
         mass = st.mass if getattr(st, "mass", None) is not None else m.M
         mass.mult(st.v, self.tmp)
         ke = 0.5 * self.tmp.dot(st.v)
+        # the ball's part: M is block diagonal by body (the bodies share no node, and each body's
+        # reduced coordinates are its own), so (mask v).M v = (mask v).M (mask v): no second product
         self.tmp2.pointwiseMult(st.v, self.ball_mask)
-        mass.mult(self.tmp2, self.tmp)
         ke_ball = 0.5 * self.tmp.dot(self.tmp2)
         se = strain_energy(m.K, st.u, m.fixed_dofs)
         if self.plastic is not None:   # 1/2 (eps - eps_p) : C : (eps - eps_p), not 1/2 u.K u
@@ -198,7 +223,13 @@ class Recorder:
             self._next_field += 1
 
     def series(self) -> TimeSeries:
-        return TimeSeries.from_rows(self.names, self.rows)
+        """The rows as a time series; with the patch (``c_patch``) the contact point's velocity and
+        acceleration band-limited to ``probes.band_limit_hz`` (:mod:`.band_limit`)."""
+        ts = TimeSeries.from_rows(self.names, self.rows)
+        if self.c_patch is not None and self.band_limit_hz > 0:
+            for name in ("contact_point_velocity_m_s", "contact_point_acceleration_m_s2"):
+                ts.columns[name] = gaussian_low_pass(ts.time, ts[name], self.band_limit_hz)
+        return ts
 
 
 def impact_results(ts: TimeSeries, normal_speed: float, gauge_names: Sequence[str], stats,

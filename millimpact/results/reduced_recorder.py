@@ -78,6 +78,8 @@ class ReducedRecorder(Recorder):
         self._maps: dict[int, tuple] = {}
         self._ct_full = getattr(self, "c_t", None)     # friction: the ball's tangential row
         self._ct_maps: dict[int, object] = {}
+        self._patch_full = self.c_patch                 # the contact point's patch row
+        self._patch_maps: dict[int, object] = {}
         self.set_projection(red)
 
     def set_projection(self, proj) -> None:
@@ -98,6 +100,10 @@ class ReducedRecorder(Recorder):
             if key not in self._ct_maps:
                 self._ct_maps[key] = proj.restrict(self._ct_full)
             self.c_t = self._ct_maps[key]
+        if self._patch_full is not None:
+            if key not in self._patch_maps:
+                self._patch_maps[key] = proj.restrict(self._patch_full)
+            self.c_patch = self._patch_maps[key]
 
     def _local(self, vec) -> np.ndarray:
         return vec.array_r
@@ -146,6 +152,7 @@ class ReducedRecorder(Recorder):
             cols = lambda P: sp.hstack(comm.allgather(P)).toarray()    # noqa: E731 (local columns)
             self._maps[key] = SimpleNamespace(
                 c=vec(c_y), ct=vec(self._ct_maps[id(modal)]) if self._ct_full is not None else None,
+                cp=vec(self._patch_maps[id(modal)]) if self._patch_full is not None else None,
                 mask=vec(mask), Pv=cols(probe.P_val), Pg=cols(probe.P_grad), n_points=probe.n_points,
                 Cv=cols(ma.P_val) if ma is not None else None, Cg=cols(ma.P_grad) if ma is not None else None,
                 M=gather_aij_dense(modal.M_scheme, comm), K=gather_aij_dense(modal.K, comm))
@@ -199,7 +206,9 @@ class ReducedRecorder(Recorder):
             grads = grads + off.grads[None]
             se = se + off.se
         zero = np.zeros(n_t)
-        cols = [times, zero, approach, zero, vball, *self.probe_columns(*vals, grads), self.sym * ke_ball, self.sym * ke, self.sym * se, self.sym * (ke + se)]
+        patch = (d.cp @ etad, d.cp @ etadd) if d.cp is not None else None
+        cols = [times, zero, approach, zero, vball, *self.probe_columns(*vals, grads, patch), self.sym * ke_ball,
+                self.sym * ke, self.sym * se, self.sym * (ke + se)]
         if self.friction:
             # no friction while apart: the cumulative work stays at its value (see __call__)
             self._fw_base += self._fw_last

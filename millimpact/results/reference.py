@@ -48,9 +48,12 @@ DESCRIPTIONS = {
     "ball_velocity_m_s": "ball centre-of-mass velocity along the impact normal, towards the liner positive",
     "contact_point_displacement_m": "liner displacement at the contact point along the impact normal, "
                                     "into the liner positive",
-    "contact_point_velocity_m_s": "liner velocity at the contact point along the impact normal, into the liner positive",
+    "contact_point_velocity_m_s": "liner velocity at the contact point along the impact normal, into the liner positive: "
+                                  "FE methods: the centre of mass of the half-ball of radius a_max (Hertz) under it; "
+                                  "Hertz models: the surface point",
     "contact_point_acceleration_m_s2": "liner acceleration at the contact point along the impact normal, "
-                                       "into the liner positive",
+                                       "into the liner positive: FE methods: the centre of mass of the half-ball of "
+                                       "radius a_max (Hertz) under it; Hertz models: the surface point",
     "contact_point_stress_Pa": "normal stress (sigma_yy, along the impact normal) just below the contact point, "
                                "compression negative",
     "contact_point_von_mises_Pa": "von Mises stress just below the contact point",

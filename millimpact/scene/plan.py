@@ -97,7 +97,11 @@ class ProbeSpec:
     (stresses from strains); ``liner`` True when the struck body is a liner (normal quantities
     along the contact normal n rather than -y); ``slide_direction`` the unit tangential
     direction of the arrival velocity (None for a normal impact: the contact's first tangent
-    is used); ``gap`` the initial gap (m), subtracted from the ball's travel to give the approach.
+    is used); ``gap`` the initial gap (m), subtracted from the ball's travel to give the approach;
+    ``patch_radius`` (m) the radius of the material patch under the contact point whose centre of
+    mass gives the contact point's velocity and acceleration (the Hertz a_max; 0: the surface
+    node's values); ``band_limit_hz`` the frequency at which those two are band-limited
+    (:mod:`millimpact.results.band_limit`: F_CUT_FACTOR / t_c, the band the models resolve; 0: raw).
     """
 
     contact_point: Vec3
@@ -106,6 +110,8 @@ class ProbeSpec:
     liner: bool
     slide_direction: Optional[Vec3]
     gap: float
+    patch_radius: float = 0.0
+    band_limit_hz: float = 0.0
 
     @property
     def gauge_names(self) -> tuple[str, ...]:
@@ -248,9 +254,11 @@ def slide_direction(velocity: Vec3, normal: Vec3) -> Optional[Vec3]:
     return None
 
 
-def make_probe_spec(scene: Scene, planes: tuple[str, ...], h_contact: float, gap: float) -> ProbeSpec:
+def make_probe_spec(scene: Scene, planes: tuple[str, ...], h_contact: float, gap: float,
+                    patch_radius: float = 0.0, band_limit_hz: float = 0.0) -> ProbeSpec:
     """Where a model of ``scene`` (cut by the symmetry ``planes``, contact element size
-    ``h_contact``) is probed: the contact point and each gauge, inside the struck body's kept part."""
+    ``h_contact``) is probed: the contact point and each gauge, inside the struck body's kept
+    part; ``patch_radius``: see :class:`ProbeSpec`."""
     contact_point = inward_point(np.array(scene.impact_point), scene, planes, h_contact)
     gauges = []
     for g in scene.gauges:
@@ -258,7 +266,8 @@ def make_probe_spec(scene: Scene, planes: tuple[str, ...], h_contact: float, gap
         gauges.append(GaugePlace(g.name, _vec3(inward_point(p, scene, planes, h_contact)),
                                  _vec3(d / np.linalg.norm(d))))
     return ProbeSpec(_vec3(contact_point), tuple(gauges), scene.target_material, scene.liner is not None,
-                     slide_direction(scene.impact.velocity, scene.contact_normal), gap)
+                     slide_direction(scene.impact.velocity, scene.contact_normal), gap, patch_radius,
+                     band_limit_hz)
 
 
 def _vec3(x) -> Vec3:
@@ -314,7 +323,8 @@ def make_plan(scene: Scene) -> Plan:
     return Plan(h, sym, planes, h_c, h_far, zone, fine, gap, dt_c, dt_f, f_cut, m.degree,
                 ball=scene.ball, target=scene.target_material, impact_point=scene.impact_point,
                 contact_normal=scene.contact_normal, velocity=tuple(scene.impact.velocity),
-                friction=scene.contact.friction, probes=make_probe_spec(scene, planes, h_c, gap),
+                friction=scene.contact.friction,
+                probes=make_probe_spec(scene, planes, h_c, gap, h.a_max, F_CUT_FACTOR / h.contact_time),
                 reasons=tuple(reasons.items()), plastic_radius=c_p)
 
 

@@ -131,8 +131,7 @@ def peak(t: np.ndarray, y: np.ndarray, sign: float) -> tuple[float, float]:
 #: the physical sense of each column's peak (+1 maximum, -1 minimum); others: the sign of the
 #: reference's largest |value| in the compared window
 #: The contact point's acceleration peaks negative: the deceleration while the ball is pushed back
-#: (-share F / m in Hertz); the FE's one-sample positive spike at first contact (massless contact
-#: nodes under mass redistribution: an artefact, not a peak of the physics) is not scored as its peak.
+#: (-share F / m in Hertz, the patch's deceleration in FE runs).
 PEAK_SIGN = {"contact_force_N": 1.0, "approach_m": 1.0, "contact_radius_m": 1.0, "contact_point_displacement_m": 1.0,
              "contact_point_stress_Pa": -1.0, "contact_point_von_mises_Pa": 1.0, "strain_energy_J": 1.0,
              "contact_point_acceleration_m_s2": -1.0}
@@ -249,10 +248,38 @@ def not_modelled(ref: TimeSeries, other: TimeSeries, names: list[str]) -> list[s
     return [n for n in names if not np.any(other[n]) and np.any(ref[n])]
 
 
-def compare_series(ref: TimeSeries, other: TimeSeries, max_shift: Optional[float] = None) -> list[Score]:
-    """Score every column ``other`` shares with ``ref`` and models (:func:`not_modelled`)."""
+#: columns whose meaning follows the method's contact-point kinematics (registry.MethodEntry)
+KINEMATICS_COLUMNS = ("contact_point_velocity_m_s", "contact_point_acceleration_m_s2")
+
+
+def method_of(path: Path, meta: Optional[dict] = None) -> Optional[str]:
+    """The millimpact method that wrote ``path``: from its metadata (a reference file's), else the
+    ``summary.json`` of the run folder that holds it; None for a file from elsewhere."""
+    if meta and meta.get("method"):
+        return str(meta["method"])
+    side = Path(path).parent / "summary.json"
+    try:
+        return str(json.loads(side.read_text())["method"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def kinematics_differ(ref_method: Optional[str], other_method: Optional[str]) -> bool:
+    """True when one file's contact-point velocity and acceleration are the FE patch's centre of
+    mass and the other's the Hertz surface point (different quantities: not scored)."""
+    from ..methods.registry import METHODS
+
+    kind = {m.name: m.contact_point_kinematics for m in METHODS}
+    a, b = kind.get(ref_method or ""), kind.get(other_method or "")
+    return a is not None and b is not None and a != b
+
+
+def compare_series(ref: TimeSeries, other: TimeSeries, max_shift: Optional[float] = None,
+                   skip: tuple[str, ...] = ()) -> list[Score]:
+    """Score every column ``other`` shares with ``ref`` and models (:func:`not_modelled`), except
+    those in ``skip``."""
     common, _ = match_columns(ref, other)
-    skip = set(not_modelled(ref, other, common))
+    skip = set(not_modelled(ref, other, common)) | set(skip)
     ms = default_max_shift(ref) if max_shift is None else max_shift
     return [score(n, ref.time, ref[n], other.time, other[n], ms) for n in common if n not in skip]
 
@@ -354,10 +381,18 @@ def main(args: argparse.Namespace) -> int:
     ref = read_reference(Path(args.reference))
     if other_path.is_dir() or not other_path.exists():
         raise InputError(f"other {other_path}: no such file (expected a CSV with a time_s column)")
+    other_meta: dict = {}
     if other_path.suffix.lower() in (".h5", ".hdf5"):  # another millimpact reference
-        other = read_reference(other_path).series
+        other_ref = read_reference(other_path)
+        other, other_meta = other_ref.series, other_ref.meta
     else:
         other = read_history_csv(other_path, "other")
+        side = other_path.with_suffix(".json")
+        if side.is_file():
+            try:
+                other_meta = json.loads(side.read_text())
+            except (OSError, ValueError):
+                other_meta = {}
     if not math.isfinite(args.time_offset):
         raise InputError(f"--time-offset = {args.time_offset}: must be a finite number of seconds")
     if args.time_offset:
@@ -368,6 +403,12 @@ def main(args: argparse.Namespace) -> int:
     zero = not_modelled(ref.series, other, common)
     if zero:
         ignored["not modelled by the other: all zero"] = zero
+    differ = ()
+    if kinematics_differ(method_of(ref.path, ref.meta), method_of(other_path, other_meta)):
+        differ = tuple(n for n in KINEMATICS_COLUMNS if n in common)
+        if differ:
+            ignored["defined differently: FE centre of mass of the half-ball of radius a_max, Hertz surface point"] = \
+                list(differ)
     if not common:
         raise InputError(f"other {other_path}: no column in common with the reference (it has "
                          f"{', '.join(n for n in ref.series.columns if n != 'time_s')})")
@@ -375,7 +416,7 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"other {other_path}: time_s {other.time[0]:g}..{other.time[-1]:g} s does not overlap the "
                          f"reference's {ref.series.time[0]:g}..{ref.series.time[-1]:g} s (see --time-offset)")
     max_shift = default_max_shift(ref.series) if args.max_shift is None else args.max_shift
-    scores = compare_series(ref.series, other, max_shift)
+    scores = compare_series(ref.series, other, max_shift, skip=differ)
 
     say(f"reference {ref.path} ({ref.label}), other {other_path}: {len(common)} histories compared")
     if not ref.is_reference_file:

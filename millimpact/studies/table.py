@@ -24,9 +24,11 @@ scene, the method, its options and the version); a rerun computes only missing o
 and an interrupted table keeps the finished ones.
 
 Parallel. Under ``mpirun -n N``, ``--ranks-per-case K`` splits MPI_COMM_WORLD into N / K groups of K
-ranks (``Comm.Split``); the groups take the next case from a shared counter (an MPI window,
-``Fetch_and_op``), so a slow case does not idle the others; each group keeps the reduced model of
-its current band only (cases come in band order). Rank 0 gathers the rows and prints the progress.
+ranks (``Comm.Split``); the groups take the next case from a shared state (an MPI window on rank 0,
+read and written under an exclusive lock), so a slow case does not idle the others. A group stays
+on its band while it has cases and then starts a band no group works on (:func:`next_case`), so
+groups build different bands' reductions rather than each building every band; each keeps the
+reduced model of its current band only. Rank 0 gathers the rows and prints the progress.
 """
 from __future__ import annotations
 
@@ -292,33 +294,74 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
     return all_rows
 
 
+def next_case(state: np.ndarray, band_sizes: Sequence[int], current: Optional[int]) -> Optional[tuple[int, int]]:
+    """Pick a group's next case from the shared ``state`` = [done, taken per band..., groups per
+    band...] (updated in place): (band, index within the band), or None when all are taken.
+
+    A group stays on its band while it has cases (its reduction is built); then it leaves it and
+    takes the first band in order that no group works on, so groups build different bands rather
+    than each building every band (the 100-case table at 2 ranks built 12 reductions for 6
+    bands); only when every band with cases left has a group does it join the one with the most
+    cases left per group."""
+    nb = len(band_sizes)
+    taken, groups = state[1:1 + nb], state[1 + nb:1 + 2 * nb]
+    left = [band_sizes[b] - int(taken[b]) for b in range(nb)]
+    if current is not None and left[current] > 0:
+        band = current
+    else:
+        if current is not None:
+            groups[current] -= 1
+        open_ = [b for b in range(nb) if left[b] > 0]
+        if not open_:
+            return None
+        free = [b for b in open_ if groups[b] == 0]
+        band = free[0] if free else max(open_, key=lambda b: left[b] / (groups[b] + 1))
+        groups[band] += 1
+    index = int(taken[band])
+    taken[band] += 1
+    return band, index
+
+
 def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
-    """This group's share of ``todo``: the next case from the shared counter until none is left."""
+    """This group's share of ``todo``: cases taken from a shared state (:func:`next_case`) on world
+    rank 0 until none is left."""
     from mpi4py import MPI
 
-    # [next case, cases done] on world rank 0 (Allocate: Create fails outside mpirun in Open MPI)
-    win = MPI.Win.Allocate(16 if world.rank == 0 else 0, 8, comm=world)
+    bands = sorted({c.band for c in todo})
+    by_band = [[c for c in todo if c.band == b] for b in bands]
+    sizes = [len(c) for c in by_band]
+    n_state = 1 + 2 * len(bands)
+    # [cases done, taken per band, groups per band] on world rank 0 (Allocate: Create fails outside
+    # mpirun in Open MPI); read, changed and written under an exclusive lock
+    win = MPI.Win.Allocate(8 * n_state if world.rank == 0 else 0, 8, comm=world)
     if world.rank == 0:
         win.Lock(0)
         np.frombuffer(win.tomemory(), dtype="i8")[:] = 0
         win.Unlock(0)
     world.barrier()
     one, got = np.ones(1, dtype="i8"), np.zeros(1, dtype="i8")
+    state = np.zeros(n_state, dtype="i8")
+    current: Optional[int] = None
     setups: dict = {}
     rows = []
     t0 = time.perf_counter()
     try:
         while True:
+            pick = None
             if group.rank == 0:
-                win.Lock(0)
-                win.Fetch_and_op(one, got, 0, 0, MPI.SUM)
+                win.Lock(0, MPI.LOCK_EXCLUSIVE)
+                win.Get(state, 0)
+                win.Flush(0)
+                pick = next_case(state, sizes, current)
+                win.Put(state, 0)
                 win.Unlock(0)
-            idx = group.bcast(int(got[0]), root=0)
-            if idx >= len(todo):
+            pick = group.bcast(pick, root=0)
+            if pick is None:
                 break
-            case = todo[idx]
-            # cases come in band order (define_cases): a band's reduction is not needed again once a
-            # case of another band arrives; keeping them all grew a rank to 12 GB on the 100-case table
+            current = pick[0]
+            case = by_band[pick[0]][pick[1]]
+            # a group takes a band's cases until none is left (next_case): a band's reduction is not
+            # needed again once it moves on; keeping them all grew a rank to 12 GB on the 100-case table
             for band in [b for b in setups if b != case.band]:
                 destroy_petsc_tree(setups.pop(band))   # its Python handles alone would keep it (see there)
             release_petsc_garbage(group)
@@ -333,7 +376,7 @@ def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, wo
                 tmp.write_text(json.dumps(row, indent=1, default=float))
                 os.replace(tmp, folder / f"{case.key}.json")
                 win.Lock(0)
-                win.Fetch_and_op(one, got, 0, 1, MPI.SUM)
+                win.Fetch_and_op(one, got, 0, 0, MPI.SUM)   # state[0]: cases done
                 win.Unlock(0)
                 rows.append(row)
                 n_done = int(got[0]) + 1

@@ -172,3 +172,25 @@ def test_bands_are_computed_one_after_the_other(tmp_path):
     assert len({row["band"] for row in rows}) == 2
     assert sum(not row["reduction_reused"] for row in rows) == 2
     assert [row["impact_speed_m_s"] for row in rows] == [1.5, 1.5, 3, 3]     # the table stays listed by speed
+
+
+def test_groups_take_different_bands():
+    """next_case: with two groups and two bands of three cases, the second group starts the second
+    band instead of joining the first (each group builds one reduction, not both); a group whose
+    band is finished joins the band with cases left; every case is taken exactly once."""
+    from millimpact.studies.table import next_case
+
+    sizes = [3, 3]
+    state = np.zeros(1 + 2 * len(sizes), dtype="i8")
+    a = next_case(state, sizes, None)
+    b = next_case(state, sizes, None)
+    assert (a, b) == ((0, 0), (1, 0))
+    taken = [a, b]
+    cur = {"A": 0, "B": 1}
+    for g in ["A", "A", "A", "B", "A"]:       # A finishes band 0 (2 more), then joins band 1
+        pick = next_case(state, sizes, cur[g])
+        taken.append(pick)
+        cur[g] = pick[0] if pick else None
+    assert taken[4] == (1, 1) and taken[5] == (1, 2)     # A moved to band 1 after band 0 ran out
+    assert next_case(state, sizes, cur["A"]) is None and next_case(state, sizes, cur["B"]) is None
+    assert sorted(t for t in taken if t) == [(0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2)]

@@ -71,3 +71,25 @@ def test_static_hertz_consistency():
     assert s.a == pytest.approx(h.a_max, rel=1e-10)
     assert s.delta == pytest.approx(h.delta_max, rel=1e-10)
     assert s.p0 == pytest.approx(h.p0, rel=1e-10)
+
+
+@pytest.mark.parametrize("a_over_r", [0.0, 1.0])
+def test_patch_mean_displacement_against_a_direct_average(a_over_r):
+    """theory.hertz.patch_mean_displacement against a Monte Carlo average of the Boussinesq field
+    (Johnson 3.2) of the Hertz pressure over the half-ball (400k samples: standard error ~0.1 %;
+    2 % allowed, the fitted spread factor is within 0.5 %)."""
+    from millimpact.theory.hertz import patch_mean_displacement
+
+    rng = np.random.default_rng(7)
+    n, nu, E = 400_000, 0.3, 1.0
+    G = E / (2 * (1 + nu))
+    # load points with density p(s) / P: s / a = sqrt(1 - (1 - u)^(2/3)) (Hertz pressure, radial cdf)
+    s = a_over_r * np.sqrt(1 - (1 - rng.random(n)) ** (2 / 3))
+    th = 2 * np.pi * rng.random(n)
+    # uniform points in the half-ball of radius 1 below the surface
+    r, ct, ph = rng.random(n) ** (1 / 3), rng.random(n), 2 * np.pi * rng.random(n)
+    st = np.sqrt(1 - ct**2)
+    x, y, z = r * st * np.cos(ph), r * st * np.sin(ph), r * ct
+    rho = np.sqrt((x - s * np.cos(th)) ** 2 + (y - s * np.sin(th)) ** 2 + z**2)
+    mc = float(np.mean((2 * (1 - nu) / rho + z**2 / rho**3) / (4 * np.pi * G)))
+    assert patch_mean_displacement(1.0, a_over_r, 1.0, E, nu) == pytest.approx(mc, rel=0.02)
