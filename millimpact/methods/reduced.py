@@ -360,7 +360,8 @@ def mode_notes(red: ReducedModel) -> list[str]:
         f = b.frequencies_hz
         f = f[:len(f) - b.n_augmented]
         notes.append(f"  {b.name}: {len(f)} modes" + (f", {f[0] / 1e3:.4g}-{f[-1] / 1e3:.4g} kHz" if len(f) else "")
-                     + (f" + {b.n_augmented} augmentation vectors" if b.n_augmented else ""))
+                     + (f" + {b.n_augmented} augmentation vectors" if b.n_augmented else "")
+                     + (" (constraint and fixed-interface modes from the reduction cache)" if b.from_cache else ""))
     return notes
 
 

@@ -8,7 +8,7 @@ import hashlib
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -54,6 +54,9 @@ class BodyReduction:
     ksp: Optional[PETSc.KSP] = None
     A_b: Optional[PETSc.Mat] = None
     K_ii: Optional[PETSc.Mat] = None
+    #: factors K_ii when ``ksp`` is None (Psi and Phi came from the on-disk cache: reduction.cache)
+    factor: Optional[Callable[[], PETSc.KSP]] = None
+    from_cache: bool = False
 
     @property
     def n_modes(self) -> int:
@@ -69,7 +72,8 @@ class BodyReduction:
                 "f_cut_Hz": self.f_cut,
                 "lowest_frequency_Hz": float(f[0]) if len(f) else None,
                 "highest_frequency_Hz": float(f[-1]) if len(f) else None,
-                "next_frequency_Hz": self.next_frequency_hz, "timings_s": dict(self.timings)}
+                "next_frequency_Hz": self.next_frequency_hz, "from_cache": self.from_cache,
+                "timings_s": dict(self.timings)}
 
 
 @dataclass
@@ -249,6 +253,8 @@ class ReducedModel:
         C = np.zeros((k, self.n_global))
         r0, r1 = A.getOwnershipRange()
         for b in self.bodies:
+            if b.ksp is None and b.factor is not None and b.A_b is not None and b.n_interior and not b.n_augmented:
+                b.ksp = b.factor()      # Psi and Phi came from the cache: factor K_ii now, once
             if b.n_interior == 0 or b.ksp is None or b.A_b is None or b.n_augmented:
                 continue
             cols = PETSc.IS().createGeneral(b.I.getIndices(), comm=self.comm)
@@ -283,7 +289,7 @@ class ReducedModel:
             for m in (b.ksp, b.A_b):
                 if m is not None:
                     m.destroy()
-            b.ksp = b.A_b = b.K_ii = None
+            b.ksp = b.A_b = b.K_ii = b.factor = None
 
     def reduced_dofs(self, dofs: np.ndarray) -> np.ndarray:
         """Owned local reduced indices whose basis vectors touch the given owned model dofs (the

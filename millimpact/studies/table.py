@@ -247,6 +247,9 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
         out, _ = compute(scene, method, dict(options), False)
     row = case_row(case, plan, out, time.perf_counter() - t0)
     row["reduction_reused"] = reused
+    if method in REUSED_METHODS:
+        # the band's constraint and fixed-interface modes came from the on-disk cache (reduction.cache)
+        row["reduction_from_cache"] = any(b.from_cache for b in setups[case.band].red.bodies)
     return row
 
 

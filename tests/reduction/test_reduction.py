@@ -551,3 +551,41 @@ def test_mode_acceleration_recovers_free_mode_gauge_stresses(setup, p1):
     # by mode acceleration
     assert max(err["acceleration"]) < 0.01, err
     assert max(err["displacement"]) > 5 * max(err["acceleration"]), err
+
+
+@serial
+def test_reduction_cache_gives_the_same_model(setup, p1, tmp_path, monkeypatch):
+    """reduction.cache: a second reduction of the same matrices takes Psi and Phi from disk and
+    gives the same reduced matrices, frequencies and mode-acceleration rows (the K_ii factorization
+    made on demand; float64 stored, so equal to round-off); another cutoff is another key
+    (computed, not reused); "off" writes nothing."""
+    from millimpact.fem.contact import create_contact
+    from millimpact.methods.reduced import reduced_plan
+    from millimpact.reduction import cache as reduction_cache
+    from millimpact.reduction.craig_bampton import reduce_model
+    from millimpact.reduction.distributed import local_rows_to_aij
+    from millimpact.results.recorder import Recorder
+
+    scene, plan, _ = setup
+    folder = tmp_path / "rc"
+    monkeypatch.setenv(reduction_cache.CACHE_ENV, str(folder))
+    a = reduce_model(p1, f_cut=plan.f_cut)
+    assert len(list(folder.iterdir())) == 2 and not any(b.from_cache for b in a.bodies)   # ball, block
+    b = reduce_model(p1, f_cut=plan.f_cut)
+    assert all(x.from_cache for x in b.bodies if x.n_interior)
+    for A, B in ((a.K, b.K), (a.M, b.M)):
+        D = A.copy()
+        D.axpy(-1.0, B)
+        assert D.norm() <= 1e-12 * A.norm()
+    for x, y in zip(a.bodies, b.bodies):
+        assert np.array_equal(x.frequencies_hz, y.frequencies_hz)
+    _, _, radius, _ = reduced_plan(scene, plan)
+    rec = Recorder(p1, create_contact(p1, plan, radius=radius), plan.probes, ())
+    rows = local_rows_to_aij(rec.probe.P_grad, p1.V)
+    Ca, Cb = a.mode_acceleration_rows(rows), b.mode_acceleration_rows(rows)
+    assert np.abs(Ca).max() > 0 and np.allclose(Ca, Cb, rtol=1e-9, atol=1e-12 * np.abs(Ca).max())
+    c = reduce_model(p1, f_cut=0.5 * plan.f_cut)
+    assert not any(x.from_cache for x in c.bodies) and len(list(folder.iterdir())) == 4
+    monkeypatch.setenv(reduction_cache.CACHE_ENV, "off")
+    d = reduce_model(p1, f_cut=0.25 * plan.f_cut)
+    assert not any(x.from_cache for x in d.bodies) and len(list(folder.iterdir())) == 4
