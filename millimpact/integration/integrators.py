@@ -60,6 +60,7 @@ from .dynamics import (IntegrationStats, LinearDynamics, StepState, TimeSchedule
 from .mass import lumped_mass, lumped_mass_matrix, redistribute_mass
 from .newmark import NewmarkScheme
 from .plastic_newmark import PlasticNewmarkScheme
+from .solvers import GARBAGE_EVERY
 
 log = logging.getLogger(__name__)
 
@@ -155,6 +156,9 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
             stats.max_active = max(stats.max_active, int(np.count_nonzero(active)))
             prev_active = active
             notify(t, dt, step)
+            if step % GARBAGE_EVERY == 0:
+                # dropped per-step PETSc objects are parked until a collective cleanup (solvers.py)
+                PETSc.garbage_cleanup(comm)
             if bar is not None:
                 bar.update(dt * t_scale)
             elif plain is not None and t >= plain["next"] * schedule.t_end * (1 - 1e-12):
