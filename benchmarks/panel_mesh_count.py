@@ -5,7 +5,8 @@ from millimpact.scene.builtin import builtin_scene
 from millimpact.scene.plan import make_plan
 from millimpact.geometry.builders import MeshSizes, gmsh_session, FACET_TAG_NAMES
 from millimpact.geometry.liner import build_liner_model
-scene = builtin_scene("liner-panel")
+import os
+scene = builtin_scene(os.environ.get("SCENE", "liner-panel"))
 for a in sys.argv[1:]:
     k, v = a.split("=")
     scene = scene.with_value(k, float(v))
@@ -30,3 +31,7 @@ with gmsh_session():
 print(f"h_contact {plan.h_contact:.4g} h_far {plan.h_far:.4g} zone {plan.zone_radius:.4g}: tets {ntet} vertices {n_vert} edges {n_edges} "
       f"P1 dofs {3*n_vert} P2 dofs {3*(n_vert+n_edges)} mesh time {info.mesh_time:.1f} s total {time.perf_counter()-t0:.1f} s")
 print(groups)
+from millimpact.scene.sizing import estimate_mesh
+est = estimate_mesh(scene, plan)
+print(f"estimate: vertices {est.vertices} (measured {n_vert}, ratio {n_vert/est.vertices:.3f}) edges {est.edges} "
+      f"(measured {n_edges}) P2 dofs {est.dofs(2)} (measured {3*(n_vert+n_edges)}, ratio {3*(n_vert+n_edges)/est.dofs(2):.3f})")

@@ -115,6 +115,9 @@ class LinerShape:
             raise SceneError("liner.backing", self.backing, "must be 'clamped' (rigid shell) or 'rubber' "
                              "(a Winkler layer: liner.backing_modulus / liner.backing_thickness)")
         d = self.bolt_hole_diameter
+        if self.backing == "rubber" and not (isinstance(d, (int, float)) and d > 0):
+            raise SceneError("liner.backing", self.backing, "a rubber backing needs bolt holes (liner.bolt_hole_diameter "
+                             "> 0): the bolts hold the liner along the shell, the backing only across it")
         if not (isinstance(d, (int, float)) and not isinstance(d, bool) and math.isfinite(d) and d >= 0):
             raise SceneError("liner.bolt_hole_diameter", d, "must be 0 (no holes) or a finite number > 0 m")
         if d == 0:

@@ -152,6 +152,9 @@ class Plan:
     #: predicted radius of the plastic region about the impact point (m; 0 if the materials are
     #: elastic or the impact stays below the yield onset): :func:`predict_plastic_radius`
     plastic_radius: float = 0.0
+    #: normal stiffness per area (Pa/m) of a liner's rubber backing on its back face (a Winkler
+    #: layer, :mod:`millimpact.fem.model`); 0: the back face is clamped (or not a liner)
+    backing_stiffness: float = 0.0
 
     @property
     def normal_speed(self) -> float:
@@ -335,7 +338,8 @@ def make_plan(scene: Scene) -> Plan:
                 ball=scene.ball, target=scene.target_material, impact_point=scene.impact_point,
                 contact_normal=scene.contact_normal, velocity=tuple(scene.impact.velocity),
                 friction=scene.contact.friction, probes=make_probe_spec(scene, planes, h_c, gap),
-                reasons=tuple(reasons.items()), plastic_radius=c_p)
+                reasons=tuple(reasons.items()), plastic_radius=c_p,
+                backing_stiffness=scene.liner.backing_stiffness if scene.liner is not None else 0.0)
 
 
 #: first yield under a Hertz contact (von Mises, nu = 0.3): p0 = 1.60 Y on the axis at 0.48 a
