@@ -86,6 +86,6 @@ def estimate_mesh(scene: Scene, plan: Plan) -> MeshEstimate:
         kept = sum(1 for x, _ in ln.bolt_holes() if "x" not in plan.symmetry_planes or x >= plan.impact_point[0])
         # a tube about each hole, through the plate: the size grows from h_hole on the wall to h_far one d away
         integral += kept * _graded(h_hole, h_far, 0.0, d, lambda r: 2.0 * math.pi * (0.5 * d + r) * ln.thickness)
-    x = h_far / smallest_size(scene)
+    x = min(h_far / smallest_size(scene), 1.0)   # the fit's range: x <= 0.8
     vertices = (VERTICES_PER_UNIT + SURFACE_VERTICES * x) * integral
     return MeshEstimate(int(round(vertices)), int(round((EDGES_PER_VERTEX - SURFACE_EDGES * x) * vertices)), volume)

@@ -1,0 +1,120 @@
+"""A run's peak memory, estimated from its plan before meshing, and the up-front refusal of a run
+that would not fit (rather than the kernel killing it halfway).
+
+Estimate: the DOFs of the plan's mesh (:func:`millimpact.scene.sizing.estimate_mesh`) at the
+method's Lagrange degree, and a linear model peak = base + bytes_per_dof x DOFs / ranks per rank,
+fitted to the peak RSS of liner-panel runs at 1 rank (``benchmarks/memory_fit.py``; the table and
+the fit's error are in docs/scenes.md, "Memory"). ``full`` has its own fit; the reduced methods
+(``improved``, ``modal-p2``, ``traditional``, ``hertz-modal``) use the ``improved`` fit (factorization,
+SLEPc and the constraint modes dominate all of them); ``hertz`` is not checked.
+
+Available: ``MemAvailable`` of /proc/meminfo, and, when the cgroup (v2) sets a limit,
+``memory.max - memory.current`` of /sys/fs/cgroup, the smaller; the ranks on one node share it.
+A run is refused when its ranks on this node would need more than :data:`USABLE_SHARE` of it.
+``MILLIMPACT_AVAILABLE_MEMORY`` (bytes) overrides the available memory (tests), and
+``MILLIMPACT_MEMORY_CHECK=off`` turns the check off.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+from typing import NamedTuple, Optional
+
+from ..errors import InputError
+from ..scene.plan import Plan, smallest_size
+from ..scene.schema import Scene
+from ..scene.sizing import estimate_mesh
+
+#: peak RSS model per method family: (base bytes, bytes per DOF), fitted (module docstring)
+MEMORY_MODELS: dict[str, tuple[float, float]] = {
+    "full": (350e6, 6.0e3),
+    "reduced": (400e6, 12.0e3),
+}
+#: the Lagrange degree each method meshes with (``full``: the plan's or ``--degree``)
+METHOD_DEGREE = {"improved": 2, "modal-p2": 2, "traditional": 1}
+#: refuse when the estimate exceeds this share of the available memory (the fit's error and what
+#: else runs on the machine)
+USABLE_SHARE = 0.9
+GB = 1e9
+
+
+class MemoryEstimate(NamedTuple):
+    """A run's estimated peak memory per rank (bytes), with what it came from."""
+
+    per_rank: float
+    dofs: int
+    degree: int
+    ranks: int
+
+
+def method_degree(method: str, plan: Plan, options: Optional[dict] = None) -> int:
+    """The Lagrange degree a ``method`` run of ``plan`` uses."""
+    if method in METHOD_DEGREE:
+        return METHOD_DEGREE[method]
+    asked = (options or {}).get("degree")
+    return int(asked) if asked not in (None, "") else plan.degree
+
+
+def estimate_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None,
+                    ranks: int = 1) -> MemoryEstimate:
+    """Peak memory per rank (bytes) of a ``method`` run of ``scene`` with ``plan`` on ``ranks``
+    ranks: base + bytes_per_dof x DOFs / ranks (:data:`MEMORY_MODELS`)."""
+    degree = method_degree(method, plan, options)
+    dofs = estimate_mesh(scene, plan).dofs(degree)
+    base, per_dof = MEMORY_MODELS["full" if method == "full" else "reduced"]
+    return MemoryEstimate(base + per_dof * dofs / max(ranks, 1), dofs, degree, ranks)
+
+
+def available_memory() -> tuple[float, str]:
+    """(bytes, where from): the smaller of MemAvailable and the cgroup's free limit, or the
+    ``MILLIMPACT_AVAILABLE_MEMORY`` override."""
+    env = os.environ.get("MILLIMPACT_AVAILABLE_MEMORY")
+    if env:
+        return float(env), "MILLIMPACT_AVAILABLE_MEMORY"
+    best, where = float("inf"), "unknown"
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                best, where = float(line.split()[1]) * 1024, "MemAvailable"
+    except OSError:
+        pass
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        if limit != "max":
+            used = float(Path("/sys/fs/cgroup/memory.current").read_text().strip())
+            if float(limit) - used < best:
+                best, where = float(limit) - used, "cgroup memory.max - memory.current"
+    except (OSError, ValueError):
+        pass
+    return best, where
+
+
+def check_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None, ranks: int = 1,
+                 ranks_on_node: int = 1) -> Optional[MemoryEstimate]:
+    """Refuse (:class:`InputError`, one line: the estimate, the available memory and the option to
+    change) a run whose ``ranks_on_node`` ranks would not fit in this node's available memory;
+    returns the estimate (None when not checked)."""
+    if method == "hertz" or os.environ.get("MILLIMPACT_MEMORY_CHECK", "").lower() in ("off", "0", "no"):
+        return None
+    est = estimate_memory(scene, plan, method, options, ranks)
+    avail, where = available_memory()
+    need = est.per_rank * ranks_on_node
+    if need <= USABLE_SHARE * avail:
+        return est
+    # the far size that would fit (the plan's sizes otherwise), to name in the message
+    h, suggestion = plan.h_far, ""
+    while h < smallest_size(scene):     # coarser than the smallest body size is no model
+        h *= 1.1
+        trial = dataclasses.replace(plan, h_far=h)
+        e = estimate_memory(scene, trial, method, options, ranks)
+        if e.per_rank * ranks_on_node <= USABLE_SHARE * avail:
+            suggestion = f"--set model.h_far={h:.3g} (~{e.dofs:,} DOFs, {e.per_rank / GB:.3g} GB a rank)"
+            break
+    if not suggestion:
+        suggestion = (f"--set model.h_contact=... (larger; no far size up to the smallest body size "
+                      f"{smallest_size(scene) * 1e3:.3g} mm fits)")
+    raise InputError(f"estimated peak memory {est.per_rank / GB:.3g} GB a rank x {ranks_on_node} rank(s) on this node "
+                     f"({method}, P{est.degree}, ~{est.dofs:,} DOFs, h_far {plan.h_far * 1e3:.3g} mm) exceeds "
+                     f"{USABLE_SHARE:.0%} of the available {avail / GB:.3g} GB ({where}): coarsen the mesh with "
+                     f"{suggestion}, or run on a machine with more memory")
