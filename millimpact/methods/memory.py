@@ -1,12 +1,16 @@
 """A run's peak memory, estimated from its plan before meshing, and the up-front refusal of a run
 that would not fit (rather than the kernel killing it halfway).
 
-Estimate: the DOFs of the plan's mesh (:func:`millimpact.scene.sizing.estimate_mesh`) at the
-method's Lagrange degree, and a linear model peak = base + bytes_per_dof x DOFs / ranks per rank,
-fitted to the peak RSS of liner-panel runs at 1 rank (``benchmarks/memory_fit.py``; the table and
-the fit's error are in docs/scenes.md, "Memory"). ``full`` has its own fit; the reduced methods
-(``improved``, ``modal-p2``, ``traditional``, ``hertz-modal``) use the ``improved`` fit (factorization,
-SLEPc and the constraint modes dominate all of them); ``hertz`` is not checked.
+Estimate: the DOFs N of the plan's mesh (:func:`millimpact.scene.sizing.estimate_mesh`) at the
+method's Lagrange degree, and the model peak = base + c N^(4/3) / ranks per rank: the base is the
+interpreter with DOLFINx, PETSc and the forms; N^(4/3) is how the fill of a sparse direct
+factorization of a 3D mesh grows (Lipton, Rose and Tarjan, SIAM J. Numer. Anal. 16 (1979) 346-358),
+and the factorizations dominate the peak. Fitted to the peak RSS of liner-panel runs at 1 rank
+(``benchmarks/memory_fit.py``; the table and the fit's error are in docs/scenes.md, "Memory");
+the division by the ranks (MUMPS distributes its factors) is an assumption, not yet measured.
+``full`` has its own fit; the reduced methods (``improved``, ``modal-p2``, ``traditional``,
+``hertz-modal``) use the ``improved`` fit (factorization, SLEPc and the constraint modes dominate
+all of them); ``hertz`` is not checked.
 
 Available: ``MemAvailable`` of /proc/meminfo, and, when the cgroup (v2) sets a limit,
 ``memory.max - memory.current`` of /sys/fs/cgroup, the smaller; the ranks on one node share it.
@@ -26,11 +30,14 @@ from ..scene.plan import Plan, smallest_size
 from ..scene.schema import Scene
 from ..scene.sizing import estimate_mesh
 
-#: peak RSS model per method family: (base bytes, bytes per DOF), fitted (module docstring)
+#: peak RSS model per method family: (base bytes, c bytes), peak = base + c N^(4/3) / ranks (fitted:
+#: full P1 over 5.2k-54k DOFs within 1.4 %; improved P2: docs/scenes.md, "Memory")
 MEMORY_MODELS: dict[str, tuple[float, float]] = {
-    "full": (350e6, 6.0e3),
-    "reduced": (400e6, 12.0e3),
+    "full": (221e6, 513.0),
+    "reduced": (400e6, 1000.0),
 }
+#: the exponent of N in the model (module docstring)
+EXPONENT = 4.0 / 3.0
 #: the Lagrange degree each method meshes with (``full``: the plan's or ``--degree``)
 METHOD_DEGREE = {"improved": 2, "modal-p2": 2, "traditional": 1}
 #: refuse when the estimate exceeds this share of the available memory (the fit's error and what
@@ -59,11 +66,11 @@ def method_degree(method: str, plan: Plan, options: Optional[dict] = None) -> in
 def estimate_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None,
                     ranks: int = 1) -> MemoryEstimate:
     """Peak memory per rank (bytes) of a ``method`` run of ``scene`` with ``plan`` on ``ranks``
-    ranks: base + bytes_per_dof x DOFs / ranks (:data:`MEMORY_MODELS`)."""
+    ranks: base + c N^(4/3) / ranks (:data:`MEMORY_MODELS`), N the estimated DOFs."""
     degree = method_degree(method, plan, options)
     dofs = estimate_mesh(scene, plan).dofs(degree)
-    base, per_dof = MEMORY_MODELS["full" if method == "full" else "reduced"]
-    return MemoryEstimate(base + per_dof * dofs / max(ranks, 1), dofs, degree, ranks)
+    base, c = MEMORY_MODELS["full" if method == "full" else "reduced"]
+    return MemoryEstimate(base + c * float(dofs) ** EXPONENT / max(ranks, 1), dofs, degree, ranks)
 
 
 def available_memory() -> tuple[float, str]:
