@@ -115,12 +115,17 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, gener
         r = np.hypot(pts[:, 1] - R, pts[:, 2] - 0.5 * w)
         return bool(np.all(np.abs(r - (R + t)) < tol))
 
+    hole_surfaces: list[int] = []
+
     def on_hole(s: int) -> bool:
         if not holes or gmsh.model.getType(2, s) != "Cylinder":
             return False
         pts = surface_samples(s)
         r = 0.5 * liner.bolt_hole_diameter
-        return any(all(abs(liner.hole_distance(tuple(p), hx, hs) - r) < 1e-6 * scale for p in pts) for hx, hs in holes)
+        if any(all(abs(liner.hole_distance(tuple(p), hx, hs) - r) < 1e-6 * scale for p in pts) for hx, hs in holes):
+            hole_surfaces.append(s)
+            return True
+        return False
 
     def liner_facet(s: int, in_zone: bool) -> int:
         if symmetry_tag(s, planes, point[0], 0.0, tol):
@@ -139,15 +144,9 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, gener
     info = ModelInfo(contact_block=tuple(point), contact_ball=ball[2] if ball else None, volumes=volumes,
                      symmetry_planes=planes, sizes=sizes, contact_vertices=tuple(vertices),
                      block_volumes=tuple(zone + region), ball_volumes=tuple(ball_zone + ball_region))
-    hole_curves = []
-    if holes:
-        hole_surfaces = gmsh.model.getEntitiesForPhysicalGroup(2, SUPPORT) if SUPPORT in [
-            t for d, t in gmsh.model.getPhysicalGroups(2)] else []
-        for s in hole_surfaces:
-            if gmsh.model.getType(2, s) == "Cylinder":
-                _, down = gmsh.model.getAdjacencies(2, s)
-                hole_curves += [(int(c), liner.bolt_hole_diameter) for c in down]
-    size_field(vertices, sizes, holes=hole_curves)
+    # the holes' edges (and seams) get the hole size: their walls are the clamped support
+    hole_curves = sorted({int(c) for s in hole_surfaces for c in gmsh.model.getAdjacencies(2, s)[1]})
+    size_field(vertices, sizes, holes=[(c, liner.bolt_hole_diameter) for c in hole_curves])
     if generate:
         info = generate_mesh(info)
     return info
