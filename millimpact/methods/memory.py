@@ -97,12 +97,18 @@ def available_memory() -> tuple[float, str]:
     return best, where
 
 
+def memory_check_applies(method: str) -> bool:
+    """Whether :func:`check_memory` looks at a ``method`` run (not ``hertz``, not when
+    ``MILLIMPACT_MEMORY_CHECK=off``)."""
+    return method != "hertz" and os.environ.get("MILLIMPACT_MEMORY_CHECK", "").lower() not in ("off", "0", "no")
+
+
 def check_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None, ranks: int = 1,
                  ranks_on_node: int = 1) -> Optional[MemoryEstimate]:
     """Refuse (:class:`InputError`, one line: the estimate, the available memory and the option to
     change) a run whose ``ranks_on_node`` ranks would not fit in this node's available memory;
     returns the estimate (None when not checked)."""
-    if method == "hertz" or os.environ.get("MILLIMPACT_MEMORY_CHECK", "").lower() in ("off", "0", "no"):
+    if not memory_check_applies(method):
         return None
     est = estimate_memory(scene, plan, method, options, ranks)
     avail, where = available_memory()

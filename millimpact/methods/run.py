@@ -23,7 +23,7 @@ from ..scene.schema import Scene
 from ..scene.toml_io import dump_scene, scene_to_dict
 from ..theory.hertz import HertzImpact, hertz_history
 from ..errors import InputError
-from .memory import check_memory
+from .memory import check_memory, memory_check_applies
 from .registry import method_runner
 
 log = logging.getLogger(__name__)
@@ -61,7 +61,9 @@ def refuse_if_too_large(scene: Scene, plan: Plan, method: str, options: Optional
     the ranks on this node) does not fit in the available memory (:mod:`.memory`); rank 0 decides."""
     from mpi4py import MPI
 
-    comm = MPI.COMM_WORLD
+    if not memory_check_applies(method):   # before any collective: hertz runs on a table's rank groups
+        return
+    comm = MPI.COMM_WORLD                  # as the FE methods' (methods/full.py)
     node = comm.Split_type(MPI.COMM_TYPE_SHARED)
     on_node = node.size
     node.Free()
