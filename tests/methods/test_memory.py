@@ -48,3 +48,19 @@ def test_per_rank_estimate_falls_with_ranks():
     one, two = estimate_memory(scene, plan, "improved", ranks=1), estimate_memory(scene, plan, "improved", ranks=2)
     assert two.dofs == one.dofs and two.per_rank < one.per_rank
     assert estimate_memory(scene, plan, "full").degree == 1 and one.degree == 2
+
+
+def test_refusal_under_mpi_is_per_rank_and_said_once(tmp_path):
+    """Two ranks on this node: the estimate is per rank, the ranks share the node's memory, rank 0
+    decides and says it once, every rank exits 2 (no rank left waiting)."""
+    import shutil
+
+    if shutil.which("mpirun") is None:
+        pytest.skip("mpirun not installed")
+    env = {**mpi_env(), "MILLIMPACT_AVAILABLE_MEMORY": "4e9"}
+    p = subprocess.run(["mpirun", "-n", "2", sys.executable, "-m", "millimpact.cli", "run", "liner-panel", "--method",
+                        "improved", "--out", str(tmp_path / "out")], capture_output=True, text=True, env=env,
+                       cwd=ROOT, timeout=120)
+    ours = [line for line in p.stderr.splitlines() if line.startswith("millimpact:")]
+    assert p.returncode == 2 and len(ours) == 1, p.stderr
+    assert "x 2 rank(s) on this node" in ours[0] and "Traceback" not in p.stderr
