@@ -84,3 +84,14 @@ def test_gauge_off_the_liner_is_refused(position):
     scene = builtin_scene("liner-panel")
     with pytest.raises(SceneError, match=r"gauges\[0\]\.position"):
         scene.with_value("gauges", [{"name": "off", "position": list(position), "direction": [0, 0, 1]}])
+
+
+def test_liner_segment_writes_as_before_the_new_fields():
+    """A liner without holes and clamped: its TOML (which the study, table and bench cache keys hash)
+    names none of the bolt and backing fields; the panel's round-trips them."""
+    from millimpact.scene.toml_io import dump_scene, scene_from_dict, scene_to_dict
+
+    text = dump_scene(builtin_scene("liner-segment"))
+    assert "bolt" not in text and "backing" not in text
+    panel = builtin_scene("liner-panel")
+    assert scene_from_dict(scene_to_dict(panel)) == panel
