@@ -2,8 +2,8 @@
 that would not fit (rather than the kernel killing it halfway).
 
 Estimate: the DOFs N of the plan's mesh (:func:`millimpact.scene.sizing.estimate_mesh`) at the
-method's Lagrange degree, and the model peak = MEMORY_MARGIN (base + c N^(4/3) / ranks) per rank: the base is the
-interpreter with DOLFINx, PETSc and the forms; N^(4/3) is how the fill of a sparse direct
+method's Lagrange degree, and the model peak = MEMORY_MARGIN (base + c N^(4/3) / ranks) per rank:
+the base is the interpreter with DOLFINx, PETSc and the forms; N^(4/3) is how the fill of a sparse direct
 factorization of a 3D mesh grows (Lipton, Rose and Tarjan, SIAM J. Numer. Anal. 16 (1979) 346-358),
 and the factorizations dominate the peak. Fitted to the peak RSS of liner-panel runs at 1 rank
 (``benchmarks/memory_fit.py``; the table and the fit's error are in docs/scenes.md, "Memory");
