@@ -7,7 +7,8 @@ the base is the interpreter with DOLFINx, PETSc and the forms; N^(4/3) is how th
 factorization of a 3D mesh grows (Lipton, Rose and Tarjan, SIAM J. Numer. Anal. 16 (1979) 346-358),
 and the factorizations dominate the peak. Fitted to the peak RSS of liner-panel runs at 1 rank
 (``benchmarks/memory_fit.py``; the table and the fit's error are in docs/scenes.md, "Memory");
-the margin covers what a whole impact at the plan's contact size adds to the short fitting runs;
+the margin covers what a whole impact at the plan's contact size adds to the short fitting runs
+(and full P2, fitted by full P1's law, its denser factors: :data:`FULL_P2_MARGIN`);
 the division by the ranks (MUMPS distributes its factors) is an assumption, not yet measured.
 ``full`` has its own fit; the reduced methods (``improved``, ``modal-p2``, ``traditional``,
 ``hertz-modal``) use the ``improved`` fit (factorization, SLEPc and the constraint modes dominate
@@ -40,8 +41,12 @@ MEMORY_MODELS: dict[str, tuple[float, float]] = {
 }
 #: whole impacts at the plan's h_contact (plastic zone, its tangent factorizations, the time
 #: series) peaked at up to this many times the short runs' fit at the same DOFs (full P1 at 13.8k
-#: and 26.5k DOFs: 1.31x and 1.37x; docs/scenes.md, "Memory"): the estimate includes it
+#: and 26.5k DOFs: 1.31x and 1.37x; improved P2 at 90.8k: 1.12x; docs/scenes.md, "Memory"): the
+#: estimate includes it
 MEMORY_MARGIN = 1.4
+#: ... but full P2 (whose fit is full P1's) peaked at 2.27x it in a whole plastic impact (90.8k
+#: DOFs, 5.25 GB; elastic: 0.95x): one run measured
+FULL_P2_MARGIN = 2.3
 #: the exponent of N in the model (module docstring)
 EXPONENT = 4.0 / 3.0
 #: the Lagrange degree each method meshes with (``full``: the plan's or ``--degree``)
@@ -76,7 +81,8 @@ def estimate_memory(scene: Scene, plan: Plan, method: str, options: Optional[dic
     degree = method_degree(method, plan, options)
     dofs = estimate_mesh(scene, plan).dofs(degree)
     base, c = MEMORY_MODELS["full" if method == "full" else "reduced"]
-    return MemoryEstimate(MEMORY_MARGIN * (base + c * float(dofs) ** EXPONENT / max(ranks, 1)), dofs, degree, ranks)
+    margin = FULL_P2_MARGIN if method == "full" and degree == 2 else MEMORY_MARGIN
+    return MemoryEstimate(margin * (base + c * float(dofs) ** EXPONENT / max(ranks, 1)), dofs, degree, ranks)
 
 
 def available_memory() -> tuple[float, str]:
