@@ -118,6 +118,12 @@ def cmd_scene(args: argparse.Namespace) -> int:
              f"{ln.lifter_height*1e3:g} mm high, top {ln.lifter_top_width*1e3:g} mm, face angle {ln.lifter_face_angle:g} deg, "
              f"mill radius {ln.mill_radius:g} m; rho {ln.material.density:g} kg/m^3, G {ln.material.shear_modulus/1e9:g} "
              f"GPa, nu {ln.material.poisson:g}")
+        if ln.bolt_holes():
+            say(f"  bolts   {len(ln.bolt_holes())} holes of {ln.bolt_hole_diameter*1e3:g} mm (clamped) at x "
+                f"{', '.join(f'{x*1e3:g}' for x in ln.bolt_x)} mm x arc {', '.join(f'{a*1e3:g}' for a in ln.bolt_arc)} mm; "
+                + ("back face clamped" if ln.backing == "clamped" else
+                   f"back face on a rubber backing: E_c {ln.backing_modulus/1e9:.3g} GPa, {ln.backing_thickness*1e3:g} mm, "
+                   f"k_n {ln.backing_stiffness:.3g} Pa/m"))
         say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, normal "
              f"{scene.normal_speed:.4g} m/s; point ({', '.join(f'{c*1e3:.4g}' for c in p)}) mm on lifter "
              f"{ln.impact_lifter} face {ln.impact_face}, normal ({', '.join(f'{c:.4g}' for c in n)})")
@@ -143,6 +149,12 @@ def cmd_scene(args: argparse.Namespace) -> int:
         say(f"  {name:<14s} {value:<28s} {why}")
     for note in method_notes[1:]:
         say(f"  note: {note}")
+    if args.method != "hertz":
+        from .methods.memory import estimate_memory
+
+        est = estimate_memory(scene, plan, args.method)
+        say(f"  size: ~{est.dofs:,} P{est.degree} DOFs, peak memory ~{est.per_rank / 1e9:.3g} GB at 1 rank "
+            "(estimated before meshing: millimpact/scene/sizing.py, methods/memory.py)")
     return 0
 
 

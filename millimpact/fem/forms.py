@@ -20,6 +20,13 @@ def elastic_stiffness(u, v, mu, lmbda, dx):
     return ufl.inner(sigma(u, mu, lmbda), epsilon(v)) * dx
 
 
+def winkler_foundation(u, v, k_n, n, ds):
+    """Bilinear form of an elastic (Winkler) foundation of normal stiffness per area k_n (Pa/m) under
+    the facets of ``ds`` with unit normal n: int k_n (u . n)(v . n) ds (E. Winkler 1867; a bed of
+    independent normal springs, no shear: a rubber backing sheet between liner and shell)."""
+    return k_n * ufl.dot(u, n) * ufl.dot(v, n) * ds
+
+
 def mass(u, v, rho, dx):
     """Bilinear form of the consistent mass M: int rho u . v dx."""
     return rho * ufl.inner(u, v) * dx

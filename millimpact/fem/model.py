@@ -118,7 +118,8 @@ def create_fe_model(md: MeshData, plan: Plan, degree: Optional[int] = None) -> F
     sym_factor = float(2 ** len(plan.symmetry_planes))
     mu, lmbda, rho, extra = _assign_materials(V, ball_cells, plan, sym_factor)
     bcs = _clamp_and_symmetry(V, support, sym_facets)
-    K, M = _assemble(V, mu, lmbda, rho, bcs)
+    backing = (md.facet_tags, plan.backing_stiffness) if plan.backing_stiffness > 0 else None
+    K, M = _assemble(V, mu, lmbda, rho, bcs, backing)
     fixed_dofs, ball_dofs, block_dofs = _dof_sets(V, bcs, ball_cells)
     n_global = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
     log.info("FE model: P%d, %d dofs, symmetry factor %g", degree, n_global, sym_factor)
@@ -163,11 +164,19 @@ def _clamp_and_symmetry(V: fem.FunctionSpace, support: np.ndarray, sym_facets: d
     return bcs
 
 
-def _assemble(V: fem.FunctionSpace, mu: fem.Function, lmbda: fem.Function, rho: fem.Function, bcs: list):
-    """Stiffness K (unit diagonal on constrained rows) and consistent mass M (zero diagonal there)."""
+def _assemble(V: fem.FunctionSpace, mu: fem.Function, lmbda: fem.Function, rho: fem.Function, bcs: list,
+              backing: Optional[tuple] = None):
+    """Stiffness K (unit diagonal on constrained rows) and consistent mass M (zero diagonal there).
+    ``backing`` = (facet tags, k_n Pa/m): K also holds the Winkler layer int_BACKING k_n (u.n)(v.n) ds
+    (:func:`forms.winkler_foundation`), linear, so the region's modes stay those of a linear model."""
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     dx = ufl.Measure("dx", domain=V.mesh)
-    a_k = fem.form(forms.elastic_stiffness(u, v, mu, lmbda, dx))
+    a = forms.elastic_stiffness(u, v, mu, lmbda, dx)
+    if backing is not None:
+        tags, k_n = backing
+        ds = ufl.Measure("ds", domain=V.mesh, subdomain_data=tags)
+        a = a + forms.winkler_foundation(u, v, fem.Constant(V.mesh, float(k_n)), ufl.FacetNormal(V.mesh), ds(G.BACKING))
+    a_k = fem.form(a)
     a_m = fem.form(forms.mass(u, v, rho, dx))
     K = fem_petsc.assemble_matrix(a_k, bcs=bcs, diagonal=1.0)
     K.assemble()

@@ -36,6 +36,8 @@ facets
 ``SYM_Z``              17    cut plane z = z_p (both bodies)
 ``BALL_SURFACE``       18    rest of the ball's surface
 ``BLOCK_SURFACE``      19    rest of the block's exterior
+``BACKING``            20    a liner's back face on a rubber backing (``liner.backing = "rubber"``;
+                             clamped it is ``SUPPORT``); a liner's bolt holes are ``SUPPORT``
 =====================  ====  ==================================================================
 """
 from __future__ import annotations
@@ -65,6 +67,7 @@ BUILDER_VERSION = 1
 BALL_ZONE, BALL_REGION, BLOCK_ZONE, BLOCK_REGION = 1, 2, 3, 4
 BALL_CONTACT, BLOCK_CONTACT, BALL_INTERFACE, BLOCK_INTERFACE = 11, 12, 13, 14
 SUPPORT, SYM_X, SYM_Z, BALL_SURFACE, BLOCK_SURFACE = 15, 16, 17, 18, 19
+BACKING = 20
 
 CELL_TAG_NAMES: dict[int, str] = {
     BALL_ZONE: "ball_zone", BALL_REGION: "ball_region", BLOCK_ZONE: "block_zone", BLOCK_REGION: "block_region",
@@ -72,7 +75,7 @@ CELL_TAG_NAMES: dict[int, str] = {
 FACET_TAG_NAMES: dict[int, str] = {
     BALL_CONTACT: "ball_contact", BLOCK_CONTACT: "block_contact", BALL_INTERFACE: "ball_interface",
     BLOCK_INTERFACE: "block_interface", SUPPORT: "support", SYM_X: "sym_x", SYM_Z: "sym_z",
-    BALL_SURFACE: "ball_surface", BLOCK_SURFACE: "block_surface",
+    BALL_SURFACE: "ball_surface", BLOCK_SURFACE: "block_surface", BACKING: "backing",
 }
 
 #: the size reaches h_far this many zone radii beyond fine_radius: a growth rate
@@ -300,9 +303,21 @@ def tag_groups(block_zone: list[int], block_region: list[int], ball_zone: list[i
     return volumes
 
 
-def size_field(points: Sequence[int], sizes: MeshSizes) -> None:
+#: elements around a bolt hole's circumference (at most; never coarser than h_far): its lateral
+#: area, the clamped support, is then within 1 - sin(pi/n)/(pi/n) = 0.6 % of the cylinder's
+HOLE_ELEMENTS_AROUND = 16
+
+
+def hole_size(diameter: float, h_far: float) -> float:
+    """Element size (m) on a bolt hole of ``diameter`` (m): pi d / HOLE_ELEMENTS_AROUND, at most h_far."""
+    return min(h_far, math.pi * diameter / HOLE_ELEMENTS_AROUND)
+
+
+def size_field(points: Sequence[int], sizes: MeshSizes, holes: Sequence[tuple[int, float]] = ()) -> None:
     """h = h_contact within fine_radius of the contact points, linear growth to h_far at
-    fine_radius + SIZE_GROWTH_ZONE_RADII zone_radius, capped at h_far; first-order tets."""
+    fine_radius + SIZE_GROWTH_ZONE_RADII zone_radius, capped at h_far; first-order tets.
+    ``holes``: (gmsh curve tag, hole diameter m) of the bolt holes' edges: h = :func:`hole_size` on
+    them, growing linearly to h_far one diameter away (the smaller of the two fields wins)."""
     f = gmsh.model.mesh.field
     dist = f.add("Distance")
     f.setNumbers(dist, "PointsList", list(points))
@@ -312,7 +327,23 @@ def size_field(points: Sequence[int], sizes: MeshSizes) -> None:
     f.setNumber(thr, "SizeMax", sizes.h_far)
     f.setNumber(thr, "DistMin", sizes.fine_radius)
     f.setNumber(thr, "DistMax", sizes.fine_radius + SIZE_GROWTH_ZONE_RADII * sizes.zone_radius)
-    f.setAsBackgroundMesh(thr)
+    background = thr
+    if holes:
+        fields = [thr]
+        for curve, diameter in holes:
+            d_h = f.add("Distance")
+            f.setNumbers(d_h, "CurvesList", [curve])
+            f.setNumber(d_h, "NumPointsPerCurve", 100)
+            t_h = f.add("Threshold")
+            f.setNumber(t_h, "InField", d_h)
+            f.setNumber(t_h, "SizeMin", hole_size(diameter, sizes.h_far))
+            f.setNumber(t_h, "SizeMax", sizes.h_far)
+            f.setNumber(t_h, "DistMin", 0.0)
+            f.setNumber(t_h, "DistMax", diameter)
+            fields.append(t_h)
+        background = f.add("Min")
+        f.setNumbers(background, "FieldsList", fields)
+    f.setAsBackgroundMesh(background)
     opt = gmsh.option.setNumber
     opt("Mesh.MeshSizeExtendFromBoundary", 0)
     opt("Mesh.MeshSizeFromPoints", 0)

@@ -16,7 +16,7 @@ from ..scene.schema import Vec3
 
 logger = logging.getLogger(__name__)
 
-from .builders import (BALL_CONTACT, BALL_SURFACE, BLOCK_CONTACT, BLOCK_SURFACE, SUPPORT, SYM_X, MeshSizes, ModelInfo, on_plane, surface_samples, symmetry_tag, check_zone_fits, generate_mesh, keep_box, polygon_face, positive_size, run_gmsh, size_field, split_body, tag_groups)
+from .builders import (BACKING, BALL_CONTACT, BALL_SURFACE, BLOCK_CONTACT, BLOCK_SURFACE, SUPPORT, SYM_X, MeshSizes, ModelInfo, on_plane, surface_samples, symmetry_tag, check_zone_fits, generate_mesh, keep_box, polygon_face, positive_size, run_gmsh, size_field, split_body, tag_groups)
 
 
 # --- the liner model -----------------------------------------------------------------------------
@@ -28,7 +28,8 @@ def build_liner_model(liner: LinerShape, sizes: MeshSizes, *, lifter: int = 0, f
 
     The contact point is ``liner.lifter_face_point(lifter, face, height_fraction, x)``.
     ``symmetry_planes`` may be ``("x",)``: keep ``x >= x`` (the liner is prismatic along x).
-    ``SUPPORT`` is the plate's back face (bolted to the mill shell). Sizes in m.
+    ``SUPPORT`` is the plate's back face (on the mill shell; ``BACKING`` when ``liner.backing`` is
+    ``"rubber"``) and the bolt holes' surfaces (:meth:`LinerShape.bolt_holes`). Sizes in m.
     """
     liner.validate_shape()
     sizes.validate()
@@ -82,6 +83,9 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, gener
     if len(vols) != 1:
         raise MeshError(f"the liner cross-section did not fuse into one body ({len(vols)} pieces)")
     body = vols[0][1]
+    holes = liner.bolt_holes()
+    if holes:
+        body = _drill(body, liner, holes)
     scale = max(L, w, t + liner.lifter_height, ball[0] * 2 if ball else 0.0)
     lo = (-scale - L, -scale - t - 2 * R, -scale - w)
     hi = (scale + L, scale + liner.lifter_height + 2 * R, scale + 2 * w)
@@ -111,10 +115,24 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, gener
         r = np.hypot(pts[:, 1] - R, pts[:, 2] - 0.5 * w)
         return bool(np.all(np.abs(r - (R + t)) < tol))
 
+    hole_surfaces: list[int] = []
+
+    def on_hole(s: int) -> bool:
+        if not holes or gmsh.model.getType(2, s) != "Cylinder":
+            return False
+        pts = surface_samples(s)
+        r = 0.5 * liner.bolt_hole_diameter
+        if any(all(abs(liner.hole_distance(tuple(p), hx, hs) - r) < 1e-6 * scale for p in pts) for hx, hs in holes):
+            hole_surfaces.append(s)
+            return True
+        return False
+
     def liner_facet(s: int, in_zone: bool) -> int:
         if symmetry_tag(s, planes, point[0], 0.0, tol):
             return SYM_X
         if on_support(s):
+            return BACKING if liner.backing == "rubber" else SUPPORT
+        if on_hole(s):
             return SUPPORT
         return BLOCK_CONTACT if in_zone else BLOCK_SURFACE
 
@@ -126,9 +144,30 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, gener
     info = ModelInfo(contact_block=tuple(point), contact_ball=ball[2] if ball else None, volumes=volumes,
                      symmetry_planes=planes, sizes=sizes, contact_vertices=tuple(vertices),
                      block_volumes=tuple(zone + region), ball_volumes=tuple(ball_zone + ball_region))
-    size_field(vertices, sizes)
+    # the holes' edges (and seams) get the hole size: their walls are the clamped support
+    hole_curves = sorted({int(c) for s in hole_surfaces for c in gmsh.model.getAdjacencies(2, s)[1]})
+    size_field(vertices, sizes, holes=[(c, liner.bolt_hole_diameter) for c in hole_curves])
     if generate:
         info = generate_mesh(info)
     return info
 
 
+
+
+def _drill(body: int, liner: LinerShape, holes) -> int:
+    """Cut the bolt holes (cylinders of ``liner.bolt_hole_diameter`` along each hole's axis,
+    through the plate and a little beyond) out of the liner volume ``body``; returns the new tag."""
+    occ = gmsh.model.occ
+    t = liner.thickness
+    margin = 0.5 * t
+    tools = []
+    for hx, hs in holes:
+        (ax, ay, az), (ex, ey, ez) = liner.hole_axis(hx, hs)
+        start = (ax - margin * ex, ay - margin * ey, az - margin * ez)
+        span = t + 2 * margin
+        tools.append((3, occ.addCylinder(*start, span * ex, span * ey, span * ez, 0.5 * liner.bolt_hole_diameter)))
+    out, _ = occ.cut([(3, body)], tools)
+    vols = [v for d, v in out if d == 3]
+    if len(vols) != 1:
+        raise MeshError(f"drilling the bolt holes left {len(vols)} liner pieces (expected one)")
+    return vols[0]

@@ -187,7 +187,13 @@ def create_liner_mesh(liner: LinerShape, sizes: MeshSizes, comm: MPI.Comm = MPI.
     """A liner segment mesh (tagged as the block), optionally with a ball; ``placement`` goes to
     :func:`millimpact.geometry.liner.build_liner_model` (lifter, face, height_fraction, x, ball_radius,
     gap, symmetry_planes). Cached like :func:`create_mesh`."""
-    params = {"kind": "liner", **_builder_parameters(), "liner": {f.name: getattr(liner, f.name) for f in dataclasses.fields(LinerShape)},
+    shape = {f.name: getattr(liner, f.name) for f in dataclasses.fields(LinerShape)}
+    for name, default in LinerShape.OPTIONAL_DEFAULTS.items():   # no holes, clamped: the key as before them
+        if shape[name] == default:
+            del shape[name]
+        elif isinstance(shape[name], tuple):
+            shape[name] = list(shape[name])
+    params = {"kind": "liner", **_builder_parameters(), "liner": shape,
               "sizes": dataclasses.asdict(sizes),
               "placement": {k: list(v) if isinstance(v, tuple) else v for k, v in sorted(placement.items())}}
     planes = tuple(placement.get("symmetry_planes", ()))

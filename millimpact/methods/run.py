@@ -22,6 +22,8 @@ from ..scene.plan import Plan, elastic_limit_note, make_plan
 from ..scene.schema import Scene
 from ..scene.toml_io import dump_scene, scene_to_dict
 from ..theory.hertz import HertzImpact, hertz_history
+from ..errors import InputError
+from .memory import check_memory, memory_check_applies
 from .registry import method_runner
 
 log = logging.getLogger(__name__)
@@ -40,6 +42,7 @@ def compute(scene: Scene, method: str, options: Optional[dict] = None, progress:
     output and the plan it used."""
     runner = method_runner(method)
     plan = make_plan(scene)
+    refuse_if_too_large(scene, plan, method, options)   # before meshing: one line, exit 2
     left = dict(options or {})           # the runner pops its own settings; the rest are solver options
     reset_option_usage()
     out = runner(scene, plan, left, progress)
@@ -51,6 +54,30 @@ def compute(scene: Scene, method: str, options: Optional[dict] = None, progress:
         out.notes.append("warning: options that nothing in this run used (misspelled, or for a solver "
                          f"method {method} does not have): {', '.join('-' + k for k in unused)}")
     return out, plan
+
+
+def refuse_if_too_large(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None) -> None:
+    """Raise :class:`InputError` on every rank when the run's estimated peak memory (per rank, times
+    the ranks on this node) does not fit in the available memory (:mod:`.memory`); rank 0 decides."""
+    from mpi4py import MPI
+
+    if not memory_check_applies(method):   # before any collective: hertz runs on a table's rank groups
+        return
+    comm = MPI.COMM_WORLD                  # as the FE methods' (methods/full.py)
+    node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    on_node = node.size
+    node.Free()
+    message = None
+    if comm.rank == 0:
+        try:
+            est = check_memory(scene, plan, method, options, ranks=comm.size, ranks_on_node=on_node)
+            if est is not None:
+                log.info("estimated peak memory %.3g GB a rank (P%d, ~%d DOFs)", est.per_rank / 1e9, est.degree, est.dofs)
+        except InputError as exc:
+            message = str(exc)
+    message = comm.bcast(message, root=0)
+    if message:
+        raise InputError(message)
 
 
 def build_summary(scene: Scene, plan: Plan, out: RunOutput, wall: float) -> dict[str, Any]:

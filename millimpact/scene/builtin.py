@@ -1,5 +1,5 @@
 """The built-in scenes (``paper-rig`` the default, ``paper-rig-plastic``, ``hertz-halfspace``, ``study-base``,
-``liner-segment``) and the paper's parameter studies; :func:`resolve_scene` takes a built-in name or a TOML file.
+``liner-segment``, ``liner-panel``) and the paper's parameter studies; :func:`resolve_scene` takes a built-in name or a TOML file.
 """
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ from pathlib import Path
 
 from ..errors import SceneError
 
-from .schema import Ball, Block, ContactOptions, Gauge, Impact, Liner, Material, Outputs, Scene, TimeSpan, coerce_value
+from ..theory.rubber import compression_modulus, sheet_shape_factor, shore_a_modulus
+from .schema import Ball, Block, ContactOptions, Gauge, Impact, Liner, Material, Outputs, Scene, TimeSpan, Vec3, coerce_value
 from .toml_io import load_scene
 
 
@@ -85,18 +86,23 @@ LINER_IMPACT_SPEED = 8.0
 LINER_IMPACT_ANGLE = 30.0
 
 
+def _oblique_velocity(liner: Liner) -> Vec3:
+    """The liner scenes' arrival velocity: LINER_IMPACT_SPEED at LINER_IMPACT_ANGLE from the struck
+    face's inward normal -n, tilted towards the plate (down the face): v = V (-cos(a) n - sin(a) s),
+    s the face's up-slope direction in the y-z plane."""
+    _, n = liner.face_point()
+    up = (0.0, n[2], -n[1]) if n[2] > 0 else (0.0, -n[2], n[1])    # in-face, pointing away from the plate
+    a = math.radians(LINER_IMPACT_ANGLE)
+    return tuple(round(LINER_IMPACT_SPEED * (-math.cos(a) * nc - math.sin(a) * uc), 12) + 0.0 for nc, uc in zip(n, up))
+
+
 def _liner_segment() -> Scene:
     """A large ball striking a SAG liner's lifter face obliquely (sizes and sources in the description)."""
     liner = Liner(length=0.40, width=0.50, thickness=0.075, n_lifters=1, lifter_height=0.20,
                   lifter_top_width=0.10, lifter_face_angle=20.0, lifter_spacing=0.30, mill_radius=5.5,
                   impact_lifter=0, impact_face="+z", impact_height=0.5, impact_x=0.0,
                   material=coerce_value(Material, "cr-mo-liner", "liner.material"))
-    # velocity: LINER_IMPACT_ANGLE from the face's inward normal -n, tilted towards the plate (down
-    # the face): v = V (-cos(a) n - sin(a) s), s the face's up-slope direction in the y-z plane
-    _, n = liner.face_point()
-    up = (0.0, n[2], -n[1]) if n[2] > 0 else (0.0, -n[2], n[1])    # in-face, pointing away from the plate
-    a = math.radians(LINER_IMPACT_ANGLE)
-    v = tuple(round(LINER_IMPACT_SPEED * (-math.cos(a) * nc - math.sin(a) * uc), 12) + 0.0 for nc, uc in zip(n, up))
+    v = _oblique_velocity(liner)
     return Scene(
         name="liner-segment",
         description=(
@@ -120,12 +126,87 @@ def _liner_segment() -> Scene:
     )
 
 
+#: the liner-panel scene's rubber backing: a 65 Shore A, 6 mm mill-backing sheet (Reglin Rubber,
+#: "Mill Backing Lining Rubber" data sheet: 65 +- 5 Shore A, sold 6 mm thick, bonded behind liner plates)
+PANEL_BACKING_SHORE_A = 65.0
+PANEL_BACKING_THICKNESS = 0.006
+#: a gauge sits this far (m) under the liner surface: its probe needs a cell that holds it
+GAUGE_DEPTH = 1.0e-4
+
+
+def _panel_gauges(liner: Liner) -> tuple[Gauge, ...]:
+    """Gauge ``bolt`` on the plate's inner face beside the bolt hole nearest the impact (3 mm from
+    the hole's edge on its side towards the plane of incidence, along the arc: the hoop stress at
+    the hole's edge under the plate's bending across the lifters) and gauge ``root`` on the struck
+    lifter face 5 % of its height above the plate (along the face, up the slope: the lifter's
+    bending at its root). Both GAUGE_DEPTH under the surface."""
+    p, n = liner.face_point()
+    c = liner.lifter_centres()[liner.impact_lifter]
+    # the nearest hole in the kept half (x >= the impact's x), on the struck face's side preferred
+    hx, hs = min(liner.bolt_holes(), key=lambda h: (h[0] < p[0], (h[1] > c) != (liner.impact_face == "+z"),
+                                                    (h[0] - p[0]) ** 2 + (h[1] - c) ** 2))
+    R, w = liner.mill_radius, liner.width
+    phi = (hs - 0.5 * w) / R
+    r = R + GAUGE_DEPTH
+    x_g = hx - math.copysign(0.5 * liner.bolt_hole_diameter + 3e-3, hx - p[0])
+    bolt = Gauge("bolt", (x_g, R - r * math.cos(phi), 0.5 * w + r * math.sin(phi)), (0.0, math.sin(phi), math.cos(phi)))
+    q, m = liner.lifter_face_point(liner.impact_lifter, liner.impact_face, 0.05, p[0])
+    up = (0.0, m[2], -m[1]) if m[2] > 0 else (0.0, -m[2], m[1])
+    root = Gauge("root", tuple(qc - GAUGE_DEPTH * mc for qc, mc in zip(q, m)), up)
+    return (bolt, root)
+
+
+def _liner_panel() -> Scene:
+    """A panel of a SAG mill's shell liner: three lifters, bolt holes, rubber backing (sources in the description)."""
+    length, width, height, spacing, base = 1.0, 1.2, 0.18, 0.45, 0.1 + 2 * 0.18 * math.tan(math.radians(20.0))
+    # the backing's compression modulus: the sheet under one lifter's foot (base x length) bonded, Gent and Lindley
+    e_c = compression_modulus(shore_a_modulus(PANEL_BACKING_SHORE_A),
+                              sheet_shape_factor(base, length, PANEL_BACKING_THICKNESS))
+    liner = Liner(length=length, width=width, thickness=0.075, n_lifters=3, lifter_height=height,
+                  lifter_top_width=0.10, lifter_face_angle=20.0, lifter_spacing=spacing, mill_radius=5.5,
+                  bolt_hole_diameter=0.042, bolt_x=(-0.25, 0.25), bolt_arc=(0.375, 0.825), backing="rubber",
+                  backing_modulus=round(e_c, -6), backing_thickness=PANEL_BACKING_THICKNESS,
+                  impact_lifter=1, impact_face="+z", impact_height=0.5, impact_x=0.0,
+                  material=coerce_value(Material, "cr-mo-liner", "liner.material"))
+    return Scene(
+        name="liner-panel",
+        description=(
+            "A panel of the shell liner of a 36-40 ft (11-12 m) SAG mill: 1.0 m along the axis x 1.2 m of arc, "
+            "three lifters on a 75 mm shell plate curved to the mill's 5.5 m radius, bolted to the shell through "
+            "42 mm holes and lying on a rubber backing; a 125 mm ball at 8 m/s strikes the middle lifter's face "
+            "30 deg off its normal (towards the plate), Coulomb friction mu = 0.2, as liner-segment. "
+            "Sources: plate 75 mm (typical 75-100 mm), lifter 180 mm high (150-250 mm), 100 mm top, 20 deg face "
+            "angle (15-30 deg), balls 100-150 mm at up to ~10 m/s: D. Royston, SAG mill liner design and "
+            "development, Min. Metall. Process. 24 (2007) 121-132. Lifter spacing 450 mm: a spacing-to-height "
+            "ratio of 2.5, the low end of the 2.5-5 that maximizes throughput (911 Metallurgist, SAG mill liner "
+            "design, after Royston). Bolts: 1 1/2 in (38.1 mm), the largest liner bolt of Unicast's liner-bolt "
+            "torque table (1 - 1 1/2 in UNF), in 42 mm holes (ISO 273 medium clearance for M39); two bolts "
+            "along each shell plate (liner plates are held by two or three bolts: FLSmidth, Ball mills 70000375-1, "
+            "bolted-on lining plates), at x = -0.25, 0.25 m, midway between lifters. Backing: a 6 mm, 65 Shore A "
+            "mill-backing rubber sheet (Reglin Rubber data sheet), Young's modulus 4.4 MPa (Gent 1958), "
+            "compression modulus of the sheet under a lifter's foot ~1.0 GPa (Gent and Lindley 1959, bulk "
+            "modulus 2 GPa: Lindley, Engineering design with natural rubber, MRPRA 1978): a Winkler layer "
+            "k_n = E_c / t on the back face (docs/scenes.md, liner-panel); the bolt holes' surfaces clamped. "
+            "Steels as liner-segment (cr-mo-liner, forged-ball-60hrc; scene/materials.toml), elastic-plastic. "
+            "Gauges: 'bolt' beside the bolt hole nearest the impact, 'root' at the struck lifter's root. "
+            "Half model: the plane of incidence x = 0 is a symmetry plane."),
+        ball=Ball(radius=0.0625, material=coerce_value(Material, "forged-ball-60hrc", "ball.material")),
+        liner=liner,
+        impact=Impact(velocity=_oblique_velocity(liner)),
+        contact=ContactOptions(friction=0.2),
+        gauges=_panel_gauges(liner),
+        time=TimeSpan(end=0.6e-3),
+        outputs=Outputs(field_times=(0.0, 2.0e-4, 4.0e-4)),
+    )
+
+
 BUILTIN_SCENES = {
     "paper-rig": _paper_rig,
     "paper-rig-plastic": _paper_rig_plastic,
     "hertz-halfspace": _hertz_halfspace,
     "study-base": _study_base,
     "liner-segment": _liner_segment,
+    "liner-panel": _liner_panel,
 }
 DEFAULT_SCENE = "paper-rig"
 

@@ -12,6 +12,13 @@ run along x on the inner face, centred ``lifter_spacing`` apart about ``z = widt
 ``top + 2 height tan(angle)``; a negative angle undercuts the bar). ``mill_radius`` > 0 curves the
 plate about an axis along x at ``(y, z) = (mill_radius, width/2)`` (the inner face has radius
 ``mill_radius``, ``width`` is its arc length); 0 keeps it flat (``z in [0, width]``).
+
+Bolt holes (optional; ``bolt_hole_diameter`` 0, the default, means none): a hole of that diameter
+through the plate, normal to it (radial on a curved plate), at every pair of an axial position in
+``bolt_x`` and an arc position in ``bolt_arc`` (measured like :meth:`LinerShape.lifter_centres`).
+``backing`` says what holds the back face: ``"clamped"`` (rigid, u = 0: the default) or
+``"rubber"`` (an elastic Winkler layer; its stiffness is a scene field of
+:class:`millimpact.scene.schema.Liner`); the holes' surfaces are clamped (the bolts).
 """
 from __future__ import annotations
 
@@ -41,6 +48,107 @@ class LinerShape:
     lifter_face_angle: float = 20.0
     lifter_spacing: float = 0.30
     mill_radius: float = 0.0
+    bolt_hole_diameter: float = 0.0
+    bolt_x: tuple[float, ...] = ()
+    bolt_arc: tuple[float, ...] = ()
+    backing: str = "clamped"
+
+    #: the fields added with the bolt holes and the backing, and their defaults (no holes, the back
+    #: face clamped): a liner that keeps them has the mesh (and cache key) it had before them
+    OPTIONAL_DEFAULTS = {"bolt_hole_diameter": 0.0, "bolt_x": (), "bolt_arc": (), "backing": "clamped"}
+
+    def bolt_holes(self) -> list[tuple[float, float]]:
+        """(x, arc position) of every bolt hole's axis, m; empty without holes."""
+        if self.bolt_hole_diameter == 0:
+            return []
+        return [(float(x), float(s)) for x in self.bolt_x for s in self.bolt_arc]
+
+    def hole_axis(self, x: float, s: float) -> tuple[Vec3, Vec3]:
+        """A point of the axis of the hole at (x, arc s) on the plate's inner face and the axis'
+        unit direction pointing out of the mill (into the plate), m."""
+        if self.mill_radius == 0:
+            return (x, 0.0, s), (0.0, -1.0, 0.0)
+        R = self.mill_radius
+        phi = (s - 0.5 * self.width) / R
+        return (x, R - R * math.cos(phi), 0.5 * self.width + R * math.sin(phi)), (0.0, -math.cos(phi), math.sin(phi))
+
+    def hole_distance(self, p: Vec3, x: float, s: float) -> float:
+        """Distance (m) of point ``p`` from the axis of the hole at (x, arc s)."""
+        a, e = self.hole_axis(x, s)
+        d = [pc - ac for pc, ac in zip(p, a)]
+        along = sum(dc * ec for dc, ec in zip(d, e))
+        return math.sqrt(max(sum(dc * dc for dc in d) - along * along, 0.0))
+
+    def contains(self, p: Vec3, tol: float = 1e-9) -> bool:
+        """Whether point ``p`` (m) lies in the liner (plate or a lifter, not in a bolt hole), with
+        ``tol`` (m) of slack on every face."""
+        x, y, z = p
+        if abs(x) > 0.5 * self.length + tol:
+            return False
+        R, w, t = self.mill_radius, self.width, self.thickness
+        if R == 0:
+            r, s = -y, z                                    # depth below the inner face, arc position
+        else:
+            r = math.hypot(y - R, z - 0.5 * w) - R
+            s = 0.5 * w + R * math.atan2(z - 0.5 * w, R - y)
+        in_plate = -tol <= r <= t + tol and -tol <= s <= w + tol
+        if in_plate and any(self.hole_distance(p, hx, hs) < 0.5 * self.bolt_hole_diameter - tol
+                            for hx, hs in self.bolt_holes()):
+            return False
+        if in_plate:
+            return True
+        hb, ht, h = 0.5 * self.lifter_base_width, 0.5 * self.lifter_top_width, self.lifter_height
+        for c in self.lifter_centres():
+            dy, dz = (y, z - c) if R == 0 else (y - (R - R * math.cos((c - 0.5 * w) / R)),
+                                                z - (0.5 * w + R * math.sin((c - 0.5 * w) / R)))
+            phi = 0.0 if R == 0 else (c - 0.5 * w) / R
+            eta = dy * math.cos(phi) - dz * math.sin(phi)
+            zeta = dy * math.sin(phi) + dz * math.cos(phi)
+            if -tol <= eta <= h + tol and abs(zeta) <= hb + (ht - hb) * max(eta, 0.0) / h + tol:
+                return True
+        return False
+
+    def validate_bolts(self) -> None:
+        """Refuse bolt holes off the plate, under a lifter's foot or overlapping, and an unknown
+        backing, with a :class:`SceneError` naming the field."""
+        if self.backing not in ("clamped", "rubber"):
+            raise SceneError("liner.backing", self.backing, "must be 'clamped' (rigid shell) or 'rubber' "
+                             "(a Winkler layer: liner.backing_modulus / liner.backing_thickness)")
+        d = self.bolt_hole_diameter
+        if self.backing == "rubber" and not (isinstance(d, (int, float)) and d > 0):
+            raise SceneError("liner.backing", self.backing, "a rubber backing needs bolt holes (liner.bolt_hole_diameter "
+                             "> 0): the bolts hold the liner along the shell, the backing only across it")
+        if not (isinstance(d, (int, float)) and not isinstance(d, bool) and math.isfinite(d) and d >= 0):
+            raise SceneError("liner.bolt_hole_diameter", d, "must be 0 (no holes) or a finite number > 0 m")
+        if d == 0:
+            if self.bolt_x or self.bolt_arc:
+                raise SceneError("liner.bolt_hole_diameter", d, "must be > 0 m when bolt_x / bolt_arc place holes")
+            return
+        if not self.bolt_x or not self.bolt_arc:
+            raise SceneError("liner.bolt_x" if not self.bolt_x else "liner.bolt_arc",
+                             list(self.bolt_x if not self.bolt_x else self.bolt_arc),
+                             "must list at least one position (m) when bolt_hole_diameter > 0")
+        half = 0.5 * d
+        lim = 0.5 * self.length - half
+        for i, x in enumerate(self.bolt_x):
+            if not (math.isfinite(x) and -lim < x < lim):
+                raise SceneError(f"liner.bolt_x[{i}]", x, f"must lie in ({-lim:g}, {lim:g}) m (the hole inside the plate)")
+        xs = sorted(self.bolt_x)
+        if any(b - a <= d for a, b in zip(xs, xs[1:])):
+            raise SceneError("liner.bolt_x", list(self.bolt_x), f"holes must be more than a diameter ({d:g} m) apart")
+        ss = sorted(self.bolt_arc)
+        if any(b - a <= d for a, b in zip(ss, ss[1:])):
+            raise SceneError("liner.bolt_arc", list(self.bolt_arc), f"holes must be more than a diameter ({d:g} m) apart")
+        hb = 0.5 * max(self.lifter_base_width, self.lifter_top_width)
+        for i, s in enumerate(self.bolt_arc):
+            if not (math.isfinite(s) and half < s < self.width - half):
+                raise SceneError(f"liner.bolt_arc[{i}]", s, f"must lie in ({half:g}, {self.width - half:g}) m "
+                                 "(the hole inside the plate)")
+            for c in self.lifter_centres():
+                if abs(s - c) < hb + half:
+                    raise SceneError(f"liner.bolt_arc[{i}]", s, f"the hole meets the foot of the lifter at arc "
+                                     f"{c:g} m: keep it {hb + half:g} m or more from a lifter centre line "
+                                     "(holes go through the shell plate between lifters)")
 
     @property
     def lifter_base_width(self) -> float:
@@ -99,6 +207,7 @@ class LinerShape:
                 raise SceneError("liner.thickness", self.thickness, f"too thin for lifters "
                                  f"{self.lifter_base_width:g} m wide on a plate curved to mill_radius {r:g} m "
                                  "(the back face would pass under the lifter's foot corners)")
+        self.validate_bolts()
 
     def lifter_rotate(self, c: float, eta: float, zeta: float) -> tuple[float, float]:
         """Rotate a local vector of the lifter centred at arc position ``c`` (eta along its centre

@@ -42,6 +42,18 @@ STEPS_PER_CONTACT = 100
 F_CUT_FACTOR = 4.0
 
 
+#: elements per shear wavelength at f_cut in the far mesh of a liner with gauges: the phase error
+#: of linear elements is ~(k h)^2 / 24 (k = 2 pi / wavelength), 0.4 % at 20 (Marfurt, Geophysics 49
+#: (1984) 533-549, for the order of the error)
+WAVE_ELEMENTS = 20.0
+
+
+def wave_element_size(material: Material, f_cut: float) -> float:
+    """The far element size (m) of :data:`WAVE_ELEMENTS` elements per shear wavelength
+    c_s / f_cut, c_s = sqrt(G / rho) (m/s), f_cut in Hz."""
+    return (material.shear_modulus / material.density) ** 0.5 / f_cut / WAVE_ELEMENTS
+
+
 def scene_hertz(scene: Scene) -> HertzImpact:
     """Hertz values of a scene: the ball on a half-space of the block's material (the block is
     clamped, so the impacting mass is the ball's), with the normal component of the velocity."""
@@ -146,6 +158,9 @@ class Plan:
     #: predicted radius of the plastic region about the impact point (m; 0 if the materials are
     #: elastic or the impact stays below the yield onset): :func:`predict_plastic_radius`
     plastic_radius: float = 0.0
+    #: normal stiffness per area (Pa/m) of a liner's rubber backing on its back face (a Winkler
+    #: layer, :mod:`millimpact.fem.model`); 0: the back face is clamped (or not a liner)
+    backing_stiffness: float = 0.0
 
     @property
     def normal_speed(self) -> float:
@@ -286,6 +301,14 @@ def make_plan(scene: Scene) -> Plan:
     smallest = smallest_size(scene)
     h_far = m.h_far if m.h_far is not None else smallest / 4.0
     reasons["h_far"] = "user" if m.h_far is not None else "smallest body size / 4"
+    f_cut_plan = m.f_cut if m.f_cut is not None else F_CUT_FACTOR / h.contact_time
+    h_wave = wave_element_size(scene.target_material, f_cut_plan)
+    if m.h_far is None and scene.liner is not None and scene.gauges and h_wave < h_far:
+        # a liner's gauges sit away from the impact (a bolt hole, a lifter root): the waves that
+        # reach them are the answer there, so the far mesh resolves them up to the cutoff
+        h_far = h_wave
+        reasons["h_far"] = (f"shear wavelength at f_cut / {WAVE_ELEMENTS:g} (gauges away from the impact; "
+                            "P1 phase error (k h)^2 / 24 ~ 0.4 %)")
     c_p = predict_plastic_radius(h, (scene.ball.material, scene.target_material))
     reasons["plastic_radius"] = "Johnson's cavity model on Thornton's contact radius (theory/thornton.py)"
     zone = m.zone_radius if m.zone_radius is not None else max(ZONE_RADIUS_FACTOR * h.a_max, PLASTIC_ZONE_MARGIN * c_p)
@@ -325,7 +348,8 @@ def make_plan(scene: Scene) -> Plan:
                 contact_normal=scene.contact_normal, velocity=tuple(scene.impact.velocity),
                 friction=scene.contact.friction,
                 probes=make_probe_spec(scene, planes, h_c, gap, h.a_max, F_CUT_FACTOR / h.contact_time),
-                reasons=tuple(reasons.items()), plastic_radius=c_p)
+                reasons=tuple(reasons.items()), plastic_radius=c_p,
+                backing_stiffness=scene.liner.backing_stiffness if scene.liner is not None else 0.0)
 
 
 #: first yield under a Hertz contact (von Mises, nu = 0.3): p0 = 1.60 Y on the axis at 0.48 a

@@ -156,8 +156,12 @@ class Liner(LinerShape):
 
     Shape (m, degrees): the fields of :class:`millimpact.scene.liner_shape.LinerShape` (plate
     ``length``, ``width``, ``thickness``; ``n_lifters`` lifters ``lifter_height`` high with a
-    ``lifter_top_width`` top, ``lifter_face_angle``, ``lifter_spacing``; ``mill_radius``). The back
-    face (bolted to the mill shell) is clamped.
+    ``lifter_top_width`` top, ``lifter_face_angle``, ``lifter_spacing``; ``mill_radius``; bolt holes
+    ``bolt_hole_diameter`` at ``bolt_x`` x ``bolt_arc``, clamped). The back face lies on the mill
+    shell: clamped (``backing = "clamped"``, the default) or on a rubber backing sheet
+    (``backing = "rubber"``): a Winkler layer of normal stiffness k_n = ``backing_modulus`` /
+    ``backing_thickness`` (Pa/m), the modulus being the sheet's compression modulus (with the
+    confinement of a thin sheet: :func:`millimpact.theory.rubber.compression_modulus`).
 
     Impact placement: the ball first touches lifter ``impact_lifter`` (index from the lowest z) on
     its ``impact_face`` (``"+z"`` or ``"-z"``, the side the face looks to) at ``impact_height`` (a
@@ -171,6 +175,13 @@ class Liner(LinerShape):
     impact_face: str = "+z"
     impact_height: float = 0.5
     impact_x: float = 0.0
+    backing_modulus: float = 1.0e9
+    backing_thickness: float = 0.006
+
+    @property
+    def backing_stiffness(self) -> float:
+        """Normal stiffness per area of the backing, k_n = E_c / t (Pa/m); 0 when the back face is clamped."""
+        return self.backing_modulus / self.backing_thickness if self.backing == "rubber" else 0.0
 
     def face_point(self) -> tuple[Vec3, Vec3]:
         """The impact point on the lifter face and the face's outward unit normal (m)."""
@@ -182,6 +193,8 @@ class Liner(LinerShape):
         _finite("liner.impact_height", self.impact_height, "fraction of the lifter height")
         _finite("liner.impact_x", self.impact_x, "m")
         self.face_point()   # refuses a lifter, face, height or x off the liner
+        _positive("liner.backing_modulus", self.backing_modulus, "Pa (compression modulus of the rubber backing)")
+        _positive("liner.backing_thickness", self.backing_thickness, "m (thickness of the rubber backing)")
 
 
 @dataclass(frozen=True)
@@ -357,13 +370,19 @@ class Scene:
                 raise SceneError("impact.gap", imp.gap, f"must be at most the ball radius ({self.ball.radius:g} m): "
                                  "the simulation starts just before contact")
         names = set()
-        if self.liner is not None and self.gauges:
-            raise SceneError("gauges", [g.name for g in self.gauges], "are not supported on a liner yet (leave empty)")
         for i, g in enumerate(self.gauges):
             where = f"gauges[{i}]"
             if g.name in names:
                 raise SceneError(f"{where}.name", g.name, "must be unique")
             names.add(g.name)
+            if self.liner is not None:
+                # a gauge on a liner sits a hair under its surface (the probe needs a cell holding it)
+                if not self.liner.contains(tuple(float(c) for c in g.position), tol=1e-9):
+                    raise SceneError(f"{where}.position", list(g.position), "must lie in the liner (plate or a "
+                                     "lifter, not in a bolt hole): place it a fraction of a mm under the surface")
+                if not math.sqrt(sum(c * c for c in g.direction)) > 0:
+                    raise SceneError(f"{where}.direction", list(g.direction), "must be a non-zero vector")
+                continue
             x, y, z = g.position
             tol = 1e-9
             inside = (-blk.length / 2 - tol <= x <= blk.length / 2 + tol and -blk.thickness - tol <= y <= tol

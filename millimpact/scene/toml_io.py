@@ -10,7 +10,8 @@ from typing import Any
 
 from ..errors import SceneError
 
-from .schema import Block, Scene, from_table
+from .liner_shape import LinerShape
+from .schema import Block, Liner, Scene, from_table
 
 
 def scene_from_dict(data: dict) -> Scene:
@@ -29,6 +30,15 @@ def scene_to_dict(scene: Scene) -> dict:
     d = clean(dataclasses.asdict(scene))
     if scene.liner is not None and scene.block == Block():
         d.pop("block", None)    # unused by a liner scene
+    if scene.liner is not None:
+        # a liner without bolt holes and clamped writes (and hashes: study, table and bench cache
+        # keys) as it did before these fields; its backing's values only matter on a rubber backing
+        defaults = dict(LinerShape.OPTIONAL_DEFAULTS)
+        if scene.liner.backing == "clamped":
+            defaults.update({f.name: f.default for f in dataclasses.fields(Liner) if f.name.startswith("backing_")})
+        for name, default in defaults.items():
+            if getattr(scene.liner, name) == default:
+                d["liner"].pop(name, None)
     return d
 
 

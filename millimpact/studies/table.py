@@ -269,6 +269,10 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
         raise InputError(f"--ranks-per-case {ranks_per_case}: must divide the number of ranks ({world.size}) "
                          f"and be between 1 and {world.size}")
     method_entry(method)
+    if method not in REUSED_METHODS and method != "hertz" and world.size // ranks_per_case > 1:
+        # full and hertz-modal run on MPI_COMM_WORLD, not on a group: cases cannot be spread
+        raise InputError(f"--method {method} with {world.size // ranks_per_case} groups: this method runs on all "
+                         f"ranks; use --ranks-per-case {world.size} (or a reduced method, or hertz)")
     base = apply_sets(resolve_scene(scene_name), sets, "impact.velocity")
     cases = define_cases(base, speeds, angles, radii or [base.ball.radius], method, options)
     folder = out / "cases"
