@@ -6,6 +6,7 @@ PETSc options (``-impact_ksp_type gmres`` ...) may follow any run command and re
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import signal
 import threading
 import re
@@ -408,6 +409,9 @@ def version_text() -> str:
 
 def main(argv: Optional[list[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    # a native crash (PETSc, DOLFINx, gmsh) prints the Python stack on stderr instead of ending the
+    # process without a word (two CI runs saw a run end with exit 1 and no output: not yet explained)
+    faulthandler.enable()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _on_sigterm)
     try:

@@ -239,8 +239,11 @@ def _worker(task: CaseTask) -> dict:
     import logging
     import signal
 
+    import faulthandler
+
     # Ctrl-C reaches the whole process group: the parent stops the workers, they stay quiet
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    faulthandler.enable()      # a worker's native crash says where (the parent sees only a broken pool)
 
     logging.basicConfig(level=logging.WARNING)
     return compute_case(task, None)
