@@ -8,6 +8,7 @@ contact_duration_s, max_approach_m, restitution, hertz, wall_time_s, model, plan
 from __future__ import annotations
 
 import logging
+import os
 import time
 from pathlib import Path
 from typing import Any, Optional
@@ -64,9 +65,10 @@ def refuse_if_too_large(scene: Scene, plan: Plan, method: str, options: Optional
     if not memory_check_applies(method):   # before any collective: hertz runs on a table's rank groups
         return
     comm = MPI.COMM_WORLD                  # as the FE methods' (methods/full.py)
-    node = comm.Split_type(MPI.COMM_TYPE_SHARED)
-    on_node = node.size
-    node.Free()
+    # ranks on this node: from mpirun's environment, not Comm.Split_type(COMM_TYPE_SHARED), which
+    # is suspected in three clean-clone CI runs where a singleton process (a run, a study worker)
+    # ended without a word; without mpirun, one
+    on_node = int(os.environ.get("OMPI_COMM_WORLD_LOCAL_SIZE", os.environ.get("MPI_LOCALNRANKS", comm.size)))
     message = None
     if comm.rank == 0:
         try:
