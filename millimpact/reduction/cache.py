@@ -44,10 +44,17 @@ MAX_BYTES_PER_RANK = 2e9
 
 
 def cache_dir() -> Optional[Path]:
-    """The cache folder, or None when ``$MILLIMPACT_REDUCTION_CACHE`` is "off"."""
+    """The cache folder, or None (the default, and "off"): the cache is opt-in,
+    ``MILLIMPACT_REDUCTION_CACHE=on`` (``reductions/`` in the mesh cache) or a folder. Off by
+    default since clean-clone CI runs with it on had processes die without a word (not traced to
+    it: a precaution until they are)."""
     env = os.environ.get(CACHE_ENV, "")
-    if env.lower() in ("off", "0", "no", "false"):
+    if env.lower() in ("", "off", "0", "no", "false"):
         return None
+    if env.lower() in ("on", "1", "yes", "true"):
+        from ..geometry.mesh import default_cache_dir
+
+        return default_cache_dir() / "reductions"
     if env:
         return Path(env).expanduser()
     from ..geometry.mesh import default_cache_dir
