@@ -168,7 +168,9 @@ def _liner_panel() -> Scene:
                   backing_modulus=round(e_c, -6), backing_thickness=PANEL_BACKING_THICKNESS,
                   impact_lifter=1, impact_face="+z", impact_height=0.5, impact_x=0.0,
                   material=coerce_value(Material, "cr-mo-liner", "liner.material"))
-    return Scene(
+    # the ball, friction, run time and outputs are liner-segment's (the description says so)
+    return dataclasses.replace(
+        _liner_segment(),
         name="liner-panel",
         description=(
             "A panel of the shell liner of a 36-40 ft (11-12 m) SAG mill: 1.0 m along the axis x 1.2 m of arc, "
@@ -190,13 +192,9 @@ def _liner_panel() -> Scene:
             "Steels as liner-segment (cr-mo-liner, forged-ball-60hrc; scene/materials.toml), elastic-plastic. "
             "Gauges: 'bolt' beside the bolt hole nearest the impact, 'root' at the struck lifter's root. "
             "Half model: the plane of incidence x = 0 is a symmetry plane."),
-        ball=Ball(radius=0.0625, material=coerce_value(Material, "forged-ball-60hrc", "ball.material")),
         liner=liner,
         impact=Impact(velocity=_oblique_velocity(liner)),
-        contact=ContactOptions(friction=0.2),
         gauges=_panel_gauges(liner),
-        time=TimeSpan(end=0.6e-3),
-        outputs=Outputs(field_times=(0.0, 2.0e-4, 4.0e-4)),
     )
 
 
