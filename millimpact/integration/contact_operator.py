@@ -69,6 +69,20 @@ class ContactOperator:
     n_rhs: int
 
 
+def apply_contact_update(op: ContactOperator, x: np.ndarray, u_pred: PETSc.Vec, u_new: PETSc.Vec) -> None:
+    """``u_new = u_pred + W x`` for a replicated multiplier vector ``x`` (N: [lambda] or
+    [lambda; tau], W's columns): the Lagrange-multiplier state update of a step. Only the columns
+    where x is non-zero are read (the active contacts: tens of the hundreds of candidates; the full
+    product was 3.8 ms of a 21 ms reduced step on the rig), each rank on its own rows, so no
+    communication: the same sum as ``W.mult`` to rounding."""
+    out = u_new.array
+    out[:] = u_pred.array_r
+    nz = np.flatnonzero(x)
+    if nz.size:
+        Wa = op.W.getDenseArray(readonly=True)
+        out += Wa[:, nz] @ x[nz]
+
+
 def compute_contact_operator(ksp_u: PETSc.KSP, B: PETSc.Mat, chunk: int = W_CHUNK) -> ContactOperator:
     """W = A^-1 B^T for all candidate rows with the factorization of ``ksp_u`` (multi-RHS solves of
     ``chunk`` columns), and the small dense S = B W replicated on every rank.

@@ -44,7 +44,7 @@ class LinearDynamics:
     #: (:class:`NonlinearZone`, e.g. :class:`millimpact.fem.plastic_zone.PlasticZone`); None: linear
     plastic: Optional["NonlinearZone"] = None
     #: a dict that keeps the implicit schemes' factorized step operators (and their contact
-    #: operators W) between integrate() calls on this system (impacts that share a model and a
+    #: operators W, and the redistributed mass) between integrate() calls on this system (impacts that share a model and a
     #: time step: the cases of a contact table); None: each call factorizes and frees its own
     operator_cache: Optional[dict] = None
 
@@ -139,6 +139,7 @@ class IntegrationStats:
     penalty: float = float("nan")       #: central differences: k_p, N/m
     diverged: bool = False
     diverged_at: float = float("nan")
+    stopped_at: float = float("nan")    #: the ``stop`` callback ended the run here (s), before t_end
     t_end: float = 0.0
     wall_time: float = 0.0
 
@@ -220,3 +221,27 @@ def strain_energy(K: PETSc.Mat, u: PETSc.Vec, fixed_dofs: np.ndarray) -> float:
     Kw.destroy()
     w.destroy()
     return float(e)
+
+
+class SeparationStop:
+    """A ``stop`` callback of :func:`millimpact.integration.integrators.integrate`: True once the
+    bodies have touched and then stayed apart (no active contact) for ``quiet_steps`` accepted steps.
+
+    For runs that need the impact only (contact tables): the rebound velocity, impulses, peak
+    force and contact duration are all fixed at separation (no force acts on the ball after it;
+    restitution is read two rows after the last contact row,
+    :func:`millimpact.results.recorder.impact_results`). ``quiet_steps`` >= 3; a gap that closes
+    again within them (chatter) resets the count.
+    """
+
+    def __init__(self, quiet_steps: int):
+        self.quiet_steps = max(3, int(quiet_steps))
+        self.touched, self.apart = False, 0
+
+    def __call__(self, state: "StepState") -> bool:
+        if state.n_active > 0:
+            self.touched, self.apart = True, 0
+            return False
+        if self.touched:
+            self.apart += 1
+        return self.touched and self.apart >= self.quiet_steps

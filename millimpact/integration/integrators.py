@@ -55,7 +55,7 @@ from petsc4py import PETSc
 
 from ..errors import InputError
 from .central_penalty import CRITICAL_STEP_SAFETY, CentralPenaltyScheme
-from .dynamics import (IntegrationStats, LinearDynamics, StepState, TimeSchedule, kinetic_energy,
+from .dynamics import (IntegrationStats, LinearDynamics, SeparationStop, StepState, TimeSchedule, kinetic_energy,
                        strain_energy)
 from .mass import lumped_mass, lumped_mass_matrix, redistribute_mass
 from .newmark import NewmarkScheme
@@ -66,7 +66,7 @@ log = logging.getLogger(__name__)
 
 #: what callers take from this module: the driver and the values it works on
 __all__ = ["integrate", "METHODS", "LinearDynamics", "StepState", "IntegrationStats", "TimeSchedule", "kinetic_energy",
-           "strain_energy", "redistribute_mass", "lumped_mass", "lumped_mass_matrix", "CRITICAL_STEP_SAFETY"]
+           "strain_energy", "SeparationStop", "redistribute_mass", "lumped_mass", "lumped_mass_matrix", "CRITICAL_STEP_SAFETY"]
 
 #: Integrator names accepted by :func:`integrate`.
 METHODS = ("newmark-mr", "newmark", "central-penalty")
@@ -74,13 +74,17 @@ METHODS = ("newmark-mr", "newmark", "central-penalty")
 
 def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: TimeSchedule,
               method: str = "newmark-mr", observer: Optional[Callable[[StepState], None]] = None,
-              options: Optional[Mapping[str, object]] = None, progress: bool = False) -> IntegrationStats:
+              options: Optional[Mapping[str, object]] = None, progress: bool = False,
+              stop: Optional[Callable[[StepState], bool]] = None) -> IntegrationStats:
     """Integrate from t = 0 (displacement u0 in m, velocity v0 in m/s) to ``schedule.t_end``.
 
     ``method`` one of :data:`METHODS`; ``observer(state)`` is called (collectively, on every rank)
     once at t = 0 and after every accepted step; ``options`` keys relative to ``-impact_`` (PETSc
     solver options and the settings listed in the module docstring; the command line wins).
     ``progress`` shows a tqdm bar over simulated time on rank 0 if stderr is a terminal.
+    ``stop(state)`` (optional, e.g. :class:`SeparationStop`), called after the observer on every
+    accepted step, ends the run early when it returns True (``stats.stopped_at``; the state it
+    saw is the last one). It must give the same answer on every rank (replicated inputs only).
     Raises :class:`SolverError` on a failed solve or violated contact conditions. An explicit run
     that blows up is stopped and returned with ``stats.diverged = True`` (and a warning).
     """
@@ -108,13 +112,18 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
         log.info("%s: t_end %.4g s, dt_contact %.4g s (asked %.4g), dt_free %.4g s", method, schedule.t_end,
                  dt_g, schedule.dt_contact, dt_free)
 
-    def notify(t: float, dt: float, step: int) -> None:
+    def notify(t: float, dt: float, step: int) -> bool:
+        """Hand the state to the observer; True if ``stop`` says the run is over."""
+        if observer is None and stop is None:
+            return False
+        st = StepState(t=t, dt=dt, u=integ.u, v=integ.v, a=integ.a, lam=integ.lam, gap=integ.gap,
+                       n_active=int(np.count_nonzero(integ.lam > 0)), n_newton=integ.n_newton,
+                       step=step, mass=integ.mass, penalty_energy=integ.penalty_energy,
+                       tau=getattr(integ, "tau", None), friction_work=stats.friction_work_J,
+                       plastic_work=stats.plastic_work_J)
         if observer is not None:
-            observer(StepState(t=t, dt=dt, u=integ.u, v=integ.v, a=integ.a, lam=integ.lam, gap=integ.gap,
-                               n_active=int(np.count_nonzero(integ.lam > 0)), n_newton=integ.n_newton,
-                               step=step, mass=integ.mass, penalty_energy=integ.penalty_energy,
-                               tau=getattr(integ, "tau", None), friction_work=stats.friction_work_J,
-                               plastic_work=stats.plastic_work_J))
+            observer(st)
+        return stop is not None and step > 0 and bool(stop(st))
 
     notify(0.0, 0.0, 0)
     bar, plain = None, None
@@ -155,7 +164,9 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
             stats.n_active_set_changes += changed > 0
             stats.max_active = max(stats.max_active, int(np.count_nonzero(active)))
             prev_active = active
-            notify(t, dt, step)
+            if notify(t, dt, step):
+                stats.stopped_at = t
+                break
             if step % GARBAGE_EVERY == 0:
                 # dropped per-step PETSc objects are parked until a collective cleanup (solvers.py)
                 PETSc.garbage_cleanup(comm)

@@ -18,7 +18,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import solvers
-from .contact_operator import ContactOperator, compute_contact_operator, scatter_into
+from .contact_operator import ContactOperator, apply_contact_update, compute_contact_operator
 from .lcp import solve_lcp
 from .saddle_point import SaddlePointSolver
 from ..errors import InputError, SolverError
@@ -51,7 +51,15 @@ class NewmarkScheme:
         self.contact = ContactRows(system, comm)
         self.fixed = np.asarray(system.fixed_dofs, dtype=np.int64)
         if redistribute:
-            self.M = redistribute_mass(system.M, system.contact_dofs)
+            # with a shared operator cache (the impacts of a contact table) the redistributed mass
+            # is built once too: it depends on M and the contact dofs only (0.2-0.3 s a case on the rig)
+            cache = system.operator_cache
+            if cache is not None and "redistributed_mass" in cache:
+                self.M = cache["redistributed_mass"]
+            else:
+                self.M = redistribute_mass(system.M, system.contact_dofs)
+                if cache is not None:
+                    cache["redistributed_mass"] = self.M
             self.massless = np.asarray(system.contact_dofs, dtype=np.int64)
         else:
             self.M = system.M
@@ -185,11 +193,7 @@ class NewmarkScheme:
             if not res.active.any():
                 self.u_pred.copy(self.u_new)
             elif self.contact_solve == "schur":
-                lv = self.contact.B.createVecLeft()
-                scatter_into(lv, lam)
-                C.W.mult(lv, self.tmp)
-                lv.destroy()
-                self.u_new.waxpy(1.0, self.tmp, self.u_pred)
+                apply_contact_update(C, lam, self.u_pred, self.u_new)
             else:
                 op.saddle.set_active(res.active, C.S, step, t_new)
                 lam_s = op.saddle.solve(self.r, self.contact.g0, self.u_new, step, t_new)
@@ -262,9 +266,7 @@ class NewmarkScheme:
         res = broadcast(self.comm, res)
         n_c = q.size
         x = np.concatenate([res.lam, res.tau])
-        scatter_into(self.contact._cc, x)
-        C.W.mult(self.contact._cc, self.tmp)
-        self.u_new.waxpy(1.0, self.tmp, self.u_pred)
+        apply_contact_update(C, x, self.u_pred, self.u_new)
         ds = q_t + C.S[n_c:, :] @ x                 # slip increments over the step, m
         self.stats.friction_work_J += max(0.0, -float(res.tau @ ds))
         self.stats.max_friction_passes = max(self.stats.max_friction_passes, res.iterations)

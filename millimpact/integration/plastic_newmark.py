@@ -45,7 +45,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import solvers
-from .contact_operator import ContactOperator, compute_contact_operator, scatter_into
+from .contact_operator import ContactOperator, apply_contact_update, compute_contact_operator
 from .lcp import solve_lcp
 from ..errors import InputError, SolverError
 from .dynamics import IntegrationStats, LinearDynamics
@@ -215,11 +215,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
         res = solve_lcp(W.S, q, self.active, gap_tol)
         lam = self._broadcast(res.lam)
         self.n_newton = res.iterations
-        lv = self.contact.B.createVecLeft()
-        scatter_into(lv, lam)
-        W.W.mult(lv, self.tmp)
-        lv.destroy()
-        self.u_new.waxpy(1.0, self.tmp, self.u_pred)
+        apply_contact_update(W, lam, self.u_pred, self.u_new)
         return lam
 
     def _broadcast(self, a: np.ndarray) -> np.ndarray:

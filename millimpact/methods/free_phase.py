@@ -53,7 +53,7 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
                       contact: ContactSet, plan: Plan, t_end: float, rec: ReducedRecorder, *,
                       integrator: str = "newmark-mr", options: Optional[dict] = None, progress: bool = False,
                       free_phase: str = "modal", f_free: Optional[float] = None,
-                      min_span: Optional[float] = None) -> dict[str, Any]:
+                      min_span: Optional[float] = None, stop=None) -> dict[str, Any]:
     """Integrate a reduced model over [0, t_end], feeding ``rec``.
 
     ``free_phase = "step"``: the integrator all the way. ``"modal"`` (default): the integrator
@@ -62,6 +62,8 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
     integrator's free-step grid; if a gap is predicted to come back within the plan's initial gap
     (a second impact), the modal state at the grid point before is handed back to the integrator.
     The energy of the state above ``f_free`` at each switch is reported (it is dropped).
+    ``stop`` (a :class:`millimpact.integration.integrators.SeparationStop`, say) ends the run at the
+    step it returns True (``stats["stopped_at"]``; runs that need the impact only: tables).
     Returns a dict: ``stats`` (summed integrator statistics), ``segments`` [(kind, t0, t1)], the
     modal energy dropped (J), modal rows, free-mode count and their offline time (s).
     """
@@ -83,8 +85,13 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
         # between modal phases the steps are short: one step size (one factorization and one
         # contact operator W instead of two; the modal phase takes the free vibration)
         q, qd, lam, st, mass = _run_steps(system, q, qd, t, t_stop, plan, rec, integrator, options, progress,
-                                          single_size=free_phase == "modal")
+                                          single_size=free_phase == "modal", stop=stop)
         _add_stats(stats_sum, st)
+        if math.isfinite(st.stopped_at):     # the stop callback ended the run
+            segments.append(("step", t, t + st.stopped_at))
+            stats_sum["stopped_at"] = t + st.stopped_at
+            t_end = t + st.stopped_at
+            break
         segments.append(("step", t, t_stop))
         t = t_stop
         if t >= t_end * (1 - 1e-12) or np.any(lam > 0):
@@ -168,9 +175,10 @@ def _add_stats(total: dict, stats) -> None:
 
 
 def _run_steps(system, q, qd, t0: float, t1: float, plan: Plan, rec: ReducedRecorder, integrator: str,
-               options: dict, progress: bool, single_size: bool = False):
+               options: dict, progress: bool, single_size: bool = False, stop=None):
     """The integrator from (q, qd) at t0 to t1 (steps dt_contact, and dt_free out of contact unless
-    ``single_size``); returns the final (q, qd, lambda, stats, mass matrix of the scheme)."""
+    ``single_size``), or until ``stop``; returns the final (q, qd, lambda, stats, mass matrix of
+    the scheme)."""
     schedule = integrators.TimeSchedule(t1 - t0, plan.dt_contact, None if single_size else plan.dt_free)
     rec.time_offset = t0
     last = {}
@@ -182,7 +190,7 @@ def _run_steps(system, q, qd, t0: float, t1: float, plan: Plan, rec: ReducedReco
         rec(st)
 
     stats = integrators.integrate(system, q, qd, schedule, method=integrator, observer=observe,
-                                  options=dict(options), progress=progress)
+                                  options=dict(options), progress=progress, stop=stop)
     st = last["st"]
     rec.time_offset = 0.0
     return st.u.copy(), st.v.copy(), np.array(st.lam, copy=True), stats, st.mass

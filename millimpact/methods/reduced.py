@@ -34,6 +34,7 @@ free phase is :mod:`.free_phase`, the observables :class:`millimpact.results.red
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -52,6 +53,7 @@ from ..fem.plastic_zone import create_plastic_zone
 from ..geometry.builders import BALL_ZONE, BLOCK_ZONE, SIZE_GROWTH_ZONE_RADII
 from ..geometry.mesh import create_mesh
 from ..integration import integrators
+from ..integration.integrators import SeparationStop
 from ..reduction.craig_bampton import reduce_model
 from ..reduction.reduced_model import ReducedModel
 from ..reduction.augmentation import AUGMENTATION_PATTERNS
@@ -80,6 +82,13 @@ REDUCED_ZONE_FACTOR = 2.5
 #: Hertz patch is a_max (the finite block's patch is a little smaller); at least 2 h_contact
 #: inside the zone (mass redistribution must not reach the interface coordinates)
 REDUCED_CANDIDATE_FACTOR = 1.75
+#: ``impact_only`` runs end this many Hertz contact times after separation: restitution is read
+#: two rows after the last contact row and every other table column is fixed at separation; the
+#: margin lets a gap that closes again soon (chatter on a thin plate) be seen as the same impact
+IMPACT_QUIET_CONTACTS = 0.1
+#: ``impact_only`` runs record the energies every this many rows (and the first and last): the
+#: table reads none of them; they stay for the energy-drift check of the results
+ENERGY_EVERY_IMPACT_ONLY = 10
 
 #: method name -> (Lagrange degree, contact-zone basis: nodal unknowns or NMM covers); the
 #: one-line descriptions are in :mod:`millimpact.methods.registry`
@@ -289,11 +298,16 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
 
 
 def run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dict[str, Any], progress: bool,
-                     t_end: Optional[float] = None, release: bool = False) -> RunOutput:
+                     t_end: Optional[float] = None, release: bool = False, impact_only: bool = False) -> RunOutput:
     """One impact on a built reduced model: ``scene``/``plan`` (the same mesh sizes, zone and
     gap as the setup's; their own velocity, time steps and probes) from rest but the ball's
     velocity to ``t_end`` (default the setup's). A fresh plastic zone per impact. ``release``
-    frees the reduction's recovery data once the recorder has it (a single run)."""
+    frees the reduction's recovery data once the recorder has it (a single run).
+
+    ``impact_only`` (contact tables): the run ends IMPACT_QUIET_CONTACTS t_c after the bodies
+    separate (:class:`millimpact.integration.integrators.SeparationStop`), at ``t_end`` at the
+    latest, and the energies are recorded every ENERGY_EVERY_IMPACT_ONLY rows (and on the first
+    and last; :attr:`millimpact.results.recorder.Recorder.energy_every`)."""
     comm = setup.model.V.mesh.comm
     opt, model, contact, red, method = setup.opt, setup.model, setup.contact, setup.red, setup.method
     t_end = opt.t_end if t_end is None else t_end
@@ -311,6 +325,10 @@ def run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dic
                           opt.recovery, plastic)
     if release:
         red.release_recovery()
+    stop = None
+    if impact_only:
+        rec.energy_every = ENERGY_EVERY_IMPACT_ONLY
+        stop = SeparationStop(math.ceil(IMPACT_QUIET_CONTACTS * plan.hertz.contact_time / plan.dt_contact))
     t_rows = time.perf_counter() - t1
     t1 = time.perf_counter()
     with stage(f"time loop to {t_end * 1e3:.3g} ms ({opt.integrator}, free phase {free_phase})"):
@@ -318,7 +336,7 @@ def run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dic
                                 options=dict(options), progress=progress, free_phase=free_phase,
                                 # the free modes follow the output grid (dt_free = 1 / (10 plan.f_cut)),
                                 # not a -f_cut option, which sets the reduction's cutoff alone
-                                f_free=opt.free_factor * plan.f_cut, min_span=opt.min_span)
+                                f_free=opt.free_factor * plan.f_cut, min_span=opt.min_span, stop=stop)
     t_integrate = time.perf_counter() - t1
     ts = rec.series()
     results = impact_results(ts, plan.normal_speed, plan.probes.gauge_names, run["stats"], opt.integrator)

@@ -242,7 +242,8 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
             reused = True
         # the case's scene carries the band's mesh sizes, zone, gap, cutoff and symmetry: its plan
         # describes the setup's mesh with its own velocity, time steps and probes
-        out = run_reduced_case(setups[case.band], scene, plan, dict(options), False, t_end=scene.time.end)
+        out = run_reduced_case(setups[case.band], scene, plan, dict(options), False, t_end=scene.time.end,
+                               impact_only=True)
     else:
         out, _ = compute(scene, method, dict(options), False)
     row = case_row(case, plan, out, time.perf_counter() - t0)
