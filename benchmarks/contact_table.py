@@ -6,7 +6,7 @@ Runs ``millimpact table SCENE --velocity ... --angle ...`` at 1 rank and (with `
 standalone ``millimpact run`` of the table's fastest normal case cut to the impact. The issue's
 targets: the 100-case table (10 speeds 0.5-10 m/s x 10 angles 0-60 deg) on paper-rig with improved
 in under 5 minutes on 2 cores; a case after the first of its band at most 1/10 of the standalone
-run; parallel efficiency (cases per second per rank) >= 0.9. Writes
+run; parallel efficiency (cases per second per rank) >= 0.9; the peak resident memory of the busiest rank. Writes
 benchmarks/out/contact_table/contact_table_bench.{csv,md}.
 
     .venv/bin/python benchmarks/contact_table.py                       # the issue's 100 cases, 1 and 2 ranks
@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 from _report import write_report  # noqa: E402
 
 
-def table(folder: Path, scene: str, speeds: str, angles: str, ranks: int, extra: list[str]) -> tuple[list[dict], float]:
+def table(folder: Path, scene: str, speeds: str, angles: str, ranks: int, extra: list[str]) -> tuple[list[dict], float, float]:
     cmd = [sys.executable, "-m", "millimpact.cli", "table", scene, "--velocity", speeds, "--angle", angles,
            "--out", str(folder), "-q", *extra]
     if ranks > 1:
@@ -40,10 +40,13 @@ def table(folder: Path, scene: str, speeds: str, angles: str, ranks: int, extra:
     env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
            "OMPI_MCA_rmaps_base_oversubscribe": "1"}
     t0 = time.perf_counter()
-    subprocess.run(cmd, check=False, cwd=ROOT, env=env)
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env)
+    # wait4's ru_maxrss: the largest resident set of the process and the descendants it waited
+    # for (mpirun's ranks), kB: the peak memory of the busiest rank
+    _, _, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     rows = json.loads((folder / "contact_table.json").read_text())["rows"]
-    return rows, wall
+    return rows, wall, usage.ru_maxrss / 1024**2
 
 
 def main() -> int:
@@ -62,11 +65,12 @@ def main() -> int:
     extra = [x for s in a.set for x in ("--set", s)]
     results = []
     for ranks in sorted({1, a.ranks}):
-        rows, wall = table(out / f"np{ranks}", a.scene, a.speeds, a.angles, ranks, extra)
+        rows, wall, peak_gb = table(out / f"np{ranks}", a.scene, a.speeds, a.angles, ranks, extra)
         ok = [r for r in rows if str(r["status"]).startswith("ok")]
         reused = [r["wall_time_s"] for r in rows if r.get("reduction_reused")]
         first = [r["wall_time_s"] for r in rows if not r.get("reduction_reused")]
         results.append({"ranks": ranks, "cases": len(rows), "ok": len(ok), "bands": len(first), "wall_s": wall,
+                        "peak_rss_per_rank_GB": peak_gb,
                         "cases_per_s_per_rank": len(rows) / wall / ranks,
                         "mean_first_case_s": float(np.mean(first)) if first else float("nan"),
                         "mean_reused_case_s": float(np.mean(reused)) if reused else float("nan")})
@@ -88,11 +92,11 @@ def main() -> int:
         r["reused_over_standalone"] = r["mean_reused_case_s"] / standalone
     write_report(out, "contact_table_bench", results, a.ranks,
                  ["ranks", "cases (ok)", "bands", "wall s", "cases/s/rank", "efficiency", "first case s",
-                  "reused case s", "standalone run s", "reused / standalone"],
+                  "reused case s", "standalone run s", "reused / standalone", "peak RSS of a rank GB"],
                  lambda r: [str(r["ranks"]), f"{r['cases']} ({r['ok']})", str(r["bands"]), f"{r['wall_s']:.0f}",
                             f"{r['cases_per_s_per_rank']:.4f}", f"{r['parallel_efficiency']:.2f}",
                             f"{r['mean_first_case_s']:.1f}", f"{r['mean_reused_case_s']:.1f}", f"{r['standalone_run_s']:.1f}",
-                            f"{r['reused_over_standalone']:.2f}"],
+                            f"{r['reused_over_standalone']:.2f}", f"{r['peak_rss_per_rank_GB']:.2f}"],
                  note=f"; scene {a.scene}, speeds {a.speeds} m/s, angles {a.angles} deg, {os.cpu_count()} cores")
     return 0
 

@@ -62,7 +62,7 @@ Run one impact per (speed, angle[, radius]) of SCENE and write a DEM contact tab
 (contact_laws.json: e_n power law, Thornton's V_y, Hertz E*) and figures (e_n against speed, e_t
 against tan(angle)/mu, peak force against speed). The angle is measured from the face normal in the
 plane of the scene's impact vector. Each case runs the impact only. With improved, traditional and
-modal-p2, cases whose normal speeds lie within a factor 2 share one mesh, one reduction and its
+modal-p2, cases whose normal speeds lie within a factor 1.5 share one mesh, one reduction and its
 factorizations. Finished cases are kept in DIR/cases/ and a rerun computes only what is missing.
 Under mpirun, --ranks-per-case K makes groups of K ranks that take cases from a shared counter.
 
@@ -73,9 +73,9 @@ Examples:
 """
 
 #: cases whose normal speeds lie within this factor share a mesh and a reduction (a_max ~ v^(2/5):
-#: a factor 2 in speed is 1.32 in a_max, so the slowest case has 4 and the fastest 5.3 elements
+#: a factor 1.5 in speed is 1.18 in a_max, so the slowest case has 4 and the fastest 4.7 elements
 #: across its contact radius)
-BAND_RATIO = 2.0
+BAND_RATIO = 1.5
 #: each case runs to gap / v_n + this many Hertz contact times: past the separation (plastic and
 #: finite-body contacts last up to ~1.1 t_c; a contact still on at the end is flagged in the status
 #: column), and exactly the reduced methods' first integrator segment, so no free-vibration modes

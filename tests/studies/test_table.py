@@ -17,7 +17,7 @@ from millimpact.studies.table import case_t_end, case_velocity
 
 COARSE = ["--set", "model.h_contact=5.8e-4", "--set", "model.h_far=0.012"]
 #: v = 3 m/s normal and 30 deg oblique, and the normal impact at the oblique one's normal speed
-#: (3 cos 30 = 2.598 m/s): one mesh band (normal speeds within a factor 2)
+#: (3 cos 30 = 2.598 m/s): one mesh band (normal speeds within a factor BAND_RATIO = 1.5)
 SPEEDS, ANGLES = "2.598076211353316,3", "0,30"
 
 
