@@ -11,6 +11,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
+# the test process is an MPI singleton too (tests import mpi4py before millimpact): no helper
+# daemon, as millimpact/__init__.py sets for its own processes (the reason is there)
+os.environ.setdefault("OMPI_MCA_ess_singleton_isolated", "1")
+
 
 def mpi_env() -> dict[str, str]:
     env = dict(os.environ)

@@ -119,3 +119,21 @@ def test_slim_image_keeps_what_the_form_compiler_needs():
     for kept in ("/usr/include/python", "/usr/include/x86_64-linux-gnu", "/usr/lib/gcc/*'", "/usr/bin"):
         assert not any(kept in l and "! -path" not in l for l in excluded), kept
     assert "! -path '/usr/lib/gcc/*'" in docker and "dpkg -L libc6-dev" in docker
+
+
+def test_an_mpi_singleton_starts_no_helper_daemon():
+    """A process not launched by mpirun (``millimpact run``, a study worker) initialises MPI with no
+    ``orted`` child (millimpact/__init__.py: a singleton whose daemon dies ends without a word).
+    Without the setting Open MPI 4.1 forks one, so the count below is 1 then."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import glob, os, millimpact\nfrom mpi4py import MPI\nMPI.COMM_WORLD.Barrier()\n"
+            "kids = [c for f in glob.glob(f'/proc/{os.getpid()}/task/*/children') for c in open(f).read().split()]\n"
+            "print(sum('orted' in open(f'/proc/{c}/cmdline').read() for c in kids))")
+    env = {k: v for k, v in os.environ.items() if k != "OMPI_MCA_ess_singleton_isolated"}
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.split()[-1] == "0"
