@@ -1,0 +1,98 @@
+"""Benchmark: strong scaling of the liner panel (issue 17) with ``improved``, at any rank counts.
+
+Runs ``millimpact run liner-panel --method improved`` once per rank count (``mpirun -n N``; 1 rank
+plain), side by side in one invocation, each into its own folder, and writes one row per rank
+count: DOFs, reduced coordinates, wall time and its parts (offline reduction, time loop), speed-up
+against the first rank count, the busiest rank's peak resident memory (``wait4``'s ru_maxrss:
+the largest of mpirun's ranks) and F_max / t_c with their largest difference from the first row
+(issue 17: ``mpirun -n N`` equals serial to 1e-9). The mesh is made once first (cached), so no row
+pays for gmsh. The machine's load is printed with the table: wall times on a shared machine
+measure the load.
+
+    .venv/bin/python benchmarks/panel_scaling.py                          # coarse panel, 1 and 2 ranks
+    .venv/bin/python benchmarks/panel_scaling.py --ranks 1,2,4,8,16,32,64 --h-far 0.0118   # a larger machine, the plan's size
+
+``--h-far``/``--h-contact``/``--zone`` set the mesh (defaults: a coarse panel of ~31k P2 DOFs that
+runs in about a minute here; the scene's own plan, ~1.2M P2 DOFs, is ``--h-far 0 --h-contact 0
+--zone 0``); ``--end`` the simulated time (default 0.5 ms: the whole impact). Writes
+benchmarks/out/panel_scaling/panel_scaling.{csv,md}.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _report import write_report  # noqa: E402
+
+
+def run(ranks: int, out: Path, sets: list[str]) -> dict:
+    cmd = [sys.executable, "-m", "millimpact.cli", "run", "liner-panel", "--method", "improved", *sets,
+           "--force", "-q", "--out", str(out)]
+    if ranks > 1:
+        cmd = ["mpirun", "-n", str(ranks), *cmd]
+    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+           "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"{ranks} rank(s): millimpact run failed (exit {os.waitstatus_to_exitcode(status)})")
+    s = json.loads((out / "summary.json").read_text())
+    t = s["timings_s"]
+    return {"ranks": ranks, "dofs": s["model"]["dofs"], "reduced": s["model"]["reduced_dofs"], "wall_s": wall,
+            "reduction_s": t["reduction_offline"], "integrate_s": t["integrate"],
+            "peak_rss_busiest_rank_GB": usage.ru_maxrss / 1024**2,
+            "F_max_N": s["peak_contact_force_N"], "t_c_s": s["contact_duration_s"],
+            "hertz_F_max_N": s["hertz"]["F_max_N"], "hertz_t_c_s": s["hertz"]["t_c_s"]}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--ranks", default="1,2", help="comma-separated rank counts (default 1,2)")
+    ap.add_argument("--h-far", type=float, default=0.05, help="far element size, m (0: the plan's)")
+    ap.add_argument("--h-contact", type=float, default=0.005, help="contact element size, m (0: the plan's)")
+    ap.add_argument("--zone", type=float, default=0.024, help="contact-zone radius, m (0: the method's)")
+    ap.add_argument("--end", type=float, default=5e-4, help="simulated time, s (default 0.5 ms)")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "panel_scaling"))
+    a = ap.parse_args()
+    ranks = [int(x) for x in a.ranks.split(",")]
+    sets = ["--set", f"time.end={a.end!r}", "--set", "outputs.figures=false", "--set", "outputs.xdmf=false"]
+    for field, value in (("model.h_far", a.h_far), ("model.h_contact", a.h_contact), ("model.zone_radius", a.zone)):
+        if value > 0:
+            sets += ["--set", f"{field}={value!r}"]
+    out = Path(a.out)
+    # the mesh first, so that no row pays for gmsh (the mesh cache serves every rank count)
+    mesh_sets = [x for i in range(0, len(sets), 2) if sets[i + 1].startswith("model.") for x in sets[i:i + 2]]
+    subprocess.run([sys.executable, "-m", "millimpact.cli", "mesh", "liner-panel", *mesh_sets, "--out", str(out / "mesh")],
+                   cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    rows = [run(n, out / f"np{n}", sets) for n in ranks]
+    for r in rows:
+        r["speedup"] = rows[0]["wall_s"] / r["wall_s"]
+        r["F_max_rel_diff"] = abs(r["F_max_N"] / rows[0]["F_max_N"] - 1.0)
+        r["t_c_rel_diff"] = abs(r["t_c_s"] / rows[0]["t_c_s"] - 1.0)
+    load = os.getloadavg()
+    write_report(out, "panel_scaling", rows, max(ranks),
+                 ["ranks", "DOFs (reduced)", "wall s", "reduction s", "time loop s", "speed-up", "peak RSS, busiest rank GB",
+                  "F_max kN (Hertz)", "t_c us (Hertz)", "vs first row: F_max, t_c"],
+                 lambda r: [str(r["ranks"]), f"{r['dofs']:,} ({r['reduced']:,})", f"{r['wall_s']:.1f}",
+                            f"{r['reduction_s']:.1f}", f"{r['integrate_s']:.1f}", f"{r['speedup']:.2f}",
+                            f"{r['peak_rss_busiest_rank_GB']:.2f}",
+                            f"{r['F_max_N'] / 1e3:.1f} ({r['hertz_F_max_N'] / 1e3:.1f})",
+                            f"{r['t_c_s'] * 1e6:.1f} ({r['hertz_t_c_s'] * 1e6:.1f})",
+                            f"{r['F_max_rel_diff']:.1e}, {r['t_c_rel_diff']:.1e}"],
+                 note=f"; liner-panel, improved, {' '.join(sets)}; {os.cpu_count()} cores, load after "
+                      f"{load[0]:.2f} / {load[1]:.2f} (1 / 5 min)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
