@@ -1,10 +1,28 @@
-"""Shared output of the benchmark scripts: one CSV row per case and a Markdown table."""
+"""Shared parts of the benchmark scripts: a timed run under mpirun with its peak memory, and the
+output (one CSV row per case and a Markdown table)."""
 from __future__ import annotations
 
 import csv
+import os
 import platform
+import subprocess
+import time
 from pathlib import Path
 from typing import Callable, Sequence
+
+
+def timed_run(cmd: list[str], ranks: int, cwd: Path) -> tuple[int, float, float]:
+    """Run ``cmd`` (under ``mpirun -n ranks`` when ranks > 1); returns (exit code, wall time s,
+    peak resident memory GB of the busiest process). The memory is ``wait4``'s ru_maxrss: the
+    largest resident set of the process and the descendants it waited for (mpirun's ranks)."""
+    if ranks > 1:
+        cmd = ["mpirun", "-n", str(ranks), *cmd]
+    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+           "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, cwd=cwd, env=env)
+    _, status, usage = os.wait4(proc.pid, 0)
+    return os.waitstatus_to_exitcode(status), time.perf_counter() - t0, usage.ru_maxrss / 1024**2
 
 
 def write_report(out: str | Path, name: str, rows: list[dict], ranks: int, columns: Sequence[str],

@@ -29,24 +29,15 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT))
 
-from _report import write_report  # noqa: E402
+from _report import timed_run, write_report  # noqa: E402
 
 
 def table(folder: Path, scene: str, speeds: str, angles: str, ranks: int, extra: list[str]) -> tuple[list[dict], float, float]:
     cmd = [sys.executable, "-m", "millimpact.cli", "table", scene, "--velocity", speeds, "--angle", angles,
            "--out", str(folder), "-q", *extra]
-    if ranks > 1:
-        cmd = ["mpirun", "-n", str(ranks), *cmd, "--ranks-per-case", "1"]
-    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-           "OMPI_MCA_rmaps_base_oversubscribe": "1"}
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env)
-    # wait4's ru_maxrss: the largest resident set of the process and the descendants it waited
-    # for (mpirun's ranks), kB: the peak memory of the busiest rank
-    _, _, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
+    _, wall, peak_gb = timed_run(cmd + (["--ranks-per-case", "1"] if ranks > 1 else []), ranks, ROOT)
     rows = json.loads((folder / "contact_table.json").read_text())["rows"]
-    return rows, wall, usage.ru_maxrss / 1024**2
+    return rows, wall, peak_gb
 
 
 def main() -> int:

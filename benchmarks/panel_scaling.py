@@ -24,33 +24,25 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from _report import write_report  # noqa: E402
+from _report import timed_run, write_report  # noqa: E402
 
 
 def run(ranks: int, out: Path, sets: list[str]) -> dict:
     cmd = [sys.executable, "-m", "millimpact.cli", "run", "liner-panel", "--method", "improved", *sets,
            "--force", "-q", "--out", str(out)]
-    if ranks > 1:
-        cmd = ["mpirun", "-n", str(ranks), *cmd]
-    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-           "OMPI_MCA_rmaps_base_oversubscribe": "1"}
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{ranks} rank(s): millimpact run failed (exit {os.waitstatus_to_exitcode(status)})")
+    code, wall, peak_gb = timed_run(cmd, ranks, ROOT)
+    if code != 0:
+        raise SystemExit(f"{ranks} rank(s): millimpact run failed (exit {code})")
     s = json.loads((out / "summary.json").read_text())
     t = s["timings_s"]
     return {"ranks": ranks, "dofs": s["model"]["dofs"], "reduced": s["model"]["reduced_dofs"], "wall_s": wall,
             "reduction_s": t["reduction_offline"], "integrate_s": t["integrate"],
-            "peak_rss_busiest_rank_GB": usage.ru_maxrss / 1024**2,
+            "peak_rss_busiest_rank_GB": peak_gb,
             "F_max_N": s["peak_contact_force_N"], "t_c_s": s["contact_duration_s"],
             "hertz_F_max_N": s["hertz"]["F_max_N"], "hertz_t_c_s": s["hertz"]["t_c_s"]}
 
