@@ -43,9 +43,10 @@ class LinearDynamics:
     #: a nonlinear (plastic) internal force of the contact zone, ``f_int = K u + f_c(u)``
     #: (:class:`NonlinearZone`, e.g. :class:`millimpact.fem.plastic_zone.PlasticZone`); None: linear
     plastic: Optional["NonlinearZone"] = None
-    #: a dict that keeps the implicit schemes' factorized step operators (and their contact
-    #: operators W, and the redistributed mass) between integrate() calls on this system (impacts that share a model and a
-    #: time step: the cases of a contact table); None: each call factorizes and frees its own
+    #: a dict that keeps the implicit schemes' factorized step operators (with their contact
+    #: operators W) and the redistributed mass between integrate() calls on this system (impacts
+    #: that share a model and a time step: the cases of a contact table); None: each call factorizes
+    #: and frees its own
     operator_cache: Optional[dict] = None
 
 

@@ -66,7 +66,8 @@ log = logging.getLogger(__name__)
 
 #: what callers take from this module: the driver and the values it works on
 __all__ = ["integrate", "METHODS", "LinearDynamics", "StepState", "IntegrationStats", "TimeSchedule", "kinetic_energy",
-           "strain_energy", "SeparationStop", "redistribute_mass", "lumped_mass", "lumped_mass_matrix", "CRITICAL_STEP_SAFETY"]
+           "strain_energy", "SeparationStop", "redistribute_mass", "lumped_mass", "lumped_mass_matrix",
+           "CRITICAL_STEP_SAFETY"]
 
 #: Integrator names accepted by :func:`integrate`.
 METHODS = ("newmark-mr", "newmark", "central-penalty")

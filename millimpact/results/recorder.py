@@ -107,7 +107,8 @@ class Recorder:
         #: products with M and K are a quarter of a reduced contact step, and a contact table needs
         #: only the energies at the ends; 1 (every row) unless a caller sets it
         self.energy_every = 1
-        self._last = None   # (row index, u, v, mass) of the last row without energies
+        #: the state of the last row recorded without energies (its index, u, v, mass), for series()
+        self._skipped_row, self._skipped_u, self._skipped_v, self._skipped_mass = -1, None, None, None
 
     names_base = ["time_s", "contact_force_N", "approach_m", "contact_radius_m", "ball_velocity_m_s",
                   "contact_point_displacement_m", "contact_point_velocity_m_s", "contact_point_acceleration_m_s2",
@@ -190,14 +191,13 @@ class Recorder:
         mass = st.mass if getattr(st, "mass", None) is not None else m.M
         if len(self.rows) % self.energy_every == 0:
             energies = self._energies(st.u, st.v, mass)
-            self._last = None
         else:       # kept for series(): the last row gets its energies there
             energies = [math.nan] * 4
-            if self._last is None:
-                self._last = [None, st.u.duplicate(), st.v.duplicate(), mass]
-            self._last[0], self._last[3] = len(self.rows), mass
-            st.u.copy(self._last[1])
-            st.v.copy(self._last[2])
+            if self._skipped_u is None:
+                self._skipped_u, self._skipped_v = st.u.duplicate(), st.v.duplicate()
+            st.u.copy(self._skipped_u)
+            st.v.copy(self._skipped_v)
+            self._skipped_row, self._skipped_mass = len(self.rows), mass
         row = [st.t, force, approach, a, vball, *probe_cols, *energies]
         if self.friction:
             # tangential force on the ball along t_v (N, full body: the half model's mirror adds
@@ -243,11 +243,11 @@ class Recorder:
 
     def _fill_last_energies(self) -> None:
         """The energies of the last row if ``energy_every`` skipped them (from its kept state)."""
-        if self._last is None or self._last[0] != len(self.rows) - 1:
+        i = len(self.rows) - 1
+        if i < 0 or self._skipped_row != i:
             return
-        i, u, v, mass = self._last
         k = self.names.index("ball_kinetic_energy_J")
-        self.rows[i][k:k + 4] = self._energies(u, v, mass)
+        self.rows[i][k:k + 4] = self._energies(self._skipped_u, self._skipped_v, self._skipped_mass)
 
     def series(self) -> TimeSeries:
         """The rows as a time series; with the patch (``c_patch``) the contact point's velocity and

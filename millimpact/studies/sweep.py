@@ -364,6 +364,7 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
             if res.get("input"):
                 raise InputError(f"case {r.case.label}: {res['error']}")
 
+    serial = list(todo)     # the cases this process computes itself, one after the other
     if todo and jobs > 1 and len(todo) > 1:
         import concurrent.futures as cf
         import multiprocessing as mp
@@ -372,7 +373,7 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
         for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(var, "1")
         # spawn, not fork: a forked child would inherit the parent's MPI/PETSc state
-        lost: list[int] = []
+        serial = []
         with cf.ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=mp.get_context("spawn")) as pool:
             futures = {pool.submit(_worker, task(i)): i for i in todo}
             try:
@@ -384,11 +385,11 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
                 # computed again here, one after the other, and the exit codes said
                 codes = sorted({p.exitcode for p in (getattr(pool, "_processes", None) or {}).values()
                                 if p.exitcode not in (None, 0)})
-                lost = [i for i in todo if runs[i].status == "pending"]
-                remove_stages(out, [study.cases[i].folder for i in lost])
+                serial = [i for i in todo if runs[i].status == "pending"]
+                remove_stages(out, [study.cases[i].folder for i in serial])
                 if rank0:
                     print(f"millimpact: warning: a study worker process ended without a word (exit codes "
-                          f"{codes or 'unknown'}); computing its {len(lost)} unfinished case(s) in this process",
+                          f"{codes or 'unknown'}); computing its {len(serial)} unfinished case(s) in this process",
                           file=sys.stderr, flush=True)
             except BaseException as exc:
                 for f in futures:
@@ -402,19 +403,13 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
                     raise StudyInterrupted(done, n, getattr(exc, "exit_code", 143 if type(exc).__name__ == "Terminated"
                                                             else 130)) from None
                 raise
-        try:
-            for i in lost:
-                report(i, compute_case(task(i), comm))
-        except KeyboardInterrupt as exc:
-            raise StudyInterrupted(done, n, 143 if type(exc).__name__ == "Terminated" else 130) from None
-    else:
-        try:
-            for i in todo:
-                if progress and not quiet:
-                    say(f"  [{done + 1}/{n}] {study.cases[i].label:<22s} computing ...")
-                report(i, compute_case(task(i), comm))
-        except KeyboardInterrupt as exc:
-            raise StudyInterrupted(done, n, 143 if type(exc).__name__ == "Terminated" else 130) from None
+    try:
+        for i in serial:
+            if progress and not quiet:
+                say(f"  [{done + 1}/{n}] {study.cases[i].label:<22s} computing ...")
+            report(i, compute_case(task(i), comm))
+    except KeyboardInterrupt as exc:
+        raise StudyInterrupted(done, n, 143 if type(exc).__name__ == "Terminated" else 130) from None
     if rank0:
         from ..results.timeseries import TimeSeries
 
