@@ -148,7 +148,10 @@ def test_a_worker_that_ends_without_a_word_is_replaced(tmp_path):
                         "--no-case-figures", "--param", "impact.velocity=1,3", "--out", str(out)],
                        capture_output=True, text=True, env=env, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
-    assert "a study worker process ended without a word (exit codes [1])" in r.stderr
+    # the exit code is read from the pool's process handles, which the executor may already have
+    # dropped (a clean-clone CI run saw "unknown"): the code is said when known
+    assert "a study worker process ended without a word (exit codes " in r.stderr
+    assert "(exit codes [1])" in r.stderr or "(exit codes unknown)" in r.stderr
     for folder in ("velocity=1", "velocity=3"):
         assert (out / folder / "summary.json").stat().st_size > 0
     assert not list(out.glob(".velocity=*.partial-*"))
