@@ -589,3 +589,45 @@ def test_reduction_cache_gives_the_same_model(setup, p1, tmp_path, monkeypatch):
     monkeypatch.setenv(reduction_cache.CACHE_ENV, "off")
     d = reduce_model(p1, f_cut=0.25 * plan.f_cut)
     assert not any(x.from_cache for x in d.bodies) and len(list(folder.iterdir())) == 4
+
+
+# --- eigensolver ------------------------------------------------------------------------------------
+@serial
+def test_inertia_count_and_single_round_match_scipy(p1, monkeypatch):
+    """The count of modes under a cutoff from the inertia of K - lambda M (Sylvester) equals the
+    count from scipy's eigensolve, and the eigensolver that jumps to that count (the inertia path)
+    keeps the same modes, to solver tolerance, as the one that doubles its request."""
+    from petsc4py import PETSc
+
+    from millimpact.integration.solvers import create_factored_solver
+    from millimpact.reduction import eigen
+
+    n = p1.K.getSize()[0]
+    sel = np.zeros(n, dtype=bool)
+    sel[p1.block_dofs] = True
+    sel[p1.fixed_dofs] = False
+    K, M = csr(p1.K)[sel][:, sel].tocsr(), csr(p1.M)[sel][:, sel].tocsr()
+    f_ref = lowest_hz(K, M, 40)
+    k = 25                                         # a cutoff between the 25th and 26th modes
+    f_cut = 0.5 * (f_ref[k - 1] + f_ref[k])
+    assert f_ref[k] / f_ref[k - 1] - 1 > 1e-6      # a gap to cut in (no multiple mode at the cut)
+
+    def petsc(A):
+        return PETSc.Mat().createAIJ(A.shape, csr=(A.indptr, A.indices, A.data), comm=MPI.COMM_SELF)
+
+    K_p, M_p = petsc(K), petsc(M)
+    prefix = "test_inertia_"
+    assert eigen.count_below(K_p, M_p, (2 * math.pi * f_cut) ** 2, prefix) == k
+    assert eigen.count_below(K_p, M_p, (2 * math.pi * 0.5 * f_ref[0]) ** 2, prefix) == 0
+
+    results = {}
+    for name, threshold in (("inertia", 0), ("doubling", 10**9)):
+        monkeypatch.setattr(eigen, "INERTIA_MIN_DOFS", threshold)
+        ksp = create_factored_solver(K_p, prefix, eigen.default_solver_options(1))
+        results[name] = eigen.compute_modes(K_p, M_p, ksp, f_cut, None, prefix)
+        ksp.destroy()
+    for name, (freq, vecs, nxt) in results.items():
+        assert len(freq) == k, name
+        # shift-and-invert at eps_tol 1e-10 against ARPACK's default: 1e-8 relative
+        np.testing.assert_allclose(freq, f_ref[:k], rtol=1e-8, err_msg=name)
+        assert nxt == pytest.approx(f_ref[k], rel=1e-8), name
