@@ -132,38 +132,50 @@ class ModelInfo:
 
 
 # --- gmsh session ----------------------------------------------------------------------------------
+#: open :func:`gmsh_session` calls that initialized gmsh or run inside one that did. gmsh 4.8 has no
+#: "is initialized" query, and its API must not be asked: a call before ``gmsh.initialize()`` goes
+#: to gmsh's Msg::Error, which at random ends the process with exit(1) and no message (an
+#: LD_PRELOAD hook on exit() caught it in a CI run: gmshModelList -> Msg::Error -> exit(1), from the
+#: earlier ``gmsh.model.list()`` probe here; the "silent deaths" of runs, study workers and MPI
+#: ranks). So the state is kept here.
+_open_sessions = [0]
+
+
 def _gmsh_initialized() -> bool:
-    try:
-        return len(gmsh.model.list()) > 0   # gmsh 4.8: [] before initialize, [''] after
-    except Exception:                       # after finalize it raises
-        return False
+    return _open_sessions[0] > 0
 
 
 @contextlib.contextmanager
 def gmsh_session(name: str = "millimpact") -> Iterator[None]:
     """Initialize gmsh (quiet) if needed, make a fresh current model ``name``, and clean up.
 
-    Finalizes gmsh on exit only if this call initialized it. Use on every rank before
-    :func:`dolfinx.io.gmshio.model_to_mesh` (it needs gmsh initialized everywhere).
+    Finalizes gmsh on exit only if this call initialized it (sessions nest). Use on every rank
+    before :func:`dolfinx.io.gmshio.model_to_mesh` (it needs gmsh initialized everywhere). gmsh is
+    initialized through here only: a caller's own ``gmsh.initialize()`` is not seen, and a
+    session would finalize it.
     """
     owned = not _gmsh_initialized()
     if owned:
         gmsh.initialize(readConfigFiles=False)   # no user gmshrc: meshes depend on our options only
-    previous = gmsh.model.getCurrent()
-    terminal = gmsh.option.getNumber("General.Terminal")
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add(name)
+    _open_sessions[0] += 1
     try:
-        yield
+        previous = gmsh.model.getCurrent()
+        terminal = gmsh.option.getNumber("General.Terminal")
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add(name)
+        try:
+            yield
+        finally:
+            if not owned:
+                with contextlib.suppress(Exception):
+                    gmsh.model.setCurrent(name)
+                    gmsh.model.remove()
+                    gmsh.model.setCurrent(previous)
+                gmsh.option.setNumber("General.Terminal", terminal)
     finally:
+        _open_sessions[0] -= 1
         if owned:
             gmsh.finalize()
-        else:
-            with contextlib.suppress(Exception):
-                gmsh.model.setCurrent(name)
-                gmsh.model.remove()
-                gmsh.model.setCurrent(previous)
-            gmsh.option.setNumber("General.Terminal", terminal)
 
 
 # --- shared pieces ---------------------------------------------------------------------------------
