@@ -26,8 +26,8 @@ _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 # Open MPI starts every process not launched by mpirun (a "singleton": `millimpact run`, a study's
 # worker, the test process) with a helper daemon, `orted --hnp --set-sid`, in its own session. A
 # singleton whose daemon is gone ends at its next runtime call without a word (kill -9 of the
-# daemon: exit 195, nothing on stderr); clean-clone CI runs saw runs and study workers end so
-# (exit 1, empty stderr) once or twice a suite without a traced cause. millimpact needs nothing the
+# daemon: exit 195, nothing on stderr). (The exit-1 deaths of CI runs once blamed on it were gmsh's:
+# millimpact.geometry.builders.gmsh_session.) millimpact needs nothing the
 # daemon gives (no MPI_Comm_spawn, no name publishing), so a singleton runs without one
 # (ess_singleton_isolated, Open MPI 4.1; no effect under mpirun). Set before mpi4py initialises MPI.
 _os.environ.setdefault("OMPI_MCA_ess_singleton_isolated", "1")

@@ -409,8 +409,8 @@ def version_text() -> str:
 
 def main(argv: Optional[list[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    # a native crash (PETSc, DOLFINx, gmsh) prints the Python stack on stderr instead of ending the
-    # process without a word (two CI runs saw a run end with exit 1 and no output: not yet explained)
+    # a native crash (DOLFINx, gmsh; PETSc has its own handler) prints the Python stack on stderr
+    # instead of ending the process without a word
     try:
         faulthandler.enable()
     except (AttributeError, OSError, ValueError):     # stderr without a file descriptor (main() called in-process)

@@ -65,9 +65,7 @@ def refuse_if_too_large(scene: Scene, plan: Plan, method: str, options: Optional
     if not memory_check_applies(method):   # before any collective: hertz runs on a table's rank groups
         return
     comm = MPI.COMM_WORLD                  # as the FE methods' (methods/full.py)
-    # ranks on this node: from mpirun's environment, not Comm.Split_type(COMM_TYPE_SHARED), which
-    # is suspected in three clean-clone CI runs where a singleton process (a run, a study worker)
-    # ended without a word; without mpirun, one
+    # ranks on this node: from mpirun's environment (no collective needed); without mpirun, one
     on_node = int(os.environ.get("OMPI_COMM_WORLD_LOCAL_SIZE", os.environ.get("MPI_LOCALNRANKS", comm.size)))
     message = None
     if comm.rank == 0:

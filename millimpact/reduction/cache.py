@@ -46,8 +46,9 @@ MAX_BYTES_PER_RANK = 2e9
 def cache_dir() -> Optional[Path]:
     """The cache folder, or None (the default, and "off"): the cache is opt-in,
     ``MILLIMPACT_REDUCTION_CACHE=on`` (``reductions/`` in the mesh cache) or a folder. Off by
-    default since clean-clone CI runs with it on had processes die without a word (not traced to
-    it: a precaution until they are)."""
+    default: a body's files reach gigabytes (Psi is interior x interface doubles), and a study
+    of many scenes would fill the disk unasked. (It was first switched off while CI runs had
+    processes die without a word; that was gmsh, geometry.builders.gmsh_session.)"""
     env = os.environ.get(CACHE_ENV, "")
     if env.lower() in ("", "off", "0", "no", "false"):
         return None

@@ -380,9 +380,9 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
                 for fut in cf.as_completed(futures):
                     report(futures[fut], fut.result())
             except cf.process.BrokenProcessPool:
-                # a worker ended without a word (no exception, no native crash on stderr: seen in
-                # clean-clone CI runs, cause not found): its cases and those not yet finished are
-                # computed again here, one after the other, and the exit codes said
+                # a worker ended without a word (killed, or a library's exit(): CI runs saw gmsh's,
+                # fixed in geometry.builders.gmsh_session): its cases and those not yet finished
+                # are computed again here, one after the other, and the exit codes said
                 codes = sorted({p.exitcode for p in (getattr(pool, "_processes", None) or {}).values()
                                 if p.exitcode not in (None, 0)})
                 serial = [i for i in todo if runs[i].status == "pending"]
