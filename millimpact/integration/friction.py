@@ -63,12 +63,16 @@ class FrictionResult:
 
 
 def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Optional[np.ndarray] = None,
-                 free: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray, bool]:
+                 free: Optional[np.ndarray] = None,
+                 tau0: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray, bool]:
     """Tresca friction with fixed bounds: ``ds = c + S_tt tau``, ``|tau_i| <= bound_i``, stick
     (ds_i = 0) inside the disc, tau_i = -bound_i ds_i/|ds_i| on it. ``S_tt`` (2n x 2n, rows
     [t1 nodes; t2 nodes]), ``c`` (2n, m), ``bound`` (n, N). ``free`` (2n bool) marks the tangential
     components that can carry force (a component clamped on both sides, e.g. across a symmetry
-    plane, has a zero row and carries none). Returns (tau, slip per node, converged by Newton).
+    plane, has a zero row and carries none). ``tau0`` (2n, N): a starting guess (the previous pass of
+    the normal/tangential alternation), projected onto the discs; zero if None. The problem has one
+    solution (S_tt SPD), so the start changes the iterations, not the answer beyond the tolerance.
+    Returns (tau, slip per node, converged by Newton).
 
     Semi-smooth Newton on ``F(tau) = tau - P(tau - r ds(tau)) = 0`` (P: projection of each node's
     force onto its disc; Alart-Curnier): the nodes inside their disc are the sticking set (rows
@@ -85,7 +89,8 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
         # nodes without normal force carry no friction: solve on the loaded nodes only
         idx = np.flatnonzero(on)
         sub = np.concatenate([idx, n + idx])
-        t_s, s_s, ok = solve_tresca(S_tt[np.ix_(sub, sub)], c[sub], bound[idx], None, free[sub])
+        t_s, s_s, ok = solve_tresca(S_tt[np.ix_(sub, sub)], c[sub], bound[idx], None, free[sub],
+                                    None if tau0 is None else tau0[sub])
         tau = np.zeros(2 * n)
         tau[sub] = t_s
         slip = np.zeros(n, dtype=bool)
@@ -115,34 +120,16 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
         return F.ravel(), z, nz, slide
 
     x = np.zeros(2 * n)
+    if tau0 is not None:
+        X = np.where(fixed, 0.0, np.asarray(tau0, dtype=float)[perm].reshape(n, 2))
+        nx = np.linalg.norm(X, axis=1)
+        x = (X * np.where(nx > bound, bound / np.where(nx > 0, nx, 1.0), 1.0)[:, None]).ravel()
     F, z, nz, slide = residual(x)
-    I2 = np.eye(2)
     for _ in range(MAX_ACTIVE_SET):
         fn = float(np.max(np.abs(F)))
         if fn <= FRICTION_RTOL * scale:
             break
-        J = np.zeros((2 * n, 2 * n))
-        for i in range(n):
-            rows = slice(2 * i, 2 * i + 2)
-            if fixed[i].all():
-                J[rows, rows] = I2
-                continue
-            # d z_i / d x = E_i - r_i S_i  (E_i selects node i)
-            dz = -r[i] * S[rows, :]
-            dz[:, rows] += I2
-            if slide[i]:
-                zh = z[i] / nz[i]
-                Jp = (bound[i] / nz[i]) * (I2 - np.outer(zh, zh))
-                Ji = -Jp @ dz
-                Ji[:, rows] += I2
-            else:
-                Ji = np.eye(2) @ (-dz)
-                Ji[:, rows] += I2            # F_i = x_i - z_i = r_i ds_i
-            for k in range(2):
-                if fixed[i, k]:
-                    Ji[k, :] = 0.0
-                    Ji[k, 2 * i + k] = 1.0
-            J[rows, :] = Ji
+        J = _newton_matrix(S, r, z, nz, bound, slide, fixed)
         try:
             dx = np.linalg.solve(J, -F)
         except np.linalg.LinAlgError:
@@ -164,6 +151,27 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
     tau = np.zeros(2 * n)
     tau[perm] = x
     return tau, slide & on, ok
+
+
+def _newton_matrix(S: np.ndarray, r: np.ndarray, z: np.ndarray, nz: np.ndarray, bound: np.ndarray,
+                   slide: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """The generalized Jacobian of ``F(x) = x - P(z(x))``, ``z = x - r ds(x)`` (node-major pairs):
+    ``J = I - D_P dz/dx`` with ``dz_i/dx = E_i - r_i S_i`` (S_i: node i's two rows of S) and
+    ``D_P,i`` the identity inside the disc (stick: J_i = r_i S_i) or, on it (slide),
+    ``(b_i/|z_i|)(I - z^_i z^_i^T)``, z^ = z/|z|. Rows of components held at zero are unit rows."""
+    n = bound.size
+    dz = -r[:, None, None] * S.reshape(n, 2, 2 * n)
+    dz[np.arange(n), :, 2 * np.arange(n)] += np.array([1.0, 0.0])
+    dz[np.arange(n), :, 2 * np.arange(n) + 1] += np.array([0.0, 1.0])
+    DP = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
+    if slide.any():
+        zh = z[slide] / nz[slide, None]
+        DP[slide] = (bound[slide] / nz[slide])[:, None, None] * (np.eye(2) - zh[:, :, None] * zh[:, None, :])
+    J = np.eye(2 * n) - np.einsum("nab,nbk->nak", DP, dz).reshape(2 * n, 2 * n)
+    rows = np.flatnonzero(fixed.ravel())
+    J[rows, :] = 0.0
+    J[rows, rows] = 1.0
+    return J
 
 
 def _tresca_fista(S: np.ndarray, c: np.ndarray, bound: np.ndarray, x0: np.ndarray, free: np.ndarray,
@@ -219,7 +227,8 @@ def solve_friction(S: np.ndarray, q_n: np.ndarray, q_t: np.ndarray, mu: float,
         lam_new = res.lam
         active = res.active
         if mu > 0.0:
-            tau_new, slip, ok = solve_tresca(S_tt, q_t + S_tn @ lam_new, mu * lam_new, slip, free)
+            tau_new, slip, ok = solve_tresca(S_tt, q_t + S_tn @ lam_new, mu * lam_new, slip, free,
+                                             tau if it > 1 else None)
             n_fallback += not ok
         else:
             tau_new, slip = np.zeros(2 * n), np.zeros(n, dtype=bool)
