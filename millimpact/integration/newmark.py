@@ -261,7 +261,8 @@ class NewmarkScheme:
         self.tmp.waxpy(-1.0, self.u, self.u_pred)
         q_t = self.contact.slip(self.tmp)           # slip increment of the predictor, m
         # dense and small: solved on rank 0 only (the ranks share cores), the answer broadcast
-        res = (friction.solve_friction(C.S, q, q_t, self.mu, self.active, self.sliding, gap_tol)
+        tau0 = self.tau if self.tau is not None and self.tau.size == 2 * q.size else None
+        res = (friction.solve_friction(C.S, q, q_t, self.mu, self.active, self.sliding, gap_tol, tau0)
                if self.comm.rank == 0 else None)
         res = broadcast(self.comm, res)
         n_c = q.size

@@ -177,7 +177,8 @@ def compute_free_modes(red: ReducedModel, f_max: float, mass: Optional[PETSc.Mat
             nconv = eps.getConverged()
             if nconv < nev:
                 raise SolverError(f"free-vibration modes ({prefix}): {nconv} of {nev} converged")
-            lam, vecs = sorted_eigenpairs(eps, Kb)
+            # vectors for the lowest nev only (the next round's start, or those kept)
+            lam, vecs = sorted_eigenpairs(eps, Kb, None if nev >= n_b - 1 else nev)
             st.destroy()   # the Python handle alone keeps it, and with it the factorization (see
                            # integration.solvers.destroy_petsc_tree)
             if lam[nev - 1] > lam_max or nev >= n_b - 1:
