@@ -59,6 +59,31 @@ def test_tresca_kkt_and_independent_solver():
         assert np.abs(tf - tau).max() < 1e-6 * b.max()
 
 
+def test_warm_start_gives_the_same_forces():
+    """Starting the normal/tangential alternation and the Tresca Newton from other forces (the last
+    step's, as the integrator does) changes the iterations, not the answer: random compliances with
+    a weak normal-tangential coupling (as for like materials), one solution each. Tolerance: the
+    fixed point stops at 1e-8 of the largest lambda; measured differences ~1e-10."""
+    rng = np.random.default_rng(7)
+    checked = 0
+    for n in (4, 12, 30):
+        X = rng.normal(size=(3 * n, 3 * n))
+        S = X @ X.T / (3 * n) + 0.5 * np.eye(3 * n)
+        S[:n, n:] *= 0.05
+        S[n:, :n] *= 0.05
+        q_n = rng.normal(size=n) * 0.5
+        q_t = rng.normal(size=2 * n)
+        cold = solve_friction(S, q_n, q_t, MU)
+        for tau0 in (cold.tau * 1.3 + 0.1, rng.normal(size=2 * n) * 5.0, np.zeros(2 * n)):
+            warm = solve_friction(S, q_n, q_t, MU, tau0=tau0)
+            scale = np.abs(cold.lam).max()
+            assert np.abs(warm.lam - cold.lam).max() <= 1e-7 * scale
+            assert np.abs(warm.tau - cold.tau).max() <= 1e-7 * scale
+            checked += 1
+        assert (cold.slip.any() and (cold.lam > 0).any()) or n < 12   # friction really acts
+    assert checked == 9
+
+
 def test_mu_zero_is_the_lcp():
     rng = np.random.default_rng(2)
     n = 12
