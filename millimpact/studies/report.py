@@ -13,7 +13,7 @@ from typing import Optional, Any, Sequence
 
 import numpy as np
 
-from .sweep import CaseRun, Study
+from .sweep import CaseRun, Study, describe_reuse
 
 
 LITTLE = 0.10
@@ -486,7 +486,7 @@ def write_study(study: Study, runs: Sequence[CaseRun], out: Path, method: str, m
                        "status": r.status, "error": r.error,
                        "peaks": a.peaks[[q.case.index for q in ok].index(r.case.index)] if r.series is not None else None}
                       for r in runs],
-            "fits": a.fits, "paper_checks": a.paper_checks,
+            "reuse": describe_reuse(runs)[0], "fits": a.fits, "paper_checks": a.paper_checks,
             "paper_conclusion": study.paper.paper_conclusion if study.paper else None}
     write_text(out / "study.json", json.dumps(jsonable(data), indent=2) + "\n")
     return a

@@ -29,7 +29,8 @@ from typing import Optional, Sequence
 from ..errors import InputError, MillimpactError
 from ..scene.builtin import BUILTIN_STUDIES
 from ..methods.registry import method_entry
-from .sweep import StudyInterrupted, CaseRun, Study, define_study, parse_method_options, run_cases, say_root
+from .sweep import (StudyInterrupted, CaseRun, Study, define_study, describe_reuse, parse_method_options, run_cases,
+                    say_root)
 from .report import StudyAnalysis, write_study
 
 
@@ -154,6 +155,8 @@ def run_study(name: Optional[str] = None, param: Optional[str] = None, base: Opt
         n_comp = sum(r.status == "computed" for r in runs)
         say(f"study {study.name}: {n_comp} computed, {len(runs) - n_comp - len(res.failed)} cached, "
             f"{len(res.failed)} failed; wall time {wall:.1f} s")
+        if n_comp:
+            say("  " + describe_reuse(runs)[1])
         for f in a.fits[:3]:
             say(f"  {f['name']:<42s} ~ {study.symbol}^{f['k']:.3f}   (Hertz {study.symbol}^{f['k_hertz']:.3f})")
         for c in a.paper_checks:

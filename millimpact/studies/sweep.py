@@ -289,6 +289,25 @@ class CaseRun:
     wall_time_s: float = math.nan       #: wall time of the computation (from the summary if cached)
 
 
+def describe_reuse(runs: Sequence[CaseRun]) -> tuple[dict, str]:
+    """What the computed cases took from the caches instead of computing: the mesh (the mesh
+    cache: same geometry and sizes) and each body's Craig-Bampton reduction (the reduction cache,
+    ``MILLIMPACT_REDUCTION_CACHE``: same matrices), from each case's ``summary.json``. Cases that
+    move the impact place change the struck body's mesh and zone, so only the ball can be reused
+    then. Returns (counts for ``study.json``, one line for the terminal)."""
+    computed = [r for r in runs if r.status == "computed" and r.summary]
+    mesh = sum(bool(r.summary.get("model", {}).get("mesh", {}).get("cached")) for r in computed)
+    bodies: dict[str, int] = {}
+    for r in computed:
+        for name, b in (r.summary.get("model", {}).get("reduction", {}) or {}).get("bodies", {}).items():
+            bodies[name] = bodies.get(name, 0) + bool(b.get("from_cache"))
+    counts = {"computed_cases": len(computed), "mesh_from_cache": mesh, "reduction_from_cache": bodies}
+    n = len(computed)
+    parts = [f"the mesh in {mesh} of {n}"] + [f"the {name}'s reduction in {k} of {n}" for name, k in bodies.items()]
+    text = "reused from the caches: " + ", ".join(parts) + " computed case(s)"
+    return counts, text
+
+
 class StudyInterrupted(KeyboardInterrupt):
     """Ctrl-C or SIGTERM during a study: the finished cases stay (each case folder is complete or
     absent), the workers are stopped; the message says how many cases are done."""

@@ -107,6 +107,21 @@ def test_stress_grows_with_poisson_ratio_u(tmp_path_factory):
         assert c["peaks"]["stress"] == pytest.approx(c["peaks"]["stress_hertz"], rel=0.25)
 
 
+def test_study_says_what_it_reused(velocity_study):
+    """The study counts, from each computed case's summary, the meshes and body reductions taken
+    from the caches, says it in one line and keeps the counts in study.json."""
+    out, r = velocity_study
+    reuse = json.loads((out / "study.json").read_text())["reuse"]
+    summaries = [s for _, s in _cases(out)]
+    assert reuse["computed_cases"] == len(summaries) == 3
+    assert reuse["mesh_from_cache"] == sum(bool(s["model"]["mesh"]["cached"]) for s in summaries)
+    for body in ("ball", "block"):
+        assert reuse["reduction_from_cache"][body] == sum(
+            bool(s["model"]["reduction"]["bodies"][body]["from_cache"]) for s in summaries)
+    assert (f"reused from the caches: the mesh in {reuse['mesh_from_cache']} of 3, the ball's reduction in "
+            f"{reuse['reduction_from_cache']['ball']} of 3") in r.stdout
+
+
 def test_rerun_takes_every_case_from_the_cache(velocity_study):
     out, _ = velocity_study
     before = {p: p.stat().st_mtime_ns for p in out.glob("*/summary.json")}
