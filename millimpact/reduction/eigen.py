@@ -141,6 +141,10 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
             st.setShift(0.0)
             st.setKSP(ksp)
             eps.setDimensions(nev, PETSc.DECIDE)
+            # no purification (one more shift-and-invert solve per converged eigenvector, for a
+            # singular M): M_ii is positive definite. Coarse panel, 164 modes: 2.8 s of ~13 s saved;
+            # the vectors' relative residual 7e-12 -> 3e-10 (-eps_purify 1 restores it)
+            eps.setPurify(False)
             if prev:
                 eps.setInitialSpace(prev)
             with petsc_options({}, {k: v for k, v in (options or {}).items() if k.startswith("eps_")},
