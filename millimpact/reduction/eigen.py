@@ -1,6 +1,10 @@
 """Eigen solves of the reduction: the lowest fixed-interface modes K_ii phi = omega^2 M_ii phi (SLEPc, generalized
 Hermitian, shift-and-invert at 0 with the interior's Cholesky factorization; a dense LAPACK solve when most
 modes are asked), and the default solver options (prefix ``impact_reduction_<body>_``).
+
+With a cutoff, a first small round (FIRST_NEV modes) serves the bodies with few modes; a body with
+more under the cutoff has them counted by the inertia of K_ii - lambda_cut M_ii (Sylvester's law,
+:func:`count_below`) and found in one more round (the liner panel's 164-170 modes).
 """
 from __future__ import annotations
 
@@ -19,10 +23,10 @@ log = logging.getLogger(__name__)
 
 
 
-#: first number of modes asked from the eigensolver when only a cutoff is given (doubled until the
-#: cutoff is passed; the previous vectors seed the next round). The default scene keeps 3 ball and
-#: 7 block modes: 8 asked first cost 1 s less CPU than 16 (the Krylov space is ~2 nev vectors, each
-#: a solve with the interior's factorization)
+#: first number of modes asked from the eigensolver when only a cutoff is given (then the inertia
+#: count, or doubled until the cutoff is passed; the previous vectors seed the next round). The
+#: default scene keeps 3 ball and 7 block modes: 8 asked first cost 1 s less CPU than 16 (the
+#: Krylov space is ~2 nev vectors, each a solve with the interior's factorization)
 FIRST_NEV = 8
 #: when the first round falls short of the cutoff, the count of modes under it comes from an inertia
 #: (:func:`count_below`) for bodies above this many interior dofs; smaller ones double nev
