@@ -303,7 +303,8 @@ def describe_reuse(runs: Sequence[CaseRun]) -> tuple[dict, str]:
             bodies[name] = bodies.get(name, 0) + bool(b.get("from_cache"))
     counts = {"computed_cases": len(computed), "mesh_from_cache": mesh, "reduction_from_cache": bodies}
     n = len(computed)
-    parts = [f"the mesh in {mesh} of {n}"] + [f"the {name}'s reduction in {k} of {n}" for name, k in bodies.items()]
+    parts = [f"the mesh in {mesh} of {n}"]
+    parts += [f"the {name}'s reduction in {k} of {n}" for name, k in bodies.items()]
     text = "reused from the caches: " + ", ".join(parts) + " computed case(s)"
     return counts, text
 
