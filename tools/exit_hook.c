@@ -53,24 +53,14 @@ static void logit(const char *who, int status) {
     close(fd);
 }
 
-void exit(int status) {
-    void (*real)(int);
-    logit("exit", status);
-    real = (void (*)(int))dlsym(RTLD_NEXT, "exit");
-    real(status);
-    __builtin_unreachable();
-}
-void _exit(int status) {
-    void (*real)(int);
-    logit("_exit", status);
-    real = (void (*)(int))dlsym(RTLD_NEXT, "_exit");
-    real(status);
-    __builtin_unreachable();
-}
-void _Exit(int status) {
-    void (*real)(int);
-    logit("_Exit", status);
-    real = (void (*)(int))dlsym(RTLD_NEXT, "_Exit");
-    real(status);
-    __builtin_unreachable();
-}
+// exit(), _exit() and _Exit(): log, then call the real one
+#define HOOK(name)                                                    \
+    void name(int status) {                                           \
+        logit(#name, status);                                         \
+        void (*real)(int) = (void (*)(int))dlsym(RTLD_NEXT, #name);   \
+        real(status);                                                 \
+        __builtin_unreachable();                                      \
+    }
+HOOK(exit)
+HOOK(_exit)
+HOOK(_Exit)
