@@ -141,10 +141,6 @@ class ModelInfo:
 _open_sessions = [0]
 
 
-def _gmsh_initialized() -> bool:
-    return _open_sessions[0] > 0
-
-
 @contextlib.contextmanager
 def gmsh_session(name: str = "millimpact") -> Iterator[None]:
     """Initialize gmsh (quiet) if needed, make a fresh current model ``name``, and clean up.
@@ -154,7 +150,7 @@ def gmsh_session(name: str = "millimpact") -> Iterator[None]:
     initialized through here only: a caller's own ``gmsh.initialize()`` is not seen, and a
     session would finalize it.
     """
-    owned = not _gmsh_initialized()
+    owned = _open_sessions[0] == 0
     if owned:
         gmsh.initialize(readConfigFiles=False)   # no user gmshrc: meshes depend on our options only
     _open_sessions[0] += 1

@@ -231,8 +231,7 @@ def solve_friction(S: np.ndarray, q_n: np.ndarray, q_t: np.ndarray, mu: float,
         lam_new = res.lam
         active = res.active
         if mu > 0.0:
-            tau_new, slip, ok = solve_tresca(S_tt, q_t + S_tn @ lam_new, mu * lam_new, slip, free,
-                                             tau if it > 1 or tau0 is not None else None)
+            tau_new, slip, ok = solve_tresca(S_tt, q_t + S_tn @ lam_new, mu * lam_new, slip, free, tau)
             n_fallback += not ok
         else:
             tau_new, slip = np.zeros(2 * n), np.zeros(n, dtype=bool)

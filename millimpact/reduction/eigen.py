@@ -89,7 +89,7 @@ def count_below(K: PETSc.Mat, M: PETSc.Mat, lam: float, prefix: str,
     A = K.duplicate(copy=True)
     ksp = None
     try:
-        A.axpy(-lam, M, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        A.axpy(-lam, M, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)   # M's pattern is in K's (as free_modes)
         A.setOption(PETSc.Mat.Option.SPD, False)
         A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
         ksp = PETSc.KSP().create(K.getComm())

@@ -302,9 +302,8 @@ def describe_reuse(runs: Sequence[CaseRun]) -> tuple[dict, str]:
         for name, b in (r.summary.get("model", {}).get("reduction", {}) or {}).get("bodies", {}).items():
             bodies[name] = bodies.get(name, 0) + bool(b.get("from_cache"))
     counts = {"computed_cases": len(computed), "mesh_from_cache": mesh, "reduction_from_cache": bodies}
-    n = len(computed)
     parts = [f"the mesh in {mesh}"] + [f"the {name}'s reduction in {k}" for name, k in bodies.items()]
-    text = f"reused from the caches, of the {n} case(s) run: " + ", ".join(parts)
+    text = f"reused from the caches, of the {len(computed)} case(s) run: " + ", ".join(parts)
     return counts, text
 
 
