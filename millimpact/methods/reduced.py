@@ -54,6 +54,7 @@ from ..geometry.builders import BALL_ZONE, BLOCK_ZONE, SIZE_GROWTH_ZONE_RADII
 from ..geometry.mesh import create_mesh
 from ..integration import integrators
 from ..integration.integrators import SeparationStop
+from ..integration.solvers import normalize_options, petsc_options
 from ..reduction.craig_bampton import reduce_model
 from ..reduction.reduced_model import ReducedModel
 from ..reduction.augmentation import AUGMENTATION_PATTERNS
@@ -278,7 +279,7 @@ def build_reduced_setup(scene: Scene, plan: Plan, options: dict[str, Any], metho
         model = create_fe_model(md, plan, opt.degree)
         contact = create_contact(model, plan, radius=cand_radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
-    with stage("reduction (SLEPc modes, Craig-Bampton)"):
+    with stage("reduction (SLEPc modes, Craig-Bampton)"), reduction_solver_options(options):
         red = build_reduced_model(model, opt.kind, f_cut=opt.f_cut, n_modes=opt.n_modes, remedy=opt.remedy,
                                   augment=opt.augment)
     t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
@@ -308,6 +309,20 @@ def run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dic
     separate (:class:`millimpact.integration.integrators.SeparationStop`), at ``t_end`` at the
     latest, and the energies are recorded every ENERGY_EVERY_IMPACT_ONLY rows (and on the first
     and last; :attr:`millimpact.results.recorder.Recorder.energy_every`)."""
+    with reduction_solver_options(options):    # the mass projection, the free modes, the output rows
+        return _run_reduced_case(setup, scene, plan, options, progress, t_end, release, impact_only)
+
+
+def reduction_solver_options(options: dict[str, Any]):
+    """The run's options for the reduction's solvers (``-impact_reduction_*``: the K_ii
+    factorizations, eigensolvers, inertia counts, free modes, mass projection) in PETSc's options
+    database while they are set up (:func:`~millimpact.integration.solvers.petsc_options`:
+    the reduction's objects read the database, not the run's options)."""
+    return petsc_options({}, {k: v for k, v in normalize_options(options).items() if k.startswith("reduction_")})
+
+
+def _run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dict[str, Any], progress: bool,
+                      t_end: Optional[float], release: bool, impact_only: bool) -> RunOutput:
     comm = setup.model.V.mesh.comm
     opt, model, contact, red, method = setup.opt, setup.model, setup.contact, setup.red, setup.method
     t_end = opt.t_end if t_end is None else t_end

@@ -2,9 +2,11 @@
 Hermitian, shift-and-invert at 0 with the interior's Cholesky factorization; a dense LAPACK solve when most
 modes are asked), and the default solver options (prefix ``impact_reduction_<body>_``).
 
-With a cutoff, a first small round (FIRST_NEV modes) serves the bodies with few modes; a body with
-more under the cutoff has them counted by the inertia of K_ii - lambda_cut M_ii (Sylvester's law,
-:func:`count_below`) and found in one more round (the liner panel's 164-170 modes).
+With a cutoff, a first small round of Krylov-Schur (FIRST_NEV modes) serves the bodies with few
+modes; a body with more under the cutoff has them counted by the inertia of K_ii - lambda_cut M_ii
+(Sylvester's law, :func:`count_below`) and found, with the next one, by the block Krylov solver of
+:mod:`.block_krylov` (multi-right-hand-side solves: the liner panel's 164-170 modes; option
+``block_krylov_size``, 0 for one more round of Krylov-Schur, the fallback).
 """
 from __future__ import annotations
 
@@ -17,7 +19,8 @@ from petsc4py import PETSc
 from slepc4py import SLEPc
 
 from ..errors import SolverError
-from ..integration.solvers import petsc_options
+from ..integration.solvers import note_option_read, petsc_options
+from .block_krylov import BLOCK_SIZE, block_krylov_modes
 
 log = logging.getLogger(__name__)
 
@@ -181,6 +184,11 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
         below = None if counted or n <= INERTIA_MIN_DOFS else count_below(K_ii, M_ii, lam_cut, prefix, options)
         counted = True
         if below is not None:
+            found = block_modes_under_cutoff(K_ii, M_ii, ksp, lam_cut, below, prefix, options)
+            if found is not None:
+                for v in prev:
+                    v.destroy()
+                return found
             # every mode under the cutoff and the next one (its frequency is reported): one more round
             nev = min(max(below + 1 + max(2, below // 50), nev + 1), n)
             log.info("eigensolver %s: %d modes under f_cut (inertia), asking %d", prefix, below, nev)
@@ -195,6 +203,41 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
     for v in vecs[keep:]:
         v.destroy()
     return freq[:keep], vecs[:keep], nxt
+
+
+def block_modes_under_cutoff(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, lam_cut: float, below: int,
+                             prefix: str, options: Optional[dict[str, str]]
+                             ) -> Optional[tuple[np.ndarray, list[PETSc.Vec], float]]:
+    """The ``below`` modes under lam_cut (rad^2/s^2; the count from the inertia) and the next
+    frequency by the block Krylov solver; None (the caller runs Krylov-Schur) when the option
+    ``<prefix>block_krylov_size`` is 0, most of the spectrum is asked, or the block solver does not
+    converge within its basis or finds another count."""
+    options = options or {}
+    with petsc_options({}, {k: v for k, v in options.items() if k in ("block_krylov_size", "eps_tol")}, prefix=prefix):
+        db = PETSc.Options()
+        block = db.getInt(prefix + "block_krylov_size", BLOCK_SIZE)
+        tol = db.getReal(prefix + "eps_tol", 1e-10)
+    note_option_read(prefix + "block_krylov_size")     # a setting of this solver, not a PETSc object's
+    n = K_ii.getSize()[0]
+    if block <= 0 or below + 1 >= DENSE_EIGEN_SHARE * n:
+        return None
+    found = block_krylov_modes(K_ii, M_ii, ksp.getPC().getFactorMatrix(), below + 1, block=block, tol=tol)
+    if found is None:
+        log.info("eigensolver %s: block Krylov unconverged; Krylov-Schur instead", prefix)
+        return None
+    lam, vecs, stats = found
+    if int(np.searchsorted(lam, lam_cut, side="right")) != below:
+        # a mode missed or one above the cut in the lowest below + 1: leave it to Krylov-Schur
+        log.info("eigensolver %s: block Krylov found %d modes under f_cut, the inertia %d; Krylov-Schur instead",
+                 prefix, int(np.searchsorted(lam, lam_cut, side="right")), below)
+        for v in vecs:
+            v.destroy()
+        return None
+    log.info("eigensolver %s: %d modes under f_cut (inertia) by block Krylov, basis %d in blocks of %d",
+             prefix, below, stats["basis"], block)
+    freq = np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)
+    vecs[below].destroy()
+    return freq[:below], vecs[:below], float(freq[below])
 
 
 def small_ghep(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

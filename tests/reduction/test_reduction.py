@@ -6,6 +6,7 @@ The small mesh (h_contact 0.8 mm, h_far 8 mm, zone radius 5 mm; half model) has 
 """
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -593,7 +594,7 @@ def test_reduction_cache_gives_the_same_model(setup, p1, tmp_path, monkeypatch):
 
 # --- eigensolver ------------------------------------------------------------------------------------
 @serial
-def test_inertia_count_and_single_round_match_scipy(p1, monkeypatch):
+def test_inertia_count_and_single_round_match_scipy(p1, monkeypatch, caplog):
     """The count of modes under a cutoff from the inertia of K - lambda M (Sylvester) equals the
     count from scipy's eigensolve, and the eigensolver that jumps to that count (the inertia path)
     keeps the same modes, to solver tolerance, as the one that doubles its request."""
@@ -621,13 +622,88 @@ def test_inertia_count_and_single_round_match_scipy(p1, monkeypatch):
     assert eigen.count_below(K_p, M_p, (2 * math.pi * 0.5 * f_ref[0]) ** 2, prefix) == 0
 
     results = {}
-    for name, threshold in (("inertia", 0), ("doubling", 10**9)):
+    # the inertia count then the block Krylov solver (the default), the inertia count then one
+    # Krylov-Schur round (block_krylov_size 0), and the doubling Krylov-Schur rounds
+    for name, threshold, block in (("block", 0, 32), ("inertia", 0, 0), ("doubling", 10**9, 32)):
         monkeypatch.setattr(eigen, "INERTIA_MIN_DOFS", threshold)
         ksp = create_factored_solver(K_p, prefix, eigen.default_solver_options(1))
-        results[name] = eigen.compute_modes(K_p, M_p, ksp, f_cut, None, prefix)
+        caplog.clear()
+        with caplog.at_level(logging.INFO, logger="millimpact.reduction.eigen"):
+            results[name] = eigen.compute_modes(K_p, M_p, ksp, f_cut, None, prefix,
+                                                {**eigen.default_solver_options(1), "block_krylov_size": str(block)})
+        assert ("by block Krylov" in caplog.text) == (name == "block"), name
         ksp.destroy()
     for name, (freq, vecs, nxt) in results.items():
         assert len(freq) == k, name
         # shift-and-invert at eps_tol 1e-10 against ARPACK's default: 1e-8 relative
         np.testing.assert_allclose(freq, f_ref[:k], rtol=1e-8, err_msg=name)
         assert nxt == pytest.approx(f_ref[k], rel=1e-8), name
+
+
+@serial
+def test_block_krylov_modes_match_scipy(p1):
+    """The block Krylov solver's lowest modes of the clamped block against scipy's: frequencies to
+    1e-8 relative (its residual tolerance 1e-10 on the transformed problem, as SLEPc's eps_tol),
+    M-orthonormal vectors that satisfy K x = lambda M x, and the same at block sizes 7 and 32 (a
+    basis that ends in the middle of a block); a basis cap too small to converge returns None (the
+    caller falls back to Krylov-Schur)."""
+    from petsc4py import PETSc
+
+    from millimpact.integration.solvers import create_factored_solver
+    from millimpact.reduction import eigen
+    from millimpact.reduction.block_krylov import block_krylov_modes
+
+    n = p1.K.getSize()[0]
+    sel = np.zeros(n, dtype=bool)
+    sel[p1.block_dofs] = True
+    sel[p1.fixed_dofs] = False
+    K, M = csr(p1.K)[sel][:, sel].tocsr(), csr(p1.M)[sel][:, sel].tocsr()
+    k = 30
+    f_ref = lowest_hz(K, M, k)
+
+    def petsc(A):
+        return PETSc.Mat().createAIJ(A.shape, csr=(A.indptr, A.indices, A.data), comm=MPI.COMM_SELF)
+
+    K_p, M_p = petsc(K), petsc(M)
+    ksp = create_factored_solver(K_p, "test_block_", eigen.default_solver_options(1))
+    F = ksp.getPC().getFactorMatrix()
+    for block in (7, 32):
+        lam, vecs, stats = block_krylov_modes(K_p, M_p, F, k, block=block)
+        np.testing.assert_allclose(np.sqrt(lam) / (2 * math.pi), f_ref, rtol=1e-8, err_msg=f"block {block}")
+        X = np.column_stack([v.getArray() for v in vecs])
+        np.testing.assert_allclose(X.T @ (M @ X), np.eye(k), atol=1e-10)
+        res = np.linalg.norm(K @ X - (M @ X) * lam, axis=0) / np.linalg.norm(K @ X, axis=0)
+        assert res.max() < 1e-6, f"block {block}: residual {res.max():.3g}"
+        assert stats["basis"] >= k
+        for v in vecs:
+            v.destroy()
+    assert block_krylov_modes(K_p, M_p, F, k, block=8, max_dim=40) is None
+    ksp.destroy()
+
+
+def test_run_options_reach_the_reduction_solvers(setup, monkeypatch, caplog):
+    """A run's ``-impact_reduction_<body>_`` options reach the reduction's solvers: with
+    ``block_krylov_size 0`` the region's modes come from a second Krylov-Schur round, without it
+    from the block Krylov solver. (Until 2026-11-26 they did not: the reduction reads PETSc's
+    options database, which the run's options never entered.)"""
+    from millimpact.methods.reduced import build_reduced_setup
+    from millimpact.reduction import eigen
+
+    scene, plan, _ = setup
+    monkeypatch.setenv("MILLIMPACT_REDUCTION_CACHE", "off")
+    monkeypatch.setattr(eigen, "INERTIA_MIN_DOFS", 0)   # the small block: its modes counted ...
+    monkeypatch.setattr(eigen, "FIRST_NEV", 2)          # ... after a first round that falls short
+    logs = {}
+    for size in (None, "0"):
+        options = {} if size is None else {"impact_reduction_block_block_krylov_size": size}
+        caplog.clear()
+        with caplog.at_level(logging.INFO, logger="millimpact.reduction.eigen"):
+            build_reduced_setup(scene, plan, options, "improved")
+        logs[size] = caplog.text
+    lines = {size: [ln for ln in text.splitlines() if "eigensolver impact_reduction_" in ln] for size, text in logs.items()}
+    for body in ("ball", "block"):
+        assert any(f"_{body}_:" in ln and "by block Krylov" in ln for ln in lines[None]), lines[None]
+    # the option names the block body: it alone changes solver, the ball keeps the block solver
+    assert any("_block_:" in ln and "asking" in ln for ln in lines["0"]), lines["0"]
+    assert not any("_block_:" in ln and "by block Krylov" in ln for ln in lines["0"]), lines["0"]
+    assert any("_ball_:" in ln and "by block Krylov" in ln for ln in lines["0"]), lines["0"]
