@@ -16,8 +16,9 @@ block Krylov space span{V_1, S V_1, S^2 V_1, ...},
 
     S V_m = V_m H_m + V_(m+1) R_m E_m^T,     H_m = V_m^T M S V_m  (symmetric, m x m)
 
-(each new block orthogonalized twice against the basis, classical Gram-Schmidt, then
-M-orthonormalized by a Cholesky factorization of its Gram matrix: R_m). The Ritz pairs
+(each new block orthogonalized against the last two blocks, the three-term recurrence, then once
+more against the whole basis, classical Gram-Schmidt; then M-orthonormalized by a Cholesky
+factorization of its Gram matrix: R_m). The Ritz pairs
 (mu, V_m y) of H_m approximate the largest eigenvalues mu = 1 / lambda of S, i.e. the lowest modes,
 and the residual needs no extra product: ||S x - mu x||_M = ||R_m y_last||, the bottom block of y.
 A pair is converged when that residual over mu is below ``tol`` (SLEPc's relative criterion for
@@ -124,10 +125,14 @@ def block_krylov_modes(K: PETSc.Mat, M: PETSc.Mat, factor: PETSc.Mat, count: int
     m = block
     while True:
         W = ops.solve(ops.mult(M, V[:, m - block:m]))
-        for _ in range(2):            # classical Gram-Schmidt, twice (the Krylov blocks lose orthogonality fast)
-            h = ops.gram(V[:, :m], ops.mult(M, W))
-            W -= V[:, :m] @ h
-            H[:m, m - block:m] += h
+        # the three-term recurrence (S is M-self-adjoint: W is M-orthogonal to all but the last two
+        # blocks in exact arithmetic), then one full classical Gram-Schmidt pass against the whole
+        # basis, which the blocks need (they lose orthogonality fast). Two full passes instead:
+        # the same basis and modes, eigensolve 68.8 s against 57.1 s on the panel's 147k dofs
+        for lo in (max(0, m - 2 * block), 0):
+            h = ops.gram(V[:, lo:m], ops.mult(M, W))
+            W -= V[:, lo:m] @ h
+            H[lo:m, m - block:m] += h
         qr = ops.m_orthonormalize(W)
         if qr is None:
             log.info("block Krylov: breakdown at basis size %d", m)
