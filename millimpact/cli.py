@@ -421,8 +421,10 @@ def main(argv: Optional[list[str]] = None) -> int:
         parser = build_parser()
         argv, petsc = split_petsc_options(argv)
         args, rest = parser.parse_known_args(argv)
+        # force: FFCx's __init__ calls logging.basicConfig() when it is imported, which made this
+        # one a no-op (-v showed no INFO line of the package until 2026-11-26)
         logging.basicConfig(level=logging.INFO if args.verbose and world_rank() == 0 else logging.WARNING,
-                            format="%(name)s: %(message)s")
+                            format="%(name)s: %(message)s", force=True)
         for handler in logging.getLogger().handlers:
             handler.addFilter(_CompilerChatter(args.verbose))
         if rest:

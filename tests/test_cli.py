@@ -95,6 +95,16 @@ def test_version_unknown_option_and_verbose_after_the_command():
     assert r.returncode == 0 and "paper-rig" in r.stdout
 
 
+def test_verbose_run_logs_the_stages_details(tmp_path):
+    """-v logs the package's INFO lines (the reduction's modes and eigensolver); it logged none:
+    FFCx configures logging when imported, and the CLI's own configuration was then a no-op."""
+    r = run_cli("run", "--set", "time.end=1e-5", "-v", "--out", str(tmp_path / "r"))
+    assert r.returncode == 0, r.stderr
+    assert "millimpact.reduction.craig_bampton: reduction block:" in r.stderr, r.stderr[-2000:]
+    r = run_cli("run", "--set", "time.end=1e-5", "--out", str(tmp_path / "q"), "--force")
+    assert r.returncode == 0 and "millimpact.reduction" not in r.stderr
+
+
 def test_run_help_lists_every_method():
     from millimpact.methods.registry import DEFAULT_METHOD, METHODS
 

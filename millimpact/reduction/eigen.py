@@ -233,8 +233,9 @@ def block_modes_under_cutoff(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, l
         for v in vecs:
             v.destroy()
         return None
-    log.info("eigensolver %s: %d modes under f_cut (inertia) by block Krylov, basis %d in blocks of %d",
-             prefix, below, stats["basis"], block)
+    log.info("eigensolver %s: %d modes under f_cut (inertia) by block Krylov, basis %d in blocks of %d, "
+             "%.3g s (solves %.3g s, the rest the products with M and the orthogonalization)",
+             prefix, below, stats["basis"], block, stats["total_s"], stats["solve_s"])
     freq = np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)
     vecs[below].destroy()
     return freq[:below], vecs[:below], float(freq[below])
