@@ -157,6 +157,16 @@ def test_unknown_petsc_type_is_one_line(option, value):
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and f"{option} {value}: unknown" in r.stderr
 
 
+@pytest.mark.parametrize("value", ["abc", "-3", "2.5"])
+def test_bad_block_krylov_size_is_one_line(value):
+    """A block size that is not an integer >= 0 is refused before any work ('abc' was a PETSc
+    error and a stack after the meshing; '-3' silently chose Krylov-Schur)."""
+    option = "-impact_reduction_block_block_krylov_size"
+    r = run_cli("run", "--method", "hertz", option, value, "--out", "out/never")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert f"{option} {value}: " in r.stderr and "integer >= 0" in r.stderr
+
+
 def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path):
     """`scene show` printed the full P1 plan (zone 4.64 mm) while the default improved run uses P2
     and 2.90 mm: it now shows the plan of --method (default the run's default), as the run notes."""

@@ -523,11 +523,14 @@ _TYPE_OPTIONS = {
 
 def check_type_options(options: Mapping[str, object]) -> None:
     """Refuse a PETSc option that names an unknown KSP, PC or factorization package (one line naming
-    the option, its value and the known names) before any work; PETSc itself would fail later with
-    only an error number."""
+    the option, its value and the known names), or a block Krylov block size that is not an integer
+    >= 0, before any work; PETSc itself would fail later with only an error number."""
     from ..errors import InputError
 
     for key, value in options.items():
+        if str(key).endswith("block_krylov_size") and not str(value).strip().isdigit():
+            raise InputError(f"-{key} {value}: the block Krylov eigensolver's block size must be an integer "
+                             ">= 0 (0: SLEPc's Krylov-Schur; default 32)")
         for suffix, (what, enum) in _TYPE_OPTIONS.items():
             if key.endswith(suffix):
                 known = sorted({str(getattr(enum, k)).lower() for k in dir(enum) if not k.startswith("_")})
