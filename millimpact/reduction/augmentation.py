@@ -17,7 +17,7 @@ log = logging.getLogger(__name__)
 
 from .partition import DofPartition
 from .distributed import check_converged
-from .eigen import small_ghep
+from .eigen import frequencies_hz, small_ghep
 
 
 # --- modal truncation augmentation ---------------------------------------------------------------
@@ -147,6 +147,6 @@ def compute_augmentation_vectors(K_ii: PETSc.Mat, M_ii: PETSc.Mat, xs: Sequence[
         w.destroy()
     for y in out:
         y.destroy()
-    return np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), result
+    return frequencies_hz(lam), result
 
 

@@ -75,7 +75,8 @@ PETSc and SLEPc objects live here and in :mod:`millimpact.reduction.nmm_zone` on
 prefixes: ``impact_reduction_<body>_`` for the factorization of ``K_ii`` (``ksp_``, ``pc_``)
 and its eigensolver (``eps_``, ``st_``; ``inertia_`` the count of modes under the cutoff,
 ``block_krylov_size`` the block Krylov solver's block, :mod:`.eigen`);
-``impact_reduction_free_<body>_`` for the free-vibration modes; ``impact_reduction_mass_`` for the solve with ``M_r`` that projects initial states.
+``impact_reduction_free_<body>_`` for the free-vibration modes; ``impact_reduction_mass_`` for
+the solve with ``M_r`` that projects initial states.
 Defaults come from :func:`default_solver_options`, the ``solver_options`` arguments merge over
 them and the command line wins.
 """

@@ -19,7 +19,7 @@ from petsc4py import PETSc
 from slepc4py import SLEPc
 
 from ..errors import SolverError
-from ..integration.solvers import note_option_read, petsc_options
+from ..integration.solvers import petsc_options
 from .block_krylov import BLOCK_SIZE, block_krylov_modes
 
 log = logging.getLogger(__name__)
@@ -198,7 +198,7 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
         keep = min(n_modes, len(lam))
     else:
         keep = int(np.searchsorted(lam, lam_cut, side="right"))
-    freq = np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)
+    freq = frequencies_hz(lam)
     nxt = float(freq[keep]) if keep < len(freq) else math.nan
     for v in vecs[keep:]:
         v.destroy()
@@ -217,7 +217,6 @@ def block_modes_under_cutoff(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, l
         db = PETSc.Options()
         block = db.getInt(prefix + "block_krylov_size", BLOCK_SIZE)
         tol = db.getReal(prefix + "eps_tol", 1e-10)
-    note_option_read(prefix + "block_krylov_size")     # a setting of this solver, not a PETSc object's
     n = K_ii.getSize()[0]
     if block <= 0 or below + 1 >= DENSE_EIGEN_SHARE * n:
         return None
@@ -226,19 +225,25 @@ def block_modes_under_cutoff(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, l
         log.info("eigensolver %s: block Krylov unconverged; Krylov-Schur instead", prefix)
         return None
     lam, vecs, stats = found
-    if int(np.searchsorted(lam, lam_cut, side="right")) != below:
+    found_below = int(np.searchsorted(lam, lam_cut, side="right"))
+    if found_below != below:
         # a mode missed or one above the cut in the lowest below + 1: leave it to Krylov-Schur
         log.info("eigensolver %s: block Krylov found %d modes under f_cut, the inertia %d; Krylov-Schur instead",
-                 prefix, int(np.searchsorted(lam, lam_cut, side="right")), below)
+                 prefix, found_below, below)
         for v in vecs:
             v.destroy()
         return None
     log.info("eigensolver %s: %d modes under f_cut (inertia) by block Krylov, basis %d in blocks of %d, "
              "%.3g s (solves %.3g s, the rest the products with M and the orthogonalization)",
              prefix, below, stats["basis"], block, stats["total_s"], stats["solve_s"])
-    freq = np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)
+    freq = frequencies_hz(lam)
     vecs[below].destroy()
     return freq[:below], vecs[:below], float(freq[below])
+
+
+def frequencies_hz(lam: np.ndarray) -> np.ndarray:
+    """Natural frequencies (Hz) of the eigenvalues lam = omega^2 (round-off negatives as 0)."""
+    return np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)
 
 
 def small_ghep(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
