@@ -42,8 +42,9 @@ from petsc4py import PETSc
 
 log = logging.getLogger(__name__)
 
-#: default block size: 32 columns gave the smallest time on the liner panel's region (147k dofs:
-#: 49 s against 60 s with 64, which needs a larger basis, 1152 against 864 vectors)
+#: default block size: 32 columns gave the smaller time on the liner panel's region (147k dofs, a
+#: prototype of this solver with two BLAS threads: 49 s against 60 s with 64, which needs a larger
+#: basis, 1152 against 864 vectors)
 BLOCK_SIZE = 32
 #: the basis is given up (and the caller falls back to Krylov-Schur) beyond this many times the
 #: wanted count, plus 20 blocks for small counts; the panel needed 5.1x (864 vectors for 170 modes)
