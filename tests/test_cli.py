@@ -167,6 +167,18 @@ def test_bad_block_krylov_size_is_one_line(value):
     assert f"{option} {value}: " in r.stderr and "integer >= 0" in r.stderr
 
 
+@pytest.mark.parametrize("suffix, value, words", [
+    ("substructures", "-2", "integer >= 0"), ("substructures", "two", "integer >= 0"),
+    ("substructure_f_factor", "0.5", "number >= 1"), ("substructure_trace_density", "-1", "number >= 0"),
+    ("substructure_margin", "x", "number >= 0")])
+def test_bad_substructure_settings_are_one_line(suffix, value, words):
+    """The substructuring settings out of range are refused before any work, one line, exit 2."""
+    option = f"-impact_reduction_block_{suffix}"
+    r = run_cli("run", "--method", "hertz", option, value, "--out", "out/never")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert f"{option} {value}: " in r.stderr and words in r.stderr
+
+
 def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path):
     """`scene show` printed the full P1 plan (zone 4.64 mm) while the default improved run uses P2
     and 2.90 mm: it now shows the plan of --method (default the run's default), as the run notes."""

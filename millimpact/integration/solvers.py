@@ -523,14 +523,28 @@ _TYPE_OPTIONS = {
 
 def check_type_options(options: Mapping[str, object]) -> None:
     """Refuse a PETSc option that names an unknown KSP, PC or factorization package (one line naming
-    the option, its value and the known names), or a block Krylov block size that is not an integer
-    >= 0, before any work; PETSc itself would fail later with only an error number."""
+    the option, its value and the known names), or a block Krylov block size or a substructuring
+    setting out of its range, before any work; PETSc itself would fail later with only an error number."""
     from ..errors import InputError
 
     for key, value in options.items():
         if str(key).endswith("block_krylov_size") and not str(value).strip().isdigit():
             raise InputError(f"-{key} {value}: the block Krylov eigensolver's block size must be an integer "
                              ">= 0 (0: SLEPc's Krylov-Schur; default 32)")
+        if str(key).endswith("_substructures") and not str(value).strip().isdigit():
+            raise InputError(f"-{key} {value}: the number of slabs must be an integer >= 0 "
+                             "(0 or 1: one factorization of the region; default 0)")
+        for suffix, low, what in (("substructure_f_factor", 1.0, "slab modes up to this x f_cut; default 1.5"),
+                                  ("substructure_trace_density", 0.0,
+                                   "trace degrees per shear wavelength; 0: every interface dof; default 4"),
+                                  ("substructure_margin", 0.0, "shear wavelengths at f_cut; default 0.5")):
+            if str(key).endswith(suffix):
+                try:
+                    ok = float(value) >= low
+                except ValueError:
+                    ok = False
+                if not ok:
+                    raise InputError(f"-{key} {value}: must be a number >= {low:g} ({what})")
         for suffix, (what, enum) in _TYPE_OPTIONS.items():
             if key.endswith(suffix):
                 known = sorted({str(getattr(enum, k)).lower() for k in dir(enum) if not k.startswith("_")})

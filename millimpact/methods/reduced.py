@@ -191,15 +191,18 @@ def boundary_element_size(plan: Plan, zone: float) -> float:
 
 
 def build_reduced_model(model: FEModel, kind: str, *, f_cut: Optional[float], n_modes: Optional[int],
-                        remedy: str = "interface", augment: tuple[str, ...] = ()) -> ReducedModel:
+                        remedy: str = "interface", augment: tuple[str, ...] = (),
+                        keep_away=None) -> ReducedModel:
     """The reduced model of ``model`` for a zone description ``kind`` ("nodal" or "nmm"), its modes
-    augmented by the zone-motion patterns ``augment`` (:func:`millimpact.reduction.reduce_model`)."""
+    augmented by the zone-motion patterns ``augment`` (:func:`millimpact.reduction.reduce_model`);
+    ``keep_away``: points (the gauges) a substructured body's cuts stay away from."""
     part = partition_dofs(model)
     if kind == "nmm":
         zone = create_nmm_zone(model, part, remedy=remedy).basis
     else:
         zone = create_nodal_zone_basis(model, part)
-    return reduce_model(model, zone, f_cut=f_cut, n_modes=n_modes, partition=part, augment=augment)
+    return reduce_model(model, zone, f_cut=f_cut, n_modes=n_modes, partition=part, augment=augment,
+                        keep_away=keep_away)
 
 
 def reduced_system(red: ReducedModel, contact: ContactSet, friction: float) -> integrators.LinearDynamics:
@@ -281,7 +284,7 @@ def build_reduced_setup(scene: Scene, plan: Plan, options: dict[str, Any], metho
     t_assemble = time.perf_counter() - t0 - t_mesh
     with stage("reduction (SLEPc modes, Craig-Bampton)"), reduction_solver_options(options):
         red = build_reduced_model(model, opt.kind, f_cut=opt.f_cut, n_modes=opt.n_modes, remedy=opt.remedy,
-                                  augment=opt.augment)
+                                  augment=opt.augment, keep_away=[g.point for g in plan.probes.gauges])
     t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
     system = None
     if share_operators:

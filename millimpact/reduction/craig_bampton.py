@@ -65,6 +65,10 @@ coordinates and the modes (in closed form, no dense ``n x n`` matrix is ever for
 Reduced coordinates are numbered rank by rank: first the zone coordinates a rank owns, then its
 share of the modes (all ball modes before all block modes in the global mode order).
 
+With ``<prefix>substructures S`` (S >= 2) a body's Psi and Phi come instead from a Ritz basis
+built slab by slab (:mod:`.substructures`): no factorization of the whole K_ii, the mode-acceleration
+rows from the Ritz space (``BodyReduction.residual_b``).
+
 The stage's other modules: :mod:`.partition` (dof sets, zone bases), :mod:`.eigen` (SLEPc),
 :mod:`.augmentation`, :mod:`.reduced_model` (M_r, K_r, T, recovery), :mod:`.distributed` (PETSc
 helpers) and :mod:`.free_modes`: the lowest free-vibration modes of a reduced model
@@ -74,7 +78,8 @@ between impacts (:mod:`millimpact.methods.reduced`).
 PETSc and SLEPc objects live here and in :mod:`millimpact.reduction.nmm_zone` only (STYLE.md). Options
 prefixes: ``impact_reduction_<body>_`` for the factorization of ``K_ii`` (``ksp_``, ``pc_``)
 and its eigensolver (``eps_``, ``st_``; ``inertia_`` the count of modes under the cutoff,
-``block_krylov_size`` the block Krylov solver's block, :mod:`.eigen`);
+``block_krylov_size`` the block Krylov solver's block, :mod:`.eigen`; ``substructures`` and
+``substructure_*``, :mod:`.substructures`);
 ``impact_reduction_free_<body>_`` for the free-vibration modes; ``impact_reduction_mass_`` for
 the solve with ``M_r`` that projects initial states.
 Defaults come from :func:`default_solver_options`, the ``solver_options`` arguments merge over
@@ -104,6 +109,7 @@ from .distributed import dense_columns, gather_rows, ownership_offsets, split_ev
 from .eigen import compute_modes, default_solver_options
 from .augmentation import AUGMENTATION_PATTERNS, compute_augmentation_load, compute_augmentation_vectors, interface_motion_pattern
 from .reduced_model import BodyReduction, ReducedModel
+from .substructures import substructure_settings, substructured_modes
 
 
 #: relative residual accepted for the constraint modes K_ii Psi = -C (a direct solve gives ~1e-12)
@@ -113,14 +119,15 @@ CONSTRAINT_RESIDUAL_TOL = 1e-8
 def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Optional[float] = None,
                  n_modes: Optional[int] = None, partition: Optional[DofPartition] = None,
                  solver_options: Optional[dict[str, str]] = None,
-                 augment: Sequence[str] = ()) -> ReducedModel:
+                 augment: Sequence[str] = (), keep_away: Optional[np.ndarray] = None) -> ReducedModel:
     """Craig-Bampton reduction of ``model``: the zone described by ``zone`` (default: nodal, the
     identity), each body's interior by constraint modes and fixed-interface modes up to ``f_cut``
     (Hz) or ``n_modes`` per body (``n_modes`` wins if both are given; ``n_modes >=`` the interior
     size keeps every mode and reproduces the full model exactly). ``augment``: zone-motion
     patterns (:data:`AUGMENTATION_PATTERNS`) whose modal truncation augmentation vectors are
     appended to each body's modes (one per pattern and body, see
-    :func:`compute_augmentation_vectors`). Collective."""
+    :func:`compute_augmentation_vectors`). ``keep_away`` (k x 3, m): points a substructured body's
+    cuts keep away from (the gauges, :mod:`.substructures`). Collective."""
     if f_cut is None and n_modes is None:
         raise InputError("reduction: give a modal cutoff f_cut (Hz) or a mode count per body")
     if f_cut is not None and not (f_cut > 0):
@@ -190,6 +197,9 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         cached = reduction_cache.load(comm, key) if key else None
         ksp = None
         data["n_aug"] = 0
+        # slab-wise Ritz basis instead of one factorization of K_ii (option <prefix>substructures)
+        sub = (substructure_settings(prefix, opts) if f_cut is not None and n_modes is None and not augment
+               else None)
         if cached is not None:
             for k in PETSc.Options().getAll():     # in the key: they shaped these modes (no "unused" warning)
                 if k.startswith(prefix):
@@ -199,8 +209,44 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
                 Psi.getDenseArray()[:] = cached["Psi"]
                 Psi.assemble()
                 data["constraint_residual"] = float(cached["residual"])
+                if sub is not None and "flex" in cached:
+                    data["residual_b"] = rhs.duplicate()
+                    data["residual_b"].getDenseArray()[:] = cached["flex"]
+                    data["residual_b"].assemble()
             freq, nxt, phi_cols = np.asarray(cached["freq"]), float(cached["next"]), cached["Phi"]
             data["timings"]["from_cache"] = time.perf_counter() - t0
+        elif sub is not None:
+            material = model.ball_material if name == "ball" else model.target_material
+            node_xyz = model.V.tabulate_dof_coordinates()[idx // 3]
+            c_loc = rhs.getDenseArray() if n_b else np.zeros((len(idx), 0))
+            d_dense = dense_columns(D, qb, comm) if n_b else None
+            d_loc = d_dense.getDenseArray().copy() if n_b else np.zeros((len(idx), 0))
+            if d_dense is not None:
+                d_dense.destroy()
+            res = substructured_modes(K_ii, M_ii, c_loc, d_loc, node_xyz, idx % 3, f_cut,
+                                      math.sqrt(material.shear_modulus / material.density), sub, prefix, opts,
+                                      keep_away)
+            freq, nxt, phi_cols = res["freq"], res["next"], res["Phi"]
+            if n_b:
+                Psi = rhs.duplicate()
+                Psi.getDenseArray()[:] = res["Psi"]
+                Psi.assemble()
+                data["residual_b"] = rhs.duplicate()
+                data["residual_b"].getDenseArray()[:] = res["flex"]
+                data["residual_b"].assemble()
+                R = K_ii.matMult(Psi)
+                R.axpy(1.0, rhs)
+                # a Galerkin Psi: reported, not checked (exact only with every interface dof a trace)
+                data["constraint_residual"] = (R.norm(PETSc.NormType.FROBENIUS)
+                                               / max(rhs.norm(PETSc.NormType.FROBENIUS), 1e-300))
+                R.destroy()
+            data["substructures"] = res["stats"]
+            data["timings"]["substructures"] = time.perf_counter() - t0
+            if key:
+                reduction_cache.store(comm, key, {
+                    "Psi": Psi.getDenseArray().copy() if Psi is not None else np.zeros((0, 0)), "Phi": phi_cols,
+                    "freq": np.asarray(freq), "next": np.asarray(nxt), "flex": res["flex"],
+                    "residual": np.asarray(data.get("constraint_residual", 0.0))})
         else:
             ksp = create_factored_solver(K_ii, prefix, opts)
             data["timings"]["factor"] = time.perf_counter() - t0
@@ -256,7 +302,11 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
             Phi.setUp()
             Phi.getDenseArray()[:] = phi_cols
             Phi.assemble()
-        data["factor"] = (lambda K_ii=K_ii, prefix=prefix: create_factored_solver(K_ii, prefix, opts))
+        # the mode-acceleration rows factor K_ii on demand; not for a substructured body (the point of
+        # substructuring is never to hold that factorization)
+        data["factor"] = (None if sub is not None else
+                          (lambda K_ii=K_ii, prefix=prefix: create_factored_solver(K_ii, prefix, opts)))
+        data["from_cache"] = cached is not None
         data.update(K_ii=K_ii, M_ii=M_ii, C=C, D=D, Cb=Cb, Db=Db, qb_q=qb, Psi=Psi, Phi=Phi, freq=freq,
                     next=nxt, ksp=ksp)
         data["timings"]["total"] = time.perf_counter() - tb
@@ -316,11 +366,14 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
             Kbb = gather_rows(Cb.transposeMatMult(Psi), comm)
             Kbb = 0.5 * (Kbb + Kbb.T)
             MPsi = M_ii.matMult(Psi)
-            A_b = MPsi.copy()
-            A_b.axpy(1.0, dense_columns(Db, np.arange(Db.getSize()[1]), comm))
+            # A_b (dense n_i x n_b) only serves the mode-acceleration rows, which need a factor
+            if d["factor"] is not None:
+                A_b = MPsi.copy()
+                A_b.axpy(1.0, dense_columns(Db, np.arange(Db.getSize()[1]), comm))
             DtPsi = gather_rows(Db.transposeMatMult(Psi), comm)
             Mbb = DtPsi + DtPsi.T + gather_rows(Psi.transposeMatMult(MPsi), comm)
             Mbb = 0.5 * (Mbb + Mbb.T)
+            MPsi.destroy()
             blocks_K.append((qb, qb, Kbb))
             blocks_M.append((qb, qb, Mbb))
         if Phi is not None:
@@ -346,7 +399,8 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
                 m.destroy()
         bodies.append(BodyReduction(name, d["n_i"], d["I"], Psi, qb, Phi, modes, freq, f_cut, d["next"],
                                     d["timings"], d["n_aug"], ksp=d["ksp"], A_b=A_b, K_ii=K_ii,
-                                    factor=d["factor"], from_cache=d["ksp"] is None))
+                                    factor=d["factor"], from_cache=d["from_cache"],
+                                    substructures=d.get("substructures"), residual_b=d.get("residual_b")))
     timings["dense_blocks"] = time.perf_counter() - t0
 
     sizes = ((n_red_loc, n_red), (n_red_loc, n_red))

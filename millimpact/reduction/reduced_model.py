@@ -57,6 +57,11 @@ class BodyReduction:
     #: factors K_ii when ``ksp`` is None (Psi and Phi came from the on-disk cache: reduction.cache)
     factor: Optional[Callable[[], PETSc.KSP]] = None
     from_cache: bool = False
+    #: the slab-wise reduction's statistics (:mod:`.substructures`), None for one factorization
+    substructures: Optional[dict] = None
+    #: substructured bodies: R A_b (dense n_i x n_b), the residual flexibility's response to the
+    #: interface inertia from the Ritz space, for the mode-acceleration rows without K_ii's factor
+    residual_b: Optional[PETSc.Mat] = None
 
     @property
     def n_modes(self) -> int:
@@ -73,6 +78,7 @@ class BodyReduction:
                 "lowest_frequency_Hz": float(f[0]) if len(f) else None,
                 "highest_frequency_Hz": float(f[-1]) if len(f) else None,
                 "next_frequency_Hz": self.next_frequency_hz, "from_cache": self.from_cache,
+                **({"substructures": self.substructures} if self.substructures else {}),
                 "timings_s": dict(self.timings)}
 
 
@@ -253,6 +259,17 @@ class ReducedModel:
         C = np.zeros((k, self.n_global))
         r0, r1 = A.getOwnershipRange()
         for b in self.bodies:
+            if b.residual_b is not None and not b.n_augmented:
+                # substructured: C[:, qb] -= A_i R A_b with R A_b from the reduction's Ritz space
+                cols = PETSc.IS().createGeneral(b.I.getIndices(), comm=self.comm)
+                rows = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
+                AI = A.createSubMatrix(rows, cols)
+                if AI.norm(PETSc.NormType.FROBENIUS) > 0.0:
+                    G = AI.matMult(b.residual_b)
+                    C[:, b.qb] -= gather_rows(G, self.comm)
+                    G.destroy()
+                AI.destroy()
+                continue
             if b.ksp is None and b.factor is not None and b.A_b is not None and b.n_interior and not b.n_augmented:
                 b.ksp = b.factor()      # Psi and Phi came from the cache: factor K_ii now, once
             if b.n_interior == 0 or b.ksp is None or b.A_b is None or b.n_augmented:
@@ -286,10 +303,10 @@ class ReducedModel:
     def release_recovery(self) -> None:
         """Free the per-body factorizations and couplings kept for :meth:`mode_acceleration_rows`."""
         for b in self.bodies:
-            for m in (b.ksp, b.A_b):
+            for m in (b.ksp, b.A_b, b.residual_b):
                 if m is not None:
                     m.destroy()
-            b.ksp = b.A_b = b.K_ii = b.factor = None
+            b.ksp = b.A_b = b.K_ii = b.factor = b.residual_b = None
 
     def reduced_dofs(self, dofs: np.ndarray) -> np.ndarray:
         """Owned local reduced indices whose basis vectors touch the given owned model dofs (the

@@ -1,0 +1,456 @@
+"""Substructured (two-level) Craig-Bampton of a body's interior: the constraint modes Psi and the
+fixed-interface modes Phi from a Ritz basis built slab by slab, without factorizing the whole interior.
+
+Why: one Cholesky factorization of a large region fills like N^1.47 (liner panel: 78M nonzeros at
+147k region dofs, 1.52e9 and 14.4 GB at 1.12M, docs/scenes.md); the eigensolver's basis (~5x the
+modes) and the inertia count's second factorization come on top. Cut into S slabs, each factor is
+~S^-1.47 of that and only one slab's is held at a time.
+
+The method (component mode synthesis: Hurty 1965, Craig and Bampton 1968; with the interface
+reduced, Krattiger et al., "Interface reduction for Hurty/Craig-Bampton substructured models:
+review and improvements", Mech. Syst. Signal Process. 114 (2019) 579-603):
+
+1. The interior's dofs are cut into S slabs along the longest extent of the body, at quantiles of
+   the dof count, moved at least ``margin`` (a quarter shear wavelength at f_cut) away from the
+   dofs coupled to the contact zone. The dofs of a slab that couple to a later slab form the
+   interface Gamma; the slabs' remaining dofs P_s are then uncoupled from each other:
+   K_ii = [diag(K_ss)  K_PG; K_GP  K_GG].
+2. A Ritz basis V of the interior, per slab s (the slab's factorization serves all three):
+
+   * fixed-interface modes of P_s (Gamma and the zone held) up to ``f_factor`` x f_cut;
+   * static responses to the zone coordinates, Z_s = -K_ss^-1 C_s (zero on Gamma), and to their
+     inertia, K_ss^-1 (M_ss Z_s + M_sz);
+   * trace extensions: Gamma moves as t_k, the slabs follow statically, X_s = -K_ss^-1 K_sG t_k.
+     The traces t_k are per cut and per displacement component tensor Legendre polynomials of the
+     cut's two in-plane coordinates, degree ``trace_density`` x (extent / shear wavelength at
+     f_cut) in each (``trace_density`` 0: every Gamma dof its own trace, the exact interface).
+3. Rayleigh-Ritz of the interior in span(V) (dense, a few thousand columns): K_V = V^T K_ii V,
+   M_V = V^T M_ii V, C_V = V^T C (columns scaled to unit M-norm first). Then Psi = V psi with
+   K_V psi = -C_V, and Phi = V phi with K_V phi = lambda M_V phi, lambda <= (2 pi f_cut)^2.
+4. One step of inverse iteration: each slab's static response (Gamma held) to the inertia of the
+   first Ritz modes and constraint modes, K_ss^-1 (M_ii [Phi, Psi] + [0, M_ib])_s, joins V and
+   step 3 is repeated. This is what makes the modes near f_cut accurate with few slab modes
+   (paper-rig test mesh, every Gamma dof a trace: the highest mode 0.84 % high with slab modes
+   to 2 f_cut and no step 4, 0.018 % with them to 1.5 f_cut and step 4), and it puts
+   K_ii^-1 A_b, which the mode-acceleration rows need, in the span (R A_b 18 % -> 0.24 %).
+
+With every Gamma dof as a trace, Psi is the exact -K_ii^-1 C (the span holds it); with polynomial
+traces it is the Galerkin approximation, and the Ritz frequencies are upper bounds of the exact
+ones either way (Rayleigh's principle): a mode just under f_cut can rise above it and drop out
+(coarse liner panel: 160-162 modes against 164).
+
+Options (prefix ``impact_reduction_<body>_``): ``substructures`` S (0 or 1: one factorization,
+:mod:`.craig_bampton`), ``substructure_f_factor`` (1.5), ``substructure_trace_density`` (4), ``substructure_margin`` (0.5
+shear wavelengths at f_cut between a cut and the zone-coupled dofs or a gauge: closer, the static
+response to the zone varies too fast for the polynomial traces; the coarse panel's bolt gauge was
+off by 3x with a cut next to it). The
+slabs' factorizations and eigensolvers read the body's own options (``pc_``, ``eps_``,
+``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
+(:class:`~.reduced_model.BodyReduction` ``residual_b``) instead of K_ii's factorization.
+
+Measured (``benchmarks/panel_substructures.py``, coarse liner panel, 31k P2 DOFs, 4 slabs,
+defaults): F_max -0.04 %, t_c -0.12 %, e +0.2 %, the bolt and root gauges -1.9 % / +2.1 % from
+the one-factorization run (every Gamma dof a trace, 3 slabs: all within 0.005 %); docs/scenes.md
+has the 157k-DOF rows.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from mpi4py import MPI
+from numpy.polynomial import legendre
+from petsc4py import PETSc
+
+from ..errors import InputError
+from ..integration.solvers import create_factored_solver, petsc_options
+from .eigen import compute_modes
+
+log = logging.getLogger(__name__)
+
+#: histogram bins for the slabs' quantile cuts
+QUANTILE_BINS = 4096
+#: relative eigenvalue of a Gram matrix below which a direction counts as dependent (dropped)
+DEPENDENT_TOL = 1e-12
+
+
+@dataclass(frozen=True)
+class SubstructureSettings:
+    """How a body's interior is substructured (see the module docstring)."""
+
+    slabs: int
+    f_factor: float = 1.5
+    trace_density: float = 4.0
+    margin: float = 0.5            #: shear wavelengths at f_cut between a cut and the zone or a gauge
+
+
+def substructure_settings(prefix: str, options: Optional[dict[str, str]]) -> Optional[SubstructureSettings]:
+    """The body's settings from the command line (``-<prefix>substructures`` ...) or ``options``;
+    None for one factorization (S < 2)."""
+    keys = ("substructures", "substructure_f_factor", "substructure_trace_density", "substructure_margin")
+    with petsc_options({}, {k: v for k, v in (options or {}).items() if k in keys}, prefix=prefix):
+        db = PETSc.Options()
+        raw = {k: db.getString(prefix + k, "") for k in keys}
+    try:
+        slabs = int(raw["substructures"] or 0)
+        f_factor = float(raw["substructure_f_factor"] or 1.5)
+        density = float(raw["substructure_trace_density"] or 4.0)
+        margin = float(raw["substructure_margin"] or 0.5)
+    except ValueError as exc:
+        raise InputError(f"-{prefix}substructures / substructure_*: {exc}") from None
+    check_settings(prefix, slabs, f_factor, density, margin)
+    return SubstructureSettings(slabs, f_factor, density, margin) if slabs >= 2 else None
+
+
+def check_settings(prefix: str, slabs: int, f_factor: float, density: float, margin: float = 0.5) -> None:
+    """One-line refusals of values outside the allowed ranges (InputError, exit status 2)."""
+    if slabs < 0:
+        raise InputError(f"-{prefix}substructures {slabs}: must be an integer >= 0 (0 or 1: one factorization)")
+    if not f_factor >= 1.0:
+        raise InputError(f"-{prefix}substructure_f_factor {f_factor}: must be >= 1 (slab modes up to this x f_cut)")
+    if not density >= 0.0:
+        raise InputError(f"-{prefix}substructure_trace_density {density}: must be >= 0 "
+                         "(0: every interface dof its own trace)")
+    if not margin >= 0.0:
+        raise InputError(f"-{prefix}substructure_margin {margin}: must be >= 0 (shear wavelengths at f_cut)")
+
+
+# --- the slabs -------------------------------------------------------------------------------------
+def slab_labels(coords: np.ndarray, zone_rows: np.ndarray, slabs: int, margin: float,
+                comm: MPI.Comm, keep_away: Optional[np.ndarray] = None) -> tuple[np.ndarray, int, np.ndarray]:
+    """Slab index per owned interior dof (its node's coordinate along the body's longest extent),
+    the axis and the cut positions: quantiles of the dof count, each moved out of the bands of
+    +-``margin`` around the zone-coupled dofs (``zone_rows``) and the ``keep_away`` points (to the
+    nearer edge of the merged band), cuts that then coincide dropped."""
+    lo = reduce_array(coords.min(axis=0) if len(coords) else np.full(3, np.inf), MPI.MIN, comm)
+    hi = reduce_array(coords.max(axis=0) if len(coords) else np.full(3, -np.inf), MPI.MAX, comm)
+    axis = int(np.argmax(hi - lo))
+    x = coords[:, axis]
+    counts = reduce_array(np.histogram(x, bins=QUANTILE_BINS, range=(lo[axis], hi[axis]))[0].astype(float),
+                          MPI.SUM, comm)
+    edges = np.linspace(lo[axis], hi[axis], QUANTILE_BINS + 1)
+    cum = np.cumsum(counts) / max(counts.sum(), 1)
+    cuts = [float(edges[1 + np.searchsorted(cum, k / slabs)]) for k in range(1, slabs)]
+    zx = x[zone_rows]
+    z_lo = comm.allreduce(zx.min() if len(zx) else np.inf, op=MPI.MIN)
+    z_hi = comm.allreduce(zx.max() if len(zx) else -np.inf, op=MPI.MAX)
+    bands = [(z_lo - margin, z_hi + margin)] if z_lo <= z_hi else []
+    bands += [(p[axis] - margin, p[axis] + margin) for p in np.reshape(keep_away if keep_away is not None
+                                                                        else np.zeros((0, 3)), (-1, 3))]
+    merged: list[list[float]] = []
+    for b in sorted(bands):
+        if merged and b[0] <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], b[1])
+        else:
+            merged.append(list(b))
+    for band in merged:
+        cuts = [c if not band[0] < c < band[1] else (band[0] if c - band[0] < band[1] - c else band[1])
+                for c in cuts]
+    h = (hi[axis] - lo[axis]) * 1e-3
+    cuts = sorted(c for c in set(round(c, 12) for c in cuts) if lo[axis] + h < c < hi[axis] - h)
+    return np.searchsorted(np.asarray(cuts), x).astype(np.int32), axis, np.asarray(cuts)
+
+
+def interface_flags(K_ii: PETSc.Mat, labels: np.ndarray) -> np.ndarray:
+    """Per owned row of K_ii: does it couple to a dof of a later slab? (Those rows form Gamma; the
+    other rows of different slabs are then uncoupled.)"""
+    comm = K_ii.getComm()
+    lab = K_ii.createVecRight()
+    lab.array[:] = labels
+    indptr, indices, _ = K_ii.getValuesCSR()
+    need = np.unique(indices).astype(np.int32)
+    seq = PETSc.Vec().createSeq(len(need), comm=PETSc.COMM_SELF)
+    sc = PETSc.Scatter().create(lab, PETSc.IS().createGeneral(need, comm=comm), seq, None)
+    sc.scatter(lab, seq, addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    col_label = seq.array[np.searchsorted(need, indices)]
+    row_max = np.full(len(labels), -1.0)
+    rows = np.repeat(np.arange(len(labels)), np.diff(indptr))
+    np.maximum.at(row_max, rows, col_label)
+    for obj in (sc, seq, lab):
+        obj.destroy()
+    return row_max > labels
+
+
+def polynomial_traces(coords: np.ndarray, comps: np.ndarray, cut: np.ndarray, axis: int, wavelength: float,
+                      density: float, comm: MPI.Comm) -> list[np.ndarray]:
+    """Per cut, the trace basis on this rank's Gamma rows (``cut``: each row's cut index): tensor
+    Legendre polynomials of the two in-plane coordinates per displacement component, orthonormal
+    over the cut's rows (dependent combinations dropped). ``density`` 0: the identity."""
+    plane = [a for a in range(3) if a != axis]
+    n_cuts = comm.allreduce(int(cut.max()) + 1 if len(cut) else 0, op=MPI.MAX)
+    blocks = []
+    for c in range(n_cuts):
+        mine = cut == c
+        if density == 0:
+            n_c = comm.allreduce(int(mine.sum()))
+            off = comm.exscan(int(mine.sum())) or 0
+            B = np.zeros((len(cut), n_c))
+            B[np.nonzero(mine)[0], off + np.arange(mine.sum())] = 1.0
+            blocks.append(B)
+            continue
+        p = coords[mine][:, plane]
+        lo = reduce_array(p.min(axis=0) if len(p) else np.full(2, np.inf), MPI.MIN, comm)
+        hi = reduce_array(p.max(axis=0) if len(p) else np.full(2, -np.inf), MPI.MAX, comm)
+        ext = np.maximum(hi - lo, 1e-300)
+        deg = [max(1, int(math.ceil(density * e / wavelength))) for e in ext]
+        s = 2.0 * (p - lo) / ext - 1.0
+        Pa, Pb = legendre.legvander(s[:, 0], deg[0]), legendre.legvander(s[:, 1], deg[1])
+        poly = (Pa[:, :, None] * Pb[:, None, :]).reshape(len(p), (deg[0] + 1) * (deg[1] + 1))
+        B = np.zeros((len(cut), 3 * poly.shape[1]))
+        rows = np.nonzero(mine)[0]
+        for comp in range(3):
+            sel = comps[mine] == comp
+            B[rows[sel], comp * poly.shape[1]:(comp + 1) * poly.shape[1]] = poly[sel]
+        blocks.append(orthonormal_columns(B, comm))
+    return blocks
+
+
+def orthonormal_columns(B: np.ndarray, comm: MPI.Comm, W: Optional[np.ndarray] = None) -> np.ndarray:
+    """Columns spanning range(B) (rows distributed), orthonormal in the (distributed) Gram
+    B^T B, or B^T W when W (the rows of W B, e.g. M B) is given; dependent directions dropped."""
+    G = reduce_array(B.T @ (B if W is None else W), MPI.SUM, comm)
+    lam, U = np.linalg.eigh(0.5 * (G + G.T))
+    keep = lam > DEPENDENT_TOL * max(lam.max(initial=0.0), 1e-300)
+    return B @ (U[:, keep] / np.sqrt(lam[keep]))
+
+
+# --- the reduction ---------------------------------------------------------------------------------
+def _dense(loc: np.ndarray, comm: MPI.Comm) -> PETSc.Mat:
+    A = PETSc.Mat().createDense(((loc.shape[0], PETSc.DETERMINE), (PETSc.DECIDE, loc.shape[1])), comm=comm)
+    A.setUp()
+    A.getDenseArray()[:] = loc
+    A.assemble()
+    return A
+
+
+def _mult_local(A: PETSc.Mat, X: np.ndarray, comm: MPI.Comm) -> np.ndarray:
+    """The owned rows of A X for a distributed AIJ A and the owned rows of a dense X."""
+    if X.shape[1] == 0:
+        return np.zeros((A.getLocalSize()[0], 0))
+    Xm = _dense(X, comm)
+    Y = A.matMult(Xm)
+    out = np.array(Y.getDenseArray(), copy=True)
+    Xm.destroy()
+    Y.destroy()
+    return out
+
+
+@dataclass
+class _Slab:
+    """One slab's share of the Ritz basis: its owned rows (local interior indices), its matrices,
+    the basis rows B (owned rows x its columns) and the global Ritz index of each column."""
+
+    rows: np.ndarray
+    K_ss: PETSc.Mat
+    M_ss: PETSc.Mat
+    K_sg: PETSc.Mat
+    M_sg: PETSc.Mat
+    B: np.ndarray
+    cols: np.ndarray
+    stats: dict
+    projected: int = 0             #: columns of B already in K_V, M_V (see _project)
+
+
+def _solve(ksp: PETSc.KSP, rhs: np.ndarray, comm: MPI.Comm) -> np.ndarray:
+    """Owned rows of A^-1 rhs with a factored KSP (one multi-right-hand-side solve)."""
+    R = _dense(rhs, comm)
+    X = R.duplicate()
+    ksp.getPC().getFactorMatrix().matSolve(R, X)
+    out = np.array(X.getDenseArray(), copy=True)
+    R.destroy()
+    X.destroy()
+    return out
+
+
+def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: np.ndarray, D: np.ndarray, coords: np.ndarray,
+                        comps: np.ndarray, f_cut: float, shear_speed: float, settings: SubstructureSettings,
+                        prefix: str, options: Optional[dict[str, str]] = None,
+                        keep_away: Optional[np.ndarray] = None) -> dict:
+    """Psi (n_i_loc x n_b), Phi (n_i_loc x m) owned rows, frequencies (Hz), the next frequency,
+    the residual flexibility's response to the interface inertia and statistics, from the
+    slab-wise Ritz basis (module docstring). ``C``, ``D``: owned rows of K_iz G and M_iz G on the
+    interface coordinates; ``coords``, ``comps``: each owned interior dof's node coordinates and
+    displacement component; ``shear_speed`` (m/s) sets the margin and the traces' degrees;
+    ``keep_away`` (k x 3, m): points the cuts keep the margin from (the gauges). Collective.
+
+    Two passes over the slabs (steps 1-3 and step 4 of the module docstring); each slab is
+    factored once a pass and only one slab's factor is held at a time."""
+    comm = K_ii.getComm().tompi4py()
+    t_start = time.perf_counter()
+    wavelength = shear_speed / f_cut
+    zone_rows = np.nonzero(np.any(C != 0.0, axis=1))[0]
+    labels, axis, cuts = slab_labels(coords, zone_rows, settings.slabs, settings.margin * wavelength, comm,
+                                     keep_away)
+    on_gamma = interface_flags(K_ii, labels)
+    r0 = K_ii.getOwnershipRange()[0]
+    n_loc = len(labels)
+    gamma = np.nonzero(on_gamma)[0]
+    traces = polynomial_traces(coords[gamma], comps[gamma], labels[gamma], axis, wavelength,
+                               settings.trace_density, comm)
+    T = np.hstack(traces) if traces else np.zeros((len(gamma), 0))
+    n_t, n_b = T.shape[1], C.shape[1]
+    t_idx = n_b + np.arange(n_t)          # Ritz columns: [zone statics (n_b) | traces (n_t) | slabs' own]
+    is_gamma = PETSc.IS().createGeneral((r0 + gamma).astype(np.int32), comm=comm)
+    n_cols = n_b + n_t
+    slabs: list[_Slab] = []
+    freq_all = []
+    # pass 1: per slab, the statics (zone coordinates and traces), the second-order statics of the
+    # zone coordinates and the fixed-interface modes; one factorization each, dropped after
+    for s in range(len(cuts) + 1):
+        ts = time.perf_counter()
+        rows = np.nonzero((labels == s) & ~on_gamma)[0]
+        n_s = comm.allreduce(len(rows))
+        if n_s == 0:
+            continue
+        is_s = PETSc.IS().createGeneral((r0 + rows).astype(np.int32), comm=comm)
+        K_ss, M_ss = K_ii.createSubMatrix(is_s, is_s), M_ii.createSubMatrix(is_s, is_s)
+        K_sg, M_sg = K_ii.createSubMatrix(is_s, is_gamma), M_ii.createSubMatrix(is_s, is_gamma)
+        is_s.destroy()
+        ksp = create_factored_solver(K_ss, prefix, options)
+        t_factor = time.perf_counter() - ts
+        rhs = np.hstack([C[rows], _mult_local(K_sg, T, comm)])
+        used = reduce_array(np.any(rhs != 0.0, axis=0).astype(float), MPI.MAX, comm) > 0
+        X = -_solve(ksp, rhs[:, used], comm) if used.any() else np.zeros((len(rows), 0))
+        # second-order statics: the response to the inertia of the slab's zone statics, M_ss Z_s + M_sz
+        n_zone = int(used[:n_b].sum())
+        X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], comm) + D[rows][:, used[:n_b]], comm) if n_zone
+              else np.zeros((len(rows), 0)))
+        t_static = time.perf_counter() - ts - t_factor
+        f_s, vecs, _ = compute_modes(K_ss, M_ss, ksp, settings.f_factor * f_cut, None, prefix, options)
+        Phi_s = np.column_stack([v.getArray(readonly=True) for v in vecs]) if vecs else np.zeros((len(rows), 0))
+        for v in vecs:
+            v.destroy()
+        ksp.destroy()
+        own = Phi_s.shape[1] + X2.shape[1]
+        cols = np.concatenate([np.nonzero(used)[0], n_cols + np.arange(own)])
+        n_cols += own
+        freq_all.append(f_s)
+        slabs.append(_Slab(rows, K_ss, M_ss, K_sg, M_sg, np.hstack([X, Phi_s, X2]), cols,
+                           {"dofs": n_s, "modes": int(Phi_s.shape[1]), "static_columns": int(used.sum() + own
+                                                                                             - Phi_s.shape[1]),
+                            "factor_s": round(t_factor, 3), "statics_s": round(t_static, 3),
+                            "total_s": round(time.perf_counter() - ts, 3)}))
+    Kgg = K_ii.createSubMatrix(is_gamma, is_gamma)
+    Mgg = M_ii.createSubMatrix(is_gamma, is_gamma)
+    KV, MV, CV = _project(slabs, T, t_idx, Kgg, Mgg, C, D, gamma, n_cols, comm)
+    ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
+    # pass 2: each slab's static response (Gamma held) to the inertia of the first pass's modes and
+    # constraint modes, M_ii Phi and A_b = M_ii Psi + M_ib: one step of inverse iteration on them
+    if n_b + ritz["m"]:
+        first = _expand(slabs, T, gamma, t_idx, np.hstack([ritz["psi"], ritz["phi"]]), n_loc)
+        loads = _mult_local(M_ii, first, comm)
+        loads[:, :n_b] += D
+        for sl in slabs:
+            ts = time.perf_counter()
+            ksp = create_factored_solver(sl.K_ss, prefix, options)
+            X3 = _solve(ksp, loads[sl.rows], comm)
+            ksp.destroy()
+            sl.B = np.hstack([sl.B, X3])
+            sl.cols = np.concatenate([sl.cols, n_cols + np.arange(X3.shape[1])])
+            n_cols += X3.shape[1]
+            sl.stats["inertia_statics_s"] = round(time.perf_counter() - ts, 3)
+        KV, MV, CV = _project(slabs, T, t_idx, Kgg, Mgg, C, D, gamma, n_cols, comm, (KV, MV, CV))
+        ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
+    t0 = time.perf_counter()
+    m = ritz["m"]
+    out = _expand(slabs, T, gamma, t_idx, np.hstack([ritz["psi"], ritz["phi"], ritz["flex"]]), n_loc)
+    for sl in slabs:
+        for obj in (sl.K_ss, sl.M_ss, sl.K_sg, sl.M_sg):
+            obj.destroy()
+    for obj in (Kgg, Mgg, is_gamma):
+        obj.destroy()
+    freq = ritz["freq"]
+    stats = {"slabs": [sl.stats for sl in slabs], "axis": "xyz"[axis], "cuts_m": [float(c) for c in cuts],
+             "interface_dofs": comm.allreduce(len(gamma)), "traces": n_t, "interface_coordinates": n_b,
+             "ritz_columns": n_cols, "ritz_rank": ritz["rank"], "slab_modes": int(sum(len(f) for f in freq_all)),
+             "expand_s": round(time.perf_counter() - t0, 3), "total_s": round(time.perf_counter() - t_start, 3)}
+    if comm.rank == 0:
+        log.info("substructures %s: %d slabs along %s (cuts %s m), %d interface dofs -> %d traces, "
+                 "%d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s", prefix, len(slabs),
+                 stats["axis"], ", ".join(f"{c:.4g}" for c in cuts), stats["interface_dofs"], n_t,
+                 stats["slab_modes"], n_cols, m, stats["total_s"])
+    nxt = float(freq[m]) if m < len(freq) else math.nan
+    return {"Psi": out[:, :n_b], "Phi": out[:, n_b:n_b + m], "flex": out[:, n_b + m:], "freq": freq[:m],
+            "next": nxt, "stats": stats}
+
+
+def _project(slabs: list[_Slab], T: np.ndarray, t_idx: np.ndarray, Kgg: PETSc.Mat, Mgg: PETSc.Mat,
+             C: np.ndarray, D: np.ndarray, gamma: np.ndarray, n: int, comm: MPI.Comm,
+             previous: Optional[tuple[np.ndarray, np.ndarray, np.ndarray]] = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """K_V = V^T K_ii V, M_V = V^T M_ii V and [V^T C | V^T D] (replicated): each slab's own block
+    and its coupling to Gamma (the slabs are uncoupled), and Gamma's block T^T K_GG T. With
+    ``previous`` (the projection of the first ``projected`` columns of each slab's B, the rest
+    being the slab's own new columns) only the new columns' rows and columns are computed."""
+    n_b = C.shape[1]
+    KV, MV, CV = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, 2 * n_b))
+    if previous is None:
+        KV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Kgg, T, comm), comm)
+        MV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Mgg, T, comm), comm)
+        CV[t_idx] = gather_sum(T.T @ np.hstack([C[gamma], D[gamma]]), comm)
+    else:
+        k = previous[0].shape[0]
+        KV[:k, :k], MV[:k, :k], CV[:k] = previous
+    for sl in slabs:
+        new = slice(sl.projected if previous is not None else 0, None)
+        B, Bn, cols, cn = sl.B, sl.B[:, new], sl.cols, sl.cols[new]
+        for V_, A_, A_g in ((KV, sl.K_ss, sl.K_sg), (MV, sl.M_ss, sl.M_sg)):
+            P = gather_sum(_mult_local(A_, Bn, comm).T @ B, comm)           # new rows x all columns
+            V_[np.ix_(cn, cols)] += P
+            V_[np.ix_(cols, cn)] += P.T
+            V_[np.ix_(cn, cn)] -= P[:, new]                                    # the new-new block once
+            G = gather_sum(Bn.T @ _mult_local(A_g, T, comm), comm)
+            V_[np.ix_(cn, t_idx)] += G
+            V_[np.ix_(t_idx, cn)] += G.T
+        CV[cn] += gather_sum(Bn.T @ np.hstack([C[sl.rows], D[sl.rows]]), comm)
+        sl.projected = B.shape[1]
+    return 0.5 * (KV + KV.T), 0.5 * (MV + MV.T), CV
+
+
+def _rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_cut: float) -> dict:
+    """The Craig-Bampton of the interior in span(V), in an M_V-orthonormal basis W (dependent
+    directions dropped): psi (K_V psi = -V^T C), the Ritz modes phi under f_cut and their
+    frequencies, and R A_b's coefficients (the residual flexibility from the Ritz modes above the
+    cutoff applied to V^T A_b = M_V psi + V^T D)."""
+    # columns scaled to unit M_V-norm first: the statics are ~1/omega^2 smaller than the M-normalized
+    # modes, and an unscaled Gram matrix would drop them as "dependent" (1e-20 against 1)
+    d = 1.0 / np.sqrt(np.maximum(np.diag(MV), 1e-300))
+    lam_m, U = np.linalg.eigh(d[:, None] * MV * d[None, :])
+    keep = lam_m > DEPENDENT_TOL * lam_m.max()
+    W = d[:, None] * (U[:, keep] / np.sqrt(lam_m[keep]))
+    lam, Y = np.linalg.eigh(W.T @ KV @ W)
+    WY = W @ Y
+    psi = -WY @ ((WY.T @ CV[:, :n_b]) / lam[:, None])
+    m = int(np.searchsorted(lam, (2 * math.pi * f_cut) ** 2, side="right"))
+    Ab = MV @ psi + CV[:, n_b:]
+    flex = WY[:, m:] @ ((WY[:, m:].T @ Ab) / lam[m:, None])
+    return {"psi": psi, "phi": WY[:, :m], "flex": flex, "m": m, "rank": int(keep.sum()),
+            "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)}
+
+
+def _expand(slabs: list[_Slab], T: np.ndarray, gamma: np.ndarray, t_idx: np.ndarray, coef: np.ndarray,
+            n_loc: int) -> np.ndarray:
+    """Owned rows of V coef: each slab's B times its columns' coefficients, T on Gamma."""
+    out = np.zeros((n_loc, coef.shape[1]))
+    out[gamma] = T @ coef[t_idx]
+    for sl in slabs:
+        out[sl.rows] = sl.B @ coef[sl.cols]
+    return out
+
+
+def gather_sum(A: np.ndarray, comm: MPI.Comm) -> np.ndarray:
+    """The sum over ranks of a small dense array (the ranks' shares of a Gram-type product)."""
+    return reduce_array(A, MPI.SUM, comm)
+
+
+def reduce_array(a: np.ndarray, op: MPI.Op, comm: MPI.Comm) -> np.ndarray:
+    """Element-wise Allreduce of a float array (mpi4py's pickling allreduce is not element-wise
+    for MIN / MAX / LOR)."""
+    a = np.ascontiguousarray(a, dtype=float)
+    out = np.empty_like(a)
+    comm.Allreduce(a, out, op=op)
+    return out
