@@ -179,6 +179,16 @@ def test_bad_substructure_settings_are_one_line(suffix, value, words):
     assert f"{option} {value}: " in r.stderr and words in r.stderr
 
 
+@pytest.mark.parametrize("command", ["study", "table"])
+def test_bad_petsc_option_of_a_study_is_one_line(command, tmp_path):
+    """`study` and `table` --option values get the checks of `run` (they reached the cases
+    unchecked: a PETSc error in every case)."""
+    args = (["study", "velocity"] if command == "study" else ["table", "--velocity", "2"])
+    r = run_cli(*args, "--option", "reduction_block_substructures=-2", "--out", str(tmp_path / "never"))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "reduction_block_substructures -2: " in r.stderr and not (tmp_path / "never").exists()
+
+
 def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path):
     """`scene show` printed the full P1 plan (zone 4.64 mm) while the default improved run uses P2
     and 2.90 mm: it now shows the plan of --method (default the run's default), as the run notes."""

@@ -100,6 +100,10 @@ def parse_method_options(items: Sequence[str]) -> dict[str, Any]:
         if not sep or not k.strip():
             raise InputError(f"--option {o!r}: expected KEY=VALUE (e.g. --option modes=20)")
         options[k.strip()] = parse_value(v)
+    # a PETSc type or a reduction setting out of range: one line before any case runs (as `run`)
+    from ..integration.solvers import check_type_options
+
+    check_type_options(options)
     return options
 
 
