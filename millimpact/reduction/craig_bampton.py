@@ -105,7 +105,8 @@ log = logging.getLogger(__name__)
 
 from . import cache as reduction_cache
 from .partition import BODIES, DofPartition, ZoneBasis, create_nodal_zone_basis, partition_dofs
-from .distributed import dense_columns, gather_rows, ownership_offsets, split_evenly
+from .distributed import (dense_columns, dense_from_rows, gather_rows, local_columns_csr, ownership_offsets,
+                          split_evenly)
 from .eigen import compute_modes, default_solver_options
 from .augmentation import AUGMENTATION_PATTERNS, compute_augmentation_load, compute_augmentation_vectors, interface_motion_pattern
 from .reduced_model import BodyReduction, ReducedModel
@@ -176,6 +177,9 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         prefix = f"impact_reduction_{name}_"
         Psi = None
         Cb = Db = rhs = None
+        # slab-wise Ritz basis instead of one factorization of K_ii (option <prefix>substructures)
+        sub = (substructure_settings(prefix, opts) if f_cut is not None and n_modes is None and not augment
+               else None)
         if n_b:
             # sparse interface columns (for the products) and a dense copy of C's (the right-hand
             # sides of the multi-RHS solve: MUMPS takes dense right-hand sides)
@@ -184,7 +188,8 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
             rows_I = PETSc.IS().createStride(len(idx), C.getOwnershipRange()[0], 1, comm=comm)
             Cb = C.createSubMatrix(rows_I, is_qb)
             Db = D.createSubMatrix(rows_I, is_qb)
-            rhs = dense_columns(C, qb, comm)
+            # (not for slabs: they take C and D sparse, and a dense copy of the 1.2M-DOF panel's is 5.2 GB)
+            rhs = dense_columns(C, qb, comm) if sub is None else None
         # Psi, Phi from the on-disk cache when the same matrices and settings were reduced before
         # (reduction.cache; not with augmentation vectors)
         t0 = time.perf_counter()
@@ -197,55 +202,38 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         cached = reduction_cache.load(comm, key) if key else None
         ksp = None
         data["n_aug"] = 0
-        # slab-wise Ritz basis instead of one factorization of K_ii (option <prefix>substructures)
-        sub = (substructure_settings(prefix, opts) if f_cut is not None and n_modes is None and not augment
-               else None)
         if cached is not None:
             for k in PETSc.Options().getAll():     # in the key: they shaped these modes (no "unused" warning)
                 if k.startswith(prefix):
                     note_option_read(k)
             if n_b:
-                Psi = rhs.duplicate()
-                Psi.getDenseArray()[:] = cached["Psi"]
-                Psi.assemble()
+                Psi = dense_from_rows(cached["Psi"], comm)
                 data["constraint_residual"] = float(cached["residual"])
                 if sub is not None and "flex" in cached:
-                    data["residual_b"] = rhs.duplicate()
-                    data["residual_b"].getDenseArray()[:] = cached["flex"]
-                    data["residual_b"].assemble()
+                    data["residual_b"] = dense_from_rows(cached["flex"], comm)
             freq, nxt, phi_cols = np.asarray(cached["freq"]), float(cached["next"]), cached["Phi"]
             data["timings"]["from_cache"] = time.perf_counter() - t0
         elif sub is not None:
             material = model.ball_material if name == "ball" else model.target_material
             node_xyz = model.V.tabulate_dof_coordinates()[idx // 3]
-            c_loc = rhs.getDenseArray() if n_b else np.zeros((len(idx), 0))
-            d_dense = dense_columns(D, qb, comm) if n_b else None
-            d_loc = d_dense.getDenseArray().copy() if n_b else np.zeros((len(idx), 0))
-            if d_dense is not None:
-                d_dense.destroy()
-            res = substructured_modes(K_ii, M_ii, c_loc, d_loc, node_xyz, idx % 3, f_cut,
-                                      math.sqrt(material.shear_modulus / material.density), sub, prefix, opts,
-                                      keep_away)
+            res = substructured_modes(K_ii, M_ii, local_columns_csr(C, qb), local_columns_csr(D, qb), node_xyz,
+                                      idx % 3, f_cut, math.sqrt(material.shear_modulus / material.density), sub,
+                                      prefix, opts, keep_away)
             freq, nxt, phi_cols = res["freq"], res["next"], res["Phi"]
             if n_b:
-                Psi = rhs.duplicate()
-                Psi.getDenseArray()[:] = res["Psi"]
-                Psi.assemble()
-                data["residual_b"] = rhs.duplicate()
-                data["residual_b"].getDenseArray()[:] = res["flex"]
-                data["residual_b"].assemble()
-                R = K_ii.matMult(Psi)
-                R.axpy(1.0, rhs)
+                Psi, data["residual_b"] = res["Psi"], res["flex"]
                 # a Galerkin Psi: reported, not checked (exact only with every interface dof a trace)
-                data["constraint_residual"] = (R.norm(PETSc.NormType.FROBENIUS)
-                                               / max(rhs.norm(PETSc.NormType.FROBENIUS), 1e-300))
-                R.destroy()
+                data["constraint_residual"] = res["residual"]
+            else:
+                for m in (res["Psi"], res["flex"]):
+                    m.destroy()
             data["substructures"] = res["stats"]
             data["timings"]["substructures"] = time.perf_counter() - t0
             if key:
                 reduction_cache.store(comm, key, {
                     "Psi": Psi.getDenseArray().copy() if Psi is not None else np.zeros((0, 0)), "Phi": phi_cols,
-                    "freq": np.asarray(freq), "next": np.asarray(nxt), "flex": res["flex"],
+                    "freq": np.asarray(freq), "next": np.asarray(nxt),
+                    "flex": data["residual_b"].getDenseArray() if n_b else np.zeros((0, 0)),
                     "residual": np.asarray(data.get("constraint_residual", 0.0))})
         else:
             ksp = create_factored_solver(K_ii, prefix, opts)
@@ -361,15 +349,15 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         mode_start += len(freq)
         qb = q_to_red(d["qb_q"])
         Psi, Phi, Cb, Db, K_ii, M_ii = d["Psi"], d["Phi"], d["Cb"], d["Db"], d["K_ii"], d["M_ii"]
-        A_b = None
+        M_ib = None
         if Psi is not None:
             Kbb = gather_rows(Cb.transposeMatMult(Psi), comm)
             Kbb = 0.5 * (Kbb + Kbb.T)
             MPsi = M_ii.matMult(Psi)
-            # A_b (dense n_i x n_b) only serves the mode-acceleration rows, which need a factor
+            # the mode-acceleration rows need A_b = M_ii Psi + M_ib: kept as M_ib (sparse) and formed
+            # against their few columns, not as a dense n_i x n_b copy (5.2 GB at the plan's 1.2M DOFs)
             if d["factor"] is not None:
-                A_b = MPsi.copy()
-                A_b.axpy(1.0, dense_columns(Db, np.arange(Db.getSize()[1]), comm))
+                M_ib = Db
             DtPsi = gather_rows(Db.transposeMatMult(Psi), comm)
             Mbb = DtPsi + DtPsi.T + gather_rows(Psi.transposeMatMult(MPsi), comm)
             Mbb = 0.5 * (Mbb + Mbb.T)
@@ -394,11 +382,11 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
                 blocks_K.append((modes, qb, Kbm.T))
             MPhi.destroy()
             KPhi.destroy()
-        for m in (d["C"], d["D"], Cb, Db):
+        for m in (d["C"], d["D"], Cb, Db if M_ib is None else None):
             if m is not None:
                 m.destroy()
         bodies.append(BodyReduction(name, d["n_i"], d["I"], Psi, qb, Phi, modes, freq, f_cut, d["next"],
-                                    d["timings"], d["n_aug"], ksp=d["ksp"], A_b=A_b, K_ii=K_ii,
+                                    d["timings"], d["n_aug"], ksp=d["ksp"], M_ib=M_ib, K_ii=K_ii,
                                     factor=d["factor"], from_cache=d["from_cache"],
                                     substructures=d.get("substructures"), residual_b=d.get("residual_b")))
     timings["dense_blocks"] = time.perf_counter() - t0

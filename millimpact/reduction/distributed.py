@@ -94,3 +94,22 @@ def gather_aij_dense(A: PETSc.Mat, comm: MPI.Comm) -> np.ndarray:
     indptr, indices, data = A.getValuesCSR()
     loc = sp.csr_matrix((data, indices, indptr), shape=(r1 - r0, A.getSize()[1])).toarray()
     return np.vstack(comm.allgather(loc))
+
+
+def local_columns_csr(A: PETSc.Mat, cols: np.ndarray) -> sp.csr_matrix:
+    """This rank's rows of the columns ``cols`` (global, sorted) of the AIJ matrix A, as scipy CSR
+    (column j = cols[j]): :func:`dense_columns` without the dense copy."""
+    m_loc = A.getLocalSize()[0]
+    indptr, indices, data = A.getValuesCSR()
+    keep = np.isin(indices, cols)
+    rows = np.repeat(np.arange(m_loc), np.diff(indptr))[keep]
+    return sp.csr_matrix((data[keep], (rows, np.searchsorted(cols, indices[keep]))), shape=(m_loc, len(cols)))
+
+
+def dense_from_rows(loc: np.ndarray, comm: MPI.Comm) -> PETSc.Mat:
+    """A dense matrix (rows distributed as given, all columns) holding this rank's rows ``loc``."""
+    A = PETSc.Mat().createDense(((loc.shape[0], PETSc.DETERMINE), (PETSc.DECIDE, loc.shape[1])), comm=comm)
+    A.setUp()
+    A.getDenseArray()[:] = loc
+    A.assemble()
+    return A

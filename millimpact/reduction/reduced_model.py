@@ -49,10 +49,11 @@ class BodyReduction:
     #: the last ``n_augmented`` columns of Phi are augmentation vectors (their Ritz frequencies)
     n_augmented: int = 0
     #: kept for the mode-acceleration output rows (:meth:`ReducedModel.mode_acceleration_rows`)
-    #: until :meth:`ReducedModel.release_recovery`: the factored K_ii, M_ii, and the coupling
-    #: A_b = M_ii Psi + M_ib (dense n_i x n_b) through which the zone's acceleration loads the interior
+    #: until :meth:`ReducedModel.release_recovery`: the factored K_ii and the mass coupling M_ib
+    #: (sparse n_i x n_b) of A_b = M_ii Psi + M_ib, through which the zone's acceleration loads the
+    #: interior (A_b is applied, never stored: a dense n_i x n_b matrix)
     ksp: Optional[PETSc.KSP] = None
-    A_b: Optional[PETSc.Mat] = None
+    M_ib: Optional[PETSc.Mat] = None
     K_ii: Optional[PETSc.Mat] = None
     #: factors K_ii when ``ksp`` is None (Psi and Phi came from the on-disk cache: reduction.cache)
     factor: Optional[Callable[[], PETSc.KSP]] = None
@@ -270,9 +271,9 @@ class ReducedModel:
                     G.destroy()
                 AI.destroy()
                 continue
-            if b.ksp is None and b.factor is not None and b.A_b is not None and b.n_interior and not b.n_augmented:
+            if b.ksp is None and b.factor is not None and b.M_ib is not None and b.n_interior and not b.n_augmented:
                 b.ksp = b.factor()      # Psi and Phi came from the cache: factor K_ii now, once
-            if b.n_interior == 0 or b.ksp is None or b.A_b is None or b.n_augmented:
+            if b.n_interior == 0 or b.ksp is None or b.M_ib is None or b.n_augmented:
                 continue
             cols = PETSc.IS().createGeneral(b.I.getIndices(), comm=self.comm)
             rows = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
@@ -293,9 +294,13 @@ class ReducedModel:
                 y = Y.getDenseArray()
                 y -= b.Phi.getDenseArray() @ (Z / w2[:, None])
                 Y.assemble()
-            G = gather_rows(b.A_b.transposeMatMult(Y), self.comm)                # n_b x k
+            # G = A_b^T Y = Psi^T (M_ii Y) + M_ib^T Y                               (n_b x k)
+            M_ii = self.model.M.createSubMatrix(b.I, b.I)
+            MY = M_ii.matMult(Y)
+            G = gather_rows(b.Psi.transposeMatMult(MY), self.comm) + gather_rows(b.M_ib.transposeMatMult(Y),
+                                                                                 self.comm)
             C[:, b.qb] -= G.T
-            for m in (AI, AIt, rhs, Y):
+            for m in (AI, AIt, rhs, Y, M_ii, MY):
                 m.destroy()
         self._recovery_rows[key] = C.copy()
         return C
@@ -303,10 +308,10 @@ class ReducedModel:
     def release_recovery(self) -> None:
         """Free the per-body factorizations and couplings kept for :meth:`mode_acceleration_rows`."""
         for b in self.bodies:
-            for m in (b.ksp, b.A_b, b.residual_b):
+            for m in (b.ksp, b.M_ib, b.residual_b):
                 if m is not None:
                     m.destroy()
-            b.ksp = b.A_b = b.K_ii = b.factor = b.residual_b = None
+            b.ksp = b.M_ib = b.K_ii = b.factor = b.residual_b = None
 
     def reduced_dofs(self, dofs: np.ndarray) -> np.ndarray:
         """Owned local reduced indices whose basis vectors touch the given owned model dofs (the

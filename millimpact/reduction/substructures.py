@@ -62,12 +62,14 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
+import scipy.sparse as sp
 from mpi4py import MPI
 from numpy.polynomial import legendre
 from petsc4py import PETSc
 
 from ..errors import InputError
 from ..integration.solvers import create_factored_solver, petsc_options
+from .distributed import dense_from_rows
 from .eigen import compute_modes
 
 log = logging.getLogger(__name__)
@@ -219,11 +221,10 @@ def orthonormal_columns(B: np.ndarray, comm: MPI.Comm, W: Optional[np.ndarray] =
 
 
 # --- the reduction ---------------------------------------------------------------------------------
-def _dense(loc: np.ndarray, comm: MPI.Comm) -> PETSc.Mat:
-    A = PETSc.Mat().createDense(((loc.shape[0], PETSc.DETERMINE), (PETSc.DECIDE, loc.shape[1])), comm=comm)
+def _dense_zeros(n_loc: int, k: int, comm: MPI.Comm) -> PETSc.Mat:
+    A = PETSc.Mat().createDense(((n_loc, PETSc.DETERMINE), (PETSc.DECIDE, k)), comm=comm)
     A.setUp()
-    A.getDenseArray()[:] = loc
-    A.assemble()
+    A.getDenseArray()[:] = 0.0
     return A
 
 
@@ -231,7 +232,7 @@ def _mult_local(A: PETSc.Mat, X: np.ndarray, comm: MPI.Comm) -> np.ndarray:
     """The owned rows of A X for a distributed AIJ A and the owned rows of a dense X."""
     if X.shape[1] == 0:
         return np.zeros((A.getLocalSize()[0], 0))
-    Xm = _dense(X, comm)
+    Xm = dense_from_rows(X, comm)
     Y = A.matMult(Xm)
     out = np.array(Y.getDenseArray(), copy=True)
     Xm.destroy()
@@ -257,7 +258,7 @@ class _Slab:
 
 def _solve(ksp: PETSc.KSP, rhs: np.ndarray, comm: MPI.Comm) -> np.ndarray:
     """Owned rows of A^-1 rhs with a factored KSP (one multi-right-hand-side solve)."""
-    R = _dense(rhs, comm)
+    R = dense_from_rows(rhs, comm)
     X = R.duplicate()
     ksp.getPC().getFactorMatrix().matSolve(R, X)
     out = np.array(X.getDenseArray(), copy=True)
@@ -266,23 +267,26 @@ def _solve(ksp: PETSc.KSP, rhs: np.ndarray, comm: MPI.Comm) -> np.ndarray:
     return out
 
 
-def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: np.ndarray, D: np.ndarray, coords: np.ndarray,
+def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: sp.csr_matrix, coords: np.ndarray,
                         comps: np.ndarray, f_cut: float, shear_speed: float, settings: SubstructureSettings,
                         prefix: str, options: Optional[dict[str, str]] = None,
                         keep_away: Optional[np.ndarray] = None) -> dict:
-    """Psi (n_i_loc x n_b), Phi (n_i_loc x m) owned rows, frequencies (Hz), the next frequency,
-    the residual flexibility's response to the interface inertia and statistics, from the
-    slab-wise Ritz basis (module docstring). ``C``, ``D``: owned rows of K_iz G and M_iz G on the
-    interface coordinates; ``coords``, ``comps``: each owned interior dof's node coordinates and
+    """Psi (dense PETSc, n_i x n_b), Phi (owned rows, n_i_loc x m), the residual flexibility's
+    response to the interface inertia R A_b (dense PETSc, n_i x n_b), frequencies (Hz), the next
+    frequency, Psi's relative residual ||K_ii Psi + C|| / ||C|| and statistics, from the slab-wise
+    Ritz basis (module docstring). ``C``, ``D``: owned rows of K_iz G and M_iz G on the interface
+    coordinates (sparse: only the zone's slab has rows there); ``coords``, ``comps``: each owned interior dof's node coordinates and
     displacement component; ``shear_speed`` (m/s) sets the margin and the traces' degrees;
     ``keep_away`` (k x 3, m): points the cuts keep the margin from (the gauges). Collective.
 
     Two passes over the slabs (steps 1-3 and step 4 of the module docstring); each slab is
-    factored once a pass and only one slab's factor is held at a time."""
+    factored once a pass and only one slab's factor is held at a time; no dense n_i x n_b array
+    but the two results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
     comm = K_ii.getComm().tompi4py()
     t_start = time.perf_counter()
     wavelength = shear_speed / f_cut
-    zone_rows = np.nonzero(np.any(C != 0.0, axis=1))[0]
+    zone_rows = np.nonzero(np.diff(C.indptr))[0]
+    CD = sp.hstack([C, D]).tocsr()
     labels, axis, cuts = slab_labels(coords, zone_rows, settings.slabs, settings.margin * wavelength, comm,
                                      keep_away)
     on_gamma = interface_flags(K_ii, labels)
@@ -312,13 +316,17 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: np.ndarray, D: np.n
         is_s.destroy()
         ksp = create_factored_solver(K_ss, prefix, options)
         t_factor = time.perf_counter() - ts
-        rhs = np.hstack([C[rows], _mult_local(K_sg, T, comm)])
-        used = reduce_array(np.any(rhs != 0.0, axis=0).astype(float), MPI.MAX, comm) > 0
-        X = -_solve(ksp, rhs[:, used], comm) if used.any() else np.zeros((len(rows), 0))
+        C_s, KsgT = C[rows], _mult_local(K_sg, T, comm)
+        zone_used = reduce_array(np.bincount(C_s.indices, minlength=n_b) > 0, MPI.MAX, comm) > 0
+        used = np.concatenate([zone_used, reduce_array(np.any(KsgT != 0.0, axis=0), MPI.MAX, comm) > 0])
+        rhs = np.hstack([C_s[:, zone_used].toarray(), KsgT[:, used[n_b:]]])
+        del KsgT
+        X = -_solve(ksp, rhs, comm) if used.any() else np.zeros((len(rows), 0))
+        del rhs
         # second-order statics: the response to the inertia of the slab's zone statics, M_ss Z_s + M_sz
-        n_zone = int(used[:n_b].sum())
-        X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], comm) + D[rows][:, used[:n_b]], comm) if n_zone
-              else np.zeros((len(rows), 0)))
+        n_zone = int(zone_used.sum())
+        X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], comm) + D[rows][:, zone_used].toarray(), comm)
+              if n_zone else np.zeros((len(rows), 0)))
         t_static = time.perf_counter() - ts - t_factor
         f_s, vecs, _ = compute_modes(K_ss, M_ss, ksp, settings.f_factor * f_cut, None, prefix, options)
         Phi_s = np.column_stack([v.getArray(readonly=True) for v in vecs]) if vecs else np.zeros((len(rows), 0))
@@ -336,28 +344,39 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: np.ndarray, D: np.n
                             "total_s": round(time.perf_counter() - ts, 3)}))
     Kgg = K_ii.createSubMatrix(is_gamma, is_gamma)
     Mgg = M_ii.createSubMatrix(is_gamma, is_gamma)
-    KV, MV, CV = _project(slabs, T, t_idx, Kgg, Mgg, C, D, gamma, n_cols, comm)
+    KV, MV, CV = _project(slabs, T, t_idx, Kgg, Mgg, CD, gamma, n_cols, comm)
     ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
     # pass 2: each slab's static response (Gamma held) to the inertia of the first pass's modes and
-    # constraint modes, M_ii Phi and A_b = M_ii Psi + M_ib: one step of inverse iteration on them
+    # constraint modes, M_ii Phi and A_b = M_ii Psi + M_ib: one step of inverse iteration on them.
+    # Slab by slab: a slab's rows of M_ii V couple its own rows and Gamma's only
     if n_b + ritz["m"]:
-        first = _expand(slabs, T, gamma, t_idx, np.hstack([ritz["psi"], ritz["phi"]]), n_loc)
-        loads = _mult_local(M_ii, first, comm)
-        loads[:, :n_b] += D
+        coef = np.hstack([ritz["psi"], ritz["phi"]])
+        first_gamma = T @ coef[t_idx]
         for sl in slabs:
             ts = time.perf_counter()
+            load = _mult_local(sl.M_ss, sl.B @ coef[sl.cols], comm) + _mult_local(sl.M_sg, first_gamma, comm)
+            D_s = D[sl.rows].tocoo()
+            np.add.at(load, (D_s.row, D_s.col), D_s.data)
             ksp = create_factored_solver(sl.K_ss, prefix, options)
-            X3 = _solve(ksp, loads[sl.rows], comm)
+            X3 = _solve(ksp, load, comm)
+            del load
             ksp.destroy()
             sl.B = np.hstack([sl.B, X3])
             sl.cols = np.concatenate([sl.cols, n_cols + np.arange(X3.shape[1])])
             n_cols += X3.shape[1]
             sl.stats["inertia_statics_s"] = round(time.perf_counter() - ts, 3)
-        KV, MV, CV = _project(slabs, T, t_idx, Kgg, Mgg, C, D, gamma, n_cols, comm, (KV, MV, CV))
+        KV, MV, CV = _project(slabs, T, t_idx, Kgg, Mgg, CD, gamma, n_cols, comm, (KV, MV, CV))
         ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
     t0 = time.perf_counter()
     m = ritz["m"]
-    out = _expand(slabs, T, gamma, t_idx, np.hstack([ritz["psi"], ritz["phi"], ritz["flex"]]), n_loc)
+    # the results straight into their final storage
+    Psi, flex = _dense_zeros(n_loc, n_b, comm), _dense_zeros(n_loc, n_b, comm)
+    _expand(slabs, T, gamma, t_idx, ritz["psi"], Psi.getDenseArray())
+    _expand(slabs, T, gamma, t_idx, ritz["flex"], flex.getDenseArray())
+    Phi = _expand(slabs, T, gamma, t_idx, ritz["phi"], np.zeros((n_loc, m)))
+    for A in (Psi, flex):
+        A.assemble()
+    residual = constraint_residual(K_ii, Psi, C, comm) if n_b else 0.0
     for sl in slabs:
         for obj in (sl.K_ss, sl.M_ss, sl.K_sg, sl.M_sg):
             obj.destroy()
@@ -374,24 +393,34 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: np.ndarray, D: np.n
                  stats["axis"], ", ".join(f"{c:.4g}" for c in cuts), stats["interface_dofs"], n_t,
                  stats["slab_modes"], n_cols, m, stats["total_s"])
     nxt = float(freq[m]) if m < len(freq) else math.nan
-    return {"Psi": out[:, :n_b], "Phi": out[:, n_b:n_b + m], "flex": out[:, n_b + m:], "freq": freq[:m],
-            "next": nxt, "stats": stats}
+    return {"Psi": Psi, "Phi": Phi, "flex": flex, "freq": freq[:m], "next": nxt, "residual": residual,
+            "stats": stats}
+
+
+def constraint_residual(K_ii: PETSc.Mat, Psi: PETSc.Mat, C: sp.csr_matrix, comm: MPI.Comm, chunk: int = 64) -> float:
+    """||K_ii Psi + C||_F / ||C||_F, in blocks of ``chunk`` columns (no second n_i x n_b array)."""
+    P = Psi.getDenseArray()
+    num = 0.0
+    for j in range(0, P.shape[1], chunk):
+        R = _mult_local(K_ii, P[:, j:j + chunk], comm) + C[:, j:j + chunk].toarray()
+        num += float(np.sum(R * R))
+    num, den = reduce_array(np.array([num, float(C.multiply(C).sum())]), MPI.SUM, comm)
+    return math.sqrt(num) / max(math.sqrt(den), 1e-300)
 
 
 def _project(slabs: list[_Slab], T: np.ndarray, t_idx: np.ndarray, Kgg: PETSc.Mat, Mgg: PETSc.Mat,
-             C: np.ndarray, D: np.ndarray, gamma: np.ndarray, n: int, comm: MPI.Comm,
+             CD: sp.csr_matrix, gamma: np.ndarray, n: int, comm: MPI.Comm,
              previous: Optional[tuple[np.ndarray, np.ndarray, np.ndarray]] = None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """K_V = V^T K_ii V, M_V = V^T M_ii V and [V^T C | V^T D] (replicated): each slab's own block
     and its coupling to Gamma (the slabs are uncoupled), and Gamma's block T^T K_GG T. With
     ``previous`` (the projection of the first ``projected`` columns of each slab's B, the rest
     being the slab's own new columns) only the new columns' rows and columns are computed."""
-    n_b = C.shape[1]
-    KV, MV, CV = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, 2 * n_b))
+    KV, MV, CV = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, CD.shape[1]))
     if previous is None:
         KV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Kgg, T, comm), comm)
         MV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Mgg, T, comm), comm)
-        CV[t_idx] = gather_sum(T.T @ np.hstack([C[gamma], D[gamma]]), comm)
+        CV[t_idx] = gather_sum(np.asarray((CD[gamma].T @ T).T), comm)
     else:
         k = previous[0].shape[0]
         KV[:k, :k], MV[:k, :k], CV[:k] = previous
@@ -406,7 +435,7 @@ def _project(slabs: list[_Slab], T: np.ndarray, t_idx: np.ndarray, Kgg: PETSc.Ma
             G = gather_sum(Bn.T @ _mult_local(A_g, T, comm), comm)
             V_[np.ix_(cn, t_idx)] += G
             V_[np.ix_(t_idx, cn)] += G.T
-        CV[cn] += gather_sum(Bn.T @ np.hstack([C[sl.rows], D[sl.rows]]), comm)
+        CV[cn] += gather_sum(np.asarray((CD[sl.rows].T @ Bn).T), comm)
         sl.projected = B.shape[1]
     return 0.5 * (KV + KV.T), 0.5 * (MV + MV.T), CV
 
@@ -433,9 +462,9 @@ def _rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_c
 
 
 def _expand(slabs: list[_Slab], T: np.ndarray, gamma: np.ndarray, t_idx: np.ndarray, coef: np.ndarray,
-            n_loc: int) -> np.ndarray:
-    """Owned rows of V coef: each slab's B times its columns' coefficients, T on Gamma."""
-    out = np.zeros((n_loc, coef.shape[1]))
+            out: np.ndarray) -> np.ndarray:
+    """Owned rows of V coef into ``out`` (and returned): each slab's B times its columns'
+    coefficients, T on Gamma (every interior row is in a slab or on Gamma)."""
     out[gamma] = T @ coef[t_idx]
     for sl in slabs:
         out[sl.rows] = sl.B @ coef[sl.cols]

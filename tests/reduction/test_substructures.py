@@ -124,3 +124,31 @@ if MPI.COMM_WORLD.rank == 0:
     par = np.load(tmp_path / "np2.npy")
     assert par.shape == serial.shape
     assert np.max(np.abs(par / serial - 1)) < 1e-9
+
+
+def test_substructured_reduction_from_the_cache_and_its_gauge_rows(rig, tmp_path, monkeypatch):
+    """reduction.cache with slabs: a second reduction takes Psi, Phi and R A_b from disk (the same
+    frequencies, the same mode-acceleration rows to round-off), and those rows are not zero: the
+    gauges get the truncated modes' quasi-static response without a factorization of K_ii."""
+    from millimpact.fem.contact import create_contact
+    from millimpact.methods.reduced import reduced_plan
+    from millimpact.reduction import cache as reduction_cache
+    from millimpact.reduction.distributed import local_rows_to_aij
+    from millimpact.results.recorder import Recorder
+    from millimpact.scene.builtin import builtin_scene
+
+    model, plan = rig
+    monkeypatch.setenv(reduction_cache.CACHE_ENV, str(tmp_path / "rc"))
+    a = substructured(rig, slabs=2, density=2.0)
+    b = substructured(rig, slabs=2, density=2.0)
+    assert not a.bodies[1].from_cache and b.bodies[1].from_cache
+    assert a.bodies[1].factor is None and b.bodies[1].factor is None     # no K_ii factorization on demand
+    assert np.array_equal(a.bodies[1].frequencies_hz, b.bodies[1].frequencies_hz)
+    scene = builtin_scene("paper-rig")
+    for key, value in SMALL.items():
+        scene = scene.with_value(key, value)
+    _, _, radius, _ = reduced_plan(scene, plan)
+    rec = Recorder(model, create_contact(model, plan, radius=radius), plan.probes, ())
+    rows = local_rows_to_aij(rec.probe.P_grad, model.V)
+    Ca, Cb = a.mode_acceleration_rows(rows), b.mode_acceleration_rows(rows)
+    assert np.abs(Ca).max() > 0 and np.allclose(Ca, Cb, rtol=1e-9, atol=1e-12 * np.abs(Ca).max())
