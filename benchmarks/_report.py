@@ -41,3 +41,28 @@ def write_report(out: str | Path, name: str, rows: list[dict], ranks: int, colum
     lines += ["| " + " | ".join(cells(r)) + " |" for r in rows]
     (out / f"{name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+
+
+def add_panel_arguments(ap, h_far: float = 0.05) -> None:
+    """The liner-panel benchmarks' mesh and time arguments (a coarse panel by default)."""
+    ap.add_argument("--h-far", type=float, default=h_far, help="far element size, m (0: the plan's)")
+    ap.add_argument("--h-contact", type=float, default=0.005, help="contact element size, m (0: the plan's)")
+    ap.add_argument("--zone", type=float, default=0.024, help="contact-zone radius, m (0: the method's)")
+    ap.add_argument("--end", type=float, default=5e-4, help="simulated time, s (default 0.5 ms)")
+
+
+def panel_sets(args, root: Path, mesh_out: Path) -> list[str]:
+    """The ``--set`` arguments of :func:`add_panel_arguments`'s values (no figures, no fields), after
+    meshing once into ``mesh_out`` so that no timed run pays for gmsh (the mesh cache serves them)."""
+    import sys
+
+    sets = ["--set", f"time.end={args.end!r}", "--set", "outputs.figures=false", "--set", "outputs.xdmf=false"]
+    mesh_sets = []
+    for field, value in (("model.h_far", args.h_far), ("model.h_contact", args.h_contact),
+                         ("model.zone_radius", args.zone)):
+        if value > 0:
+            mesh_sets += ["--set", f"{field}={value!r}"]
+    subprocess.run([sys.executable, "-m", "millimpact.cli", "mesh", "liner-panel", *mesh_sets, "--out", str(mesh_out)],
+                   cwd=root, check=True, stdout=subprocess.DEVNULL)
+    return sets + mesh_sets
+

@@ -22,14 +22,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from _report import timed_run, write_report  # noqa: E402
+from _report import add_panel_arguments, panel_sets, timed_run, write_report  # noqa: E402
 
 
 def run(ranks: int, out: Path, sets: list[str]) -> dict:
@@ -50,22 +49,12 @@ def run(ranks: int, out: Path, sets: list[str]) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ranks", default="1,2", help="comma-separated rank counts (default 1,2)")
-    ap.add_argument("--h-far", type=float, default=0.05, help="far element size, m (0: the plan's)")
-    ap.add_argument("--h-contact", type=float, default=0.005, help="contact element size, m (0: the plan's)")
-    ap.add_argument("--zone", type=float, default=0.024, help="contact-zone radius, m (0: the method's)")
-    ap.add_argument("--end", type=float, default=5e-4, help="simulated time, s (default 0.5 ms)")
+    add_panel_arguments(ap)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "panel_scaling"))
     a = ap.parse_args()
     ranks = [int(x) for x in a.ranks.split(",")]
-    sets = ["--set", f"time.end={a.end!r}", "--set", "outputs.figures=false", "--set", "outputs.xdmf=false"]
-    for field, value in (("model.h_far", a.h_far), ("model.h_contact", a.h_contact), ("model.zone_radius", a.zone)):
-        if value > 0:
-            sets += ["--set", f"{field}={value!r}"]
     out = Path(a.out)
-    # the mesh first, so that no row pays for gmsh (the mesh cache serves every rank count)
-    mesh_sets = [x for i in range(0, len(sets), 2) if sets[i + 1].startswith("model.") for x in sets[i:i + 2]]
-    subprocess.run([sys.executable, "-m", "millimpact.cli", "mesh", "liner-panel", *mesh_sets, "--out", str(out / "mesh")],
-                   cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    sets = panel_sets(a, ROOT, out / "mesh")
     rows = [run(n, out / f"np{n}", sets) for n in ranks]
     for r in rows:
         r["speedup"] = rows[0]["wall_s"] / r["wall_s"]

@@ -17,14 +17,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from _report import timed_run, write_report  # noqa: E402
+from _report import add_panel_arguments, panel_sets, timed_run, write_report  # noqa: E402
 
 
 def run(slabs: int, out: Path, sets: list[str], extra: list[str]) -> dict:
@@ -50,24 +49,15 @@ def run(slabs: int, out: Path, sets: list[str], extra: list[str]) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--slabs", default="3,4", help="comma-separated slab counts beside the one factorization")
-    ap.add_argument("--h-far", type=float, default=0.05, help="far element size, m (0: the plan's)")
-    ap.add_argument("--h-contact", type=float, default=0.005, help="contact element size, m")
-    ap.add_argument("--zone", type=float, default=0.024, help="contact-zone radius, m")
-    ap.add_argument("--end", type=float, default=5e-4, help="simulated time, s (default 0.5 ms)")
+    add_panel_arguments(ap)
     ap.add_argument("--option", action="append", default=[],
                     help="a further option for the slab runs, e.g. --option=-impact_reduction_block_substructure_trace_density=0")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "panel_substructures"))
     a = ap.parse_args()
-    sets = ["--set", f"time.end={a.end!r}", "--set", "outputs.figures=false", "--set", "outputs.xdmf=false"]
-    for field, value in (("model.h_far", a.h_far), ("model.h_contact", a.h_contact), ("model.zone_radius", a.zone)):
-        if value > 0:
-            sets += ["--set", f"{field}={value!r}"]
     extra = [x for o in a.option for x in o.split("=", 1)]
     out = Path(a.out)
     os.environ["MILLIMPACT_REDUCTION_CACHE"] = "off"
-    mesh_sets = [x for i in range(0, len(sets), 2) if sets[i + 1].startswith("model.") for x in sets[i:i + 2]]
-    subprocess.run([sys.executable, "-m", "millimpact.cli", "mesh", "liner-panel", *mesh_sets, "--out", str(out / "mesh")],
-                   cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    sets = panel_sets(a, ROOT, out / "mesh")
     rows = [run(n, out / f"slabs{n}", sets, extra) for n in [1] + [int(x) for x in a.slabs.split(",")]]
     ref = rows[0]
     gauges = [k for k in ref if k.startswith("gauge_")]

@@ -52,3 +52,30 @@ def shared_out(tmp_path_factory, name):
     """One folder per study for the whole session: tests/test_demos.py runs the demos' reduced studies
     (the first and last of these cases) into the same folders, so the case cache serves both."""
     return tmp_path_factory.getbasetemp() / "shared-studies" / name
+
+
+#: the small paper-rig mesh of the reduction tests (h_contact 0.8 mm, h_far 8 mm, zone radius 5 mm;
+#: half model): ~1.8k P1 and ~10.6k P2 dofs, its contact candidates (2.9 mm) inside the zone
+SMALL_RIG = {"model.h_contact": 0.8e-3, "model.h_far": 8e-3, "model.zone_radius": 5e-3}
+
+
+def small_rig_scene():
+    """paper-rig with :data:`SMALL_RIG`."""
+    from millimpact.scene.builtin import builtin_scene
+
+    scene = builtin_scene("paper-rig")
+    for key, value in SMALL_RIG.items():
+        scene = scene.with_value(key, value)
+    return scene
+
+
+def small_rig_mesh():
+    """(scene, plan, mesh data) of :func:`small_rig_scene` (collective)."""
+    from mpi4py import MPI
+
+    from millimpact.geometry.mesh import create_mesh
+    from millimpact.scene.plan import make_plan
+
+    scene = small_rig_scene()
+    plan = make_plan(scene)
+    return scene, plan, create_mesh(scene, plan, MPI.COMM_WORLD)

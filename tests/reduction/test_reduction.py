@@ -14,27 +14,18 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from conftest import run_mpi_script
+from conftest import SMALL_RIG, run_mpi_script, small_rig_mesh
 
 from mpi4py import MPI
 
-SMALL = {"model.h_contact": 0.8e-3, "model.h_far": 8e-3, "model.zone_radius": 5e-3}
+SMALL = SMALL_RIG
 serial = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial test (scipy on gathered matrices)")
 
 
 # --- fixtures ------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def setup():
-    from millimpact.geometry.mesh import create_mesh
-    from millimpact.scene.plan import make_plan
-    from millimpact.scene.builtin import builtin_scene
-
-    scene = builtin_scene("paper-rig")
-    for key, value in SMALL.items():
-        scene = scene.with_value(key, value)
-    plan = make_plan(scene)
-    md = create_mesh(scene, plan, MPI.COMM_WORLD)
-    return scene, plan, md
+    return small_rig_mesh()
 
 
 @pytest.fixture(scope="module")

@@ -10,23 +10,15 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from conftest import run_mpi_script
-
-SMALL = {"model.h_contact": 0.8e-3, "model.h_far": 8e-3, "model.zone_radius": 5e-3}
+from conftest import SMALL_RIG as SMALL, run_mpi_script, small_rig_mesh
 
 
 @pytest.fixture(scope="module")
 def rig():
     from millimpact.fem.model import create_fe_model
-    from millimpact.geometry.mesh import create_mesh
-    from millimpact.scene.builtin import builtin_scene
-    from millimpact.scene.plan import make_plan
 
-    scene = builtin_scene("paper-rig")
-    for key, value in SMALL.items():
-        scene = scene.with_value(key, value)
-    plan = make_plan(scene)
-    return create_fe_model(create_mesh(scene, plan, MPI.COMM_WORLD), plan, 2), plan
+    _, plan, md = small_rig_mesh()
+    return create_fe_model(md, plan, 2), plan
 
 
 @pytest.fixture(scope="module")

@@ -12,20 +12,15 @@ import math
 import numpy as np
 import pytest
 
-from conftest import run_cli
-
-SMALL = {"model.h_contact": 0.8e-3, "model.h_far": 8e-3, "model.zone_radius": 5e-3}
+from conftest import SMALL_RIG as SMALL, run_cli, small_rig_scene
 
 
 def test_hertz_modal_matches_full():
     from millimpact.scene.plan import make_plan
     from millimpact.results.timeseries import contact_metrics
     from millimpact.methods.run import compute
-    from millimpact.scene.builtin import builtin_scene
 
-    scene = builtin_scene("paper-rig")
-    for key, value in SMALL.items():
-        scene = scene.with_value(key, value)
+    scene = small_rig_scene()
     plan = make_plan(scene)
     t_end = plan.gap / scene.impact.speed + 1.6 * plan.hertz.contact_time
     hm, _ = compute(scene, "hertz-modal", {"t_end": t_end})
