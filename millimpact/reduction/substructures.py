@@ -11,8 +11,8 @@ reduced, Krattiger et al., "Interface reduction for Hurty/Craig-Bampton substruc
 review and improvements", Mech. Syst. Signal Process. 114 (2019) 579-603):
 
 1. The interior's dofs are cut into S slabs along the longest extent of the body, at quantiles of
-   the dof count, moved at least ``margin`` (a quarter shear wavelength at f_cut) away from the
-   dofs coupled to the contact zone. The dofs of a slab that couple to a later slab form the
+   the dof count, moved at least ``margin`` (half a shear wavelength at f_cut) away from the dofs
+   coupled to the contact zone and from the gauges. The dofs of a slab that couple to a later slab form the
    interface Gamma; the slabs' remaining dofs P_s are then uncoupled from each other:
    K_ii = [diag(K_ss)  K_PG; K_GP  K_GG].
 2. A Ritz basis V of the interior, per slab s (the slab's factorization serves all three):
@@ -40,12 +40,11 @@ ones either way (Rayleigh's principle): a mode just under f_cut can rise above i
 (coarse liner panel: 160-162 modes against 164).
 
 Options (prefix ``impact_reduction_<body>_``): ``substructures`` S (0 or 1: one factorization,
-:mod:`.craig_bampton`), ``substructure_f_factor`` (1.5), ``substructure_trace_density`` (4), ``substructure_margin`` (0.5
-shear wavelengths at f_cut between a cut and the zone-coupled dofs or a gauge: closer, the static
-response to the zone varies too fast for the polynomial traces; the coarse panel's bolt gauge was
-off by 3x with a cut next to it). The
-slabs' factorizations and eigensolvers read the body's own options (``pc_``, ``eps_``,
-``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
+:mod:`.craig_bampton`), ``substructure_f_factor`` (1.5), ``substructure_trace_density`` (4),
+``substructure_margin`` (0.5 shear wavelengths at f_cut between a cut and the zone-coupled dofs
+or a gauge: closer, the static response to the zone varies too fast for the polynomial traces;
+the coarse panel's bolt gauge was off by 3x with a cut next to it). The slabs' factorizations and
+eigensolvers read the body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
 (:class:`~.reduced_model.BodyReduction` ``residual_b``) instead of K_ii's factorization.
 
 Measured (``benchmarks/panel_substructures.py``, coarse liner panel, 31k P2 DOFs, 4 slabs,
