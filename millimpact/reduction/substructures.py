@@ -241,29 +241,54 @@ def _mult_local(A: PETSc.Mat, X: np.ndarray, comm: MPI.Comm) -> np.ndarray:
 
 @dataclass
 class _Slab:
-    """One slab's share of the Ritz basis: its owned rows (local interior indices), its matrices,
-    the basis rows B (owned rows x its columns) and the global Ritz index of each column."""
+    """One slab on the rank that owns it: its global interior rows, its matrices (sequential), the
+    basis rows B (all its rows x its columns) and the global Ritz index of each column."""
 
+    index: int
     rows: np.ndarray
     K_ss: PETSc.Mat
     M_ss: PETSc.Mat
-    K_sg: PETSc.Mat
-    M_sg: PETSc.Mat
+    K_sg: sp.csr_matrix
+    M_sg: sp.csr_matrix
     B: np.ndarray
-    cols: np.ndarray
+    used: np.ndarray               #: which shared columns (zone statics, traces) reach the slab
+    n_own: int                     #: the slab's own columns (modes, second-order statics)
     stats: dict
-    projected: int = 0             #: columns of B already in K_V, M_V (see _project)
+    cols: np.ndarray = None
+    projected: int = 0             #: columns of B already in K_V, M_V (see _project_slab)
 
 
-def _solve(ksp: PETSc.KSP, rhs: np.ndarray, comm: MPI.Comm) -> np.ndarray:
-    """Owned rows of A^-1 rhs with a factored KSP (one multi-right-hand-side solve)."""
-    R = dense_from_rows(rhs, comm)
+def _solve(ksp: PETSc.KSP, rhs: np.ndarray) -> np.ndarray:
+    """A^-1 rhs with a factored sequential KSP (one multi-right-hand-side solve)."""
+    R = dense_from_rows(rhs, MPI.COMM_SELF)
     X = R.duplicate()
     ksp.getPC().getFactorMatrix().matSolve(R, X)
     out = np.array(X.getDenseArray(), copy=True)
     R.destroy()
     X.destroy()
     return out
+
+
+def _csr(A: PETSc.Mat) -> sp.csr_matrix:
+    indptr, indices, data = A.getValuesCSR()
+    return sp.csr_matrix((data, indices, indptr), shape=A.getSize())
+
+
+def _global_rows(A: sp.csr_matrix, r0: int, n: int, comm: MPI.Comm) -> sp.csr_matrix:
+    """Every rank's rows of a sparse matrix (owned rows from ``r0``) on every rank, n rows."""
+    coo = A.tocoo()
+    parts = comm.allgather((coo.row + r0, coo.col, coo.data))
+    return sp.csr_matrix((np.concatenate([p[2] for p in parts]),
+                          (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))),
+                         shape=(n, A.shape[1]))
+
+
+def _serial_options(options: Optional[dict[str, str]]) -> dict[str, str]:
+    """A slab is factored by one rank: CHOLMOD unless another package was asked for."""
+    opts = dict(options or {})
+    if opts.get("pc_factor_mat_solver_type", "mumps") == "mumps":
+        opts["pc_factor_mat_solver_type"] = "cholmod"
+    return opts
 
 
 def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: sp.csr_matrix, coords: np.ndarray,
@@ -274,22 +299,26 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     response to the interface inertia R A_b (dense PETSc, n_i x n_b), frequencies (Hz), the next
     frequency, Psi's relative residual ||K_ii Psi + C|| / ||C|| and statistics, from the slab-wise
     Ritz basis (module docstring). ``C``, ``D``: owned rows of K_iz G and M_iz G on the interface
-    coordinates (sparse: only the zone's slab has rows there); ``coords``, ``comps``: each owned interior dof's node coordinates and
-    displacement component; ``shear_speed`` (m/s) sets the margin and the traces' degrees;
-    ``keep_away`` (k x 3, m): points the cuts keep the margin from (the gauges). Collective.
+    coordinates (sparse: only the zone's slab has rows there); ``coords``, ``comps``: each owned
+    interior dof's node coordinates and displacement component; ``shear_speed`` (m/s) sets the
+    margin and the traces' degrees; ``keep_away`` (k x 3, m): points the cuts keep the margin from
+    (the gauges). Collective.
 
-    Two passes over the slabs (steps 1-3 and step 4 of the module docstring); each slab is
-    factored once a pass and only one slab's factor is held at a time; no dense n_i x n_b array
-    but the two results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
+    Two passes over the slabs (steps 1-3 and step 4 of the module docstring). Under MPI the slabs
+    go to the ranks in turn (slab s to rank s mod P): each rank gathers its slab's rows
+    (MatCreateSubMatrices), factors and solves it alone (CHOLMOD), and only the Ritz matrices
+    (summed over ranks) and the final rows travel; a rank holds one slab's factor at a time. No
+    dense n_i x n_b array but the two results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
     comm = K_ii.getComm().tompi4py()
+    size, rank = comm.size, comm.rank
     t_start = time.perf_counter()
     wavelength = shear_speed / f_cut
     zone_rows = np.nonzero(np.diff(C.indptr))[0]
-    CD = sp.hstack([C, D]).tocsr()
     labels, axis, cuts = slab_labels(coords, zone_rows, settings.slabs, settings.margin * wavelength, comm,
                                      keep_away)
     on_gamma = interface_flags(K_ii, labels)
     r0 = K_ii.getOwnershipRange()[0]
+    n_i = K_ii.getSize()[0]
     n_loc = len(labels)
     gamma = np.nonzero(on_gamma)[0]
     traces = polynomial_traces(coords[gamma], comps[gamma], labels[gamma], axis, wavelength,
@@ -297,99 +326,141 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     T = np.hstack(traces) if traces else np.zeros((len(gamma), 0))
     n_t, n_b = T.shape[1], C.shape[1]
     t_idx = n_b + np.arange(n_t)          # Ritz columns: [zone statics (n_b) | traces (n_t) | slabs' own]
-    is_gamma = PETSc.IS().createGeneral((r0 + gamma).astype(np.int32), comm=comm)
-    n_cols = n_b + n_t
-    slabs: list[_Slab] = []
-    freq_all = []
-    # pass 1: per slab, the statics (zone coordinates and traces), the second-order statics of the
-    # zone coordinates and the fixed-interface modes; one factorization each, dropped after
-    for s in range(len(cuts) + 1):
-        ts = time.perf_counter()
-        rows = np.nonzero((labels == s) & ~on_gamma)[0]
-        n_s = comm.allreduce(len(rows))
-        if n_s == 0:
+    # what every slab's owner needs whole: Gamma's global rows and traces, the sparse couplings
+    gamma_glob = np.concatenate(comm.allgather((r0 + gamma).astype(np.int64)))
+    T_full = np.vstack(comm.allgather(T)) if n_t else np.zeros((len(gamma_glob), 0))
+    CD_full = _global_rows(sp.hstack([C, D]).tocsr(), r0, n_i, comm)
+    n_slabs = len(cuts) + 1
+    slab_rows = [np.concatenate(comm.allgather((r0 + np.nonzero((labels == s) & ~on_gamma)[0]).astype(np.int64)))
+                 for s in range(n_slabs)]
+    slab_ids = [s for s in range(n_slabs) if len(slab_rows[s])]
+    serial_opts = _serial_options(options)
+    mine: list[_Slab] = []
+    # pass 1, in rounds: every rank gathers and reduces its own slab of the round
+    for j in range(0, len(slab_ids), size):
+        s = slab_ids[j + rank] if j + rank < len(slab_ids) else None
+        rows = slab_rows[s] if s is not None else np.zeros(0, np.int64)
+        is_r = PETSc.IS().createGeneral(rows.astype(np.int32), comm=PETSc.COMM_SELF)
+        is_g = PETSc.IS().createGeneral((gamma_glob if s is not None else rows).astype(np.int32),
+                                        comm=PETSc.COMM_SELF)
+        (K_ss,), (M_ss,) = K_ii.createSubMatrices(is_r, is_r), M_ii.createSubMatrices(is_r, is_r)
+        (K_sg,), (M_sg,) = K_ii.createSubMatrices(is_r, is_g), M_ii.createSubMatrices(is_r, is_g)
+        K_sg_csr, M_sg_csr = _csr(K_sg), _csr(M_sg)
+        for obj in (K_sg, M_sg, is_r, is_g):
+            obj.destroy()
+        if s is None:
+            K_ss.destroy()
+            M_ss.destroy()
             continue
-        is_s = PETSc.IS().createGeneral((r0 + rows).astype(np.int32), comm=comm)
-        K_ss, M_ss = K_ii.createSubMatrix(is_s, is_s), M_ii.createSubMatrix(is_s, is_s)
-        K_sg, M_sg = K_ii.createSubMatrix(is_s, is_gamma), M_ii.createSubMatrix(is_s, is_gamma)
-        is_s.destroy()
-        ksp = create_factored_solver(K_ss, prefix, options)
+        ts = time.perf_counter()
+        ksp = create_factored_solver(K_ss, prefix, serial_opts)
         t_factor = time.perf_counter() - ts
-        C_s, KsgT = C[rows], _mult_local(K_sg, T, comm)
-        zone_used = reduce_array(np.bincount(C_s.indices, minlength=n_b) > 0, MPI.MAX, comm) > 0
-        used = np.concatenate([zone_used, reduce_array(np.any(KsgT != 0.0, axis=0), MPI.MAX, comm) > 0])
-        rhs = np.hstack([C_s[:, zone_used].toarray(), KsgT[:, used[n_b:]]])
+        C_s, KsgT = CD_full[rows][:, :n_b], np.asarray(K_sg_csr @ T_full)
+        used = np.concatenate([np.bincount(C_s.indices, minlength=n_b) > 0, np.any(KsgT != 0.0, axis=0)])
+        rhs = np.hstack([C_s[:, used[:n_b]].toarray(), KsgT[:, used[n_b:]]])
         del KsgT
-        X = -_solve(ksp, rhs, comm) if used.any() else np.zeros((len(rows), 0))
+        X = -_solve(ksp, rhs) if used.any() else np.zeros((len(rows), 0))
         del rhs
         # second-order statics: the response to the inertia of the slab's zone statics, M_ss Z_s + M_sz
-        n_zone = int(zone_used.sum())
-        X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], comm) + D[rows][:, zone_used].toarray(), comm)
-              if n_zone else np.zeros((len(rows), 0)))
+        n_zone = int(used[:n_b].sum())
+        X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], MPI.COMM_SELF)
+                     + CD_full[rows][:, n_b:][:, used[:n_b]].toarray()) if n_zone else np.zeros((len(rows), 0)))
         t_static = time.perf_counter() - ts - t_factor
-        f_s, vecs, _ = compute_modes(K_ss, M_ss, ksp, settings.f_factor * f_cut, None, prefix, options)
+        f_s, vecs, _ = compute_modes(K_ss, M_ss, ksp, settings.f_factor * f_cut, None, prefix, serial_opts)
         Phi_s = np.column_stack([v.getArray(readonly=True) for v in vecs]) if vecs else np.zeros((len(rows), 0))
         for v in vecs:
             v.destroy()
         ksp.destroy()
-        own = Phi_s.shape[1] + X2.shape[1]
-        cols = np.concatenate([np.nonzero(used)[0], n_cols + np.arange(own)])
+        mine.append(_Slab(s, rows, K_ss, M_ss, K_sg_csr, M_sg_csr, np.hstack([X, Phi_s, X2]), used,
+                          Phi_s.shape[1] + X2.shape[1],
+                          {"slab": s, "rank": rank, "dofs": len(rows), "modes": int(Phi_s.shape[1]),
+                           "static_columns": int(used.sum() + X2.shape[1]), "factor_s": round(t_factor, 3),
+                           "statics_s": round(t_static, 3), "total_s": round(time.perf_counter() - ts, 3)}))
+    # the Ritz columns, numbered slab by slab on every rank alike
+    layout = sorted(x for part in comm.allgather([(sl.index, sl.used, sl.n_own) for sl in mine]) for x in part)
+    n_cols, cols_of = n_b + n_t, {}
+    for s, used, own in layout:
+        cols_of[s] = np.concatenate([np.nonzero(used)[0], n_cols + np.arange(own)])
         n_cols += own
-        freq_all.append(f_s)
-        slabs.append(_Slab(rows, K_ss, M_ss, K_sg, M_sg, np.hstack([X, Phi_s, X2]), cols,
-                           {"dofs": n_s, "modes": int(Phi_s.shape[1]), "static_columns": int(used.sum() + own
-                                                                                             - Phi_s.shape[1]),
-                            "factor_s": round(t_factor, 3), "statics_s": round(t_static, 3),
-                            "total_s": round(time.perf_counter() - ts, 3)}))
-    Kgg = K_ii.createSubMatrix(is_gamma, is_gamma)
-    Mgg = M_ii.createSubMatrix(is_gamma, is_gamma)
-    KV, MV, CV = _project(slabs, T, t_idx, Kgg, Mgg, CD, gamma, n_cols, comm)
+    for sl in mine:
+        sl.cols = cols_of[sl.index]
+    is_gamma = PETSc.IS().createGeneral((r0 + gamma).astype(np.int32), comm=comm)
+    Kgg, Mgg = K_ii.createSubMatrix(is_gamma, is_gamma), M_ii.createSubMatrix(is_gamma, is_gamma)
+    KV, MV, CV = np.zeros((n_cols, n_cols)), np.zeros((n_cols, n_cols)), np.zeros((n_cols, 2 * n_b))
+    KV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Kgg, T, comm), comm)
+    MV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Mgg, T, comm), comm)
+    CV[t_idx] = np.asarray((CD_full[gamma_glob].T @ T_full).T)      # replicated data: no sum
+    for obj in (Kgg, Mgg, is_gamma):
+        obj.destroy()
+    KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm)
     ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
     # pass 2: each slab's static response (Gamma held) to the inertia of the first pass's modes and
     # constraint modes, M_ii Phi and A_b = M_ii Psi + M_ib: one step of inverse iteration on them.
-    # Slab by slab: a slab's rows of M_ii V couple its own rows and Gamma's only
-    if n_b + ritz["m"]:
+    # A slab's rows of M_ii V couple its own rows and Gamma's only
+    n_new = n_b + ritz["m"]
+    if n_new:
         coef = np.hstack([ritz["psi"], ritz["phi"]])
-        first_gamma = T @ coef[t_idx]
-        for sl in slabs:
+        first_gamma = T_full @ coef[t_idx]
+        for sl in mine:
             ts = time.perf_counter()
-            load = _mult_local(sl.M_ss, sl.B @ coef[sl.cols], comm) + _mult_local(sl.M_sg, first_gamma, comm)
-            D_s = D[sl.rows].tocoo()
-            np.add.at(load, (D_s.row, D_s.col), D_s.data)
-            ksp = create_factored_solver(sl.K_ss, prefix, options)
-            X3 = _solve(ksp, load, comm)
+            load = _mult_local(sl.M_ss, sl.B @ coef[sl.cols], MPI.COMM_SELF) + sl.M_sg @ first_gamma
+            load[:, :n_b] += CD_full[sl.rows][:, n_b:].toarray()
+            ksp = create_factored_solver(sl.K_ss, prefix, serial_opts)
+            X3 = _solve(ksp, load)
             del load
             ksp.destroy()
             sl.B = np.hstack([sl.B, X3])
-            sl.cols = np.concatenate([sl.cols, n_cols + np.arange(X3.shape[1])])
-            n_cols += X3.shape[1]
+            sl.cols = np.concatenate([sl.cols, n_cols + slab_ids.index(sl.index) * n_new + np.arange(n_new)])
             sl.stats["inertia_statics_s"] = round(time.perf_counter() - ts, 3)
-        KV, MV, CV = _project(slabs, T, t_idx, Kgg, Mgg, CD, gamma, n_cols, comm, (KV, MV, CV))
+        n_cols += len(slab_ids) * n_new
+        KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm, grow_to=n_cols)
         ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
     t0 = time.perf_counter()
     m = ritz["m"]
-    # the results straight into their final storage
+    # the results straight into their final storage; each slab's rows sent to the ranks owning them
     Psi, flex = _dense_zeros(n_loc, n_b, comm), _dense_zeros(n_loc, n_b, comm)
-    _expand(slabs, T, gamma, t_idx, ritz["psi"], Psi.getDenseArray())
-    _expand(slabs, T, gamma, t_idx, ritz["flex"], flex.getDenseArray())
-    Phi = _expand(slabs, T, gamma, t_idx, ritz["phi"], np.zeros((n_loc, m)))
+    Phi = np.zeros((n_loc, m))
+    targets = (Psi.getDenseArray(), flex.getDenseArray(), Phi)
+    parts = (ritz["psi"], ritz["flex"], ritz["phi"])
+    for out, c in zip(targets, parts):
+        out[gamma] = T @ c[t_idx]
+    starts = np.array(comm.allgather(r0) + [n_i])
+
+    def put(local_rows: np.ndarray, block: np.ndarray) -> None:
+        for out, a, b in zip(targets, (0, n_b, 2 * n_b), (n_b, 2 * n_b, 2 * n_b + m)):
+            out[local_rows] = block[:, a:b]
+
+    outgoing: list[list] = [[] for _ in range(size)]
+    for sl in mine:
+        block = sl.B @ np.hstack([c[sl.cols] for c in parts])
+        dest = np.searchsorted(starts, sl.rows, side="right") - 1
+        for d in np.unique(dest):
+            sel = dest == d
+            if d == rank:                        # this rank's own rows: no copy through MPI
+                put(sl.rows[sel] - starts[d], block[sel])
+            else:
+                outgoing[d].append((sl.rows[sel] - starts[d], block[sel]))
+        del block
+    for pieces in comm.alltoall(outgoing):
+        for local_rows, block in pieces:
+            put(local_rows, block)
     for A in (Psi, flex):
         A.assemble()
     residual = constraint_residual(K_ii, Psi, C, comm) if n_b else 0.0
-    for sl in slabs:
-        for obj in (sl.K_ss, sl.M_ss, sl.K_sg, sl.M_sg):
-            obj.destroy()
-    for obj in (Kgg, Mgg, is_gamma):
-        obj.destroy()
+    for sl in mine:
+        sl.K_ss.destroy()
+        sl.M_ss.destroy()
     freq = ritz["freq"]
-    stats = {"slabs": [sl.stats for sl in slabs], "axis": "xyz"[axis], "cuts_m": [float(c) for c in cuts],
-             "interface_dofs": comm.allreduce(len(gamma)), "traces": n_t, "interface_coordinates": n_b,
-             "ritz_columns": n_cols, "ritz_rank": ritz["rank"], "slab_modes": int(sum(len(f) for f in freq_all)),
+    slab_stats = sorted((x for part in comm.allgather([sl.stats for sl in mine]) for x in part),
+                        key=lambda x: x["slab"])
+    stats = {"slabs": slab_stats, "axis": "xyz"[axis], "cuts_m": [float(c) for c in cuts],
+             "interface_dofs": len(gamma_glob), "traces": n_t, "interface_coordinates": n_b,
+             "ritz_columns": n_cols, "ritz_rank": ritz["rank"], "slab_modes": int(sum(x["modes"] for x in slab_stats)),
              "expand_s": round(time.perf_counter() - t0, 3), "total_s": round(time.perf_counter() - t_start, 3)}
     if comm.rank == 0:
-        log.info("substructures %s: %d slabs along %s (cuts %s m), %d interface dofs -> %d traces, "
-                 "%d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s", prefix, len(slabs),
-                 stats["axis"], ", ".join(f"{c:.4g}" for c in cuts), stats["interface_dofs"], n_t,
+        log.info("substructures %s: %d slabs along %s (cuts %s m) on %d rank(s), %d interface dofs -> %d "
+                 "traces, %d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s", prefix, len(slab_ids),
+                 stats["axis"], ", ".join(f"{c:.4g}" for c in cuts), size, stats["interface_dofs"], n_t,
                  stats["slab_modes"], n_cols, m, stats["total_s"])
     nxt = float(freq[m]) if m < len(freq) else math.nan
     return {"Psi": Psi, "Phi": Phi, "flex": flex, "freq": freq[:m], "next": nxt, "residual": residual,
@@ -407,35 +478,32 @@ def constraint_residual(K_ii: PETSc.Mat, Psi: PETSc.Mat, C: sp.csr_matrix, comm:
     return math.sqrt(num) / max(math.sqrt(den), 1e-300)
 
 
-def _project(slabs: list[_Slab], T: np.ndarray, t_idx: np.ndarray, Kgg: PETSc.Mat, Mgg: PETSc.Mat,
-             CD: sp.csr_matrix, gamma: np.ndarray, n: int, comm: MPI.Comm,
-             previous: Optional[tuple[np.ndarray, np.ndarray, np.ndarray]] = None
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """K_V = V^T K_ii V, M_V = V^T M_ii V and [V^T C | V^T D] (replicated): each slab's own block
-    and its coupling to Gamma (the slabs are uncoupled), and Gamma's block T^T K_GG T. With
-    ``previous`` (the projection of the first ``projected`` columns of each slab's B, the rest
-    being the slab's own new columns) only the new columns' rows and columns are computed."""
-    KV, MV, CV = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, CD.shape[1]))
-    if previous is None:
-        KV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Kgg, T, comm), comm)
-        MV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Mgg, T, comm), comm)
-        CV[t_idx] = gather_sum(np.asarray((CD[gamma].T @ T).T), comm)
-    else:
-        k = previous[0].shape[0]
-        KV[:k, :k], MV[:k, :k], CV[:k] = previous
+def _project(slabs: list[_Slab], T_full: np.ndarray, t_idx: np.ndarray, CD_full: sp.csr_matrix,
+             current: tuple[np.ndarray, np.ndarray, np.ndarray], comm: MPI.Comm,
+             grow_to: Optional[int] = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """K_V = V^T K_ii V, M_V = V^T M_ii V and [V^T C | V^T D] with the columns of each rank's slabs
+    not yet projected (``projected`` onward) added to ``current`` (grown to ``grow_to`` columns):
+    a slab's own block and its coupling to Gamma (the slabs are uncoupled), summed over ranks."""
+    n = grow_to or current[0].shape[0]
+    k = current[0].shape[0]
+    KV, MV, CV = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, current[2].shape[1]))
     for sl in slabs:
-        new = slice(sl.projected if previous is not None else 0, None)
+        new = slice(sl.projected, None)
         B, Bn, cols, cn = sl.B, sl.B[:, new], sl.cols, sl.cols[new]
         for V_, A_, A_g in ((KV, sl.K_ss, sl.K_sg), (MV, sl.M_ss, sl.M_sg)):
-            P = gather_sum(_mult_local(A_, Bn, comm).T @ B, comm)           # new rows x all columns
+            P = _mult_local(A_, Bn, MPI.COMM_SELF).T @ B                       # new rows x all columns
             V_[np.ix_(cn, cols)] += P
             V_[np.ix_(cols, cn)] += P.T
             V_[np.ix_(cn, cn)] -= P[:, new]                                    # the new-new block once
-            G = gather_sum(Bn.T @ _mult_local(A_g, T, comm), comm)
+            G = Bn.T @ np.asarray(A_g @ T_full)
             V_[np.ix_(cn, t_idx)] += G
             V_[np.ix_(t_idx, cn)] += G.T
-        CV[cn] += gather_sum(np.asarray((CD[sl.rows].T @ Bn).T), comm)
+        CV[cn] += np.asarray((CD_full[sl.rows].T @ Bn).T)
         sl.projected = B.shape[1]
+    KV, MV, CV = (reduce_array(x, MPI.SUM, comm) for x in (KV, MV, CV))
+    KV[:k, :k] += current[0]
+    MV[:k, :k] += current[1]
+    CV[:k] += current[2]
     return 0.5 * (KV + KV.T), 0.5 * (MV + MV.T), CV
 
 
@@ -458,16 +526,6 @@ def _rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_c
     flex = WY[:, m:] @ ((WY[:, m:].T @ Ab) / lam[m:, None])
     return {"psi": psi, "phi": WY[:, :m], "flex": flex, "m": m, "rank": int(keep.sum()),
             "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)}
-
-
-def _expand(slabs: list[_Slab], T: np.ndarray, gamma: np.ndarray, t_idx: np.ndarray, coef: np.ndarray,
-            out: np.ndarray) -> np.ndarray:
-    """Owned rows of V coef into ``out`` (and returned): each slab's B times its columns'
-    coefficients, T on Gamma (every interior row is in a slab or on Gamma)."""
-    out[gamma] = T @ coef[t_idx]
-    for sl in slabs:
-        out[sl.rows] = sl.B @ coef[sl.cols]
-    return out
 
 
 def gather_sum(A: np.ndarray, comm: MPI.Comm) -> np.ndarray:
