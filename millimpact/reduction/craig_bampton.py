@@ -229,12 +229,6 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
                     m.destroy()
             data["substructures"] = res["stats"]
             data["timings"]["substructures"] = time.perf_counter() - t0
-            if key:
-                reduction_cache.store(comm, key, {
-                    "Psi": Psi.getDenseArray().copy() if Psi is not None else np.zeros((0, 0)), "Phi": phi_cols,
-                    "freq": np.asarray(freq), "next": np.asarray(nxt),
-                    "flex": data["residual_b"].getDenseArray() if n_b else np.zeros((0, 0)),
-                    "residual": np.asarray(data.get("constraint_residual", 0.0))})
         else:
             ksp = create_factored_solver(K_ii, prefix, opts)
             data["timings"]["factor"] = time.perf_counter() - t0
@@ -277,11 +271,13 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
             for k, v in enumerate(vecs):
                 phi_cols[:, k] = v.getArray(readonly=True)
                 v.destroy()
-            if key:
-                reduction_cache.store(comm, key, {
-                    "Psi": Psi.getDenseArray().copy() if Psi is not None else np.zeros((0, 0)), "Phi": phi_cols,
-                    "freq": np.asarray(freq), "next": np.asarray(nxt),
-                    "residual": np.asarray(data.get("constraint_residual", 0.0))})
+        if key and cached is None:
+            flex = data.get("residual_b")
+            reduction_cache.store(comm, key, {
+                "Psi": Psi.getDenseArray().copy() if Psi is not None else np.zeros((0, 0)), "Phi": phi_cols,
+                "freq": np.asarray(freq), "next": np.asarray(nxt),
+                **({"flex": flex.getDenseArray()} if flex is not None else {}),
+                "residual": np.asarray(data.get("constraint_residual", 0.0))})
         if rhs is not None:
             rhs.destroy()
         Phi = None

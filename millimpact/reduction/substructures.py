@@ -66,8 +66,7 @@ from mpi4py import MPI
 from numpy.polynomial import legendre
 from petsc4py import PETSc
 
-from ..errors import InputError
-from ..integration.solvers import create_factored_solver, petsc_options
+from ..integration.solvers import check_type_options, create_factored_solver, petsc_options
 from .distributed import dense_from_rows
 from .eigen import compute_modes
 
@@ -90,34 +89,20 @@ class SubstructureSettings:
 
 
 def substructure_settings(prefix: str, options: Optional[dict[str, str]]) -> Optional[SubstructureSettings]:
-    """The body's settings from the command line (``-<prefix>substructures`` ...) or ``options``;
-    None for one factorization (S < 2)."""
+    """The body's settings from the command line (``-<prefix>substructures`` ...) or ``options``
+    (their ranges checked by :func:`~millimpact.integration.solvers.check_type_options`, the CLI's
+    check); None for one factorization (S < 2)."""
     keys = ("substructures", "substructure_f_factor", "substructure_trace_density", "substructure_margin")
     with petsc_options({}, {k: v for k, v in (options or {}).items() if k in keys}, prefix=prefix):
         db = PETSc.Options()
         raw = {k: db.getString(prefix + k, "") for k in keys}
-    try:
-        slabs = int(raw["substructures"] or 0)
-        f_factor = float(raw["substructure_f_factor"] or 1.5)
-        density = float(raw["substructure_trace_density"] or 4.0)
-        margin = float(raw["substructure_margin"] or 0.5)
-    except ValueError as exc:
-        raise InputError(f"-{prefix}substructures / substructure_*: {exc}") from None
-    check_settings(prefix, slabs, f_factor, density, margin)
-    return SubstructureSettings(slabs, f_factor, density, margin) if slabs >= 2 else None
-
-
-def check_settings(prefix: str, slabs: int, f_factor: float, density: float, margin: float = 0.5) -> None:
-    """One-line refusals of values outside the allowed ranges (InputError, exit status 2)."""
-    if slabs < 0:
-        raise InputError(f"-{prefix}substructures {slabs}: must be an integer >= 0 (0 or 1: one factorization)")
-    if not f_factor >= 1.0:
-        raise InputError(f"-{prefix}substructure_f_factor {f_factor}: must be >= 1 (slab modes up to this x f_cut)")
-    if not density >= 0.0:
-        raise InputError(f"-{prefix}substructure_trace_density {density}: must be >= 0 "
-                         "(0: every interface dof its own trace)")
-    if not margin >= 0.0:
-        raise InputError(f"-{prefix}substructure_margin {margin}: must be >= 0 (shear wavelengths at f_cut)")
+    check_type_options({prefix + k: v for k, v in raw.items() if v})
+    default = SubstructureSettings(0)
+    settings = SubstructureSettings(int(raw["substructures"] or 0),
+                                    float(raw["substructure_f_factor"] or default.f_factor),
+                                    float(raw["substructure_trace_density"] or default.trace_density),
+                                    float(raw["substructure_margin"] or default.margin))
+    return settings if settings.slabs >= 2 else None
 
 
 # --- the slabs -------------------------------------------------------------------------------------
@@ -210,10 +195,10 @@ def polynomial_traces(coords: np.ndarray, comps: np.ndarray, cut: np.ndarray, ax
     return blocks
 
 
-def orthonormal_columns(B: np.ndarray, comm: MPI.Comm, W: Optional[np.ndarray] = None) -> np.ndarray:
-    """Columns spanning range(B) (rows distributed), orthonormal in the (distributed) Gram
-    B^T B, or B^T W when W (the rows of W B, e.g. M B) is given; dependent directions dropped."""
-    G = reduce_array(B.T @ (B if W is None else W), MPI.SUM, comm)
+def orthonormal_columns(B: np.ndarray, comm: MPI.Comm) -> np.ndarray:
+    """Columns spanning range(B) (rows distributed), orthonormal in the (distributed) Gram B^T B;
+    dependent directions dropped."""
+    G = reduce_array(B.T @ B, MPI.SUM, comm)
     lam, U = np.linalg.eigh(0.5 * (G + G.T))
     keep = lam > DEPENDENT_TOL * max(lam.max(initial=0.0), 1e-300)
     return B @ (U[:, keep] / np.sqrt(lam[keep]))
@@ -387,8 +372,8 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     is_gamma = PETSc.IS().createGeneral((r0 + gamma).astype(np.int32), comm=comm)
     Kgg, Mgg = K_ii.createSubMatrix(is_gamma, is_gamma), M_ii.createSubMatrix(is_gamma, is_gamma)
     KV, MV, CV = np.zeros((n_cols, n_cols)), np.zeros((n_cols, n_cols)), np.zeros((n_cols, 2 * n_b))
-    KV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Kgg, T, comm), comm)
-    MV[np.ix_(t_idx, t_idx)] = gather_sum(T.T @ _mult_local(Mgg, T, comm), comm)
+    KV[np.ix_(t_idx, t_idx)] = reduce_array(T.T @ _mult_local(Kgg, T, comm), MPI.SUM, comm)
+    MV[np.ix_(t_idx, t_idx)] = reduce_array(T.T @ _mult_local(Mgg, T, comm), MPI.SUM, comm)
     CV[t_idx] = np.asarray((CD_full[gamma_glob].T @ T_full).T)      # replicated data: no sum
     for obj in (Kgg, Mgg, is_gamma):
         obj.destroy()
@@ -526,11 +511,6 @@ def _rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_c
     flex = WY[:, m:] @ ((WY[:, m:].T @ Ab) / lam[m:, None])
     return {"psi": psi, "phi": WY[:, :m], "flex": flex, "m": m, "rank": int(keep.sum()),
             "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)}
-
-
-def gather_sum(A: np.ndarray, comm: MPI.Comm) -> np.ndarray:
-    """The sum over ranks of a small dense array (the ranks' shares of a Gram-type product)."""
-    return reduce_array(A, MPI.SUM, comm)
 
 
 def reduce_array(a: np.ndarray, op: MPI.Op, comm: MPI.Comm) -> np.ndarray:
