@@ -11,6 +11,7 @@ measure the load.
 
     .venv/bin/python benchmarks/panel_scaling.py                          # coarse panel, 1 and 2 ranks
     .venv/bin/python benchmarks/panel_scaling.py --ranks 1,2,4,8,16,32,64 --h-far 0.0118   # a larger machine, the plan's size
+    .venv/bin/python benchmarks/panel_scaling.py --h-far 0.025 --slabs 4    # 157k DOFs, the region in 4 slabs
 
 ``--h-far``/``--h-contact``/``--zone`` set the mesh (defaults: a coarse panel of ~31k P2 DOFs that
 runs in about a minute here; the scene's own plan, ~1.2M P2 DOFs, is ``--h-far 0 --h-contact 0
@@ -31,9 +32,9 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from _report import add_panel_arguments, panel_sets, timed_run, write_report  # noqa: E402
 
 
-def run(ranks: int, out: Path, sets: list[str]) -> dict:
+def run(ranks: int, out: Path, sets: list[str], options: list[str]) -> dict:
     cmd = [sys.executable, "-m", "millimpact.cli", "run", "liner-panel", "--method", "improved", *sets,
-           "--force", "-q", "--out", str(out)]
+           "--force", "-q", "--out", str(out), *options]
     code, wall, peak_gb = timed_run(cmd, ranks, ROOT)
     if code != 0:
         raise SystemExit(f"{ranks} rank(s): millimpact run failed (exit {code})")
@@ -50,12 +51,16 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ranks", default="1,2", help="comma-separated rank counts (default 1,2)")
     add_panel_arguments(ap)
+    ap.add_argument("--slabs", type=int, default=0,
+                    help="cut the struck body's region into this many slabs (-impact_reduction_block_substructures; "
+                         "default 0: one factorization)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "panel_scaling"))
     a = ap.parse_args()
     ranks = [int(x) for x in a.ranks.split(",")]
     out = Path(a.out)
     sets = panel_sets(a, ROOT, out / "mesh")
-    rows = [run(n, out / f"np{n}", sets) for n in ranks]
+    options = ["-impact_reduction_block_substructures", str(a.slabs)] if a.slabs > 1 else []
+    rows = [run(n, out / f"np{n}", sets, options) for n in ranks]
     for r in rows:
         r["speedup"] = rows[0]["wall_s"] / r["wall_s"]
         r["F_max_rel_diff"] = abs(r["F_max_N"] / rows[0]["F_max_N"] - 1.0)
@@ -70,7 +75,7 @@ def main() -> int:
                             f"{r['F_max_N'] / 1e3:.1f} ({r['hertz_F_max_N'] / 1e3:.1f})",
                             f"{r['t_c_s'] * 1e6:.1f} ({r['hertz_t_c_s'] * 1e6:.1f})",
                             f"{r['F_max_rel_diff']:.1e}, {r['t_c_rel_diff']:.1e}"],
-                 note=f"; liner-panel, improved, {' '.join(sets)}; {os.cpu_count()} cores, load after "
+                 note=f"; liner-panel, improved, {' '.join(sets + options)}; {os.cpu_count()} cores, load after "
                       f"{load[0]:.2f} / {load[1]:.2f} (1 / 5 min)")
     return 0
 

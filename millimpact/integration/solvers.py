@@ -534,17 +534,21 @@ def check_type_options(options: Mapping[str, object]) -> None:
         if str(key).endswith("_substructures") and not str(value).strip().isdigit():
             raise InputError(f"-{key} {value}: the number of slabs must be an integer >= 0 "
                              "(0 or 1: one factorization of the region; default 0)")
-        for suffix, low, what in (("substructure_f_factor", 1.0, "slab modes up to this x f_cut; default 1.5"),
-                                  ("substructure_trace_density", 0.0,
-                                   "trace degrees per shear wavelength; 0: every interface dof; default 4"),
-                                  ("substructure_margin", 0.0, "shear wavelengths at f_cut; default 0.5")):
+        for suffix, low, high, what in (
+                ("substructure_f_factor", 1.0, math.inf, "slab modes up to this x f_cut; default 1.5"),
+                ("substructure_trace_density", 0.0, math.inf,
+                 "trace degrees per shear wavelength; 0: every interface dof; default 4"),
+                ("substructure_margin", 0.0, math.inf, "shear wavelengths at f_cut; default 0.5"),
+                ("substructure_compress", 0.0, 1.0, "relative Gram eigenvalue of a dropped second-pass direction; "
+                                                    "0: keep all; default 1e-12")):
             if str(key).endswith(suffix):
                 try:
-                    ok = float(value) >= low
+                    ok = low <= float(value) < high
                 except ValueError:
                     ok = False
                 if not ok:
-                    raise InputError(f"-{key} {value}: must be a number >= {low:g} ({what})")
+                    rng = f">= {low:g}" if high == math.inf else f"in [{low:g}, {high:g})"
+                    raise InputError(f"-{key} {value}: must be a number {rng} ({what})")
         for suffix, (what, enum) in _TYPE_OPTIONS.items():
             if key.endswith(suffix):
                 known = sorted({str(getattr(enum, k)).lower() for k in dir(enum) if not k.startswith("_")})

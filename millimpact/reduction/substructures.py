@@ -29,7 +29,10 @@ review and improvements", Mech. Syst. Signal Process. 114 (2019) 579-603):
    K_V psi = -C_V, and Phi = V phi with K_V phi = lambda M_V phi, lambda <= (2 pi f_cut)^2.
 4. One step of inverse iteration: each slab's static response (Gamma held) to the inertia of the
    first Ritz modes and constraint modes, K_ss^-1 (M_ii [Phi, Psi] + [0, M_ib])_s, joins V and
-   step 3 is repeated. This is what makes the modes near f_cut accurate with few slab modes
+   step 3 is repeated (each slab's new columns first made M-orthonormal, dropping directions under
+   ``compress`` x the largest eigenvalue of their Gram: the responses to the ~n_b + m loads are
+   nearly dependent away from the zone; coarse panel, 4 slabs: 216 columns a slab -> 90-173).
+   This is what makes the modes near f_cut accurate with few slab modes
    (paper-rig test mesh, every Gamma dof a trace: the highest mode 0.84 % high with slab modes
    to 2 f_cut and no step 4, 0.018 % with them to 1.5 f_cut and step 4), and it puts
    K_ii^-1 A_b, which the mode-acceleration rows need, in the span (R A_b 18 % -> 0.24 %).
@@ -43,7 +46,14 @@ Options (prefix ``impact_reduction_<body>_``): ``substructures`` S (0 or 1: one 
 :mod:`.craig_bampton`), ``substructure_f_factor`` (1.5), ``substructure_trace_density`` (4),
 ``substructure_margin`` (0.5 shear wavelengths at f_cut between a cut and the zone-coupled dofs
 or a gauge: closer, the static response to the zone varies too fast for the polynomial traces;
-the coarse panel's bolt gauge was off by 3x with a cut next to it). The slabs' factorizations and
+the coarse panel's bolt gauge was off by 3x with a cut next to it), ``substructure_compress``
+(1e-12; 0 keeps every column of step 4).
+
+Under MPI each rank takes whole slabs, the largest first to the least loaded rank
+(:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
+until the Ritz matrices are summed. 157k-DOF panel, 4 slabs (``benchmarks/panel_scaling.py
+--h-far 0.025 --slabs 4``): 102.1 s at 1 rank, 65.9 s at 2 (1.55x; one factorization beside it
+90.6 -> 69.4 s, 1.30x); with the slabs dealt in turn and gathered round by round it was 1.41x. The slabs' factorizations and
 eigensolvers read the body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
 (:class:`~.reduced_model.BodyReduction` ``residual_b``) instead of K_ii's factorization.
 
@@ -86,13 +96,15 @@ class SubstructureSettings:
     f_factor: float = 1.5
     trace_density: float = 4.0
     margin: float = 0.5            #: shear wavelengths at f_cut between a cut and the zone or a gauge
+    compress: float = 1e-12        #: second pass: relative Gram eigenvalue of a dropped direction (0: keep all)
 
 
 def substructure_settings(prefix: str, options: Optional[dict[str, str]]) -> Optional[SubstructureSettings]:
     """The body's settings from the command line (``-<prefix>substructures`` ...) or ``options``
     (their ranges checked by :func:`~millimpact.integration.solvers.check_type_options`, the CLI's
     check); None for one factorization (S < 2)."""
-    keys = ("substructures", "substructure_f_factor", "substructure_trace_density", "substructure_margin")
+    keys = ("substructures", "substructure_f_factor", "substructure_trace_density", "substructure_margin",
+            "substructure_compress")
     with petsc_options({}, {k: v for k, v in (options or {}).items() if k in keys}, prefix=prefix):
         db = PETSc.Options()
         raw = {k: db.getString(prefix + k, "") for k in keys}
@@ -101,7 +113,8 @@ def substructure_settings(prefix: str, options: Optional[dict[str, str]]) -> Opt
     settings = SubstructureSettings(int(raw["substructures"] or 0),
                                     float(raw["substructure_f_factor"] or default.f_factor),
                                     float(raw["substructure_trace_density"] or default.trace_density),
-                                    float(raw["substructure_margin"] or default.margin))
+                                    float(raw["substructure_margin"] or default.margin),
+                                    float(raw["substructure_compress"] or default.compress))
     return settings if settings.slabs >= 2 else None
 
 
@@ -204,7 +217,53 @@ def orthonormal_columns(B: np.ndarray, comm: MPI.Comm) -> np.ndarray:
     return B @ (U[:, keep] / np.sqrt(lam[keep]))
 
 
+def mass_orthonormal_columns(X: np.ndarray, M: PETSc.Mat, tol: float) -> np.ndarray:
+    """An M-orthonormal basis of range(X) (M sequential): directions whose Gram eigenvalue, with the
+    columns scaled to unit M-norm, is below ``tol`` times the largest are dropped."""
+    if X.shape[1] == 0:
+        return X
+    G = X.T @ _mult_local(M, X, MPI.COMM_SELF)
+    d = 1.0 / np.sqrt(np.maximum(np.diag(G), 1e-300))
+    lam, U = np.linalg.eigh(d[:, None] * (0.5 * (G + G.T)) * d[None, :])
+    keep = lam > tol * lam.max()
+    return X @ (d[:, None] * (U[:, keep] / np.sqrt(lam[keep])))
+
+
 # --- the reduction ---------------------------------------------------------------------------------
+def slab_owners(dofs: list[int], ranks: int) -> np.ndarray:
+    """The rank that reduces each slab: longest first to the least loaded rank (Graham's LPT rule,
+    within 4/3 of the best balance), the load a slab's dof count. A slab's work (factor, modes,
+    statics) grows about linearly with its dofs (157k-DOF panel: 0.22-0.40 s per thousand dofs);
+    dealt in turn instead (slab s to rank s mod P), the 4 slabs of 34k, 20k, 48k and 36k dofs put
+    82k against 56k dofs on 2 ranks."""
+    load = np.zeros(ranks)
+    owners = np.zeros(len(dofs), dtype=np.int64)
+    for k in sorted(range(len(dofs)), key=lambda k: (-dofs[k], k)):
+        owners[k] = int(np.argmin(load))
+        load[owners[k]] += dofs[k]
+    return owners
+
+
+def _gather_slab_matrices(K_ii: PETSc.Mat, M_ii: PETSc.Mat, slab_rows: list[np.ndarray],
+                          gamma: np.ndarray) -> list[tuple]:
+    """Each of this rank's slabs' blocks K_ss, M_ss (sequential PETSc) and K_sG, M_sG (CSR) from the
+    distributed K_ii, M_ii: one collective MatCreateSubMatrices per matrix for all of them (a rank
+    with no slab takes an empty block)."""
+    comm = PETSc.COMM_SELF
+    rows = [PETSc.IS().createGeneral(r.astype(np.int32), comm=comm) for r in slab_rows]
+    empty = not rows
+    if empty:
+        rows = [PETSc.IS().createGeneral(np.zeros(0, np.int32), comm=comm)]
+    cols_g = [PETSc.IS().createGeneral((gamma if not empty else np.zeros(0)).astype(np.int32), comm=comm)
+              for _ in rows]
+    K_ss, M_ss = K_ii.createSubMatrices(rows, rows), M_ii.createSubMatrices(rows, rows)
+    K_sg, M_sg = K_ii.createSubMatrices(rows, cols_g), M_ii.createSubMatrices(rows, cols_g)
+    out = [(K_ss[k], M_ss[k], _csr(K_sg[k]), _csr(M_sg[k])) for k in range(len(slab_rows))]
+    for obj in [*K_sg, *M_sg, *rows, *cols_g] + ([*K_ss, *M_ss] if empty else []):
+        obj.destroy()
+    return out
+
+
 def _dense_zeros(n_loc: int, k: int, comm: MPI.Comm) -> PETSc.Mat:
     A = PETSc.Mat().createDense(((n_loc, PETSc.DETERMINE), (PETSc.DECIDE, k)), comm=comm)
     A.setUp()
@@ -241,6 +300,7 @@ class _Slab:
     stats: dict
     cols: np.ndarray = None
     projected: int = 0             #: columns of B already in K_V, M_V (see _project_slab)
+    n_new: int = 0                 #: columns the second pass added
 
 
 def _solve(ksp: PETSc.KSP, rhs: np.ndarray) -> np.ndarray:
@@ -290,7 +350,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     (the gauges). Collective.
 
     Two passes over the slabs (steps 1-3 and step 4 of the module docstring). Under MPI the slabs
-    go to the ranks in turn (slab s to rank s mod P): each rank gathers its slab's rows
+    are shared out by size (:func:`slab_owners`): each rank gathers its slabs' rows
     (MatCreateSubMatrices), factors and solves it alone (CHOLMOD), and only the Ritz matrices
     (summed over ranks) and the final rows travel; a rank holds one slab's factor at a time. No
     dense n_i x n_b array but the two results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
@@ -319,24 +379,16 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     slab_rows = [np.concatenate(comm.allgather((r0 + np.nonzero((labels == s) & ~on_gamma)[0]).astype(np.int64)))
                  for s in range(n_slabs)]
     slab_ids = [s for s in range(n_slabs) if len(slab_rows[s])]
+    owners = slab_owners([len(slab_rows[s]) for s in slab_ids], size)
+    my_ids = [s for s, o in zip(slab_ids, owners) if o == rank]
     serial_opts = _serial_options(options)
     mine: list[_Slab] = []
-    # pass 1, in rounds: every rank gathers and reduces its own slab of the round
-    for j in range(0, len(slab_ids), size):
-        s = slab_ids[j + rank] if j + rank < len(slab_ids) else None
-        rows = slab_rows[s] if s is not None else np.zeros(0, np.int64)
-        is_r = PETSc.IS().createGeneral(rows.astype(np.int32), comm=PETSc.COMM_SELF)
-        is_g = PETSc.IS().createGeneral((gamma_glob if s is not None else rows).astype(np.int32),
-                                        comm=PETSc.COMM_SELF)
-        (K_ss,), (M_ss,) = K_ii.createSubMatrices(is_r, is_r), M_ii.createSubMatrices(is_r, is_r)
-        (K_sg,), (M_sg,) = K_ii.createSubMatrices(is_r, is_g), M_ii.createSubMatrices(is_r, is_g)
-        K_sg_csr, M_sg_csr = _csr(K_sg), _csr(M_sg)
-        for obj in (K_sg, M_sg, is_r, is_g):
-            obj.destroy()
-        if s is None:
-            K_ss.destroy()
-            M_ss.destroy()
-            continue
+    # pass 1: every rank gathers the rows of all its slabs in one collective call (a slab's matrices
+    # are kept to the end anyway), then reduces them alone: no rank waits for another between slabs
+    t_pass1 = time.perf_counter()
+    gathered = _gather_slab_matrices(K_ii, M_ii, [slab_rows[s] for s in my_ids], gamma_glob)
+    for s, (K_ss, M_ss, K_sg_csr, M_sg_csr) in zip(my_ids, gathered):
+        rows = slab_rows[s]
         ts = time.perf_counter()
         ksp = create_factored_solver(K_ss, prefix, serial_opts)
         t_factor = time.perf_counter() - ts
@@ -361,6 +413,8 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
                           {"slab": s, "rank": rank, "dofs": len(rows), "modes": int(Phi_s.shape[1]),
                            "static_columns": int(used.sum() + X2.shape[1]), "factor_s": round(t_factor, 3),
                            "statics_s": round(t_static, 3), "total_s": round(time.perf_counter() - ts, 3)}))
+    phase = {"pass1_s": time.perf_counter() - t_pass1}        # this rank's slabs (before any wait)
+    t0 = time.perf_counter()
     # the Ritz columns, numbered slab by slab on every rank alike
     layout = sorted(x for part in comm.allgather([(sl.index, sl.used, sl.n_own) for sl in mine]) for x in part)
     n_cols, cols_of = n_b + n_t, {}
@@ -378,12 +432,16 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     for obj in (Kgg, Mgg, is_gamma):
         obj.destroy()
     KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm)
+    phase["project_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
+    phase["ritz_s"] = time.perf_counter() - t0
     # pass 2: each slab's static response (Gamma held) to the inertia of the first pass's modes and
     # constraint modes, M_ii Phi and A_b = M_ii Psi + M_ib: one step of inverse iteration on them.
     # A slab's rows of M_ii V couple its own rows and Gamma's only
     n_new = n_b + ritz["m"]
     if n_new:
+        t0 = time.perf_counter()
         coef = np.hstack([ritz["psi"], ritz["phi"]])
         first_gamma = T_full @ coef[t_idx]
         for sl in mine:
@@ -394,12 +452,27 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
             X3 = _solve(ksp, load)
             del load
             ksp.destroy()
+            if settings.compress > 0:
+                # the responses to ~n_b + m loads are nearly dependent away from the zone (coarse
+                # panel, 4 slabs: 216 columns a slab -> 90-173, the Ritz basis 1613 -> 1198)
+                X3 = mass_orthonormal_columns(X3, sl.M_ss, settings.compress)
             sl.B = np.hstack([sl.B, X3])
-            sl.cols = np.concatenate([sl.cols, n_cols + slab_ids.index(sl.index) * n_new + np.arange(n_new)])
+            sl.n_new = X3.shape[1]
             sl.stats["inertia_statics_s"] = round(time.perf_counter() - ts, 3)
-        n_cols += len(slab_ids) * n_new
+            sl.stats["inertia_columns"] = int(X3.shape[1])
+        counts = dict(x for part in comm.allgather([(sl.index, sl.n_new) for sl in mine]) for x in part)
+        offsets = np.cumsum([0] + [counts[s] for s in slab_ids])
+        for sl in mine:
+            k = slab_ids.index(sl.index)
+            sl.cols = np.concatenate([sl.cols, n_cols + offsets[k] + np.arange(sl.n_new)])
+        phase["pass2_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        n_cols += int(offsets[-1])
         KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm, grow_to=n_cols)
+        phase["project_s"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
         ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
+        phase["ritz_s"] += time.perf_counter() - t0
     t0 = time.perf_counter()
     m = ritz["m"]
     # the results straight into their final storage; each slab's rows sent to the ranks owning them
@@ -431,7 +504,10 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
             put(local_rows, block)
     for A in (Psi, flex):
         A.assemble()
+    phase["expand_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     residual = constraint_residual(K_ii, Psi, C, comm) if n_b else 0.0
+    phase["residual_s"] = time.perf_counter() - t0
     for sl in mine:
         sl.K_ss.destroy()
         sl.M_ss.destroy()
@@ -441,7 +517,10 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     stats = {"slabs": slab_stats, "axis": "xyz"[axis], "cuts_m": [float(c) for c in cuts],
              "interface_dofs": len(gamma_glob), "traces": n_t, "interface_coordinates": n_b,
              "ritz_columns": n_cols, "ritz_rank": ritz["rank"], "slab_modes": int(sum(x["modes"] for x in slab_stats)),
-             "expand_s": round(time.perf_counter() - t0, 3), "total_s": round(time.perf_counter() - t_start, 3)}
+             # phases (s): this rank's slabs, and on rank 0 the projections, the dense Ritz solves, the
+             # second pass, the expansion into Psi / Phi / R A_b and Psi's residual
+             "pass1_s_by_rank": [round(x, 3) for x in comm.allgather(phase.pop("pass1_s"))],
+             **{k: round(v, 3) for k, v in phase.items()}, "total_s": round(time.perf_counter() - t_start, 3)}
     if comm.rank == 0:
         log.info("substructures %s: %d slabs along %s (cuts %s m) on %d rank(s), %d interface dofs -> %d "
                  "traces, %d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s", prefix, len(slab_ids),

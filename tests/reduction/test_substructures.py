@@ -29,13 +29,13 @@ def one_factor(rig):
     return reduce_model(model, f_cut=plan.f_cut)
 
 
-def substructured(rig, slabs: int = 2, density: float = 0.0, f_factor: float = 1.5):
+def substructured(rig, slabs: int = 2, density: float = 0.0, f_factor: float = 1.5, compress: float = 1e-12):
     from millimpact.reduction.craig_bampton import reduce_model
 
     model, plan = rig
     return reduce_model(model, f_cut=plan.f_cut, solver_options={
         "substructures": str(slabs), "substructure_trace_density": str(density),
-        "substructure_f_factor": str(f_factor), "substructure_margin": "0"})
+        "substructure_f_factor": str(f_factor), "substructure_margin": "0", "substructure_compress": str(compress)})
 
 
 def test_exact_interface_gives_the_constraint_modes_and_upper_bound_frequencies(rig, one_factor):
@@ -66,6 +66,40 @@ def test_inverse_iteration_pass_makes_the_modes_near_f_cut_accurate(rig, one_fac
     rel = sub[:len(ref) - 1] / ref[:len(sub)][:len(ref) - 1] - 1
     assert rel.min() > -1e-9
     assert rel.max() < 3e-3
+
+
+def test_compressed_second_pass_keeps_the_modes(rig, one_factor):
+    """The second pass's columns compressed (default: directions under 1e-12 of the Gram's largest
+    eigenvalue dropped, each slab's columns M-orthonormal) against all kept, 3 slabs, slab modes to
+    f_cut, every interface dof a trace: fewer Ritz columns (2069 -> 1632 measured) and modes as
+    close to the one-factorization ones (largest error 1.11e-3 -> 1.07e-3 measured: the better
+    conditioned columns lose fewer directions in the global Gram; at 1e-10 it was 1.18e-3, so
+    2e-5 worse is allowed) with Psi still exact (6e-10 measured; 1e-6 as above)."""
+    ref = one_factor.bodies[1]
+    full = substructured(rig, slabs=3, f_factor=1.0, compress=0.0).bodies[1]
+    comp = substructured(rig, slabs=3, f_factor=1.0, compress=1e-12).bodies[1]
+    assert comp.substructures["ritz_columns"] < 0.9 * full.substructures["ritz_columns"]
+    # the 7th mode sits just under f_cut and rises above it in both (Rayleigh): the lowest 6 compared
+    assert comp.n_modes == full.n_modes >= ref.n_modes - 1
+    n = ref.n_modes - 1
+    err = [np.max(b.frequencies_hz[:n] / ref.frequencies_hz[:n] - 1) for b in (full, comp)]
+    assert err[1] < err[0] + 2e-5
+    P0 = ref.Psi.getDenseArray()
+    assert np.linalg.norm(comp.Psi.getDenseArray() - P0) / np.linalg.norm(P0) < 1e-6
+
+
+def test_slabs_go_to_the_least_loaded_rank_largest_first():
+    """Graham's rule on the 157k-DOF panel's slabs (dofs 34k, 20k, 48k, 36k): 68k against 71k dofs
+    on 2 ranks (dealt in turn: 82k against 57k); every slab has one owner; more ranks than slabs
+    leave ranks idle."""
+    from millimpact.reduction.substructures import slab_owners
+
+    dofs = [34174, 20139, 48014, 36412]
+    owners = slab_owners(dofs, 2)
+    loads = np.bincount(owners, weights=dofs, minlength=2)
+    assert sorted(loads) == [48014 + 20139, 36412 + 34174]
+    assert sorted(slab_owners(dofs, 8)) == [0, 1, 2, 3]
+    assert list(slab_owners(dofs, 1)) == [0, 0, 0, 0]
 
 
 def test_polynomial_traces_converge_to_the_exact_interface(rig, one_factor):
