@@ -384,21 +384,34 @@ def _retry_mumps_workspace(ksp: PETSc.KSP, what: str) -> bool:
     except Exception:  # no factor matrix: not a MUMPS workspace failure
         return False
     prefix = ksp.getOptionsPrefix() or ""
-    opts = PETSc.Options()
     for percent in MUMPS_WORKSPACE_RETRIES:
-        opts[f"{prefix}mat_mumps_icntl_14"] = percent
-        try:
-            pc.reset()
-            ksp.setUp()
-            ok = pc.getFactorMatrix().getMumpsInfog(1) == 0
-        except PETSc.Error:
-            ok = False
-        if ok:
+        if refactorize(ksp, {"mat_mumps_icntl_14": percent}):
             if MPI.COMM_WORLD.rank == 0:
                 log.warning("%s: MUMPS ran out of workspace (INFOG(1) -8/-9); refactorized with "
                             "-%smat_mumps_icntl_14 %d", what, prefix, percent)
             return True
     return False
+
+
+def refactorize(ksp: PETSc.KSP, options: Mapping[str, object]) -> bool:
+    """Factor ``ksp``'s operator again from scratch after setting ``options`` (keys relative to its
+    prefix, left in PETSc's database); True if the new MUMPS factorization succeeded (INFOG(1) 0).
+    The operators are set again: after ``PC.reset()`` alone ``KSP.setUp()`` returns at once (the
+    KSP still counts as set up), so until 2026-11-26 the workspace retry never refactorized and
+    always failed. Collective."""
+    prefix = ksp.getOptionsPrefix() or ""
+    db = PETSc.Options()
+    for k, v in options.items():
+        db[prefix + k] = v
+    pc = ksp.getPC()
+    A, P = ksp.getOperators()
+    try:
+        pc.reset()
+        ksp.setOperators(A, P)
+        ksp.setUp()
+        return ksp.getConvergedReason() >= 0 and pc.getFactorMatrix().getMumpsInfog(1) == 0
+    except PETSc.Error:
+        return False
 
 
 def create_factored_solver(A: PETSc.Mat, prefix: str, options: Optional[Mapping[str, object]] = None) -> PETSc.KSP:

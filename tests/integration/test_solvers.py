@@ -75,3 +75,29 @@ def test_failed_factorization_is_reported_at_set_up():
     ksp.getPC().setFactorSolverType("mumps")
     with pytest.raises(SolverError, match=r"failed in set-up.*MUMPS INFOG\(1\) -10"):
         setup_checked(ksp, "test factorization")
+
+
+def test_refactorize_factors_again_with_the_new_options():
+    """The MUMPS workspace retry (INFOG(1) -8/-9 under MPI) refactorizes with a larger ICNTL(14):
+    the factor must really be rebuilt with the new value and still solve. (Found 2026-11-26 when a
+    29-minute plastic run of the panel failed on it: after PC.reset() alone KSP.setUp() did nothing,
+    so the retry had never worked.)"""
+    from millimpact.integration.solvers import create_factored_solver, refactorize
+
+    n = 40
+    A = np.diag(np.full(n, 2.0)) - np.diag(np.ones(n - 1), 1) - np.diag(np.ones(n - 1), -1)
+    M = _aij(A)
+    ksp = create_factored_solver(M, "test_refactor_", {"ksp_type": "preonly", "pc_type": "cholesky",
+                                                       "pc_factor_mat_solver_type": "mumps",
+                                                       "mat_mumps_icntl_14": "20"})
+    assert ksp.getPC().getFactorMatrix().getMumpsIcntl(14) == 20
+    assert refactorize(ksp, {"mat_mumps_icntl_14": 400})
+    assert ksp.getPC().getFactorMatrix().getMumpsIcntl(14) == 400
+    b = np.random.default_rng(2).normal(size=n)
+    rhs = PETSc.Vec().createWithArray(b.copy(), comm=PETSc.COMM_SELF)
+    x = rhs.duplicate()
+    ksp.solve(rhs, x)
+    assert np.allclose(x.array, np.linalg.solve(A, b), rtol=1e-10, atol=0)
+    opts = PETSc.Options()
+    for k in ("ksp_type", "pc_type", "pc_factor_mat_solver_type", "mat_mumps_icntl_14"):
+        opts.delValue("test_refactor_" + k)
