@@ -72,7 +72,8 @@ def effective_solver_defaults(comm: MPI.Comm) -> dict[str, str]:
         return {"ksp_type": "preonly", "pc_type": "cholesky", "pc_factor_mat_solver_type": "cholmod"}
     # MUMPS under MPI with 100 % extra workspace over its analysis' estimate (ICNTL(14), default
     # 20-35 %): the estimate fell short intermittently under mpirun -n 2 (INFOG(1) -9, INFO(2) 9297:
-    # 1 in 20 runs of the MPI tests, benchmarks/mpi_stress.sh, even with the refactorization retry)
+    # 1 in 20 runs of the MPI tests, benchmarks/mpi_stress.sh, "even with the refactorization
+    # retry", which until 2026-11-26 never refactorized: see refactorize)
     return {"ksp_type": "preonly", "pc_type": "cholesky", "pc_factor_mat_solver_type": "mumps",
             "mat_mumps_icntl_14": MUMPS_WORKSPACE_PERCENT}
 
