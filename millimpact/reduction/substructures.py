@@ -31,7 +31,7 @@ review and improvements", Mech. Syst. Signal Process. 114 (2019) 579-603):
    first Ritz modes and constraint modes, K_ss^-1 (M_ii [Phi, Psi] + [0, M_ib])_s, joins V and
    step 3 is repeated (each slab's new columns first made M-orthonormal, dropping directions under
    ``compress`` x the largest eigenvalue of their Gram: the responses to the ~n_b + m loads are
-   nearly dependent away from the zone; coarse panel, 4 slabs: 216 columns a slab -> 90-173).
+   nearly dependent away from the zone; 157k-DOF panel, 4 slabs: 301 columns a slab -> 97-278).
    This is what makes the modes near f_cut accurate with few slab modes
    (paper-rig test mesh, every Gamma dof a trace: the highest mode 0.84 % high with slab modes
    to 2 f_cut and no step 4, 0.018 % with them to 1.5 f_cut and step 4), and it puts
@@ -52,9 +52,9 @@ the coarse panel's bolt gauge was off by 3x with a cut next to it), ``substructu
 Under MPI each rank takes whole slabs, the largest first to the least loaded rank
 (:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
 until the Ritz matrices are summed. 157k-DOF panel, 4 slabs (``benchmarks/panel_scaling.py
---h-far 0.025 --slabs 4``): 102.1 s at 1 rank, 65.9 s at 2 (1.55x; one factorization beside it
-90.6 -> 69.4 s, 1.30x); with the slabs dealt in turn and gathered round by round it was 1.41x. The slabs' factorizations and
-eigensolvers read the body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
+--h-far 0.025 --slabs 4``): 97.8 s at 1 rank, 62.9 s at 2 (1.55x; one factorization beside it
+90.6 -> 69.4 s, 1.30x); with the slabs dealt in turn and gathered round by round it was 1.41x.
+The slabs' factorizations and eigensolvers read the body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
 (:class:`~.reduced_model.BodyReduction` ``residual_b``) instead of K_ii's factorization.
 
 Measured (``benchmarks/panel_substructures.py``, coarse liner panel, 31k P2 DOFs, 4 slabs,
@@ -235,7 +235,7 @@ def slab_owners(dofs: list[int], ranks: int) -> np.ndarray:
     within 4/3 of the best balance), the load a slab's dof count. A slab's work (factor, modes,
     statics) grows about linearly with its dofs (157k-DOF panel: 0.22-0.40 s per thousand dofs);
     dealt in turn instead (slab s to rank s mod P), the 4 slabs of 34k, 20k, 48k and 36k dofs put
-    82k against 56k dofs on 2 ranks."""
+    82k against 57k dofs on 2 ranks."""
     load = np.zeros(ranks)
     owners = np.zeros(len(dofs), dtype=np.int64)
     for k in sorted(range(len(dofs)), key=lambda k: (-dofs[k], k)):
@@ -453,8 +453,8 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
             del load
             ksp.destroy()
             if settings.compress > 0:
-                # the responses to ~n_b + m loads are nearly dependent away from the zone (coarse
-                # panel, 4 slabs: 216 columns a slab -> 90-173, the Ritz basis 1613 -> 1198)
+                # the responses to ~n_b + m loads are nearly dependent away from the zone (157k-DOF
+                # panel, 4 slabs: 301 columns a slab -> 97-278, the Ritz basis 2193 -> 1602)
                 X3 = mass_orthonormal_columns(X3, sl.M_ss, settings.compress)
             sl.B = np.hstack([sl.B, X3])
             sl.n_new = X3.shape[1]
