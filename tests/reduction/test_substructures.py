@@ -117,12 +117,14 @@ def test_polynomial_traces_converge_to_the_exact_interface(rig, one_factor):
     assert err[1] < err[0]
 
 
-def test_substructured_reduction_under_mpi_matches_serial(rig, tmp_path):
+@pytest.mark.parametrize("slabs", [2, 3])
+def test_substructured_reduction_under_mpi_matches_serial(rig, tmp_path, slabs):
     """mpirun -n 2 gives the serial frequencies and constraint-mode norms (1e-9: the slabs'
-    factorizations are MUMPS against CHOLMOD in serial, to rounding)."""
+    factorizations are MUMPS against CHOLMOD in serial, to rounding). 3 slabs on 2 ranks: one rank
+    reduces two, the other one (the collective gathering with unequal slab counts)."""
     if MPI.COMM_WORLD.size > 1:
         pytest.skip("runs its own mpirun")
-    red = substructured(rig, slabs=2, density=2.0)
+    red = substructured(rig, slabs=slabs, density=2.0)
     b = red.bodies[1]
     serial = np.concatenate([b.frequencies_hz, [b.Psi.norm(), red.K.norm(), red.M.norm()]])
     code = f"""
@@ -138,7 +140,7 @@ for k, v in {SMALL!r}.items():
     scene = scene.with_value(k, v)
 plan = make_plan(scene)
 model = create_fe_model(create_mesh(scene, plan, MPI.COMM_WORLD), plan, 2)
-red = reduce_model(model, f_cut=plan.f_cut, solver_options={{"substructures": "2",
+red = reduce_model(model, f_cut=plan.f_cut, solver_options={{"substructures": "{slabs}",
     "substructure_trace_density": "2.0", "substructure_margin": "0"}})
 b = red.bodies[1]
 out = np.concatenate([b.frequencies_hz, [b.Psi.norm(), red.K.norm(), red.M.norm()]])
