@@ -208,13 +208,21 @@ def polynomial_traces(coords: np.ndarray, comps: np.ndarray, cut: np.ndarray, ax
     return blocks
 
 
+def gram_basis(G: np.ndarray, tol: float, scaled: bool = True) -> np.ndarray:
+    """Coefficients W (k x r) with W^T G W = I spanning the range of a Gram matrix G (k x k): the
+    eigenvectors of G (``scaled``: of G with its columns scaled to unit norm first) whose eigenvalue
+    is above ``tol`` x the largest; the rest count as dependent directions and are dropped."""
+    G = 0.5 * (G + G.T)
+    d = 1.0 / np.sqrt(np.maximum(np.diag(G), 1e-300)) if scaled else np.ones(len(G))
+    lam, U = np.linalg.eigh(d[:, None] * G * d[None, :])
+    keep = lam > tol * max(lam.max(initial=0.0), 1e-300)
+    return d[:, None] * (U[:, keep] / np.sqrt(lam[keep]))
+
+
 def orthonormal_columns(B: np.ndarray, comm: MPI.Comm) -> np.ndarray:
     """Columns spanning range(B) (rows distributed), orthonormal in the (distributed) Gram B^T B;
     dependent directions dropped."""
-    G = reduce_array(B.T @ B, MPI.SUM, comm)
-    lam, U = np.linalg.eigh(0.5 * (G + G.T))
-    keep = lam > DEPENDENT_TOL * max(lam.max(initial=0.0), 1e-300)
-    return B @ (U[:, keep] / np.sqrt(lam[keep]))
+    return B @ gram_basis(reduce_array(B.T @ B, MPI.SUM, comm), DEPENDENT_TOL, scaled=False)
 
 
 def mass_orthonormal_columns(X: np.ndarray, M: PETSc.Mat, tol: float) -> np.ndarray:
@@ -222,11 +230,7 @@ def mass_orthonormal_columns(X: np.ndarray, M: PETSc.Mat, tol: float) -> np.ndar
     columns scaled to unit M-norm, is below ``tol`` times the largest are dropped."""
     if X.shape[1] == 0:
         return X
-    G = X.T @ _mult_local(M, X, MPI.COMM_SELF)
-    d = 1.0 / np.sqrt(np.maximum(np.diag(G), 1e-300))
-    lam, U = np.linalg.eigh(d[:, None] * (0.5 * (G + G.T)) * d[None, :])
-    keep = lam > tol * lam.max()
-    return X @ (d[:, None] * (U[:, keep] / np.sqrt(lam[keep])))
+    return X @ gram_basis(X.T @ _mult_local(M, X, MPI.COMM_SELF), tol)
 
 
 # --- the reduction ---------------------------------------------------------------------------------
@@ -254,8 +258,7 @@ def _gather_slab_matrices(K_ii: PETSc.Mat, M_ii: PETSc.Mat, slab_rows: list[np.n
     empty = not rows
     if empty:
         rows = [PETSc.IS().createGeneral(np.zeros(0, np.int32), comm=comm)]
-    cols_g = [PETSc.IS().createGeneral((gamma if not empty else np.zeros(0)).astype(np.int32), comm=comm)
-              for _ in rows]
+    cols_g = [PETSc.IS().createGeneral(gamma.astype(np.int32), comm=comm) for _ in rows]
     K_ss, M_ss = K_ii.createSubMatrices(rows, rows), M_ii.createSubMatrices(rows, rows)
     K_sg, M_sg = K_ii.createSubMatrices(rows, cols_g), M_ii.createSubMatrices(rows, cols_g)
     out = [(K_ss[k], M_ss[k], _csr(K_sg[k]), _csr(M_sg[k])) for k in range(len(slab_rows))]
@@ -578,17 +581,14 @@ def _rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_c
     cutoff applied to V^T A_b = M_V psi + V^T D)."""
     # columns scaled to unit M_V-norm first: the statics are ~1/omega^2 smaller than the M-normalized
     # modes, and an unscaled Gram matrix would drop them as "dependent" (1e-20 against 1)
-    d = 1.0 / np.sqrt(np.maximum(np.diag(MV), 1e-300))
-    lam_m, U = np.linalg.eigh(d[:, None] * MV * d[None, :])
-    keep = lam_m > DEPENDENT_TOL * lam_m.max()
-    W = d[:, None] * (U[:, keep] / np.sqrt(lam_m[keep]))
+    W = gram_basis(MV, DEPENDENT_TOL)
     lam, Y = np.linalg.eigh(W.T @ KV @ W)
     WY = W @ Y
     psi = -WY @ ((WY.T @ CV[:, :n_b]) / lam[:, None])
     m = int(np.searchsorted(lam, (2 * math.pi * f_cut) ** 2, side="right"))
     Ab = MV @ psi + CV[:, n_b:]
     flex = WY[:, m:] @ ((WY[:, m:].T @ Ab) / lam[m:, None])
-    return {"psi": psi, "phi": WY[:, :m], "flex": flex, "m": m, "rank": int(keep.sum()),
+    return {"psi": psi, "phi": WY[:, :m], "flex": flex, "m": m, "rank": int(W.shape[1]),
             "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)}
 
 
