@@ -548,6 +548,9 @@ def check_type_options(options: Mapping[str, object]) -> None:
         if str(key).endswith("_substructures") and not str(value).strip().isdigit():
             raise InputError(f"-{key} {value}: the number of slabs must be an integer >= 0 "
                              "(0 or 1: one factorization of the region; default 0)")
+        if str(key).endswith("_substructure_zone_degree") and not str(value).strip().isdigit():
+            raise InputError(f"-{key} {value}: the zone-interface patterns' polynomial degree must be an integer "
+                             ">= 0 (0: every zone-interface coordinate its own constraint mode; default 0)")
         for suffix, low, high, what in (
                 ("substructure_f_factor", 1.0, math.inf, "slab modes up to this x f_cut; default 1.5"),
                 ("substructure_trace_density", 0.0, math.inf,

@@ -372,7 +372,7 @@ def _run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: di
     notes = reduced_notes(method, opt, model, red) + setup.notes + mode_notes(red)
     writers = []
     if zone is not None:
-        keys, more, writer = plastic_report(model, zone, plan, SimpleNamespace(**run["stats"]))
+        keys, more, writer = plastic_report(model, zone, plan, SimpleNamespace(**run["stats"]), reduced=red)
         results.update(keys)
         notes += more
         writers.append(writer)
@@ -394,9 +394,11 @@ def mode_notes(red: ReducedModel) -> list[str]:
     notes = []
     for b in red.bodies:
         f = b.frequencies_hz
-        f = f[:len(f) - b.n_augmented]
+        f = f[:len(f) - b.n_augmented - b.n_patterns]
         notes.append(f"  {b.name}: {len(f)} modes" + (f", {f[0] / 1e3:.4g}-{f[-1] / 1e3:.4g} kHz" if len(f) else "")
                      + (f" + {b.n_augmented} augmentation vectors" if b.n_augmented else "")
+                     + (f" + {b.n_patterns} zone-interface pattern vectors (gauges recovered in the slabs' Ritz space)"
+                        if b.n_patterns else "")
                      + (" (constraint and fixed-interface modes from the reduction cache)" if b.from_cache else ""))
     return notes
 

@@ -110,9 +110,12 @@ from .distributed import (dense_columns, dense_from_rows, gather_rows, local_col
 from .eigen import compute_modes, default_solver_options
 from .augmentation import AUGMENTATION_PATTERNS, compute_augmentation_load, compute_augmentation_vectors, interface_motion_pattern
 from .reduced_model import BodyReduction, ReducedModel
+from .interface_patterns import probe_interior_rows, zone_pattern_couplings
 from .substructures import substructure_settings, substructured_modes
 
 
+#: the arrays of a body's Ritz-space output recovery (substructures.ritz_recovery), as cached
+RECOVERY_KEYS = ("rows", "V", "H_C", "H_D", "H_M")
 #: relative residual accepted for the constraint modes K_ii Psi = -C (a direct solve gives ~1e-12)
 CONSTRAINT_RESIDUAL_TOL = 1e-8
 
@@ -168,8 +171,9 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
             continue
         K_ii = K.createSubMatrix(I, I)
         M_ii = M.createSubMatrix(I, I)
-        C = K.createSubMatrix(I, all_cols).matMult(G_q)      # K_iz G   (n_i x n_q)
-        D = M.createSubMatrix(I, all_cols).matMult(G_q)      # M_iz G
+        K_ia, M_ia = K.createSubMatrix(I, all_cols), M.createSubMatrix(I, all_cols)
+        C = K_ia.matMult(G_q)      # K_iz G   (n_i x n_q)
+        D = M_ia.matMult(G_q)      # M_iz G
         # interface coordinates: the non-zero columns of C and D
         cols_loc = np.unique(np.concatenate([C.getValuesCSR()[1], D.getValuesCSR()[1]]))
         qb = np.unique(np.concatenate(comm.allgather(cols_loc.astype(np.int64))))
@@ -180,6 +184,13 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         # slab-wise Ritz basis instead of one factorization of K_ii (option <prefix>substructures)
         sub = (substructure_settings(prefix, opts) if f_cut is not None and n_modes is None and not augment
                else None)
+        patterns = bool(sub is not None and sub.zone_degree and n_b)
+        # zone-interface patterns: the interior's static responses to a few smooth interface motions
+        # replace the n_b constraint modes (K_iz W, M_iz W instead of C, D; K_ia and M_ia, a copy of
+        # the interior's rows of K and M, freed at once: 2.2 GB at the plan's 1.2M DOFs)
+        CD_pat = zone_pattern_couplings(model, part, name, sub.zone_degree, K_ia, M_ia) if patterns else None
+        K_ia.destroy()
+        M_ia.destroy()
         if n_b:
             # sparse interface columns (for the products) and a dense copy of C's (the right-hand
             # sides of the multi-RHS solve: MUMPS takes dense right-hand sides)
@@ -201,12 +212,15 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
                                                        if k.startswith(prefix))})
         cached = reduction_cache.load(comm, key) if key else None
         ksp = None
-        data["n_aug"] = 0
+        data["n_aug"] = data["n_pat"] = 0
         if cached is not None:
             for k in PETSc.Options().getAll():     # in the key: they shaped these modes (no "unused" warning)
                 if k.startswith(prefix):
                     note_option_read(k)
-            if n_b:
+            data["n_pat"] = int(cached.get("n_patterns", 0))
+            if "recovery_V" in cached:
+                data["ritz_recovery"] = {k: cached["recovery_" + k] for k in RECOVERY_KEYS}
+            if n_b and not data["n_pat"]:
                 Psi = dense_from_rows(cached["Psi"], comm)
                 data["constraint_residual"] = float(cached["residual"])
                 if sub is not None and "flex" in cached:
@@ -216,17 +230,25 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         elif sub is not None:
             material = model.ball_material if name == "ball" else model.target_material
             node_xyz = model.V.tabulate_dof_coordinates()[idx // 3]
-            res = substructured_modes(K_ii, M_ii, local_columns_csr(C, qb), local_columns_csr(D, qb), node_xyz,
-                                      idx % 3, f_cut, math.sqrt(material.shear_modulus / material.density), sub,
-                                      prefix, opts, keep_away)
+            C_s, D_s = CD_pat if patterns else (local_columns_csr(C, qb), local_columns_csr(D, qb))
+            res = substructured_modes(
+                K_ii, M_ii, C_s, D_s, node_xyz, idx % 3, f_cut, math.sqrt(material.shear_modulus / material.density),
+                sub, prefix, opts, keep_away, patterns=patterns,
+                zone_couplings=(local_columns_csr(C, qb), local_columns_csr(D, qb)) if patterns else None,
+                recovery_rows=(probe_interior_rows(model, idx, keep_away) if patterns and name == "block"
+                               and keep_away is not None and len(keep_away) else None), release=patterns)
             freq, nxt, phi_cols = res["freq"], res["next"], res["Phi"]
-            if n_b:
+            data["n_pat"], data["ritz_recovery"], data["grams"] = res["n_patterns"], res["recovery"], res["grams"]
+            if patterns:        # destroyed by substructured_modes: its Grams replace the products
+                K_ii = M_ii = None
+            if n_b and not patterns:
                 Psi, data["residual_b"] = res["Psi"], res["flex"]
                 # a Galerkin Psi: reported, not checked (exact only with every interface dof a trace)
                 data["constraint_residual"] = res["residual"]
             else:
                 for m in (res["Psi"], res["flex"]):
-                    m.destroy()
+                    if m is not None:
+                        m.destroy()
             data["substructures"] = res["stats"]
             data["timings"]["substructures"] = time.perf_counter() - t0
         else:
@@ -275,16 +297,17 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
             flex = data.get("residual_b")
             reduction_cache.store(comm, key, {
                 "Psi": Psi.getDenseArray().copy() if Psi is not None else np.zeros((0, 0)), "Phi": phi_cols,
-                "freq": np.asarray(freq), "next": np.asarray(nxt),
+                "freq": np.asarray(freq), "next": np.asarray(nxt), "n_patterns": np.asarray(data["n_pat"]),
+                **{"recovery_" + k: v for k, v in (data.get("ritz_recovery") or {}).items()},
                 **({"flex": flex.getDenseArray()} if flex is not None else {}),
                 "residual": np.asarray(data.get("constraint_residual", 0.0))})
         if rhs is not None:
             rhs.destroy()
         Phi = None
         if phi_cols.shape[1]:
-            Phi = PETSc.Mat().createDense(((len(idx), n_i), (PETSc.DECIDE, phi_cols.shape[1])), comm=comm)
-            Phi.setUp()
-            Phi.getDenseArray()[:] = phi_cols
+            # on phi_cols' own storage when it is column-major (the slabs' Phi): no second copy
+            Phi = PETSc.Mat().createDense(((len(idx), n_i), (PETSc.DECIDE, phi_cols.shape[1])),
+                                          array=np.asfortranarray(phi_cols), comm=comm)
             Phi.assemble()
         # the mode-acceleration rows factor K_ii on demand; not for a substructured body (the point of
         # substructuring is never to hold that factorization)
@@ -361,10 +384,13 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
             blocks_K.append((qb, qb, Kbb))
             blocks_M.append((qb, qb, Mbb))
         if Phi is not None:
-            MPhi = M_ii.matMult(Phi)
-            KPhi = K_ii.matMult(Phi)
-            Mmm = gather_rows(Phi.transposeMatMult(MPhi), comm)
-            Kmm = gather_rows(Phi.transposeMatMult(KPhi), comm)
+            if d.get("grams") is not None:      # from the Ritz space: no n_i x m products
+                Mmm, Kmm = d["grams"]
+            else:
+                MPhi = M_ii.matMult(Phi)
+                KPhi = K_ii.matMult(Phi)
+                Mmm = gather_rows(Phi.transposeMatMult(MPhi), comm)
+                Kmm = gather_rows(Phi.transposeMatMult(KPhi), comm)
             blocks_M.append((modes, modes, 0.5 * (Mmm + Mmm.T)))
             blocks_K.append((modes, modes, 0.5 * (Kmm + Kmm.T)))
             if Psi is not None:
@@ -376,15 +402,24 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
                 Kbm = gather_rows(Cb.transposeMatMult(Phi), comm) + gather_rows(Psi.transposeMatMult(KPhi), comm)
                 blocks_K.append((qb, modes, Kbm))
                 blocks_K.append((modes, qb, Kbm.T))
-            MPhi.destroy()
-            KPhi.destroy()
+            elif len(qb):
+                # interface patterns instead of constraint modes: the zone's interface coordinates
+                # couple to the interior's vectors through K_iz, M_iz only (C^T Phi, D^T Phi)
+                Mbm = gather_rows(Db.transposeMatMult(Phi), comm)
+                Kbm = gather_rows(Cb.transposeMatMult(Phi), comm)
+                blocks_M += [(qb, modes, Mbm), (modes, qb, Mbm.T)]
+                blocks_K += [(qb, modes, Kbm), (modes, qb, Kbm.T)]
+            if d.get("grams") is None:
+                MPhi.destroy()
+                KPhi.destroy()
         for m in (d["C"], d["D"], Cb, Db if M_ib is None else None):
             if m is not None:
                 m.destroy()
         bodies.append(BodyReduction(name, d["n_i"], d["I"], Psi, qb, Phi, modes, freq, f_cut, d["next"],
-                                    d["timings"], d["n_aug"], ksp=d["ksp"], M_ib=M_ib, K_ii=K_ii,
+                                    d["timings"], d["n_aug"], n_patterns=d["n_pat"], ksp=d["ksp"], M_ib=M_ib, K_ii=K_ii,
                                     factor=d["factor"], from_cache=d["from_cache"],
-                                    substructures=d.get("substructures"), residual_b=d.get("residual_b")))
+                                    substructures=d.get("substructures"), residual_b=d.get("residual_b"),
+                                    ritz_recovery=d.get("ritz_recovery")))
     timings["dense_blocks"] = time.perf_counter() - t0
 
     sizes = ((n_red_loc, n_red), (n_red_loc, n_red))
@@ -404,10 +439,11 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
     red = ReducedModel(model, zone, part, M_r, K_r, Gr, bodies, ball_coords, zone.n_global, timings)
     if comm.rank == 0:
         for b in bodies:
-            f = b.frequencies_hz
-            log.info("reduction %s: %d interior dofs -> %d modes (%s), %d interface coordinates",
-                     b.name, b.n_interior, b.n_modes,
-                     f"{f[0]:.4g}-{f[-1]:.4g} Hz" if len(f) else "none", len(b.qb))
+            f = b.frequencies_hz[:b.n_modes - b.n_augmented - b.n_patterns]
+            log.info("reduction %s: %d interior dofs -> %d modes (%s)%s, %d interface coordinates",
+                     b.name, b.n_interior, len(f), f"{f[0]:.4g}-{f[-1]:.4g} Hz" if len(f) else "none",
+                     f" + {b.n_augmented} augmentation vectors" if b.n_augmented else
+                     f" + {b.n_patterns} zone-interface pattern vectors" if b.n_patterns else "", len(b.qb))
         log.info("reduced model: %d coordinates (%d zone, %d modal) in %.2f s", red.n_global, red.n_zone,
                  red.n_modes, timings["total"])
     return red

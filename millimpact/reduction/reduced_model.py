@@ -48,6 +48,9 @@ class BodyReduction:
     timings: dict[str, float] = field(default_factory=dict)
     #: the last ``n_augmented`` columns of Phi are augmentation vectors (their Ritz frequencies)
     n_augmented: int = 0
+    #: substructured with zone-interface patterns (:mod:`.substructures`): Psi is None and the last
+    #: ``n_patterns`` columns of Phi are the patterns' static responses (their Ritz frequencies)
+    n_patterns: int = 0
     #: kept for the mode-acceleration output rows (:meth:`ReducedModel.mode_acceleration_rows`)
     #: until :meth:`ReducedModel.release_recovery`: the factored K_ii and the mass coupling M_ib
     #: (sparse n_i x n_b) of A_b = M_ii Psi + M_ib, through which the zone's acceleration loads the
@@ -63,6 +66,9 @@ class BodyReduction:
     #: substructured bodies: R A_b (dense n_i x n_b), the residual flexibility's response to the
     #: interface inertia from the Ritz space, for the mode-acceleration rows without K_ii's factor
     residual_b: Optional[PETSc.Mat] = None
+    #: substructured with zone-interface patterns: the Ritz-space recovery of output rows
+    #: (:func:`~.substructures.ritz_recovery`: kept rows, V there, H_C, H_D, H_M), None otherwise
+    ritz_recovery: Optional[dict] = None
 
     @property
     def n_modes(self) -> int:
@@ -71,10 +77,11 @@ class BodyReduction:
 
     def report(self) -> dict[str, Any]:
         """JSON-able summary."""
-        f = self.frequencies_hz[:len(self.frequencies_hz) - self.n_augmented]
+        f = self.frequencies_hz[:len(self.frequencies_hz) - self.n_augmented - self.n_patterns]
         return {"interior_dofs": self.n_interior, "interface_coordinates": int(len(self.qb)),
                 "modes": int(len(f)), "augmentation_vectors": self.n_augmented,
-                "augmentation_frequencies_Hz": [float(x) for x in self.frequencies_hz[len(f):]],
+                "augmentation_frequencies_Hz": [float(x) for x in self.frequencies_hz[len(f):len(f) + self.n_augmented]],
+                "interface_pattern_vectors": self.n_patterns,
                 "f_cut_Hz": self.f_cut,
                 "lowest_frequency_Hz": float(f[0]) if len(f) else None,
                 "highest_frequency_Hz": float(f[-1]) if len(f) else None,
@@ -251,15 +258,52 @@ class ReducedModel:
         them); bodies with augmentation vectors are skipped (Phi holds non-eigenvectors there)."""
         # the same rows again (the impacts of a contact table share the probes): C from the first
         # time, not a fresh factorization of K_ii and solve (0.5-1 s a case on the rig)
+        return self._recovery(A)[1].copy()
+
+    def displacement_recovery_rows(self, A: PETSc.Mat) -> Optional[np.ndarray]:
+        """The displacement part of the recovery, for bodies reduced with zone-interface patterns
+        (:func:`~.substructures.ritz_recovery`): a replicated dense D (k x n_r) such that
+        ``A u ~ (A T + D) q + C q''`` (C: :meth:`mode_acceleration_rows`); None when no such body
+        is reached (Craig-Bampton's constraint modes already hold the interior's static response)."""
+        D = self._recovery(A)[0]
+        return None if D is None else D.copy()
+
+    def _recovery(self, A: PETSc.Mat) -> tuple[Optional[np.ndarray], np.ndarray]:
+        """(D, C) of :meth:`displacement_recovery_rows` and :meth:`mode_acceleration_rows`."""
         indptr, indices, values = A.getValuesCSR()
         key = hashlib.sha1(b"".join(np.ascontiguousarray(x).tobytes() for x in (indptr, indices, values))
                            + repr(A.getSize()).encode()).hexdigest()
         if self.comm.allreduce(key in self._recovery_rows, op=MPI.LAND):
-            return self._recovery_rows[key].copy()
+            return self._recovery_rows[key]
         k = A.getSize()[0]
         C = np.zeros((k, self.n_global))
+        D = None
         r0, r1 = A.getOwnershipRange()
         for b in self.bodies:
+            if b.ritz_recovery is not None:
+                rec = b.ritz_recovery
+                cols = PETSc.IS().createGeneral(b.I.getIndices(), comm=self.comm)
+                rows = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
+                AI = A.createSubMatrix(rows, cols)
+                ip, ix, vals = AI.getValuesCSR()
+                pos = np.searchsorted(rec["rows"], ix)
+                inside = (pos < len(rec["rows"])) & (rec["rows"][np.minimum(pos, len(rec["rows"]) - 1)] == ix)
+                if self.comm.allreduce(int(np.count_nonzero(~inside)), op=MPI.SUM):
+                    if self.comm.rank == 0:
+                        log.warning("%s: output rows outside the kept Ritz rows: recovered as u = T q there",
+                                    b.name)
+                    AI.destroy()
+                    continue
+                if self.comm.allreduce(len(ix), op=MPI.SUM):
+                    S = sp.csr_matrix((vals, pos, ip), shape=(r1 - r0, len(rec["rows"])))
+                    AV = np.vstack(self.comm.allgather(np.asarray(S @ rec["V"])))           # k x n_cols
+                    D = np.zeros((k, self.n_global)) if D is None else D
+                    D[:, b.qb] += AV @ rec["H_C"]
+                    D[:, b.modes] -= gather_rows(AI.matMult(b.Phi), self.comm)       # u_i replaced, not added
+                    C[:, b.qb] += AV @ rec["H_D"]
+                    C[:, b.modes] += AV @ rec["H_M"]
+                AI.destroy()
+                continue
             if b.residual_b is not None and not b.n_augmented:
                 # substructured: C[:, qb] -= A_i R A_b with R A_b from the reduction's Ritz space
                 cols = PETSc.IS().createGeneral(b.I.getIndices(), comm=self.comm)
@@ -302,8 +346,8 @@ class ReducedModel:
             C[:, b.qb] -= G.T
             for m in (AI, AIt, rhs, Y, M_ii, MY):
                 m.destroy()
-        self._recovery_rows[key] = C.copy()
-        return C
+        self._recovery_rows[key] = (D, C)
+        return D, C
 
     def release_recovery(self) -> None:
         """Free the per-body factorizations and couplings kept for :meth:`mode_acceleration_rows`."""
@@ -311,7 +355,7 @@ class ReducedModel:
             for m in (b.ksp, b.M_ib, b.residual_b):
                 if m is not None:
                     m.destroy()
-            b.ksp = b.M_ib = b.K_ii = b.factor = b.residual_b = None
+            b.ksp = b.M_ib = b.K_ii = b.factor = b.residual_b = b.ritz_recovery = None
 
     def reduced_dofs(self, dofs: np.ndarray) -> np.ndarray:
         """Owned local reduced indices whose basis vectors touch the given owned model dofs (the
@@ -353,7 +397,7 @@ class ReducedModel:
         """JSON-able summary of the reduction."""
         return {"reduced_coordinates": self.n_global, "zone_coordinates": self.n_zone,
                 "zone_description": self.zone.kind, **{f"zone_{k}": v for k, v in self.zone.info.items()},
-                "modes": self.n_modes - sum(b.n_augmented for b in self.bodies),
+                "modes": self.n_modes - sum(b.n_augmented + b.n_patterns for b in self.bodies),
                 "augmentation_vectors": sum(b.n_augmented for b in self.bodies),
                 "bodies": {b.name: b.report() for b in self.bodies},
                 "timings_s": dict(self.timings)}

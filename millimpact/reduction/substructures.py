@@ -42,12 +42,27 @@ traces it is the Galerkin approximation, and the Ritz frequencies are upper boun
 ones either way (Rayleigh's principle): a mode just under f_cut can rise above it and drop out
 (coarse liner panel: 160-162 modes against 164).
 
+Zone-interface patterns (``substructure_zone_degree`` d >= 1; 0, the default, keeps the exact
+constraint modes). The n_b constraint modes Psi drive the cost of the statics, the second pass,
+the projections and the expansion (n_b = 583 at the plan's 1.2M DOFs; every dense n_i x n_b array
+is 5.2 GB there). With patterns the interior's vectors are instead the static responses
+X = -K_ii^-1 K_iz W to p smooth interface motions W (per displacement component the monomials of
+total degree <= d in the interface nodes' coordinates: the rigid motions among them; p = 60 at
+d = 3; :mod:`.interface_patterns`), with coordinates of their own beside the modes (made M-orthogonal to them and
+Ritz-diagonalized: :func:`pattern_vectors`); the zone couples to them through K_iz and M_iz only
+(characteristic-constraint-mode-like interface reduction: Castanier, Tan and Pierre, AIAA J. 39
+(2001) 1182-1187, and the review of Krattiger et al. above). A Ritz approximation: the statics
+are exact once the patterns span the interface (paper-rig test mesh: 258 interface dofs, d = 8)
+and stiffer before (compliance -3.7e-3 at d = 1, -6.0e-5 at d = 2, -3.2e-6 at d = 4). The output
+rows are then recovered in the Ritz space (:func:`ritz_recovery`: the interior's static response to
+the zone's motion and to all inertia, a displacement term as well as an acceleration term).
+
 Options (prefix ``impact_reduction_<body>_``): ``substructures`` S (0 or 1: one factorization,
 :mod:`.craig_bampton`), ``substructure_f_factor`` (1.5), ``substructure_trace_density`` (4),
 ``substructure_margin`` (0.5 shear wavelengths at f_cut between a cut and the zone-coupled dofs
 or a gauge: closer, the static response to the zone varies too fast for the polynomial traces;
 the coarse panel's bolt gauge was off by 3x with a cut next to it), ``substructure_compress``
-(1e-12; 0 keeps every column of step 4).
+(1e-12; 0 keeps every column of step 4), ``substructure_zone_degree`` (0).
 
 Under MPI each rank takes whole slabs, the largest first to the least loaded rank
 (:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
@@ -66,6 +81,7 @@ from __future__ import annotations
 
 import logging
 import math
+import resource
 import time
 from dataclasses import dataclass
 from typing import Optional
@@ -97,6 +113,7 @@ class SubstructureSettings:
     trace_density: float = 4.0
     margin: float = 0.5            #: shear wavelengths at f_cut between a cut and the zone or a gauge
     compress: float = 1e-12        #: second pass: relative Gram eigenvalue of a dropped direction (0: keep all)
+    zone_degree: int = 0           #: zone-interface patterns' polynomial degree (0: exact constraint modes)
 
 
 def substructure_settings(prefix: str, options: Optional[dict[str, str]]) -> Optional[SubstructureSettings]:
@@ -104,7 +121,7 @@ def substructure_settings(prefix: str, options: Optional[dict[str, str]]) -> Opt
     (their ranges checked by :func:`~millimpact.integration.solvers.check_type_options`, the CLI's
     check); None for one factorization (S < 2)."""
     keys = ("substructures", "substructure_f_factor", "substructure_trace_density", "substructure_margin",
-            "substructure_compress")
+            "substructure_compress", "substructure_zone_degree")
     with petsc_options({}, {k: v for k, v in (options or {}).items() if k in keys}, prefix=prefix):
         db = PETSc.Options()
         raw = {k: db.getString(prefix + k, "") for k in keys}
@@ -114,7 +131,8 @@ def substructure_settings(prefix: str, options: Optional[dict[str, str]]) -> Opt
                                     float(raw["substructure_f_factor"] or default.f_factor),
                                     float(raw["substructure_trace_density"] or default.trace_density),
                                     float(raw["substructure_margin"] or default.margin),
-                                    float(raw["substructure_compress"] or default.compress))
+                                    float(raw["substructure_compress"] or default.compress),
+                                    int(raw["substructure_zone_degree"] or default.zone_degree))
     return settings if settings.slabs >= 2 else None
 
 
@@ -175,21 +193,22 @@ def interface_flags(K_ii: PETSc.Mat, labels: np.ndarray) -> np.ndarray:
 
 
 def polynomial_traces(coords: np.ndarray, comps: np.ndarray, cut: np.ndarray, axis: int, wavelength: float,
-                      density: float, comm: MPI.Comm) -> list[np.ndarray]:
-    """Per cut, the trace basis on this rank's Gamma rows (``cut``: each row's cut index): tensor
-    Legendre polynomials of the two in-plane coordinates per displacement component, orthonormal
-    over the cut's rows (dependent combinations dropped). ``density`` 0: the identity."""
+                      density: float, comm: MPI.Comm) -> list[sp.csr_matrix]:
+    """Per cut, the trace basis on this rank's Gamma rows (``cut``: each row's cut index; sparse:
+    zero off the cut's rows): tensor Legendre polynomials of the two in-plane coordinates per
+    displacement component, orthonormal over the cut's rows (dependent combinations dropped).
+    ``density`` 0: the identity."""
     plane = [a for a in range(3) if a != axis]
     n_cuts = comm.allreduce(int(cut.max()) + 1 if len(cut) else 0, op=MPI.MAX)
     blocks = []
     for c in range(n_cuts):
         mine = cut == c
+        rows = np.nonzero(mine)[0]
         if density == 0:
             n_c = comm.allreduce(int(mine.sum()))
             off = comm.exscan(int(mine.sum())) or 0
-            B = np.zeros((len(cut), n_c))
-            B[np.nonzero(mine)[0], off + np.arange(mine.sum())] = 1.0
-            blocks.append(B)
+            blocks.append(sp.csr_matrix((np.ones(len(rows)), (rows, off + np.arange(len(rows)))),
+                                        shape=(len(cut), n_c)))
             continue
         p = coords[mine][:, plane]
         lo = reduce_array(p.min(axis=0) if len(p) else np.full(2, np.inf), MPI.MIN, comm)
@@ -199,13 +218,18 @@ def polynomial_traces(coords: np.ndarray, comps: np.ndarray, cut: np.ndarray, ax
         s = 2.0 * (p - lo) / ext - 1.0
         Pa, Pb = legendre.legvander(s[:, 0], deg[0]), legendre.legvander(s[:, 1], deg[1])
         poly = (Pa[:, :, None] * Pb[:, None, :]).reshape(len(p), (deg[0] + 1) * (deg[1] + 1))
-        B = np.zeros((len(cut), 3 * poly.shape[1]))
-        rows = np.nonzero(mine)[0]
+        B = np.zeros((len(rows), 3 * poly.shape[1]))
         for comp in range(3):
             sel = comps[mine] == comp
-            B[rows[sel], comp * poly.shape[1]:(comp + 1) * poly.shape[1]] = poly[sel]
-        blocks.append(orthonormal_columns(B, comm))
+            B[sel, comp * poly.shape[1]:(comp + 1) * poly.shape[1]] = poly[sel]
+        blocks.append(_place_rows(sp.csr_matrix(orthonormal_columns(B, comm)), rows, len(cut)))
     return blocks
+
+
+def _place_rows(A: sp.csr_matrix, rows: np.ndarray, n: int) -> sp.csr_matrix:
+    """A's rows put at ``rows`` of an n-row sparse matrix (zeros elsewhere)."""
+    coo = A.tocoo()
+    return sp.csr_matrix((coo.data, (rows[coo.row], coo.col)), shape=(n, A.shape[1]))
 
 
 def gram_basis(G: np.ndarray, tol: float, scaled: bool = True) -> np.ndarray:
@@ -234,17 +258,23 @@ def mass_orthonormal_columns(X: np.ndarray, M: PETSc.Mat, tol: float) -> np.ndar
 
 
 # --- the reduction ---------------------------------------------------------------------------------
+#: a slab's work (factor, modes, statics) grows like its dofs to this power: 1.2M-DOF panel, 16
+#: slabs, 2 ranks: 19.6 s at 70k dofs (24 slab modes), 133 s at 244k (61; the zone's slab): 1.53
+SLAB_WORK_EXPONENT = 1.5
+
+
 def slab_owners(dofs: list[int], ranks: int) -> np.ndarray:
-    """The rank that reduces each slab: longest first to the least loaded rank (Graham's LPT rule,
-    within 4/3 of the best balance), the load a slab's dof count. A slab's work (factor, modes,
-    statics) grows about linearly with its dofs (157k-DOF panel: 0.22-0.40 s per thousand dofs);
-    dealt in turn instead (slab s to rank s mod P), the 4 slabs of 34k, 20k, 48k and 36k dofs put
-    82k against 57k dofs on 2 ranks."""
+    """The rank that reduces each slab: the costliest first to the least loaded rank (Graham's LPT
+    rule, within 4/3 of the best balance), a slab's cost dofs^SLAB_WORK_EXPONENT. Dealt in turn
+    instead (slab s to rank s mod P), the 157k-DOF panel's 4 slabs of 34k, 20k, 48k and 36k dofs put
+    82k against 57k dofs on 2 ranks; weighted by the dof count alone, the 1.2M-DOF panel's zone
+    slab (244k dofs) and four small ones went to one rank, 171 s against 88 s."""
+    cost = np.asarray(dofs, dtype=float) ** SLAB_WORK_EXPONENT
     load = np.zeros(ranks)
     owners = np.zeros(len(dofs), dtype=np.int64)
-    for k in sorted(range(len(dofs)), key=lambda k: (-dofs[k], k)):
+    for k in sorted(range(len(dofs)), key=lambda k: (-cost[k], k)):
         owners[k] = int(np.argmin(load))
-        load[owners[k]] += dofs[k]
+        load[owners[k]] += cost[k]
     return owners
 
 
@@ -306,15 +336,30 @@ class _Slab:
     n_new: int = 0                 #: columns the second pass added
 
 
-def _solve(ksp: PETSc.KSP, rhs: np.ndarray) -> np.ndarray:
-    """A^-1 rhs with a factored sequential KSP (one multi-right-hand-side solve)."""
-    R = dense_from_rows(rhs, MPI.COMM_SELF)
-    X = R.duplicate()
-    ksp.getPC().getFactorMatrix().matSolve(R, X)
-    out = np.array(X.getDenseArray(), copy=True)
-    R.destroy()
-    X.destroy()
+def _solve(ksp: PETSc.KSP, rhs: np.ndarray, chunk: int = 128) -> np.ndarray:
+    """A^-1 rhs with a factored sequential KSP (multi-right-hand-side solves of ``chunk`` columns:
+    the PETSc copies stay small)."""
+    out = np.empty_like(rhs)
+    F = ksp.getPC().getFactorMatrix()
+    for j in range(0, rhs.shape[1], chunk):
+        R = dense_from_rows(np.ascontiguousarray(rhs[:, j:j + chunk]), MPI.COMM_SELF)
+        X = R.duplicate()
+        F.matSolve(R, X)
+        out[:, j:j + chunk] = X.getDenseArray()
+        R.destroy()
+        X.destroy()
     return out
+
+
+def _peak_rss_gb() -> float:
+    """This process's peak resident memory so far (GB; Linux reports kB)."""
+    return round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, 3)
+
+
+def _csr_rows(A: PETSc.Mat) -> sp.csr_matrix:
+    """The owned rows of a distributed AIJ matrix as scipy CSR (global column indices)."""
+    indptr, indices, data = A.getValuesCSR()
+    return sp.csr_matrix((data, indices, indptr), shape=(A.getLocalSize()[0], A.getSize()[1]))
 
 
 def _csr(A: PETSc.Mat) -> sp.csr_matrix:
@@ -342,7 +387,9 @@ def _serial_options(options: Optional[dict[str, str]]) -> dict[str, str]:
 def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: sp.csr_matrix, coords: np.ndarray,
                         comps: np.ndarray, f_cut: float, shear_speed: float, settings: SubstructureSettings,
                         prefix: str, options: Optional[dict[str, str]] = None,
-                        keep_away: Optional[np.ndarray] = None) -> dict:
+                        keep_away: Optional[np.ndarray] = None, patterns: bool = False,
+                        zone_couplings: Optional[tuple[sp.csr_matrix, sp.csr_matrix]] = None,
+                        recovery_rows: Optional[np.ndarray] = None, release: bool = False) -> dict:
     """Psi (dense PETSc, n_i x n_b), Phi (owned rows, n_i_loc x m), the residual flexibility's
     response to the interface inertia R A_b (dense PETSc, n_i x n_b), frequencies (Hz), the next
     frequency, Psi's relative residual ||K_ii Psi + C|| / ||C|| and statistics, from the slab-wise
@@ -351,6 +398,16 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     interior dof's node coordinates and displacement component; ``shear_speed`` (m/s) sets the
     margin and the traces' degrees; ``keep_away`` (k x 3, m): points the cuts keep the margin from
     (the gauges). Collective.
+
+    ``patterns``: the columns of C and D are the couplings of zone-interface patterns
+    (:func:`~.interface_patterns.zone_interface_patterns`), not of the zone's coordinates: their static responses are
+    then returned as extra columns of Phi (made M-orthogonal to the modes and Ritz-diagonalized,
+    frequencies appended, ``n_patterns`` of them) and Psi and R A_b are None. The output rows are
+    then recovered from the Ritz space (:func:`ritz_recovery`, result ``recovery``): give
+    ``zone_couplings`` (the owned rows of K_iz G and M_iz G on the zone's interface coordinates)
+    and ``recovery_rows`` (global interior rows the output rows reach, e.g. the gauges' cells).
+    The Ritz space's Grams of Phi (``grams``: Phi^T M_ii Phi, Phi^T K_ii Phi) come with it, and
+    ``release`` destroys K_ii and M_ii once the slabs hold their blocks (2.2 GB at 1.2M DOFs).
 
     Two passes over the slabs (steps 1-3 and step 4 of the module docstring). Under MPI the slabs
     are shared out by size (:func:`slab_owners`): each rank gathers its slabs' rows
@@ -371,12 +428,13 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     gamma = np.nonzero(on_gamma)[0]
     traces = polynomial_traces(coords[gamma], comps[gamma], labels[gamma], axis, wavelength,
                                settings.trace_density, comm)
-    T = np.hstack(traces) if traces else np.zeros((len(gamma), 0))
+    T = sp.hstack(traces).tocsr() if traces else sp.csr_matrix((len(gamma), 0))
     n_t, n_b = T.shape[1], C.shape[1]
     t_idx = n_b + np.arange(n_t)          # Ritz columns: [zone statics (n_b) | traces (n_t) | slabs' own]
     # what every slab's owner needs whole: Gamma's global rows and traces, the sparse couplings
     gamma_glob = np.concatenate(comm.allgather((r0 + gamma).astype(np.int64)))
-    T_full = np.vstack(comm.allgather(T)) if n_t else np.zeros((len(gamma_glob), 0))
+    # sparse: a Gamma row has only its own cut's traces (dense, 1.6 GB a rank at 1.2M DOFs, 15 cuts)
+    T_full = sp.vstack(comm.allgather(T)).tocsr() if n_t else sp.csr_matrix((len(gamma_glob), 0))
     CD_full = _global_rows(sp.hstack([C, D]).tocsr(), r0, n_i, comm)
     n_slabs = len(cuts) + 1
     slab_rows = [np.concatenate(comm.allgather((r0 + np.nonzero((labels == s) & ~on_gamma)[0]).astype(np.int64)))
@@ -390,15 +448,24 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     # are kept to the end anyway), then reduces them alone: no rank waits for another between slabs
     t_pass1 = time.perf_counter()
     gathered = _gather_slab_matrices(K_ii, M_ii, [slab_rows[s] for s in my_ids], gamma_glob)
+    # Gamma's own block of the Ritz matrices, T^T A_GG T with the owned rows of A_GG (columns
+    # numbered as gamma_glob, the IS's order); then (``release``) K_ii and M_ii are not needed
+    is_gamma = PETSc.IS().createGeneral((r0 + gamma).astype(np.int32), comm=comm)
+    Kgg, Mgg = K_ii.createSubMatrix(is_gamma, is_gamma), M_ii.createSubMatrix(is_gamma, is_gamma)
+    KT_gg, MT_gg = (reduce_array((T.T @ (_csr_rows(A) @ T_full)).toarray(), MPI.SUM, comm) for A in (Kgg, Mgg))
+    for obj in (Kgg, Mgg, is_gamma) + ((K_ii, M_ii) if release else ()):
+        obj.destroy()
     for s, (K_ss, M_ss, K_sg_csr, M_sg_csr) in zip(my_ids, gathered):
         rows = slab_rows[s]
         ts = time.perf_counter()
         ksp = create_factored_solver(K_ss, prefix, serial_opts)
         t_factor = time.perf_counter() - ts
-        C_s, KsgT = CD_full[rows][:, :n_b], np.asarray(K_sg_csr @ T_full)
-        used = np.concatenate([np.bincount(C_s.indices, minlength=n_b) > 0, np.any(KsgT != 0.0, axis=0)])
-        rhs = np.hstack([C_s[:, used[:n_b]].toarray(), KsgT[:, used[n_b:]]])
-        del KsgT
+        # the traces that reach the slab: those of the cuts its rows couple to (a dense K_sG T of
+        # every trace would be ~1 GB a slab at the plan's 1.2M DOFs)
+        C_s = CD_full[rows][:, :n_b]
+        used_t = np.bincount(T_full[np.unique(K_sg_csr.indices)].indices, minlength=n_t) > 0
+        used = np.concatenate([np.bincount(C_s.indices, minlength=n_b) > 0, used_t])
+        rhs = np.hstack([C_s[:, used[:n_b]].toarray(), (K_sg_csr @ T_full[:, used_t]).toarray()])
         X = -_solve(ksp, rhs) if used.any() else np.zeros((len(rows), 0))
         del rhs
         # second-order statics: the response to the inertia of the slab's zone statics, M_ss Z_s + M_sz
@@ -415,7 +482,9 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
                           Phi_s.shape[1] + X2.shape[1],
                           {"slab": s, "rank": rank, "dofs": len(rows), "modes": int(Phi_s.shape[1]),
                            "static_columns": int(used.sum() + X2.shape[1]), "factor_s": round(t_factor, 3),
-                           "statics_s": round(t_static, 3), "total_s": round(time.perf_counter() - ts, 3)}))
+                           "statics_s": round(t_static, 3), "total_s": round(time.perf_counter() - ts, 3),
+                           "peak_rss_gb": _peak_rss_gb()}))
+        log.info("substructures %s: slab %d on rank %d: %s", prefix, s, rank, mine[-1].stats)
     phase = {"pass1_s": time.perf_counter() - t_pass1}        # this rank's slabs (before any wait)
     t0 = time.perf_counter()
     # the Ritz columns, numbered slab by slab on every rank alike
@@ -426,14 +495,9 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         n_cols += own
     for sl in mine:
         sl.cols = cols_of[sl.index]
-    is_gamma = PETSc.IS().createGeneral((r0 + gamma).astype(np.int32), comm=comm)
-    Kgg, Mgg = K_ii.createSubMatrix(is_gamma, is_gamma), M_ii.createSubMatrix(is_gamma, is_gamma)
     KV, MV, CV = np.zeros((n_cols, n_cols)), np.zeros((n_cols, n_cols)), np.zeros((n_cols, 2 * n_b))
-    KV[np.ix_(t_idx, t_idx)] = reduce_array(T.T @ _mult_local(Kgg, T, comm), MPI.SUM, comm)
-    MV[np.ix_(t_idx, t_idx)] = reduce_array(T.T @ _mult_local(Mgg, T, comm), MPI.SUM, comm)
-    CV[t_idx] = np.asarray((CD_full[gamma_glob].T @ T_full).T)      # replicated data: no sum
-    for obj in (Kgg, Mgg, is_gamma):
-        obj.destroy()
+    KV[np.ix_(t_idx, t_idx)], MV[np.ix_(t_idx, t_idx)] = KT_gg, MT_gg
+    CV[t_idx] = (CD_full[gamma_glob].T @ T_full).T.toarray()      # replicated data: no sum
     KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm)
     phase["project_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -463,6 +527,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
             sl.n_new = X3.shape[1]
             sl.stats["inertia_statics_s"] = round(time.perf_counter() - ts, 3)
             sl.stats["inertia_columns"] = int(X3.shape[1])
+            sl.stats["peak_rss_gb_pass2"] = _peak_rss_gb()
         counts = dict(x for part in comm.allgather([(sl.index, sl.n_new) for sl in mine]) for x in part)
         offsets = np.cumsum([0] + [counts[s] for s in slab_ids])
         for sl in mine:
@@ -478,17 +543,32 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         phase["ritz_s"] += time.perf_counter() - t0
     t0 = time.perf_counter()
     m = ritz["m"]
+    freq = ritz["freq"]
     # the results straight into their final storage; each slab's rows sent to the ranks owning them
-    Psi, flex = _dense_zeros(n_loc, n_b, comm), _dense_zeros(n_loc, n_b, comm)
-    Phi = np.zeros((n_loc, m))
-    targets = (Psi.getDenseArray(), flex.getDenseArray(), Phi)
-    parts = (ritz["psi"], ritz["flex"], ritz["phi"])
+    recovery = grams = None
+    if patterns:
+        f_pat, c_pat = pattern_vectors(KV, MV, ritz)
+        A = np.hstack([ritz["phi"], c_pat])
+        grams = (A.T @ MV @ A, A.T @ KV @ A)
+        if zone_couplings is not None:
+            recovery = ritz_recovery(mine, T_full, t_idx, gamma_glob, KV, MV, A,
+                                     _global_rows(sp.hstack(zone_couplings).tocsr(), r0, n_i, comm),
+                                     np.asarray(recovery_rows if recovery_rows is not None else [], dtype=np.int64),
+                                     n_cols, comm)
+        Psi = flex = None
+        Phi = np.zeros((n_loc, m + len(f_pat)), order="F")       # PETSc's dense layout: shared, not copied
+        targets, parts = (Phi,), (np.hstack([ritz["phi"], c_pat]),)
+    else:
+        Psi, flex = _dense_zeros(n_loc, n_b, comm), _dense_zeros(n_loc, n_b, comm)
+        Phi = np.zeros((n_loc, m), order="F")
+        targets, parts = (Psi.getDenseArray(), flex.getDenseArray(), Phi), (ritz["psi"], ritz["flex"], ritz["phi"])
     for out, c in zip(targets, parts):
         out[gamma] = T @ c[t_idx]
     starts = np.array(comm.allgather(r0) + [n_i])
+    bounds = np.cumsum([0] + [c.shape[1] for c in parts])
 
     def put(local_rows: np.ndarray, block: np.ndarray) -> None:
-        for out, a, b in zip(targets, (0, n_b, 2 * n_b), (n_b, 2 * n_b, 2 * n_b + m)):
+        for out, a, b in zip(targets, bounds[:-1], bounds[1:]):
             out[local_rows] = block[:, a:b]
 
     outgoing: list[list] = [[] for _ in range(size)]
@@ -506,19 +586,20 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         for local_rows, block in pieces:
             put(local_rows, block)
     for A in (Psi, flex):
-        A.assemble()
+        if A is not None:
+            A.assemble()
     phase["expand_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    residual = constraint_residual(K_ii, Psi, C, comm) if n_b else 0.0
+    residual = constraint_residual(K_ii, Psi, C, comm) if n_b and Psi is not None else 0.0
     phase["residual_s"] = time.perf_counter() - t0
     for sl in mine:
         sl.K_ss.destroy()
         sl.M_ss.destroy()
-    freq = ritz["freq"]
     slab_stats = sorted((x for part in comm.allgather([sl.stats for sl in mine]) for x in part),
                         key=lambda x: x["slab"])
     stats = {"slabs": slab_stats, "axis": "xyz"[axis], "cuts_m": [float(c) for c in cuts],
-             "interface_dofs": len(gamma_glob), "traces": n_t, "interface_coordinates": n_b,
+             "interface_dofs": len(gamma_glob), "traces": n_t,
+             **({"zone_patterns": n_b, "pattern_vectors": len(f_pat)} if patterns else {"interface_coordinates": n_b}),
              "ritz_columns": n_cols, "ritz_rank": ritz["rank"], "slab_modes": int(sum(x["modes"] for x in slab_stats)),
              # phases (s): this rank's slabs, and on rank 0 the projections, the dense Ritz solves, the
              # second pass, the expansion into Psi / Phi / R A_b and Psi's residual
@@ -530,8 +611,57 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
                  stats["axis"], ", ".join(f"{c:.4g}" for c in cuts), size, stats["interface_dofs"], n_t,
                  stats["slab_modes"], n_cols, m, stats["total_s"])
     nxt = float(freq[m]) if m < len(freq) else math.nan
-    return {"Psi": Psi, "Phi": Phi, "flex": flex, "freq": freq[:m], "next": nxt, "residual": residual,
-            "stats": stats}
+    return {"Psi": Psi, "Phi": Phi, "flex": flex, "freq": np.concatenate([freq[:m], f_pat]) if patterns else freq[:m],
+            "n_patterns": len(f_pat) if patterns else 0, "next": nxt, "residual": residual, "stats": stats,
+            "recovery": recovery, "grams": grams}
+
+
+def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, gamma_glob: np.ndarray,
+                  KV: np.ndarray, MV: np.ndarray, A: np.ndarray, CDz: sp.csr_matrix, rows: np.ndarray,
+                  n_cols: int, comm: MPI.Comm) -> dict:
+    """Output recovery without constraint modes, from the Ritz space V (replicated, small).
+
+    The interior obeys K_ii u_i = -C q - D q'' - M_ii u_i'' (no load of its own; C = K_iz G,
+    D = M_iz G on the zone's interface coordinates). With K_ii^-1 replaced by its Galerkin image in
+    V, V H V^T (H = K_V^+), and the interior's reduced acceleration V A x'' (A: the coefficients of
+    the body's vectors, x their coordinates), an output row a reads
+    a u_i = (a V) [H_C q + H_D q'' + H_M x''], H_C = -H V^T C, H_D = -H V^T D, H_M = -H M_V A:
+    mode acceleration for any interior basis (for Craig-Bampton it is Psi q + Phi eta - R A_b q''
+    in the Ritz space). Returns ``rows`` (the global interior rows kept), ``V`` (those rows of the
+    basis), H_C, H_D and H_M. ``CDz``: [C | D], every rank's rows (global interior numbering)."""
+    n_b = CDz.shape[1] // 2
+    CV = np.zeros((n_cols, 2 * n_b))
+    keep = np.zeros((len(rows), n_cols))
+    for sl in slabs:
+        CV[sl.cols] += np.asarray((CDz[sl.rows].T @ sl.B).T)
+        pos = np.searchsorted(sl.rows, rows)
+        hit = (pos < len(sl.rows)) & (sl.rows[np.minimum(pos, len(sl.rows) - 1)] == rows)
+        keep[np.ix_(np.nonzero(hit)[0], sl.cols)] = sl.B[pos[hit]]
+    CV, keep = reduce_array(CV, MPI.SUM, comm), reduce_array(keep, MPI.SUM, comm)
+    CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()         # replicated data: no sum
+    pos = np.searchsorted(np.sort(gamma_glob), rows)
+    order = np.argsort(gamma_glob)
+    on_g = (pos < len(gamma_glob)) & (np.sort(gamma_glob)[np.minimum(pos, len(gamma_glob) - 1)] == rows)
+    keep[np.ix_(np.nonzero(on_g)[0], t_idx)] = T_full[order[pos[on_g]]].toarray()
+    W = gram_basis(MV, DEPENDENT_TOL)
+    lam, Y = np.linalg.eigh(W.T @ KV @ W)
+    WY = W @ Y
+    H = lambda X: WY @ ((WY.T @ X) / lam[:, None])        # noqa: E731  (K_V^+ X)
+    return {"rows": rows, "V": keep, "H_C": -H(CV[:, :n_b]), "H_D": -H(CV[:, n_b:]), "H_M": -H(MV @ A)}
+
+
+def pattern_vectors(KV: np.ndarray, MV: np.ndarray, ritz: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The zone-interface patterns' static responses (Ritz coefficients ``ritz["psi"]``) as extra
+    interior vectors beside the Ritz modes: made M_V-orthogonal to them, dependent directions
+    dropped, and diagonalized by a Rayleigh-Ritz in their span (so K_V and M_V stay block-diagonal
+    between modes and pattern vectors, as for modal truncation augmentation vectors). Their Ritz
+    frequencies (Hz) and coefficients."""
+    phi, psi = ritz["phi"], ritz["psi"]
+    psi = psi - phi @ (phi.T @ (MV @ psi))
+    psi = psi - phi @ (phi.T @ (MV @ psi))           # twice: classical Gram-Schmidt's loss of orthogonality
+    W = psi @ gram_basis(psi.T @ MV @ psi, DEPENDENT_TOL)
+    lam, Y = np.linalg.eigh(W.T @ KV @ W)
+    return np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), W @ Y
 
 
 def constraint_residual(K_ii: PETSc.Mat, Psi: PETSc.Mat, C: sp.csr_matrix, comm: MPI.Comm, chunk: int = 64) -> float:
@@ -545,7 +675,7 @@ def constraint_residual(K_ii: PETSc.Mat, Psi: PETSc.Mat, C: sp.csr_matrix, comm:
     return math.sqrt(num) / max(math.sqrt(den), 1e-300)
 
 
-def _project(slabs: list[_Slab], T_full: np.ndarray, t_idx: np.ndarray, CD_full: sp.csr_matrix,
+def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_full: sp.csr_matrix,
              current: tuple[np.ndarray, np.ndarray, np.ndarray], comm: MPI.Comm,
              grow_to: Optional[int] = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """K_V = V^T K_ii V, M_V = V^T M_ii V and [V^T C | V^T D] with the columns of each rank's slabs
@@ -562,7 +692,7 @@ def _project(slabs: list[_Slab], T_full: np.ndarray, t_idx: np.ndarray, CD_full:
             V_[np.ix_(cn, cols)] += P
             V_[np.ix_(cols, cn)] += P.T
             V_[np.ix_(cn, cn)] -= P[:, new]                                    # the new-new block once
-            G = Bn.T @ np.asarray(A_g @ T_full)
+            G = ((A_g @ T_full).T @ Bn).T
             V_[np.ix_(cn, t_idx)] += G
             V_[np.ix_(t_idx, cn)] += G.T
         CV[cn] += np.asarray((CD_full[sl.rows].T @ Bn).T)

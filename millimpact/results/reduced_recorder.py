@@ -67,12 +67,16 @@ class ReducedRecorder(Recorder):
         self._probe_full = self.probe
         # mode-acceleration rows of the probes (ReducedModel.mode_acceleration_rows): displacement
         # values and gradients get C q'' added; replicated dense (rows x reduced coordinates)
-        self._ma = None
+        self._ma = self._md = None
         if recovery == "mode-acceleration":
             P_val = self._probe_full.P_val
-            C = red.mode_acceleration_rows(local_rows_to_aij(sp.vstack([P_val, self._probe_full.P_grad]).tocsr(),
-                                                             red.model.V))
+            rows = local_rows_to_aij(sp.vstack([P_val, self._probe_full.P_grad]).tocsr(), red.model.V)
+            C = red.mode_acceleration_rows(rows)
             self._ma = (C[:P_val.shape[0]], C[P_val.shape[0]:])
+            # bodies reduced with zone-interface patterns: a displacement part too (added to P T)
+            D = red.displacement_recovery_rows(rows)
+            if D is not None:
+                self._md = (D[:P_val.shape[0]], D[P_val.shape[0]:])
         self.time_offset = 0.0
         self.proj = None
         self._maps: dict[int, tuple] = {}
@@ -91,8 +95,13 @@ class ReducedRecorder(Recorder):
             mask.array[proj.ball_coords] = 1.0
             view = SimpleNamespace(M=proj.M, K=proj.K, fixed_dofs=np.zeros(0, dtype=np.int32),
                                    sym_factor=proj.model.sym_factor)
+            probe = project_probe(self._probe_full, proj)
+            if self._md is not None:
+                d = self._rows_probe(self._md, proj)
+                probe = PointProbe(probe.comm, probe.n_points, probe.P_val + d.P_val, probe.P_grad + d.P_grad,
+                                   probe.found)
             self._maps[key] = (proj.restrict(self._c_full), mask, proj.create_vector(), proj.create_vector(),
-                               project_probe(self._probe_full, proj), view)
+                               probe, view)
             self._maps[("ma", key)] = self._ma_probe(proj)
         self.c_y, self.ball_mask, self.tmp, self.tmp2, self.probe, self.model = self._maps[key]
         self.ma_probe = self._maps[("ma", key)]
@@ -111,18 +120,22 @@ class ReducedRecorder(Recorder):
     def _ma_probe(self, proj) -> Optional[PointProbe]:
         """The mode-acceleration rows for states of ``proj`` as a probe acting on accelerations
         (owned columns of proj's coordinates): C for the reduced model, C Phi for a modal one."""
-        if self._ma is None:
-            return None
+        return None if self._ma is None else self._rows_probe(self._ma, proj, quasi_static=True)
+
+    def _rows_probe(self, rows: tuple[np.ndarray, np.ndarray], proj, quasi_static: bool = False) -> PointProbe:
+        """Replicated dense recovery rows (values, gradients; k x reduced coordinates) as a probe on
+        ``proj``'s coordinates (owned columns): C itself for the reduced model, C Phi for a modal
+        one; ``quasi_static``: a modal one's columns above the lowest mode not kept dropped."""
         comm = proj.comm
         mats = []
-        for C in self._ma:
+        for C in rows:
             if isinstance(proj, ModalProjection):
                 r0, r1 = proj.red.M.getOwnershipRange()
                 C = comm.allreduce(C[:, r0:r1] @ proj.Phi.getDenseArray(), op=MPI.SUM)
                 # quasi-static only below the lowest fixed-interface mode not kept: a free mode
                 # above it drives the truncated modes near or past resonance
                 nxt = [b.next_frequency_hz for b in proj.red.bodies if b.n_interior and np.isfinite(b.next_frequency_hz)]
-                if nxt:
+                if nxt and quasi_static:
                     C = C * (np.sqrt(proj.omega2) < 2 * math.pi * min(nxt))[None, :]
             lo, hi = proj.M.getOwnershipRange()
             mats.append(sp.csr_matrix(C[:, lo:hi]))
