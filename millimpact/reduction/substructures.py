@@ -64,7 +64,7 @@ or a gauge: closer, the static response to the zone varies too fast for the poly
 the coarse panel's bolt gauge was off by 3x with a cut next to it), ``substructure_compress``
 (1e-12; 0 keeps every column of step 4), ``substructure_zone_degree`` (0).
 
-Under MPI each rank takes whole slabs, the largest first to the least loaded rank
+Under MPI each rank takes whole slabs, the costliest first to the least loaded rank
 (:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
 until the Ritz matrices are summed. 157k-DOF panel, 4 slabs (``benchmarks/panel_scaling.py
 --h-far 0.025 --slabs 4``): 97.8 s at 1 rank, 62.9 s at 2 (1.55x; one factorization beside it
