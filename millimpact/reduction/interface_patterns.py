@@ -56,9 +56,9 @@ def zone_pattern_couplings(model: FEModel, part: DofPartition, body: str, degree
     xyz = model.V.tabulate_dof_coordinates()[iface // 3]
     W_loc = zone_interface_patterns(xyz, iface % 3, degree, comm)
     p = W_loc.shape[1]
-    rows = np.zeros((part.n_owned, p))
-    rows[iface] = W_loc
-    W = aij_from_local_csr(sp.csr_matrix(rows), ((part.n_owned, PETSc.DETERMINE), (PETSc.DECIDE, p)), comm)
+    rows = sp.csr_matrix((W_loc.ravel(), (np.repeat(iface, p), np.tile(np.arange(p), len(iface)))),
+                         shape=(part.n_owned, p))
+    W = aij_from_local_csr(rows, ((part.n_owned, PETSc.DETERMINE), (PETSc.DECIDE, p)), comm)
     out = []
     for A in (K_ia, M_ia):
         AW = A.matMult(W)

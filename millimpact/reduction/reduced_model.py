@@ -256,8 +256,6 @@ class ReducedModel:
         the test mesh); the dynamics are unchanged. Zero rows where A does not reach an interior.
         Needs the factorizations kept by :func:`reduce_model` (:meth:`release_recovery` frees
         them); bodies with augmentation vectors are skipped (Phi holds non-eigenvectors there)."""
-        # the same rows again (the impacts of a contact table share the probes): C from the first
-        # time, not a fresh factorization of K_ii and solve (0.5-1 s a case on the rig)
         return self._recovery(A)[1].copy()
 
     def displacement_recovery_rows(self, A: PETSc.Mat) -> Optional[np.ndarray]:
@@ -270,6 +268,8 @@ class ReducedModel:
 
     def _recovery(self, A: PETSc.Mat) -> tuple[Optional[np.ndarray], np.ndarray]:
         """(D, C) of :meth:`displacement_recovery_rows` and :meth:`mode_acceleration_rows`."""
+        # the same rows again (the impacts of a contact table share the probes): D, C from the first
+        # time, not a fresh factorization of K_ii and solve (0.5-1 s a case on the rig)
         indptr, indices, values = A.getValuesCSR()
         key = hashlib.sha1(b"".join(np.ascontiguousarray(x).tobytes() for x in (indptr, indices, values))
                            + repr(A.getSize()).encode()).hexdigest()

@@ -291,7 +291,7 @@ def _gather_slab_matrices(K_ii: PETSc.Mat, M_ii: PETSc.Mat, slab_rows: list[np.n
     cols_g = [PETSc.IS().createGeneral(gamma.astype(np.int32), comm=comm) for _ in rows]
     K_ss, M_ss = K_ii.createSubMatrices(rows, rows), M_ii.createSubMatrices(rows, rows)
     K_sg, M_sg = K_ii.createSubMatrices(rows, cols_g), M_ii.createSubMatrices(rows, cols_g)
-    out = [(K_ss[k], M_ss[k], _csr(K_sg[k]), _csr(M_sg[k])) for k in range(len(slab_rows))]
+    out = [(K_ss[k], M_ss[k], _csr_rows(K_sg[k]), _csr_rows(M_sg[k])) for k in range(len(slab_rows))]
     for obj in [*K_sg, *M_sg, *rows, *cols_g] + ([*K_ss, *M_ss] if empty else []):
         obj.destroy()
     return out
@@ -357,14 +357,9 @@ def _peak_rss_gb() -> float:
 
 
 def _csr_rows(A: PETSc.Mat) -> sp.csr_matrix:
-    """The owned rows of a distributed AIJ matrix as scipy CSR (global column indices)."""
+    """The owned rows of an AIJ matrix as scipy CSR (global column indices; a sequential one whole)."""
     indptr, indices, data = A.getValuesCSR()
     return sp.csr_matrix((data, indices, indptr), shape=(A.getLocalSize()[0], A.getSize()[1]))
-
-
-def _csr(A: PETSc.Mat) -> sp.csr_matrix:
-    indptr, indices, data = A.getValuesCSR()
-    return sp.csr_matrix((data, indices, indptr), shape=A.getSize())
 
 
 def _global_rows(A: sp.csr_matrix, r0: int, n: int, comm: MPI.Comm) -> sp.csr_matrix:
