@@ -22,7 +22,7 @@ from ..fem.model import FEModel
 from ..fem.probes import create_probe
 from .distributed import aij_from_local_csr, local_columns_csr
 from .partition import BODIES, DofPartition
-from .substructures import orthonormal_columns, reduce_array
+from .substructures import orthonormal_columns, positions_in, reduce_array
 
 
 def zone_interface_patterns(coords: np.ndarray, comps: np.ndarray, degree: int, comm: MPI.Comm) -> np.ndarray:
@@ -80,7 +80,6 @@ def probe_interior_rows(model: FEModel, idx: np.ndarray, points: np.ndarray) -> 
     glob = np.unique(np.concatenate(comm.allgather(glob)))
     r0 = model.K.getOwnershipRange()[0]
     mine = glob[(glob >= r0) & (glob < r0 + model.K.getLocalSize()[0])] - r0
-    pos = np.searchsorted(idx, mine)
-    hit = (pos < len(idx)) & (idx[np.minimum(pos, len(idx) - 1)] == mine)
+    pos, hit = positions_in(idx, mine)
     off = comm.exscan(len(idx)) or 0
     return np.unique(np.concatenate(comm.allgather((off + pos[hit]).astype(np.int64))))

@@ -22,6 +22,7 @@ log = logging.getLogger(__name__)
 
 from .partition import DofPartition, ZoneBasis
 from .distributed import aij_from_local_csr, dense_columns, gather_rows
+from .substructures import positions_in
 
 
 # --- the reduced model ---------------------------------------------------------------------------
@@ -286,8 +287,7 @@ class ReducedModel:
                 rows = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
                 AI = A.createSubMatrix(rows, cols)
                 ip, ix, vals = AI.getValuesCSR()
-                pos = np.searchsorted(rec["rows"], ix)
-                inside = (pos < len(rec["rows"])) & (rec["rows"][np.minimum(pos, len(rec["rows"]) - 1)] == ix)
+                pos, inside = positions_in(rec["rows"], ix)
                 if self.comm.allreduce(int(np.count_nonzero(~inside)), op=MPI.SUM):
                     if self.comm.rank == 0:
                         log.warning("%s: output rows outside the kept Ritz rows: recovered as u = T q there",

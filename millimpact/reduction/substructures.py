@@ -226,6 +226,13 @@ def polynomial_traces(coords: np.ndarray, comps: np.ndarray, cut: np.ndarray, ax
     return blocks
 
 
+def positions_in(sorted_values: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(pos, found): where each of ``x`` sits in the sorted array, and whether it is there."""
+    pos = np.searchsorted(sorted_values, x)
+    found = (pos < len(sorted_values)) & (sorted_values[np.minimum(pos, len(sorted_values) - 1)] == x)
+    return pos, found
+
+
 def _place_rows(A: sp.csr_matrix, rows: np.ndarray, n: int) -> sp.csr_matrix:
     """A's rows put at ``rows`` of an n-row sparse matrix (zeros elsewhere)."""
     coo = A.tocoo()
@@ -546,13 +553,13 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         A = np.hstack([ritz["phi"], c_pat])
         grams = (A.T @ MV @ A, A.T @ KV @ A)
         if zone_couplings is not None:
-            recovery = ritz_recovery(mine, T_full, t_idx, gamma_glob, KV, MV, A,
+            recovery = ritz_recovery(mine, T_full, t_idx, gamma_glob, ritz, MV, A,
                                      _global_rows(sp.hstack(zone_couplings).tocsr(), r0, n_i, comm),
                                      np.asarray(recovery_rows if recovery_rows is not None else [], dtype=np.int64),
                                      n_cols, comm)
         Psi = flex = None
         Phi = np.zeros((n_loc, m + len(f_pat)), order="F")       # PETSc's dense layout: shared, not copied
-        targets, parts = (Phi,), (np.hstack([ritz["phi"], c_pat]),)
+        targets, parts = (Phi,), (A,)
     else:
         Psi, flex = _dense_zeros(n_loc, n_b, comm), _dense_zeros(n_loc, n_b, comm)
         Phi = np.zeros((n_loc, m), order="F")
@@ -612,7 +619,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
 
 
 def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, gamma_glob: np.ndarray,
-                  KV: np.ndarray, MV: np.ndarray, A: np.ndarray, CDz: sp.csr_matrix, rows: np.ndarray,
+                  ritz: dict, MV: np.ndarray, A: np.ndarray, CDz: sp.csr_matrix, rows: np.ndarray,
                   n_cols: int, comm: MPI.Comm) -> dict:
     """Output recovery without constraint modes, from the Ritz space V (replicated, small).
 
@@ -629,18 +636,13 @@ def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, 
     keep = np.zeros((len(rows), n_cols))
     for sl in slabs:
         CV[sl.cols] += np.asarray((CDz[sl.rows].T @ sl.B).T)
-        pos = np.searchsorted(sl.rows, rows)
-        hit = (pos < len(sl.rows)) & (sl.rows[np.minimum(pos, len(sl.rows) - 1)] == rows)
+        pos, hit = positions_in(sl.rows, rows)
         keep[np.ix_(np.nonzero(hit)[0], sl.cols)] = sl.B[pos[hit]]
     CV, keep = reduce_array(CV, MPI.SUM, comm), reduce_array(keep, MPI.SUM, comm)
     CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()         # replicated data: no sum
-    pos = np.searchsorted(np.sort(gamma_glob), rows)
-    order = np.argsort(gamma_glob)
-    on_g = (pos < len(gamma_glob)) & (np.sort(gamma_glob)[np.minimum(pos, len(gamma_glob) - 1)] == rows)
-    keep[np.ix_(np.nonzero(on_g)[0], t_idx)] = T_full[order[pos[on_g]]].toarray()
-    W = gram_basis(MV, DEPENDENT_TOL)
-    lam, Y = np.linalg.eigh(W.T @ KV @ W)
-    WY = W @ Y
+    pos, on_g = positions_in(gamma_glob, rows)          # gamma_glob: the ranks' sorted rows in rank order
+    keep[np.ix_(np.nonzero(on_g)[0], t_idx)] = T_full[pos[on_g]].toarray()
+    WY, lam = ritz["WY"], ritz["lam"]                     # the final Rayleigh-Ritz's, not solved again
     H = lambda X: WY @ ((WY.T @ X) / lam[:, None])        # noqa: E731  (K_V^+ X)
     return {"rows": rows, "V": keep, "H_C": -H(CV[:, :n_b]), "H_D": -H(CV[:, n_b:]), "H_M": -H(MV @ A)}
 
@@ -714,7 +716,7 @@ def _rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_c
     Ab = MV @ psi + CV[:, n_b:]
     flex = WY[:, m:] @ ((WY[:, m:].T @ Ab) / lam[m:, None])
     return {"psi": psi, "phi": WY[:, :m], "flex": flex, "m": m, "rank": int(W.shape[1]),
-            "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)}
+            "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), "WY": WY, "lam": lam}
 
 
 def reduce_array(a: np.ndarray, op: MPI.Op, comm: MPI.Comm) -> np.ndarray:
