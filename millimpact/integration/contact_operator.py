@@ -1,6 +1,7 @@
-"""The dense contact operator of a step size: W = A^-1 C^T (one multi-right-hand-side solve with the step's
-factorization, in chunks of ``W_CHUNK`` columns) and S = C W, replicated on every rank; gather/scatter of the
-small contact vectors, and the rows of C = [B; T] stacked.
+"""The dense contact operator of a step size: W = A^-1 C^T (multi-right-hand-side solves with the step's
+factorization, in chunks of ``W_CHUNK`` columns) and S = C W, replicated on every rank, both computed
+for the columns a step needs (the candidates that touch: :func:`solve_on_touching`); gather/scatter
+of the small contact vectors, and the rows of C = [B; T] stacked.
 """
 from __future__ import annotations
 
@@ -60,13 +61,161 @@ def stack_rows(mats: list[PETSc.Mat]) -> PETSc.Mat:
 
 @dataclass
 class ContactOperator:
-    """``W = A^-1 B^T`` (n x n_c, distributed MPIDENSE with A's row layout and B's row layout as
-    column layout, so ``W.mult`` takes a multiplier Vec) and ``S = B W`` (n_c x n_c numpy,
-    symmetrised, replicated on all ranks). Units: W in m/N, S in m/N."""
+    """``W = A^-1 C^T`` (n x n_c, distributed MPIDENSE with A's row layout and C's row layout as
+    column layout) and ``S = C W`` (n_c x n_c numpy, replicated on every rank), computed column by
+    column when asked (:meth:`ensure`). A step needs the columns of the candidates that touch
+    (:func:`solve_on_touching`): on the plastic liner panel a third of the 1,074 candidate rows or
+    fewer, where forming all of W was half of the time loop (49 of 102 s at 1 rank; a yielding step
+    takes a new tangent and its W). ``S`` (the property) completes every column; ``S_known``
+    holds the computed columns and, S being symmetric, their rows; its other entries are NaN.
+    Units: W and S in m/N."""
 
     W: PETSc.Mat
-    S: np.ndarray
-    n_rhs: int
+    S_known: np.ndarray
+    known: np.ndarray                  #: bool per column: computed
+    ksp: PETSc.KSP
+    C: PETSc.Mat
+    Ct_csr: tuple                      #: (rows, cols, values) of the local rows of C^T
+    chunk: int = W_CHUNK
+    n_rhs: int = 0                     #: columns computed so far (right-hand sides solved)
+
+    @property
+    def S(self) -> np.ndarray:
+        """The whole S = C A^-1 C^T (computes the columns not yet known)."""
+        self.ensure(np.arange(self.known.size))
+        return self.S_known
+
+    def ensure(self, cols: np.ndarray) -> int:
+        """Compute the columns ``cols`` of W and S not yet known (collective: every rank passes the
+        same ``cols``); returns how many it computed."""
+        cols = np.asarray(cols, dtype=np.int64)
+        new = np.unique(cols[~self.known[cols]])
+        if new.size == 0:
+            return 0
+        for j0 in range(0, new.size, self.chunk):
+            self._solve_columns(new[j0: j0 + self.chunk])
+        self.W.assemble()
+        # S[:, new] = C W[:, new], gathered on every rank
+        Wn = PETSc.Mat().createDense((self.W.getSizes()[0], (PETSc.DECIDE, new.size)), comm=self.W.getComm())
+        Wn.setUp()
+        Wn.getDenseArray()[:] = self.W.getDenseArray(readonly=True)[:, new]
+        Wn.assemble()
+        Sm = self.C.matMult(Wn)
+        loc = np.array(Sm.getDenseArray(), dtype=float)
+        comm = self.C.getComm().tompi4py()
+        part = np.vstack(comm.allgather(loc)) if comm.size > 1 else loc
+        Sm.destroy()
+        Wn.destroy()
+        # S is symmetric (A is): the new columns are also rows; where both halves were computed
+        # (the new columns against the known ones) their mean removes the rounding asymmetry
+        S, old = self.S_known, np.flatnonzero(self.known)
+        S[:, new] = part
+        both = 0.5 * (part[old, :] + S[np.ix_(new, old)].T)
+        S[np.ix_(old, new)] = both
+        S[np.ix_(new, old)] = both.T
+        S[np.ix_(new, new)] = 0.5 * (part[new, :] + part[new, :].T)
+        self.known[new] = True
+        self.n_rhs += new.size
+        return new.size
+
+    def _solve_columns(self, cols: np.ndarray) -> None:
+        """W[:, cols] = A^-1 C^T[:, cols]: one multi-right-hand-side solve with a factorization,
+        else one Krylov solve per column."""
+        rows, aj, av = self.Ct_csr
+        pos = np.full(self.known.size, -1, dtype=np.int64)
+        pos[cols] = np.arange(cols.size)
+        sel = pos[aj] >= 0
+        Wa = self.W.getDenseArray()
+        n_loc, n = self.W.getSizes()[0]
+        pc = self.ksp.getPC()
+        if pc.getType() in ("lu", "cholesky"):
+            R = PETSc.Mat().createDense(((n_loc, n), (PETSc.DECIDE, cols.size)), comm=self.W.getComm())
+            R.setUp()
+            Ra = R.getDenseArray()
+            Ra[:] = 0.0
+            Ra[rows[sel], pos[aj[sel]]] = av[sel]
+            R.assemble()
+            X = R.duplicate()
+            try:
+                pc.getFactorMatrix().matSolve(R, X)
+            except PETSc.Error as e:
+                raise SolverError(f"W = A^-1 C^T: MatMatSolve failed (PETSc error {e.ierr})") from e
+            Wa[:, cols] = X.getDenseArray()
+            R.destroy()
+            X.destroy()
+            return
+        b = self.ksp.getOperators()[0].createVecLeft()
+        x = b.duplicate()
+        for j in cols:
+            b.set(0.0)
+            s = aj == j
+            b.array[rows[s]] = av[s]
+            solve_checked(self.ksp, b, x, "W = A^-1 C^T column solve", 0, 0.0)
+            Wa[:, j] = x.array_r
+        b.destroy()
+        x.destroy()
+
+    def destroy(self) -> None:
+        self.W.destroy()
+
+
+def contact_operator(ksp_u: PETSc.KSP, C: PETSc.Mat, chunk: int = W_CHUNK) -> ContactOperator:
+    """The contact operator of the factorization in ``ksp_u`` with no column computed yet.
+    Memory: W is allocated whole, n x n_c doubles (150k x 300 -> 360 MB) per step size."""
+    (m_loc, n_c), (n_loc, n) = C.getSizes()
+    W = PETSc.Mat().createDense(((n_loc, n), (m_loc, n_c)), comm=C.getComm())
+    W.setUp()
+    W.assemble()
+    Ct = C.transpose(PETSc.Mat())
+    ai, aj, av = Ct.getValuesCSR()    # local rows of C^T, global column indices
+    csr = (np.repeat(np.arange(n_loc), np.diff(ai)), np.asarray(aj, dtype=np.int64), np.array(av))
+    Ct.destroy()
+    return ContactOperator(W, np.full((n_c, n_c), np.nan), np.zeros(n_c, dtype=bool), ksp_u, C, csr, chunk)
+
+
+def compute_contact_operator(ksp_u: PETSc.KSP, C: PETSc.Mat, chunk: int = W_CHUNK) -> ContactOperator:
+    """W = A^-1 C^T and S = C W for every candidate row (:class:`ContactOperator`, all columns)."""
+    op = contact_operator(ksp_u, C, chunk)
+    op.ensure(np.arange(op.known.size))
+    return op
+
+
+def node_columns(nodes: np.ndarray, n_c: int, frictional: bool) -> np.ndarray:
+    """The columns of C = [B; T] (T: t1 rows, then t2 rows) of the candidate ``nodes``:
+    [normal; t1; t2] of each, in that block order (the layout of :mod:`.friction`)."""
+    nodes = np.asarray(nodes, dtype=np.int64)
+    return np.concatenate([nodes, n_c + nodes, 2 * n_c + nodes]) if frictional else nodes
+
+
+def solve_on_touching(op: ContactOperator, q: np.ndarray, start: np.ndarray, gap_tol: float,
+                      frictional: bool, solve, comm) -> tuple[object, np.ndarray, np.ndarray]:
+    """The contact problem of a step solved on the candidates that touch, computing only their
+    columns of W (:meth:`ContactOperator.ensure`). ``q`` the predicted gaps of all n_c candidates
+    (m), ``start`` (bool, n_c) the nodes to begin with (the previous active set and the predicted
+    penetrations), ``solve(nodes, cols, S_sub)`` the problem restricted to ``nodes`` (``cols`` their
+    columns, :func:`node_columns`; ``S_sub = S[cols, cols]``), returning (result, x_sub), the same
+    on every rank. A node left out carries no force, so the restricted solution is the whole one
+    when every node left out stays open: g_i = q_i + S[i, cols] x_sub >= -gap_tol (the LCP's own
+    test); the nodes that fail it join and the problem is solved again. Returns (the last
+    result, the nodes, x over all columns: zero off ``cols``)."""
+    n_c = q.size
+    nodes = np.flatnonzero(start)
+    while True:
+        cols = node_columns(nodes, n_c, frictional)
+        op.ensure(cols)
+        res, x_sub = solve(nodes, cols, op.S_known[np.ix_(cols, cols)])
+        gap = q + op.S_known[:n_c, cols] @ x_sub
+        left_out = np.ones(n_c, dtype=bool)
+        left_out[nodes] = False
+        join = np.flatnonzero(left_out & (gap < -gap_tol))
+        if comm.size > 1:
+            join = comm.bcast(join, root=0)
+        if join.size == 0:
+            break
+        nodes = np.union1d(nodes, join)
+    x = np.zeros(op.known.size)
+    x[cols] = x_sub
+    return res, nodes, x
 
 
 def apply_contact_update(op: ContactOperator, x: np.ndarray, u_pred: PETSc.Vec, u_new: PETSc.Vec) -> None:
@@ -81,59 +230,3 @@ def apply_contact_update(op: ContactOperator, x: np.ndarray, u_pred: PETSc.Vec, 
     if nz.size:
         Wa = op.W.getDenseArray(readonly=True)
         out += Wa[:, nz] @ x[nz]
-
-
-def compute_contact_operator(ksp_u: PETSc.KSP, B: PETSc.Mat, chunk: int = W_CHUNK) -> ContactOperator:
-    """W = A^-1 B^T for all candidate rows with the factorization of ``ksp_u`` (multi-RHS solves of
-    ``chunk`` columns), and the small dense S = B W replicated on every rank.
-
-    Memory: W holds n x n_c doubles (150k x 300 -> 360 MB) per step size.
-    """
-    comm = B.getComm().tompi4py()
-    (m_loc, n_c), (n_loc, n) = B.getSizes()
-    pc = ksp_u.getPC()
-    F = pc.getFactorMatrix() if pc.getType() in ("lu", "cholesky") else None
-    W = PETSc.Mat().createDense(((n_loc, n), (m_loc, n_c)), comm=B.getComm())
-    W.setUp()
-    Wa = W.getDenseArray()          # local rows x all columns, a view
-    Bt = B.transpose(PETSc.Mat())
-    ai, aj, av = Bt.getValuesCSR()  # local rows of B^T, global column indices
-    rows = np.repeat(np.arange(n_loc), np.diff(ai))
-    for j0 in range(0, n_c, chunk):
-        j1 = min(n_c, j0 + chunk)
-        k = j1 - j0
-        if F is not None:
-            R = PETSc.Mat().createDense(((n_loc, n), (PETSc.DECIDE, k)), comm=B.getComm())
-            R.setUp()
-            Ra = R.getDenseArray()
-            Ra[:] = 0.0
-            sel = (aj >= j0) & (aj < j1)
-            Ra[rows[sel], aj[sel] - j0] = av[sel]
-            R.assemble()
-            X = R.duplicate()
-            try:
-                F.matSolve(R, X)
-            except PETSc.Error as e:
-                raise SolverError(f"W = A^-1 B^T: MatMatSolve failed (PETSc error {e.ierr})") from e
-            Wa[:, j0:j1] = X.getDenseArray()
-            R.destroy()
-            X.destroy()
-        else:   # an iterative u-block solver: one solve per column
-            b = ksp_u.getOperators()[0].createVecLeft()
-            x = b.duplicate()
-            for j in range(j0, j1):
-                b.set(0.0)
-                sel = aj == j
-                b.array[rows[sel]] = av[sel]
-                solve_checked(ksp_u, b, x, "W = A^-1 B^T column solve", 0, 0.0)
-                Wa[:, j] = x.array_r
-    W.assemble()
-    Bt.destroy()
-    Sm = B.matMult(W)
-    Sloc = np.array(Sm.getDenseArray(), dtype=float)
-    S = np.vstack(comm.allgather(Sloc)) if comm.size > 1 else Sloc
-    Sm.destroy()
-    S = 0.5 * (S + S.T)      # A is symmetric: remove the rounding asymmetry
-    return ContactOperator(W=W, S=S, n_rhs=n_c)
-
-

@@ -18,8 +18,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import solvers
-from .contact_operator import ContactOperator, apply_contact_update, compute_contact_operator
-from .lcp import solve_lcp
+from .contact_operator import ContactOperator, apply_contact_update, contact_operator, node_columns, solve_on_touching
+from .lcp import LCPResult, solve_lcp
 from .saddle_point import SaddlePointSolver
 from ..errors import InputError, SolverError
 from .contact_rows import ContactRows, broadcast
@@ -154,14 +154,26 @@ class NewmarkScheme:
         return op
 
     def _contact_operator(self, op: StepOperators) -> ContactOperator:
+        """The step size's contact operator (its columns are computed as steps need them)."""
         if op.contact is None:
-            t0 = time.perf_counter()
-            op.contact = compute_contact_operator(op.ksp_u, self.contact.C)
-            self.stats.n_w_columns += op.contact.n_rhs
-            if self.comm.rank == 0:
-                log.info("dt = %.4g s: W = A^-1 B^T for %d contact rows in %.2f s", op.dt, op.contact.n_rhs,
-                         time.perf_counter() - t0)
+            op.contact = contact_operator(op.ksp_u, self.contact.C)
         return op.contact
+
+    def _on_touching(self, C: ContactOperator, q: np.ndarray, gap_tol: float, solve):
+        """:func:`solve_on_touching` from the last active set and the predicted penetrations,
+        booking the columns of W it computed."""
+        before = C.n_rhs
+        out = solve_on_touching(C, q, self.active | (q < -gap_tol), gap_tol, self.frictional, solve, self.comm)
+        self.stats.n_w_columns += C.n_rhs - before
+        return out
+
+    def _lcp(self, C: ContactOperator, q: np.ndarray, gap_tol: float) -> LCPResult:
+        """The frictionless contact LCP of the step over all candidates, solved on those that touch."""
+        def solve(nodes, cols, S_sub):
+            r = broadcast(self.comm, solve_lcp(S_sub, q[nodes], self.active[nodes], gap_tol))
+            return r, r.lam
+        res, nodes, lam = self._on_touching(C, q, gap_tol, solve)
+        return LCPResult(lam, lam > 0, res.iterations, res.method)
 
     def step(self, dt: float, t_new: float, step: int, allow_reject: bool) -> bool:
         """Advance by dt; False (state unchanged) if ``allow_reject`` and a gap would close."""
@@ -186,7 +198,7 @@ class NewmarkScheme:
         if n_c and not np.all(q >= -gap_tol) and self.frictional:
             lam = self._friction_step(C, q, gap_tol, step)
         elif n_c and not np.all(q >= -gap_tol):
-            res = broadcast(self.comm, solve_lcp(C.S, q, self.active, gap_tol))
+            res = self._lcp(C, q, gap_tol)
             self.n_newton = res.iterations
             self.stats.n_lcp_fallback += res.method != "active-set"
             lam = res.lam
@@ -195,7 +207,7 @@ class NewmarkScheme:
             elif self.contact_solve == "schur":
                 apply_contact_update(C, lam, self.u_pred, self.u_new)
             else:
-                op.saddle.set_active(res.active, C.S, step, t_new)
+                op.saddle.set_active(res.active, C.S_known, step, t_new)
                 lam_s = op.saddle.solve(self.r, self.contact.g0, self.u_new, step, t_new)
                 self.stats.n_saddle_solves += 1
                 err = float(np.max(np.abs(lam_s - lam)))
@@ -260,24 +272,32 @@ class NewmarkScheme:
 
         self.tmp.waxpy(-1.0, self.u, self.u_pred)
         q_t = self.contact.slip(self.tmp)           # slip increment of the predictor, m
-        # dense and small: solved on rank 0 only (the ranks share cores), the answer broadcast
-        tau0 = self.tau if self.tau is not None and self.tau.size == 2 * q.size else None
-        res = (friction.solve_friction(C.S, q, q_t, self.mu, self.active, self.sliding, gap_tol, tau0)
-               if self.comm.rank == 0 else None)
-        res = broadcast(self.comm, res)
         n_c = q.size
-        x = np.concatenate([res.lam, res.tau])
+        tau0 = self.tau if self.tau is not None and self.tau.size == 2 * n_c else None
+
+        def solve(nodes, cols, S_sub):
+            # dense and small: solved on rank 0 only (the ranks share cores), the answer broadcast
+            pairs = np.concatenate([nodes, n_c + nodes])
+            r = (friction.solve_friction(S_sub, q[nodes], q_t[pairs], self.mu, self.active[nodes],
+                                         self.sliding[nodes], gap_tol, None if tau0 is None else tau0[pairs])
+                 if self.comm.rank == 0 else None)
+            r = broadcast(self.comm, r)
+            return r, np.concatenate([r.lam, r.tau])
+        res, nodes, x = self._on_touching(C, q, gap_tol, solve)
         apply_contact_update(C, x, self.u_pred, self.u_new)
-        ds = q_t + C.S[n_c:, :] @ x                 # slip increments over the step, m
-        self.stats.friction_work_J += max(0.0, -float(res.tau @ ds))
+        cols = node_columns(nodes, n_c, True)
+        ds = q_t + C.S_known[n_c:, cols] @ x[cols]  # slip increments over the step, m
+        lam, tau, slip = x[:n_c], x[n_c:], np.zeros(n_c, dtype=bool)
+        slip[nodes] = res.slip
+        self.stats.friction_work_J += max(0.0, -float(tau @ ds))
         self.stats.max_friction_passes = max(self.stats.max_friction_passes, res.iterations)
         self.stats.n_friction_fallback += res.n_fallback
-        self.stats.max_sliding_nodes = max(self.stats.max_sliding_nodes, int(np.count_nonzero(res.slip)))
+        self.stats.max_sliding_nodes = max(self.stats.max_sliding_nodes, int(np.count_nonzero(slip)))
         self.n_newton = res.iterations
         self.stats.n_newton += res.iterations
         self.stats.max_newton = max(self.stats.max_newton, res.iterations)
-        self.tau, self.sliding = res.tau, res.slip
-        return res.lam
+        self.tau, self.sliding = tau, slip
+        return lam
 
     def rate(self) -> np.ndarray:
         return self.contact.rate(self.v)

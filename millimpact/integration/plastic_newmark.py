@@ -45,8 +45,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import solvers
-from .contact_operator import ContactOperator, apply_contact_update, compute_contact_operator
-from .lcp import solve_lcp
+from .contact_operator import ContactOperator, apply_contact_update, contact_operator
 from ..errors import InputError, SolverError
 from .dynamics import IntegrationStats, LinearDynamics
 from .newmark import NewmarkScheme
@@ -195,9 +194,8 @@ class PlasticNewmarkScheme(NewmarkScheme):
             A_t = op.A.copy()
             A_t.axpy(1.0, dK, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
         ksp = solvers.create_effective_solver(A_t, self.petsc_options)
-        W = compute_contact_operator(ksp, self.contact.C)
+        W = contact_operator(ksp, self.contact.C)     # columns computed as the steps need them
         self.stats.n_tangent_factorizations += 1
-        self.stats.n_w_columns += W.n_rhs
         return A_t, ksp, W
 
     def _contact(self, W: ContactOperator, q: np.ndarray, gap_tol: float, step: int) -> np.ndarray:
@@ -212,19 +210,16 @@ class PlasticNewmarkScheme(NewmarkScheme):
         if self.frictional:
             lam = self._friction_step(W, q, gap_tol, step)
             return np.concatenate([lam, self.tau])
-        res = solve_lcp(W.S, q, self.active, gap_tol)
-        lam = self._broadcast(res.lam)
+        res = self._lcp(W, q, gap_tol)
+        lam = res.lam
         self.n_newton = res.iterations
         apply_contact_update(W, lam, self.u_pred, self.u_new)
         return lam
-
-    def _broadcast(self, a: np.ndarray) -> np.ndarray:
-        return self.comm.bcast(a, root=0) if self.comm.size > 1 else a
 
     @staticmethod
     def _release(owned) -> None:
         if owned is not None:
             A_t, ksp, W = owned
-            W.W.destroy()
+            W.destroy()
             ksp.destroy()
             A_t.destroy()
