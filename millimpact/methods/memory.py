@@ -10,6 +10,9 @@ and the factorizations dominate the peak. Fitted to the peak RSS of liner-panel 
 the margin covers what a whole impact at the plan's contact size adds to the short fitting runs
 (and full P2, fitted by full P1's law, its denser factors: :data:`FULL_P2_MARGIN`);
 the division by the ranks (MUMPS distributes its factors) is an assumption, not yet measured.
+A reduced run whose struck body is cut into slabs (:mod:`millimpact.reduction.substructures`,
+by itself from 600k interior DOFs) factorizes one slab at a time: its model is the largest slab's
+factorization by the same fit plus the model's matrices spread over the ranks (:data:`SLAB_MODEL`).
 ``full`` has its own fit; the reduced methods (``improved``, ``modal-p2``, ``traditional``,
 ``hertz-modal``) use the ``improved`` fit (factorization, SLEPc and the constraint modes dominate
 all of them); ``hertz`` is not checked.
@@ -27,7 +30,10 @@ import os
 from pathlib import Path
 from typing import NamedTuple, Optional
 
+from petsc4py import PETSc
+
 from ..errors import InputError
+from ..reduction.substructures import auto_slabs
 from ..scene.plan import Plan, smallest_size
 from ..scene.schema import Scene
 from ..scene.sizing import estimate_mesh
@@ -47,6 +53,12 @@ MEMORY_MARGIN = 1.4
 #: ... but full P2 (whose fit is full P1's) peaked at 2.27x it in a whole plastic impact (90.8k
 #: DOFs, 5.25 GB; elastic: 0.95x): one run measured
 FULL_P2_MARGIN = 2.3
+#: the substructured reduction (one slab factorized at a time on each rank, the largest the one
+#: around the zone): (the largest slab's share of the DOFs, bytes a DOF of the model's matrices
+#: spread over the ranks), from the liner panel's million-DOF run (1,194,723 DOFs, 2 ranks, 16
+#: slabs, margin 0.25: the zone's slab 244,114 DOFs, 20.4 %; busiest rank 10.9 GB, of it
+#: base + c L^(4/3) = 9.6 GB by the reduced fit): one run, the whole impact (no margin on top)
+SLAB_MODEL = (0.204, 2170.0)
 #: the exponent of N in the model (module docstring)
 EXPONENT = 4.0 / 3.0
 #: the Lagrange degree each method meshes with (``full``: the plan's or ``--degree``)
@@ -74,13 +86,26 @@ def method_degree(method: str, plan: Plan, options: Optional[dict] = None) -> in
     return int(asked) if asked not in (None, "") else plan.degree
 
 
+def substructured(dofs: int, options: Optional[dict] = None) -> bool:
+    """Whether a reduced run of ``dofs`` DOFs cuts its struck body into slabs
+    (``-impact_reduction_block_substructures``, or by itself: :func:`~millimpact.reduction.substructures.auto_slabs`)."""
+    raw = (options or {}).get("reduction_block_substructures") or \
+        PETSc.Options().getString("impact_reduction_block_substructures", "")
+    return int(raw) >= 2 if raw not in (None, "") else auto_slabs(dofs) >= 2
+
+
 def estimate_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None,
                     ranks: int = 1) -> MemoryEstimate:
     """Peak memory per rank (bytes) of a ``method`` run of ``scene`` with ``plan`` on ``ranks``
-    ranks: MEMORY_MARGIN (base + c N^(4/3) / ranks) (:data:`MEMORY_MODELS`), N the estimated DOFs."""
+    ranks: MEMORY_MARGIN (base + c N^(4/3) / ranks) (:data:`MEMORY_MODELS`), N the estimated DOFs;
+    a substructured reduction (:func:`substructured`): base + c L^(4/3) + b N / ranks with L the
+    largest slab (:data:`SLAB_MODEL`)."""
     degree = method_degree(method, plan, options)
     dofs = estimate_mesh(scene, plan).dofs(degree)
     base, c = MEMORY_MODELS["full" if method == "full" else "reduced"]
+    if method != "full" and substructured(dofs, options):
+        share, b = SLAB_MODEL
+        return MemoryEstimate(base + c * (share * dofs) ** EXPONENT + b * dofs / max(ranks, 1), dofs, degree, ranks)
     margin = FULL_P2_MARGIN if method == "full" and degree == 2 else MEMORY_MARGIN
     return MemoryEstimate(margin * (base + c * float(dofs) ** EXPONENT / max(ranks, 1)), dofs, degree, ranks)
 

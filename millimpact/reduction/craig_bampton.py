@@ -182,7 +182,7 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         Psi = None
         Cb = Db = rhs = None
         # slab-wise Ritz basis instead of one factorization of K_ii (option <prefix>substructures)
-        sub = (substructure_settings(prefix, opts) if f_cut is not None and n_modes is None and not augment
+        sub = (substructure_settings(prefix, opts, n_i) if f_cut is not None and n_modes is None and not augment
                else None)
         patterns = bool(sub is not None and sub.zone_degree and n_b)
         # zone-interface patterns: the interior's static responses to a few smooth interface motions

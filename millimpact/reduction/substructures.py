@@ -98,6 +98,16 @@ from .eigen import compute_modes
 
 log = logging.getLogger(__name__)
 
+#: interior dofs from which a body is cut into slabs without being asked: the liner panel's one
+#: factorization ran at 344k P2 DOFs (docs/scenes.md) and was estimated at 109 GB a rank at 1.2M
+#: (methods.memory), where 16 slabs ran in 21.0 GB on 2 ranks
+AUTO_MIN_DOFS = 600_000
+#: interior dofs a slab when cut without being asked (1.12M interior dofs -> 16 slabs, as run)
+AUTO_SLAB_DOFS = 70_000
+#: margin (shear wavelengths) and zone-interface pattern degree when cut without being asked: the
+#: million-DOF run's (0.5 and exact constraint modes ran out of memory there: docs/scenes.md)
+AUTO_MARGIN = 0.25
+AUTO_ZONE_DEGREE = 3
 #: histogram bins for the slabs' quantile cuts
 QUANTILE_BINS = 4096
 #: relative eigenvalue of a Gram matrix below which a direction counts as dependent (dropped)
@@ -116,10 +126,14 @@ class SubstructureSettings:
     zone_degree: int = 0           #: zone-interface patterns' polynomial degree (0: exact constraint modes)
 
 
-def substructure_settings(prefix: str, options: Optional[dict[str, str]]) -> Optional[SubstructureSettings]:
+def substructure_settings(prefix: str, options: Optional[dict[str, str]],
+                          n_interior: int = 0) -> Optional[SubstructureSettings]:
     """The body's settings from the command line (``-<prefix>substructures`` ...) or ``options``
     (their ranges checked by :func:`~millimpact.integration.solvers.check_type_options`, the CLI's
-    check); None for one factorization (S < 2)."""
+    check); None for one factorization (S < 2). Without ``substructures`` a body of
+    ``n_interior`` >= :data:`AUTO_MIN_DOFS` interior dofs is cut by itself (:func:`auto_slabs`),
+    with the margin and zone-interface patterns of the liner panel's million-DOF run
+    (:data:`AUTO_MARGIN`, :data:`AUTO_ZONE_DEGREE`) unless given."""
     keys = ("substructures", "substructure_f_factor", "substructure_trace_density", "substructure_margin",
             "substructure_compress", "substructure_zone_degree")
     with petsc_options({}, {k: v for k, v in (options or {}).items() if k in keys}, prefix=prefix):
@@ -127,13 +141,21 @@ def substructure_settings(prefix: str, options: Optional[dict[str, str]]) -> Opt
         raw = {k: db.getString(prefix + k, "") for k in keys}
     check_type_options({prefix + k: v for k, v in raw.items() if v})
     default = SubstructureSettings(0)
-    settings = SubstructureSettings(int(raw["substructures"] or 0),
+    auto = not raw["substructures"] and auto_slabs(n_interior) >= 2
+    settings = SubstructureSettings(auto_slabs(n_interior) if auto else int(raw["substructures"] or 0),
                                     float(raw["substructure_f_factor"] or default.f_factor),
                                     float(raw["substructure_trace_density"] or default.trace_density),
-                                    float(raw["substructure_margin"] or default.margin),
+                                    float(raw["substructure_margin"] or (AUTO_MARGIN if auto else default.margin)),
                                     float(raw["substructure_compress"] or default.compress),
-                                    int(raw["substructure_zone_degree"] or default.zone_degree))
+                                    int(raw["substructure_zone_degree"]
+                                        or (AUTO_ZONE_DEGREE if auto else default.zone_degree)))
     return settings if settings.slabs >= 2 else None
+
+
+def auto_slabs(n_interior: int) -> int:
+    """The slabs a body of ``n_interior`` interior dofs is cut into when no ``substructures`` is
+    given: 0 (one factorization) below :data:`AUTO_MIN_DOFS`, else one per :data:`AUTO_SLAB_DOFS`."""
+    return 0 if n_interior < AUTO_MIN_DOFS else int(math.ceil(n_interior / AUTO_SLAB_DOFS))
 
 
 # --- the slabs -------------------------------------------------------------------------------------

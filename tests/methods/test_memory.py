@@ -64,3 +64,18 @@ def test_refusal_under_mpi_is_per_rank_and_said_once(tmp_path):
     ours = [line for line in p.stderr.splitlines() if line.startswith("millimpact:")]
     assert p.returncode == 2 and len(ours) == 1, p.stderr
     assert "x 2 rank(s) on this node" in ours[0] and "Traceback" not in p.stderr
+
+
+def test_a_million_dof_reduction_is_estimated_by_its_slabs():
+    """The plan's default panel (~1.2M P2 DOFs) is cut into slabs by itself: its estimate is the
+    slab model's, far below one factorization's (asked for with substructures 1); a coarse panel
+    keeps one factorization and the old estimate."""
+    scene = builtin_scene("liner-panel")
+    plan = make_plan(scene)
+    slabs = estimate_memory(scene, plan, "improved", ranks=2)
+    one = estimate_memory(scene, plan, "improved", {"reduction_block_substructures": "1"}, ranks=2)
+    assert slabs.dofs > 1_000_000 and slabs.per_rank < 0.5 * one.per_rank
+    coarse_scene = scene.with_value("model.h_far", 0.05)
+    coarse = make_plan(coarse_scene)
+    assert (estimate_memory(coarse_scene, coarse, "improved").per_rank
+            == estimate_memory(coarse_scene, coarse, "improved", {"reduction_block_substructures": "1"}).per_rank)

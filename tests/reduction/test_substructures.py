@@ -332,3 +332,18 @@ def test_zone_pattern_recovery_of_a_harmonic_state(rig, block_static):
         plain = np.linalg.norm(PT - exact) / np.linalg.norm(exact)
         recovered = np.linalg.norm(PT + D @ x - w ** 2 * (C @ x) - exact) / np.linalg.norm(exact)
         assert recovered < 5e-3 and recovered < plain / 3
+
+
+def test_a_large_body_is_cut_into_slabs_by_itself():
+    """Without -..._substructures a body from AUTO_MIN_DOFS interior dofs is cut (one slab per
+    AUTO_SLAB_DOFS, the million-DOF run's margin and pattern degree); below it, or asked for 1,
+    one factorization; options given still win."""
+    from millimpact.reduction.substructures import (AUTO_MARGIN, AUTO_MIN_DOFS, AUTO_SLAB_DOFS,
+                                                    AUTO_ZONE_DEGREE, substructure_settings)
+    pre = "impact_reduction_block_"
+    assert substructure_settings(pre, {}, AUTO_MIN_DOFS - 1) is None
+    s = substructure_settings(pre, {}, 16 * AUTO_SLAB_DOFS)
+    assert (s.slabs, s.margin, s.zone_degree) == (16, AUTO_MARGIN, AUTO_ZONE_DEGREE)
+    assert substructure_settings(pre, {"substructures": "1"}, 16 * AUTO_SLAB_DOFS) is None
+    s = substructure_settings(pre, {"substructure_margin": "0.5", "substructure_zone_degree": "2"}, 16 * AUTO_SLAB_DOFS)
+    assert (s.slabs, s.margin, s.zone_degree) == (16, 0.5, 2)
