@@ -105,7 +105,7 @@ log = logging.getLogger(__name__)
 
 from . import cache as reduction_cache
 from .partition import BODIES, DofPartition, ZoneBasis, create_nodal_zone_basis, partition_dofs
-from .distributed import (dense_columns, dense_from_rows, gather_rows, local_columns_csr, ownership_offsets,
+from .distributed import (dense_columns, dense_from_rows, detached, gather_rows, local_columns_csr, ownership_offsets,
                           split_evenly)
 from .eigen import compute_modes, default_solver_options
 from .augmentation import AUGMENTATION_PATTERNS, compute_augmentation_load, compute_augmentation_vectors, interface_motion_pattern
@@ -172,8 +172,8 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         K_ii = K.createSubMatrix(I, I)
         M_ii = M.createSubMatrix(I, I)
         K_ia, M_ia = K.createSubMatrix(I, all_cols), M.createSubMatrix(I, all_cols)
-        C = K_ia.matMult(G_q)      # K_iz G   (n_i x n_q)
-        D = M_ia.matMult(G_q)      # M_iz G
+        C = detached(K_ia.matMult(G_q))      # K_iz G   (n_i x n_q)
+        D = detached(M_ia.matMult(G_q))      # M_iz G
         # interface coordinates: the non-zero columns of C and D
         cols_loc = np.unique(np.concatenate([C.getValuesCSR()[1], D.getValuesCSR()[1]]))
         qb = np.unique(np.concatenate(comm.allgather(cols_loc.astype(np.int64))))

@@ -44,6 +44,16 @@ def check_converged(ksp: PETSc.KSP, what: str) -> None:
         raise SolverError(f"{what}: KSP diverged with reason {reason} (prefix {ksp.getOptionsPrefix()})")
 
 
+def detached(P: PETSc.Mat) -> PETSc.Mat:
+    """A copy of the product ``P`` (of ``matMult`` and kin), which is then destroyed: PETSc keeps
+    a product's operands referenced for a later recomputation, so destroying them freed nothing
+    while the product lived (the interior rows K_ia, M_ia of the 1.2M-DOF panel, ~1 GB a rank,
+    stayed through the whole run behind K_iz G and M_iz G)."""
+    out = P.copy()
+    P.destroy()
+    return out
+
+
 def gather_rows(A: PETSc.Mat, comm: MPI.Comm) -> np.ndarray:
     """All rows of a (small) dense matrix on every rank, as a numpy array."""
     loc = np.array(A.getDenseArray(), copy=True)
