@@ -20,8 +20,9 @@ on the rig, so 1e-8 |r| left errors of 1e-4 in the peak force); a step with neit
 the round-off floor 1e-12 |r|. While no point yields the tangent is the elastic one and f_c is constant
 (the frozen plastic strain's), so such a step is the elastic step with one more right-hand side
 and converges in one iteration without refactorizing; a yielding step factorizes A + dK_k once
-per iteration and recomputes W_k (a solve per contact row). Each converged step books the plastic
-work of its return map (``stats.plastic_work_J``) and commits the zone's state; after separation
+per iteration and recomputes W_k (a solve per column of the candidates that touch, as the contact
+solve asks for them: :func:`.contact_operator.solve_on_touching`). Each converged step books the
+plastic work of its return map (``stats.plastic_work_J``) and commits the zone's state; after separation
 the plastic strain stays frozen and the free vibration is linear about the residual state.
 
 Tangent reuse (option ``plastic_tangent_reuse``, default 0.5; 0 = a new tangent every yielding
