@@ -106,7 +106,7 @@ log = logging.getLogger(__name__)
 from . import cache as reduction_cache
 from .partition import BODIES, DofPartition, ZoneBasis, create_nodal_zone_basis, partition_dofs
 from .distributed import (dense_columns, dense_from_rows, detached, gather_rows, local_columns_csr, ownership_offsets,
-                          split_evenly)
+                          return_freed_memory, split_evenly)
 from .eigen import compute_modes, default_solver_options
 from .augmentation import AUGMENTATION_PATTERNS, compute_augmentation_load, compute_augmentation_vectors, interface_motion_pattern
 from .reduced_model import BodyReduction, ReducedModel
@@ -191,6 +191,7 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
         CD_pat = zone_pattern_couplings(model, part, name, sub.zone_degree, K_ia, M_ia) if patterns else None
         K_ia.destroy()
         M_ia.destroy()
+        return_freed_memory()
         if n_b:
             # sparse interface columns (for the products) and a dense copy of C's (the right-hand
             # sides of the multi-RHS solve: MUMPS takes dense right-hand sides)
@@ -251,6 +252,7 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
                         m.destroy()
             data["substructures"] = res["stats"]
             data["timings"]["substructures"] = time.perf_counter() - t0
+            return_freed_memory()
         else:
             ksp = create_factored_solver(K_ii, prefix, opts)
             data["timings"]["factor"] = time.perf_counter() - t0

@@ -93,14 +93,14 @@ from numpy.polynomial import legendre
 from petsc4py import PETSc
 
 from ..integration.solvers import check_type_options, create_factored_solver, petsc_options
-from .distributed import dense_from_rows
+from .distributed import dense_from_rows, return_freed_memory
 from .eigen import compute_modes
 
 log = logging.getLogger(__name__)
 
 #: interior dofs from which a body is cut into slabs without being asked: the liner panel's one
 #: factorization ran at 344k P2 DOFs (docs/scenes.md) and was estimated at 109 GB a rank at 1.2M
-#: (methods.memory), where 16 slabs ran in 21.0 GB on 2 ranks
+#: (methods.memory), where 16 slabs ran in 17.1-18.7 GB on 2 ranks
 AUTO_MIN_DOFS = 600_000
 #: interior dofs a slab when cut without being asked (1.12M interior dofs -> 16 slabs, as run)
 AUTO_SLAB_DOFS = 70_000
@@ -502,6 +502,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         for v in vecs:
             v.destroy()
         ksp.destroy()
+        return_freed_memory()      # the slab's factors and Krylov basis: the next slab's room
         mine.append(_Slab(s, rows, K_ss, M_ss, K_sg_csr, M_sg_csr, np.hstack([X, Phi_s, X2]), used,
                           Phi_s.shape[1] + X2.shape[1],
                           {"slab": s, "rank": rank, "dofs": len(rows), "modes": int(Phi_s.shape[1]),
@@ -565,6 +566,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         t0 = time.perf_counter()
         ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
         phase["ritz_s"] += time.perf_counter() - t0
+    return_freed_memory()          # the second pass's factors and solves, before the expansion
     t0 = time.perf_counter()
     m = ritz["m"]
     freq = ritz["freq"]
