@@ -30,10 +30,9 @@ import os
 from pathlib import Path
 from typing import NamedTuple, Optional
 
-from petsc4py import PETSc
-
 from ..errors import InputError
-from ..reduction.substructures import auto_slabs
+from ..integration.solvers import normalize_options
+from ..reduction.substructures import substructure_settings
 from ..scene.plan import Plan, smallest_size
 from ..scene.schema import Scene
 from ..scene.sizing import estimate_mesh
@@ -93,9 +92,9 @@ def substructured(dofs: int, options: Optional[dict] = None) -> bool:
     (``-impact_reduction_block_substructures``, or by itself: :func:`~millimpact.reduction.substructures.auto_slabs`).
     The model's DOFs stand in for the region's interior dofs, which the plan does not know (the
     ball and the zone are ~6 % of the panel's): near the threshold the two can disagree."""
-    raw = (options or {}).get("reduction_block_substructures") or \
-        PETSc.Options().getString("impact_reduction_block_substructures", "")
-    return int(raw) >= 2 if raw not in (None, "") else auto_slabs(dofs) >= 2
+    body = "reduction_block_"       # the reduction's own decision, on the run's options for the block
+    mine = {k[len(body):]: v for k, v in normalize_options(options).items() if k.startswith(body)}
+    return substructure_settings("impact_" + body, mine, dofs) is not None
 
 
 def estimate_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None,
