@@ -556,6 +556,8 @@ def check_type_options(options: Mapping[str, object]) -> None:
                 ("substructure_trace_density", 0.0, math.inf,
                  "trace degrees per shear wavelength; 0: every interface dof; default 4"),
                 ("substructure_margin", 0.0, math.inf, "shear wavelengths at f_cut; default 0.5"),
+                ("substructure_across", 0.0, math.inf, "a slab over this x the mean slab is cut again across; "
+                                                       "0: never; default 2"),
                 ("substructure_compress", 0.0, 1.0, "relative Gram eigenvalue of a dropped second-pass direction; "
                                                     "0: keep all; default 1e-12")):
             if str(key).endswith(suffix):

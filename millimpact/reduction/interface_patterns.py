@@ -20,9 +20,8 @@ from petsc4py import PETSc
 
 from ..fem.model import FEModel
 from ..fem.probes import create_probe
-from .distributed import aij_from_local_csr, local_columns_csr
+from .distributed import aij_from_local_csr, local_columns_csr, orthonormal_columns, positions_in, reduce_array
 from .partition import BODIES, DofPartition
-from .substructures import orthonormal_columns, positions_in, reduce_array
 
 
 def zone_interface_patterns(coords: np.ndarray, comps: np.ndarray, degree: int, comm: MPI.Comm) -> np.ndarray:

@@ -21,8 +21,7 @@ from ..integration.solvers import create_factored_solver, solve_or_factorize
 log = logging.getLogger(__name__)
 
 from .partition import DofPartition, ZoneBasis
-from .distributed import aij_from_local_csr, dense_columns, gather_rows
-from .substructures import positions_in
+from .distributed import aij_from_local_csr, dense_columns, gather_rows, positions_in
 
 
 # --- the reduced model ---------------------------------------------------------------------------

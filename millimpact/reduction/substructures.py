@@ -12,17 +12,18 @@ review and improvements", Mech. Syst. Signal Process. 114 (2019) 579-603):
 
 1. The interior's dofs are cut into S slabs along the longest extent of the body, at quantiles of
    the dof count, moved at least ``margin`` (half a shear wavelength at f_cut) away from the dofs
-   coupled to the contact zone and from the gauges. The dofs of a slab that couple to a later slab form the
-   interface Gamma; the slabs' remaining dofs P_s are then uncoupled from each other:
-   K_ii = [diag(K_ss)  K_PG; K_GP  K_GG].
+   coupled to the contact zone and from the gauges; a slab of more than ``across`` x the mean
+   (the zone's) is cut again across (:mod:`.slab_cuts`; "slab" below is any piece). The dofs of a
+   slab that couple to a later slab form the interface Gamma; the slabs' remaining dofs P_s are
+   then uncoupled from each other: K_ii = [diag(K_ss)  K_PG; K_GP  K_GG].
 2. A Ritz basis V of the interior, per slab s (the slab's factorization serves all three):
 
    * fixed-interface modes of P_s (Gamma and the zone held) up to ``f_factor`` x f_cut;
    * static responses to the zone coordinates, Z_s = -K_ss^-1 C_s (zero on Gamma), and to their
      inertia, K_ss^-1 (M_ss Z_s + M_sz);
    * trace extensions: Gamma moves as t_k, the slabs follow statically, X_s = -K_ss^-1 K_sG t_k.
-     The traces t_k are per cut and per displacement component tensor Legendre polynomials of the
-     cut's two in-plane coordinates, degree ``trace_density`` x (extent / shear wavelength at
+     The traces t_k are per interface face and per displacement component tensor Legendre
+     polynomials of the face's two in-plane coordinates, degree ``trace_density`` x (extent / shear wavelength at
      f_cut) in each (``trace_density`` 0: every Gamma dof its own trace, the exact interface).
 3. Rayleigh-Ritz of the interior in span(V) (dense, a few thousand columns): K_V = V^T K_ii V,
    M_V = V^T M_ii V, C_V = V^T C (columns scaled to unit M-norm first). Then Psi = V psi with
@@ -62,7 +63,8 @@ Options (prefix ``impact_reduction_<body>_``): ``substructures`` S (0 or 1: one 
 ``substructure_margin`` (0.5 shear wavelengths at f_cut between a cut and the zone-coupled dofs
 or a gauge: closer, the static response to the zone varies too fast for the polynomial traces;
 the coarse panel's bolt gauge was off by 3x with a cut next to it), ``substructure_compress``
-(1e-12; 0 keeps every column of step 4), ``substructure_zone_degree`` (0).
+(1e-12; 0 keeps every column of step 4), ``substructure_zone_degree`` (0), ``substructure_across``
+(2; 0 keeps the slabs whole).
 
 Under MPI each rank takes whole slabs, the costliest first to the least loaded rank
 (:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
@@ -89,12 +91,13 @@ from typing import Optional
 import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
-from numpy.polynomial import legendre
 from petsc4py import PETSc
 
 from ..integration.solvers import check_type_options, create_factored_solver, petsc_options
-from .distributed import dense_from_rows, return_freed_memory
+from .distributed import (DEPENDENT_TOL, deliver_rows, dense_from_rows, gram_basis, positions_in, reduce_array,
+                          return_freed_memory)
 from .eigen import compute_modes
+from .slab_cuts import ACROSS_RATIO, cut_slabs, interface_faces, interface_next, polynomial_traces
 
 log = logging.getLogger(__name__)
 
@@ -108,10 +111,8 @@ AUTO_SLAB_DOFS = 70_000
 #: million-DOF run's (0.5 and exact constraint modes ran out of memory there: docs/scenes.md)
 AUTO_MARGIN = 0.25
 AUTO_ZONE_DEGREE = 3
-#: histogram bins for the slabs' quantile cuts
-QUANTILE_BINS = 4096
-#: relative eigenvalue of a Gram matrix below which a direction counts as dependent (dropped)
-DEPENDENT_TOL = 1e-12
+#: rows of a slab expanded and sent to their owners at a time (16k rows x ~300 columns: 40 MB)
+EXPAND_ROWS = 16384
 
 
 @dataclass(frozen=True)
@@ -124,6 +125,7 @@ class SubstructureSettings:
     margin: float = 0.5            #: shear wavelengths at f_cut between a cut and the zone or a gauge
     compress: float = 1e-12        #: second pass: relative Gram eigenvalue of a dropped direction (0: keep all)
     zone_degree: int = 0           #: zone-interface patterns' polynomial degree (0: exact constraint modes)
+    across: float = ACROSS_RATIO   #: a slab over this x the mean is cut again across (0: never)
 
 
 def substructure_settings(prefix: str, options: Optional[dict[str, str]],
@@ -135,7 +137,7 @@ def substructure_settings(prefix: str, options: Optional[dict[str, str]],
     with the margin and zone-interface patterns of the liner panel's million-DOF run
     (:data:`AUTO_MARGIN`, :data:`AUTO_ZONE_DEGREE`) unless given."""
     keys = ("substructures", "substructure_f_factor", "substructure_trace_density", "substructure_margin",
-            "substructure_compress", "substructure_zone_degree")
+            "substructure_compress", "substructure_zone_degree", "substructure_across")
     with petsc_options({}, {k: v for k, v in (options or {}).items() if k in keys}, prefix=prefix):
         db = PETSc.Options()
         raw = {k: db.getString(prefix + k, "") for k in keys}
@@ -148,7 +150,8 @@ def substructure_settings(prefix: str, options: Optional[dict[str, str]],
                                     float(raw["substructure_margin"] or (AUTO_MARGIN if auto else default.margin)),
                                     float(raw["substructure_compress"] or default.compress),
                                     int(raw["substructure_zone_degree"]
-                                        or (AUTO_ZONE_DEGREE if auto else default.zone_degree)))
+                                        or (AUTO_ZONE_DEGREE if auto else default.zone_degree)),
+                                    float(raw["substructure_across"] or default.across))
     return settings if settings.slabs >= 2 else None
 
 
@@ -159,125 +162,6 @@ def auto_slabs(n_interior: int) -> int:
 
 
 # --- the slabs -------------------------------------------------------------------------------------
-def slab_labels(coords: np.ndarray, zone_rows: np.ndarray, slabs: int, margin: float,
-                comm: MPI.Comm, keep_away: Optional[np.ndarray] = None) -> tuple[np.ndarray, int, np.ndarray]:
-    """Slab index per owned interior dof (its node's coordinate along the body's longest extent),
-    the axis and the cut positions: quantiles of the dof count, each moved out of the bands of
-    +-``margin`` around the zone-coupled dofs (``zone_rows``) and the ``keep_away`` points (to the
-    nearer edge of the merged band), cuts that then coincide dropped."""
-    lo = reduce_array(coords.min(axis=0) if len(coords) else np.full(3, np.inf), MPI.MIN, comm)
-    hi = reduce_array(coords.max(axis=0) if len(coords) else np.full(3, -np.inf), MPI.MAX, comm)
-    axis = int(np.argmax(hi - lo))
-    x = coords[:, axis]
-    counts = reduce_array(np.histogram(x, bins=QUANTILE_BINS, range=(lo[axis], hi[axis]))[0].astype(float),
-                          MPI.SUM, comm)
-    edges = np.linspace(lo[axis], hi[axis], QUANTILE_BINS + 1)
-    cum = np.cumsum(counts) / max(counts.sum(), 1)
-    cuts = [float(edges[1 + np.searchsorted(cum, k / slabs)]) for k in range(1, slabs)]
-    zx = x[zone_rows]
-    z_lo = comm.allreduce(zx.min() if len(zx) else np.inf, op=MPI.MIN)
-    z_hi = comm.allreduce(zx.max() if len(zx) else -np.inf, op=MPI.MAX)
-    bands = [(z_lo - margin, z_hi + margin)] if z_lo <= z_hi else []
-    bands += [(p[axis] - margin, p[axis] + margin) for p in np.reshape(keep_away if keep_away is not None
-                                                                        else np.zeros((0, 3)), (-1, 3))]
-    merged: list[list[float]] = []
-    for b in sorted(bands):
-        if merged and b[0] <= merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], b[1])
-        else:
-            merged.append(list(b))
-    for band in merged:
-        cuts = [c if not band[0] < c < band[1] else (band[0] if c - band[0] < band[1] - c else band[1])
-                for c in cuts]
-    h = (hi[axis] - lo[axis]) * 1e-3
-    cuts = sorted(c for c in set(round(c, 12) for c in cuts) if lo[axis] + h < c < hi[axis] - h)
-    return np.searchsorted(np.asarray(cuts), x).astype(np.int32), axis, np.asarray(cuts)
-
-
-def interface_flags(K_ii: PETSc.Mat, labels: np.ndarray) -> np.ndarray:
-    """Per owned row of K_ii: does it couple to a dof of a later slab? (Those rows form Gamma; the
-    other rows of different slabs are then uncoupled.)"""
-    comm = K_ii.getComm()
-    lab = K_ii.createVecRight()
-    lab.array[:] = labels
-    indptr, indices, _ = K_ii.getValuesCSR()
-    need = np.unique(indices).astype(np.int32)
-    seq = PETSc.Vec().createSeq(len(need), comm=PETSc.COMM_SELF)
-    sc = PETSc.Scatter().create(lab, PETSc.IS().createGeneral(need, comm=comm), seq, None)
-    sc.scatter(lab, seq, addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-    col_label = seq.array[np.searchsorted(need, indices)]
-    row_max = np.full(len(labels), -1.0)
-    rows = np.repeat(np.arange(len(labels)), np.diff(indptr))
-    np.maximum.at(row_max, rows, col_label)
-    for obj in (sc, seq, lab):
-        obj.destroy()
-    return row_max > labels
-
-
-def polynomial_traces(coords: np.ndarray, comps: np.ndarray, cut: np.ndarray, axis: int, wavelength: float,
-                      density: float, comm: MPI.Comm) -> list[sp.csr_matrix]:
-    """Per cut, the trace basis on this rank's Gamma rows (``cut``: each row's cut index; sparse:
-    zero off the cut's rows): tensor Legendre polynomials of the two in-plane coordinates per
-    displacement component, orthonormal over the cut's rows (dependent combinations dropped).
-    ``density`` 0: the identity."""
-    plane = [a for a in range(3) if a != axis]
-    n_cuts = comm.allreduce(int(cut.max()) + 1 if len(cut) else 0, op=MPI.MAX)
-    blocks = []
-    for c in range(n_cuts):
-        mine = cut == c
-        rows = np.nonzero(mine)[0]
-        if density == 0:
-            n_c = comm.allreduce(int(mine.sum()))
-            off = comm.exscan(int(mine.sum())) or 0
-            blocks.append(sp.csr_matrix((np.ones(len(rows)), (rows, off + np.arange(len(rows)))),
-                                        shape=(len(cut), n_c)))
-            continue
-        p = coords[mine][:, plane]
-        lo = reduce_array(p.min(axis=0) if len(p) else np.full(2, np.inf), MPI.MIN, comm)
-        hi = reduce_array(p.max(axis=0) if len(p) else np.full(2, -np.inf), MPI.MAX, comm)
-        ext = np.maximum(hi - lo, 1e-300)
-        deg = [max(1, int(math.ceil(density * e / wavelength))) for e in ext]
-        s = 2.0 * (p - lo) / ext - 1.0
-        Pa, Pb = legendre.legvander(s[:, 0], deg[0]), legendre.legvander(s[:, 1], deg[1])
-        poly = (Pa[:, :, None] * Pb[:, None, :]).reshape(len(p), (deg[0] + 1) * (deg[1] + 1))
-        B = np.zeros((len(rows), 3 * poly.shape[1]))
-        for comp in range(3):
-            sel = comps[mine] == comp
-            B[sel, comp * poly.shape[1]:(comp + 1) * poly.shape[1]] = poly[sel]
-        blocks.append(_place_rows(sp.csr_matrix(orthonormal_columns(B, comm)), rows, len(cut)))
-    return blocks
-
-
-def positions_in(sorted_values: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(pos, found): where each of ``x`` sits in the sorted array, and whether it is there."""
-    pos = np.searchsorted(sorted_values, x)
-    found = (pos < len(sorted_values)) & (sorted_values[np.minimum(pos, len(sorted_values) - 1)] == x)
-    return pos, found
-
-
-def _place_rows(A: sp.csr_matrix, rows: np.ndarray, n: int) -> sp.csr_matrix:
-    """A's rows put at ``rows`` of an n-row sparse matrix (zeros elsewhere)."""
-    coo = A.tocoo()
-    return sp.csr_matrix((coo.data, (rows[coo.row], coo.col)), shape=(n, A.shape[1]))
-
-
-def gram_basis(G: np.ndarray, tol: float, scaled: bool = True) -> np.ndarray:
-    """Coefficients W (k x r) with W^T G W = I spanning the range of a Gram matrix G (k x k): the
-    eigenvectors of G (``scaled``: of G with its columns scaled to unit norm first) whose eigenvalue
-    is above ``tol`` x the largest; the rest count as dependent directions and are dropped."""
-    G = 0.5 * (G + G.T)
-    d = 1.0 / np.sqrt(np.maximum(np.diag(G), 1e-300)) if scaled else np.ones(len(G))
-    lam, U = np.linalg.eigh(d[:, None] * G * d[None, :])
-    keep = lam > tol * max(lam.max(initial=0.0), 1e-300)
-    return d[:, None] * (U[:, keep] / np.sqrt(lam[keep]))
-
-
-def orthonormal_columns(B: np.ndarray, comm: MPI.Comm) -> np.ndarray:
-    """Columns spanning range(B) (rows distributed), orthonormal in the (distributed) Gram B^T B;
-    dependent directions dropped."""
-    return B @ gram_basis(reduce_array(B.T @ B, MPI.SUM, comm), DEPENDENT_TOL, scaled=False)
-
-
 def mass_orthonormal_columns(X: np.ndarray, M: PETSc.Mat, tol: float) -> np.ndarray:
     """An M-orthonormal basis of range(X) (M sequential): directions whose Gram eigenvalue, with the
     columns scaled to unit M-norm, is below ``tol`` times the largest are dropped."""
@@ -364,6 +248,12 @@ class _Slab:
     projected: int = 0             #: columns of B already in K_V, M_V (see _project_slab)
     n_new: int = 0                 #: columns the second pass added
 
+    def release(self) -> None:
+        """Free the slab's matrices and basis rows (after the expansion)."""
+        self.K_ss.destroy()
+        self.M_ss.destroy()
+        self.K_sg = self.M_sg = self.B = None
+
 
 def _solve(ksp: PETSc.KSP, rhs: np.ndarray, chunk: int = 128) -> np.ndarray:
     """A^-1 rhs with a factored sequential KSP (multi-right-hand-side solves of ``chunk`` columns:
@@ -443,15 +333,18 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     t_start = time.perf_counter()
     wavelength = shear_speed / f_cut
     zone_rows = np.nonzero(np.diff(C.indptr))[0]
-    labels, axis, cuts = slab_labels(coords, zone_rows, settings.slabs, settings.margin * wavelength, comm,
-                                     keep_away)
-    on_gamma = interface_flags(K_ii, labels)
+    cut = cut_slabs(coords, zone_rows, settings.slabs, settings.margin * wavelength, comm, keep_away,
+                    settings.across)
+    labels = cut.labels
+    nxt = interface_next(K_ii, labels)
+    on_gamma = nxt >= 0
     r0 = K_ii.getOwnershipRange()[0]
     n_i = K_ii.getSize()[0]
     n_loc = len(labels)
     gamma = np.nonzero(on_gamma)[0]
-    traces = polynomial_traces(coords[gamma], comps[gamma], labels[gamma], axis, wavelength,
-                               settings.trace_density, comm)
+    face, faces = interface_faces(labels, nxt, comm)
+    traces = polynomial_traces(coords[gamma], comps[gamma], face, [cut.normal(a, b) for a, b in faces],
+                               wavelength, settings.trace_density, comm)
     T = sp.hstack(traces).tocsr() if traces else sp.csr_matrix((len(gamma), 0))
     n_t, n_b = T.shape[1], C.shape[1]
     t_idx = n_b + np.arange(n_t)          # Ritz columns: [zone statics (n_b) | traces (n_t) | slabs' own]
@@ -460,7 +353,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     # sparse: a Gamma row has only its own cut's traces (dense, 1.6 GB a rank at 1.2M DOFs, 15 cuts)
     T_full = sp.vstack(comm.allgather(T)).tocsr() if n_t else sp.csr_matrix((len(gamma_glob), 0))
     CD_full = _global_rows(sp.hstack([C, D]).tocsr(), r0, n_i, comm)
-    n_slabs = len(cuts) + 1
+    n_slabs = cut.pieces
     slab_rows = [np.concatenate(comm.allgather((r0 + np.nonzero((labels == s) & ~on_gamma)[0]).astype(np.int64)))
                  for s in range(n_slabs)]
     slab_ids = [s for s in range(n_slabs) if len(slab_rows[s])]
@@ -597,20 +490,21 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         for out, a, b in zip(targets, bounds[:-1], bounds[1:]):
             out[local_rows] = block[:, a:b]
 
-    outgoing: list[list] = [[] for _ in range(size)]
-    for sl in mine:
-        block = sl.B @ np.hstack([c[sl.cols] for c in parts])
-        dest = np.searchsorted(starts, sl.rows, side="right") - 1
-        for d in np.unique(dest):
-            sel = dest == d
-            if d == rank:                        # this rank's own rows: no copy through MPI
-                put(sl.rows[sel] - starts[d], block[sel])
-            else:
-                outgoing[d].append((sl.rows[sel] - starts[d], block[sel]))
-        del block
-    for pieces in comm.alltoall(outgoing):
-        for local_rows, block in pieces:
-            put(local_rows, block)
+    coef = np.hstack(parts)
+    ritz_rank = ritz["rank"]
+    del KV, MV, CV, ritz, parts        # the dense Ritz matrices: not needed for the expansion
+
+    def pieces():
+        """This rank's slabs' rows of the results, EXPAND_ROWS at a time; a slab's matrices and
+        basis freed once its rows are out (they are not needed after the projections)."""
+        for sl in mine:
+            c = coef[sl.cols]
+            for j in range(0, len(sl.rows), EXPAND_ROWS):
+                yield sl.rows[j:j + EXPAND_ROWS], sl.B[j:j + EXPAND_ROWS] @ c
+            sl.release()
+            return_freed_memory()
+
+    deliver_rows(pieces(), starts, coef.shape[1], put, comm)
     for A in (Psi, flex):
         if A is not None:
             A.assemble()
@@ -618,27 +512,24 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     t0 = time.perf_counter()
     residual = constraint_residual(K_ii, Psi, C, comm) if n_b and Psi is not None else 0.0
     phase["residual_s"] = time.perf_counter() - t0
-    for sl in mine:
-        sl.K_ss.destroy()
-        sl.M_ss.destroy()
     slab_stats = sorted((x for part in comm.allgather([sl.stats for sl in mine]) for x in part),
                         key=lambda x: x["slab"])
-    stats = {"slabs": slab_stats, "axis": "xyz"[axis], "cuts_m": [float(c) for c in cuts],
+    stats = {"slabs": slab_stats, **cut.stats(), "interface_faces": len(faces),
              "interface_dofs": len(gamma_glob), "traces": n_t,
              **({"zone_patterns": n_b, "pattern_vectors": len(f_pat)} if patterns else {"interface_coordinates": n_b}),
-             "ritz_columns": n_cols, "ritz_rank": ritz["rank"], "slab_modes": int(sum(x["modes"] for x in slab_stats)),
+             "ritz_columns": n_cols, "ritz_rank": ritz_rank, "slab_modes": int(sum(x["modes"] for x in slab_stats)),
              # phases (s): this rank's slabs, and on rank 0 the projections, the dense Ritz solves, the
              # second pass, the expansion into Psi / Phi / R A_b and Psi's residual
              "pass1_s_by_rank": [round(x, 3) for x in comm.allgather(phase.pop("pass1_s"))],
              **{k: round(v, 3) for k, v in phase.items()}, "total_s": round(time.perf_counter() - t_start, 3)}
     if comm.rank == 0:
-        log.info("substructures %s: %d slabs along %s (cuts %s m) on %d rank(s), %d interface dofs -> %d "
-                 "traces, %d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s", prefix, len(slab_ids),
-                 stats["axis"], ", ".join(f"{c:.4g}" for c in cuts), size, stats["interface_dofs"], n_t,
+        log.info("substructures %s: %d slabs along %s (cuts %s m; %d cut again across) on %d rank(s), %d "
+                 "interface dofs -> %d traces, %d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s", prefix,
+                 len(slab_ids), stats["axis"], ", ".join(f"{c:.4g}" for c in cut.cuts), len(cut.across), size,
+                 stats["interface_dofs"], n_t,
                  stats["slab_modes"], n_cols, m, stats["total_s"])
-    nxt = float(freq[m]) if m < len(freq) else math.nan
     return {"Psi": Psi, "Phi": Phi, "flex": flex, "freq": np.concatenate([freq[:m], f_pat]) if patterns else freq[:m],
-            "n_patterns": len(f_pat) if patterns else 0, "next": nxt, "residual": residual, "stats": stats,
+            "n_patterns": len(f_pat) if patterns else 0, "next": float(freq[m]) if m < len(freq) else math.nan, "residual": residual, "stats": stats,
             "recovery": recovery, "grams": grams}
 
 
@@ -743,10 +634,3 @@ def _rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_c
             "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), "WY": WY, "lam": lam}
 
 
-def reduce_array(a: np.ndarray, op: MPI.Op, comm: MPI.Comm) -> np.ndarray:
-    """Element-wise Allreduce of a float array (mpi4py's pickling allreduce is not element-wise
-    for MIN / MAX / LOR)."""
-    a = np.ascontiguousarray(a, dtype=float)
-    out = np.empty_like(a)
-    comm.Allreduce(a, out, op=op)
-    return out

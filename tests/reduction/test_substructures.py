@@ -30,14 +30,14 @@ def one_factor(rig):
 
 
 def substructured(rig, slabs: int = 2, density: float = 0.0, f_factor: float = 1.5, compress: float = 1e-12,
-                  zone_degree: int = 0):
+                  zone_degree: int = 0, across: float = 0.0):
     from millimpact.reduction.craig_bampton import reduce_model
 
     model, plan = rig
     return reduce_model(model, f_cut=plan.f_cut, solver_options={
         "substructures": str(slabs), "substructure_trace_density": str(density),
         "substructure_f_factor": str(f_factor), "substructure_margin": "0", "substructure_compress": str(compress),
-        "substructure_zone_degree": str(zone_degree)},
+        "substructure_zone_degree": str(zone_degree), "substructure_across": str(across)},
         keep_away=np.array([g.point for g in plan.probes.gauges]))
 
 
@@ -101,6 +101,51 @@ def test_exact_interface_gives_the_constraint_modes_and_upper_bound_frequencies(
     rel = sub.frequencies_hz / ref.frequencies_hz - 1
     assert rel.min() > -1e-9
     assert rel.max() < 1e-3
+
+
+def test_slabs_cut_across_keep_the_exact_interface(rig, one_factor):
+    """Both slabs cut again across (across 0.5: any slab over half the mean): the pieces' interfaces
+    meet at right angles (faces across either axis), and with every interface dof its own trace
+    Psi is still the one-factorization Psi (1e-6 as above) and the frequencies upper bounds
+    within 1e-3: the pieces' remaining dofs are uncoupled, or the Ritz space would miss K_ii^-1 C."""
+    red = substructured(rig, slabs=2, across=0.5)
+    ref, sub = one_factor.bodies[1], red.bodies[1]
+    st = sub.substructures
+    assert len(st["cuts_m"]) == 1 and len(st["across"]) == 2
+    assert len(st["slabs"]) == 2 + sum(len(a["cuts_m"]) for a in st["across"].values()) >= 4
+    assert st["interface_faces"] > 1 + len(st["across"])       # the cross faces and the first cut's
+    assert st["traces"] == st["interface_dofs"] > 0
+    P0, P = ref.Psi.getDenseArray(), sub.Psi.getDenseArray()
+    assert np.linalg.norm(P - P0) / np.linalg.norm(P0) < 1e-6
+    rel = sub.frequencies_hz / ref.frequencies_hz - 1
+    assert sub.n_modes == ref.n_modes and rel.min() > -1e-9 and rel.max() < 1e-3
+
+
+def test_the_zone_slab_is_cut_across_outside_the_bands():
+    """cut_slabs on a synthetic body (1 x 0.6 x 0.1 m, a dense cluster of dofs at the 'zone'): the
+    zone's band widens its slab past twice the mean, so it is cut again along the longest other
+    extent (y), every cut at least the margin from the zone's dofs along its axis; across 0 keeps
+    the slabs whole."""
+    from millimpact.reduction.slab_cuts import cut_slabs
+
+    rng = np.random.default_rng(0)
+    far = rng.uniform([0, 0, 0], [1.0, 0.6, 0.1], size=(20000, 3))
+    near = np.array([0.5, 0.3, 0.1]) + rng.uniform([-0.15, -0.15, -0.05], [0.15, 0.15, 0.0], size=(20000, 3))
+    coords = np.vstack([far, near])
+    zone = np.nonzero(np.linalg.norm(coords - [0.5, 0.3, 0.1], axis=1) < 0.03)[0]
+    margin = 0.08
+    cut = cut_slabs(coords, zone, 6, margin, MPI.COMM_SELF)
+    assert cut.axis == 0
+    zx = coords[zone]
+    assert all(c <= zx[:, 0].min() - margin + 1e-9 or c >= zx[:, 0].max() + margin - 1e-9 for c in cut.cuts)
+    (s, (a2, sub)), = cut.across.items()                # the zone's slab alone is cut across
+    assert a2 == 1 and len(sub) >= 1
+    assert all(c <= zx[:, 1].min() - margin + 1e-9 or c >= zx[:, 1].max() + margin - 1e-9 for c in sub)
+    assert cut.pieces == len(cut.cuts) + 1 + len(sub)
+    assert np.array_equal(np.unique(cut.labels), np.arange(cut.pieces))
+    assert cut.normal(s + 0, s + 1) == 1 and cut.normal(0, 1) == 0
+    whole = cut_slabs(coords, zone, 6, margin, MPI.COMM_SELF, across_ratio=0.0)
+    assert not whole.across and whole.pieces == len(whole.cuts) + 1
 
 
 def test_inverse_iteration_pass_makes_the_modes_near_f_cut_accurate(rig, one_factor):
@@ -171,15 +216,16 @@ def test_polynomial_traces_converge_to_the_exact_interface(rig, one_factor):
     assert err[1] < err[0]
 
 
-@pytest.mark.parametrize("slabs, zone_degree", [(2, 0), (3, 0), (3, 2)])
-def test_substructured_reduction_under_mpi_matches_serial(rig, tmp_path, slabs, zone_degree):
+@pytest.mark.parametrize("slabs, zone_degree, across", [(2, 0, 0), (3, 0, 0), (3, 2, 0), (2, 2, 0.5)])
+def test_substructured_reduction_under_mpi_matches_serial(rig, tmp_path, slabs, zone_degree, across):
     """mpirun -n 2 gives the serial frequencies and constraint-mode norms (1e-9: the slabs'
     factorizations are MUMPS against CHOLMOD in serial, to rounding). 3 slabs on 2 ranks: one rank
     reduces two, the other one (the collective gathering with unequal slab counts). With
-    zone-interface patterns (no Psi): the norm of Phi (rotations of its columns leave it alone)."""
+    zone-interface patterns (no Psi): the norm of Phi (rotations of its columns leave it alone).
+    Slabs cut across (across 0.5): the pieces' labels and faces agree over the ranks."""
     if MPI.COMM_WORLD.size > 1:
         pytest.skip("runs its own mpirun")
-    red = substructured(rig, slabs=slabs, density=2.0, zone_degree=zone_degree)
+    red = substructured(rig, slabs=slabs, density=2.0, zone_degree=zone_degree, across=across)
     b = red.bodies[1]
     serial = np.concatenate([b.frequencies_hz, [(b.Psi or b.Phi).norm(), red.K.norm(), red.M.norm()]])
     code = f"""
@@ -196,7 +242,8 @@ for k, v in {SMALL!r}.items():
 plan = make_plan(scene)
 model = create_fe_model(create_mesh(scene, plan, MPI.COMM_WORLD), plan, 2)
 red = reduce_model(model, f_cut=plan.f_cut, solver_options={{"substructures": "{slabs}",
-    "substructure_trace_density": "2.0", "substructure_margin": "0", "substructure_zone_degree": "{zone_degree}"}},
+    "substructure_trace_density": "2.0", "substructure_margin": "0", "substructure_zone_degree": "{zone_degree}",
+    "substructure_across": "{across}"}},
     keep_away=np.array([g.point for g in plan.probes.gauges]))
 b = red.bodies[1]
 out = np.concatenate([b.frequencies_hz, [(b.Psi or b.Phi).norm(), red.K.norm(), red.M.norm()]])
