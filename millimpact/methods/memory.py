@@ -58,7 +58,8 @@ FULL_P2_MARGIN = 2.3
 #: ranks, 16 slabs, margin 0.25: the zone's slab 244,114 DOFs, 20.4 %): base + c L^(4/3) by the
 #: reduced fit is 9.6 GB, the busiest rank peaked at 8.88 GB (10.1-10.9 GB before the products
 #: K_iz G, M_iz G stopped holding the interior rows of K and M): no term on top (one run, a whole
-#: impact, 8 % high)
+#: impact, 8 % high). Since the zone's slab is cut again across (its largest piece 80k dofs) the
+#: busiest rank peaks at 7.67-7.83 GB: the estimate is ~22 % high, kept (one measured size)
 SLAB_MODEL = (0.204, 0.0)
 #: the exponent of N in the model (module docstring)
 EXPONENT = 4.0 / 3.0
