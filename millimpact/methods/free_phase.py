@@ -31,6 +31,7 @@ from petsc4py import PETSc
 
 from ..fem.contact import ContactSet
 from ..integration import integrators
+from ..integration.solvers import return_freed_memory
 from ..reduction.free_modes import ModalProjection, compute_free_modes
 from ..reduction.reduced_model import ReducedModel
 from ..results.reduced_recorder import ReducedRecorder
@@ -98,6 +99,9 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
             continue
         if modal is None:
             t0 = time.perf_counter()
+            # the stepping's factorizations are freed: their memory back before the free modes'
+            # (coarse plastic liner panel: 1.30 -> 1.05 GB; the free modes then add 0.13 GB)
+            return_freed_memory()
             modal = compute_free_modes(red, f_free, mass=mass)
             out["free_modes_time"] = time.perf_counter() - t0
             out["free_modes"] = modal.n_global

@@ -99,14 +99,14 @@ from petsc4py import PETSc
 
 from ..errors import InputError, SolverError
 from ..fem.model import FEModel
-from ..integration.solvers import create_factored_solver, note_option_read
+from ..integration.solvers import create_factored_solver, note_option_read, return_freed_memory
 
 log = logging.getLogger(__name__)
 
 from . import cache as reduction_cache
 from .partition import BODIES, DofPartition, ZoneBasis, create_nodal_zone_basis, partition_dofs
 from .distributed import (dense_columns, dense_from_rows, detached, gather_rows, local_columns_csr, ownership_offsets,
-                          return_freed_memory, split_evenly)
+                          split_evenly)
 from .eigen import compute_modes, default_solver_options
 from .augmentation import AUGMENTATION_PATTERNS, compute_augmentation_load, compute_augmentation_vectors, interface_motion_pattern
 from .reduced_model import BodyReduction, ReducedModel

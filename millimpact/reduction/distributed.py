@@ -5,7 +5,6 @@ directions dropped).
 """
 from __future__ import annotations
 
-import ctypes
 import logging
 
 import numpy as np
@@ -47,15 +46,6 @@ def check_converged(ksp: PETSc.KSP, what: str) -> None:
     reason = ksp.getConvergedReason()
     if reason < 0:
         raise SolverError(f"{what}: KSP diverged with reason {reason} (prefix {ksp.getOptionsPrefix()})")
-
-
-def return_freed_memory() -> None:
-    """Hand the memory the process has freed back to the system (glibc's ``malloc_trim(0)``: it
-    releases the free pages inside the heap too, not only at its top); no-op elsewhere."""
-    try:
-        ctypes.CDLL("libc.so.6").malloc_trim(0)
-    except (OSError, AttributeError):
-        pass
 
 
 def deliver_rows(blocks, starts: np.ndarray, n_cols: int, put, comm: MPI.Comm) -> None:

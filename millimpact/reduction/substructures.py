@@ -93,9 +93,8 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..integration.solvers import check_type_options, create_factored_solver, petsc_options
-from .distributed import (DEPENDENT_TOL, deliver_rows, dense_from_rows, gram_basis, positions_in, reduce_array,
-                          return_freed_memory)
+from ..integration.solvers import check_type_options, create_factored_solver, petsc_options, return_freed_memory
+from .distributed import DEPENDENT_TOL, deliver_rows, dense_from_rows, gram_basis, positions_in, reduce_array
 from .eigen import compute_modes
 from .slab_cuts import ACROSS_RATIO, cut_slabs, interface_faces, interface_next, polynomial_traces
 
