@@ -23,8 +23,9 @@ review and improvements", Mech. Syst. Signal Process. 114 (2019) 579-603):
      inertia, K_ss^-1 (M_ss Z_s + M_sz);
    * trace extensions: Gamma moves as t_k, the slabs follow statically, X_s = -K_ss^-1 K_sG t_k.
      The traces t_k are per interface face and per displacement component tensor Legendre
-     polynomials of the face's two in-plane coordinates, degree ``trace_density`` x (extent / shear wavelength at
-     f_cut) in each (``trace_density`` 0: every Gamma dof its own trace, the exact interface).
+     polynomials of the face's two in-plane coordinates, degree ``trace_density`` x (extent /
+     shear wavelength at f_cut) in each (``trace_density`` 0: every Gamma dof its own trace, the
+     exact interface).
 3. Rayleigh-Ritz of the interior in span(V) (dense, a few thousand columns): K_V = V^T K_ii V,
    M_V = V^T M_ii V, C_V = V^T C (columns scaled to unit M-norm first). Then Psi = V psi with
    K_V psi = -C_V, and Phi = V phi with K_V phi = lambda M_V phi, lambda <= (2 pi f_cut)^2.
@@ -160,7 +161,7 @@ def auto_slabs(n_interior: int) -> int:
     return 0 if n_interior < AUTO_MIN_DOFS else int(math.ceil(n_interior / AUTO_SLAB_DOFS))
 
 
-# --- the slabs -------------------------------------------------------------------------------------
+# --- the reduction ---------------------------------------------------------------------------------
 def mass_orthonormal_columns(X: np.ndarray, M: PETSc.Mat, tol: float) -> np.ndarray:
     """An M-orthonormal basis of range(X) (M sequential): directions whose Gram eigenvalue, with the
     columns scaled to unit M-norm, is below ``tol`` times the largest are dropped."""
@@ -169,7 +170,6 @@ def mass_orthonormal_columns(X: np.ndarray, M: PETSc.Mat, tol: float) -> np.ndar
     return X @ gram_basis(X.T @ _mult_local(M, X, MPI.COMM_SELF), tol)
 
 
-# --- the reduction ---------------------------------------------------------------------------------
 #: a slab's work (factor, modes, statics) grows like its dofs to this power: 1.2M-DOF panel, 16
 #: slabs, 2 ranks: 19.6 s at 70k dofs (24 slab modes), 133 s at 244k (61; the zone's slab): 1.53
 SLAB_WORK_EXPONENT = 1.5
