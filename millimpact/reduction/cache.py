@@ -38,7 +38,7 @@ log = logging.getLogger(__name__)
 
 CACHE_ENV = "MILLIMPACT_REDUCTION_CACHE"
 #: bump when what reduce_model computes for the same matrices changes
-CACHE_VERSION = 1
+CACHE_VERSION = 2     # 2: a substructured body's wide slab is cut again across (substructure_across)
 #: a rank's files above this are not written (the disk is not a second memory)
 MAX_BYTES_PER_RANK = 2e9
 
