@@ -167,6 +167,13 @@ def reduce_array(a: np.ndarray, op: MPI.Op, comm: MPI.Comm) -> np.ndarray:
     return out
 
 
+def global_extent(x: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
+    """The lowest and highest coordinates over every rank's rows ``x`` (k x d; a rank may have none)."""
+    d = x.shape[1]
+    return (reduce_array(x.min(axis=0) if len(x) else np.full(d, np.inf), MPI.MIN, comm),
+            reduce_array(x.max(axis=0) if len(x) else np.full(d, -np.inf), MPI.MAX, comm))
+
+
 def positions_in(sorted_values: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(pos, found): where each of ``x`` sits in the sorted array, and whether it is there."""
     pos = np.searchsorted(sorted_values, x)

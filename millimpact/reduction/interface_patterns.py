@@ -20,7 +20,7 @@ from petsc4py import PETSc
 
 from ..fem.model import FEModel
 from ..fem.probes import create_probe
-from .distributed import aij_from_local_csr, local_columns_csr, orthonormal_columns, positions_in, reduce_array
+from .distributed import aij_from_local_csr, global_extent, local_columns_csr, orthonormal_columns, positions_in
 from .partition import BODIES, DofPartition
 
 
@@ -31,8 +31,7 @@ def zone_interface_patterns(coords: np.ndarray, comps: np.ndarray, degree: int, 
     ``comps`` their components; dependent combinations dropped: on a curved interface some
     polynomials coincide). Degree >= 1 holds the rigid motions (translations, and rotations
     omega x r, linear in r), so a free body keeps its rigid motion. Owned rows x patterns."""
-    lo = reduce_array(coords.min(axis=0) if len(coords) else np.full(3, np.inf), MPI.MIN, comm)
-    hi = reduce_array(coords.max(axis=0) if len(coords) else np.full(3, -np.inf), MPI.MAX, comm)
+    lo, hi = global_extent(coords, comm)
     s = (coords - 0.5 * (lo + hi)) / max(0.5 * float(np.max(hi - lo)), 1e-300)
     powers = [(a, b, c) for a in range(degree + 1) for b in range(degree + 1 - a) for c in range(degree + 1 - a - b)]
     mono = np.column_stack([s[:, 0] ** a * s[:, 1] ** b * s[:, 2] ** c for a, b, c in powers]) if len(s) else \

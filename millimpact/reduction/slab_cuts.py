@@ -28,7 +28,7 @@ from mpi4py import MPI
 from numpy.polynomial import legendre
 from petsc4py import PETSc
 
-from .distributed import orthonormal_columns, reduce_array
+from .distributed import global_extent, orthonormal_columns, reduce_array
 
 #: histogram bins for the quantile cuts
 QUANTILE_BINS = 4096
@@ -62,17 +62,10 @@ class SlabCut:
                                for s, (a, cuts) in self.across.items()}} if self.across else {})}
 
 
-def _extent(x: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
-    """The global low and high coordinates of the rows ``x`` (k x d)."""
-    d = x.shape[1]
-    return (reduce_array(x.min(axis=0) if len(x) else np.full(d, np.inf), MPI.MIN, comm),
-            reduce_array(x.max(axis=0) if len(x) else np.full(d, -np.inf), MPI.MAX, comm))
-
-
 def quantile_cuts(x: np.ndarray, pieces: int, bands: list[tuple[float, float]], comm: MPI.Comm) -> np.ndarray:
     """Positions cutting the (distributed) values ``x`` into ``pieces`` of equal count, each moved
     out of the merged ``bands`` to the nearer edge; cuts that coincide or sit at the ends dropped."""
-    (lo,), (hi,) = _extent(x[:, None], comm)
+    (lo,), (hi,) = global_extent(x[:, None], comm)
     if not lo < hi:
         return np.zeros(0)
     counts = reduce_array(np.histogram(x, bins=QUANTILE_BINS, range=(lo, hi))[0].astype(float), MPI.SUM, comm)
@@ -94,7 +87,7 @@ def quantile_cuts(x: np.ndarray, pieces: int, bands: list[tuple[float, float]], 
 
 def _bands(x_zone: np.ndarray, points: np.ndarray, margin: float, comm: MPI.Comm) -> list[tuple[float, float]]:
     """+-``margin`` around the zone-coupled values ``x_zone`` (distributed) and each of ``points``."""
-    (z_lo,), (z_hi,) = _extent(x_zone[:, None], comm)
+    (z_lo,), (z_hi,) = global_extent(x_zone[:, None], comm)
     return ([(z_lo - margin, z_hi + margin)] if z_lo <= z_hi else []) + [(p - margin, p + margin) for p in points]
 
 
@@ -103,7 +96,7 @@ def cut_slabs(coords: np.ndarray, zone_rows: np.ndarray, slabs: int, margin: flo
     """The pieces of a body's interior (module docstring, steps 1 and 2): ``coords`` the owned
     dofs' node coordinates, ``zone_rows`` the dofs coupled to the zone, ``keep_away`` (k x 3) the
     gauges; a slab over ``across_ratio`` x the mean count is cut again (0: never). Collective."""
-    lo, hi = _extent(coords, comm)
+    lo, hi = global_extent(coords, comm)
     axis = int(np.argmax(hi - lo))
     away = np.reshape(keep_away if keep_away is not None else np.zeros((0, 3)), (-1, 3))
     cuts = quantile_cuts(coords[:, axis], slabs, _bands(coords[zone_rows, axis], away[:, axis], margin, comm), comm)
@@ -120,7 +113,7 @@ def cut_slabs(coords: np.ndarray, zone_rows: np.ndarray, slabs: int, margin: flo
         pieces = max(2, int(round(counts[s] / target))) if across_ratio and counts[s] > across_ratio * target else 1
         sub = np.zeros(0)
         if pieces > 1:
-            s_lo, s_hi = _extent(coords[mine], comm)
+            s_lo, s_hi = global_extent(coords[mine], comm)
             ext = (s_hi - s_lo).copy()
             ext[axis] = -1.0
             a2 = int(np.argmax(ext))
@@ -182,7 +175,7 @@ def polynomial_traces(coords: np.ndarray, comps: np.ndarray, face: np.ndarray, n
                                         shape=(len(face), n_c)))
             continue
         p = coords[mine][:, [a for a in range(3) if a != normal]]
-        lo, hi = _extent(p, comm)
+        lo, hi = global_extent(p, comm)
         ext = np.maximum(hi - lo, 1e-300)
         deg = [max(1, int(math.ceil(density * e / wavelength))) for e in ext]
         s = 2.0 * (p - lo) / ext - 1.0

@@ -528,7 +528,8 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
                  stats["interface_dofs"], n_t,
                  stats["slab_modes"], n_cols, m, stats["total_s"])
     return {"Psi": Psi, "Phi": Phi, "flex": flex, "freq": np.concatenate([freq[:m], f_pat]) if patterns else freq[:m],
-            "n_patterns": len(f_pat) if patterns else 0, "next": float(freq[m]) if m < len(freq) else math.nan, "residual": residual, "stats": stats,
+            "n_patterns": len(f_pat) if patterns else 0, "next": float(freq[m]) if m < len(freq) else math.nan,
+            "residual": residual, "stats": stats,
             "recovery": recovery, "grams": grams}
 
 
