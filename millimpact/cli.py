@@ -242,13 +242,21 @@ def cmd_mesh(args: argparse.Namespace) -> int:
     return 0
 
 
-EXTRA_COMMANDS = ("study", "table", "bench", "stability", "compare")
+#: commands that live in their own modules: each module has HELP (one line), add_arguments(parser)
+#: and main(args) -> exit status, and imports nothing heavy (dolfinx, petsc4py, gmsh) at its top
+EXTRA_COMMANDS = {
+    "study": "millimpact.studies.study",
+    "table": "millimpact.studies.table",
+    "bench": "millimpact.studies.bench",
+    "stability": "millimpact.studies.stability",
+    "compare": "millimpact.studies.compare",
+}
 
 
 def _command_module(name: str):
     import importlib
 
-    return importlib.import_module(f"millimpact.studies.{name}")
+    return importlib.import_module(EXTRA_COMMANDS[name])
 
 
 def cmd_not_yet(args: argparse.Namespace) -> int:

@@ -1,0 +1,67 @@
+"""Running Yade (Debian's ``yade``, 2023.02a) as a subprocess: ``yade -n -x SCRIPT``.
+
+Yade is a separate program with its own Python; millimpact never imports it. A script is written
+to a folder together with its inputs (JSON), run there with ``-n`` (no GUI) and ``-x`` (exit when
+the script ends), and leaves its results as files in that folder. Lines the script prints that
+start with :data:`PROGRESS_PREFIX` are handed to a callback as they arrive (progress of long DEM
+runs); everything else is kept for the error message if the run fails.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Callable, Optional, Sequence
+
+from ..errors import InputError, MillimpactError
+
+#: how a user gets Yade on this project's machines (Debian 12)
+INSTALL_HINT = "apt-get install yade (Debian 12: Yade 2023.02a)"
+#: a line of a Yade script's output that reports progress
+PROGRESS_PREFIX = "PROGRESS "
+
+
+class YadeError(MillimpactError):
+    """A Yade run that did not end normally."""
+
+
+def yade_executable() -> str:
+    """The path of the ``yade`` program (``MILLIMPACT_YADE`` overrides); InputError if absent."""
+    exe = os.environ.get("MILLIMPACT_YADE") or shutil.which("yade")
+    if not exe or not (os.path.isfile(exe) and os.access(exe, os.X_OK)):
+        raise InputError(f"yade: not installed (needed by this command); install it with: {INSTALL_HINT}")
+    return exe
+
+
+def run_yade(script: Path, workdir: Path, args: Sequence[str] = (), timeout: Optional[float] = None,
+             on_progress: Optional[Callable[[str], None]] = None) -> str:
+    """Run ``yade -n -x script [args]`` in ``workdir``; returns its standard output.
+
+    Raises :class:`YadeError` with the last lines of its output when Yade exits non-zero or
+    overruns ``timeout`` (s). One thread per run (``-j 1``) unless ``MILLIMPACT_YADE_THREADS``
+    says otherwise, so runs side by side do not oversubscribe the cores.
+    """
+    exe = yade_executable()
+    threads = os.environ.get("MILLIMPACT_YADE_THREADS", "1")
+    cmd = [exe, "-n", "-j", threads, "-x", str(script), *map(str, args)]
+    env = {**os.environ, "OMP_NUM_THREADS": threads}
+    lines: list[str] = []
+    with subprocess.Popen(cmd, cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                          stdin=subprocess.DEVNULL, text=True, env=env) as proc:
+        try:
+            assert proc.stdout is not None
+            for line in proc.stdout:
+                if line.startswith(PROGRESS_PREFIX) and on_progress is not None:
+                    on_progress(line[len(PROGRESS_PREFIX):].strip())
+                lines.append(line)
+            rc = proc.wait(timeout=timeout)
+        except BaseException:
+            proc.kill()
+            proc.wait()
+            raise
+    out = "".join(lines)
+    if rc != 0:
+        tail = "".join(lines[-15:])
+        raise YadeError(f"yade exited with status {rc} running {Path(script).name}:\n{tail}")
+    return out
