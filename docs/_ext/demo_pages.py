@@ -108,18 +108,21 @@ def figures(out: Path) -> list[Path]:
     return first + [found[n] for n in sorted(found)]
 
 
-def _docstring(name: str) -> tuple[str, str]:
-    """(title, body) of a demo's module docstring: its first line and the rest."""
+def _docstring(name: str) -> tuple[str, str, str]:
+    """(title, subtitle, body) of a demo's module docstring: its first line up to the first " (" or
+    ":", the rest of that line, and the other lines."""
     doc = ast.get_docstring(ast.parse((DEMOS / f"{name}.py").read_text())) or name
     first, _, rest = doc.partition("\n")
-    return first.strip().rstrip("."), rest.strip()
+    first = first.strip().rstrip(".")
+    cut = min((i for i in (first.find(" ("), first.find(":")) if i > 0), default=len(first))
+    return first[:cut], first[cut:].lstrip(" :"), rest.strip()
 
 
 def page_text(name: str, record: dict, images: list[str], code: str) -> str:
     """The MyST page of one demo (images and code: paths relative to the page)."""
-    title, body = _docstring(name)
+    title, subtitle, body = _docstring(name)
     fence = "````"
-    lines = [f"# {title}", "", f"`demos/{name}.py`", "", body, "",
+    lines = [f"# {title}", "", f"`demos/{name}.py`{': ' + subtitle if subtitle else ''}", "", body, "",
              "## The quick variant", "",
              "The figures and numbers on this page come from the demo's quick variant, the reduced size the "
              "test suite runs (the documentation build runs it when the sources changed; `OUT` stands for "
@@ -136,7 +139,7 @@ def page_text(name: str, record: dict, images: list[str], code: str) -> str:
 
 
 def index_text(names: list[str]) -> str:
-    rows = [f"- [{_docstring(n)[0]}]({n}.md)" for n in names]
+    rows = [f"- [{_docstring(n)[0]}]({n}.md) (`{n}.py`): {_docstring(n)[1]}" for n in names]
     return "\n".join([
         "# Demos", "",
         "Literate scripts under `demos/`, each checking its own physics (Hertz's exponents, the rig's 5 % "
