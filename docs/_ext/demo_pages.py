@@ -145,8 +145,8 @@ def index_text(names: list[str]) -> str:
         "Literate scripts under `demos/`, each checking its own physics (Hertz's exponents, the rig's 5 % "
         "to Hertz and 1 % energy balance, the paper's trends). Each page gives the demo's prose, the "
         "figures and numbers of its quick variant (`--small`, the size the test suite runs) and its "
-        "code. Run one at full size with `.venv/bin/python demos/NAME.py` (minutes; the studies "
-        "longer).", "", *rows, "",
+        "code. Run one at full size with `.venv/bin/python demos/NAME.py` (its page says what full "
+        "size is).", "", *rows, "",
         "```{toctree}", ":hidden:", "", *names, "```", ""])
 
 
