@@ -1,5 +1,8 @@
 """Sphinx configuration of millimpact's documentation (Debian's python3-sphinx, myst-parser, furo,
-sphinx-argparse). Build: ./dev docs (warnings are errors) -> docs/_build/html/index.html."""
+sphinx-argparse, libjs-mathjax). Build: ./dev docs (warnings are errors) -> docs/_build/html/index.html.
+
+Local extensions (docs/_ext/): scene_fields (the scene field reference), demo_pages (the demos as
+pages, from their quick variants: see its docstring), local_mathjax (MathJax copied into the site)."""
 import os
 import sys
 from pathlib import Path
@@ -14,13 +17,16 @@ import millimpact  # noqa: E402
 project = "millimpact"
 author = "the millimpact developers"
 release = version = millimpact.__version__
-extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphinx.ext.mathjax", "sphinxarg.ext",
-              "scene_fields"]
+extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "local_mathjax", "sphinxarg.ext",
+              "scene_fields", "demo_pages"]
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 exclude_patterns = ["_build"]
 html_theme = "furo"
 html_title = f"millimpact {release}"
 myst_enable_extensions = ["dollarmath"]
+# MathJax 2 (Debian's): its default tex2jax reads the \( \) and \[ \] Sphinx writes; myst's MathJax 3
+# class options would only be noise to it
+myst_update_mathjax = False
 myst_heading_anchors = 3
 autodoc_member_order = "bysource"
 autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": False}
