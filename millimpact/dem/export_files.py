@@ -24,6 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import __version__
+from ..errors import InputError
 from .contact_law import (code_restitution_for_damping, damping_for_restitution, peak_force_factor,
                           point_law, restitution_of_damping)
 from .table_input import ContactTable
@@ -56,8 +57,11 @@ class ExportedLaw(NamedTuple):
 def fit_law(t: ContactTable) -> ExportedLaw:
     """Fit the per-point laws and the constant law of table ``t`` (module docstring)."""
     shape = t.e_n.shape
-    pts = [[point_law(min(t.e_n[i, j], 1.0), t.peak_force[i, j], t.normal_speed[i, j], t.ball_mass, t.radius)
-            for j in range(shape[1])] for i in range(shape[0])]
+    try:
+        pts = [[point_law(min(t.e_n[i, j], 1.0), t.peak_force[i, j], t.normal_speed[i, j], t.ball_mass, t.radius)
+                for j in range(shape[1])] for i in range(shape[0])]
+    except ValueError as exc:
+        raise InputError(f"TABLE_DIR {t.folder}: restitution_normal {exc}") from None
     grab = lambda k: np.array([[getattr(p, k) for p in row] for row in pts])   # noqa: E731
     zeta_c = float(np.mean(grab("zeta")))
     phi = peak_force_factor(zeta_c)
