@@ -39,7 +39,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..console import say
+    from ..console import say, world_rank
     from ..errors import InputError
     from ..results.output_folder import prepare_output
     from ..results.timeseries import staged_output
@@ -56,6 +56,8 @@ def main(args: argparse.Namespace) -> int:
         from .yade import yade_executable
 
         yade_executable()                  # not installed: one line and exit 2, before any output
+    if world_rank() != 0:
+        return 0                           # a serial command: under mpirun rank 0 alone writes
     talk = (lambda *a: None) if args.quiet else say
     law = fit_law(table)
     with staged_output(out, kind="export") as stage:
