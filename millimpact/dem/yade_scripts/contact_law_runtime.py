@@ -7,7 +7,7 @@
 # Other interactions (ball-ball, ...) keep what millimpact_ip2() gives them (the table's median point).
 import math as _mm_math
 
-_mm_done = {}
+_mm_last = [-1]       # O.iter of the last update
 
 
 def _mm_bracket(grid, x):
@@ -47,13 +47,10 @@ def millimpact_update():
     """Set the table's law on the ball-liner interactions made real since the last call."""
     L = MILLIMPACT_LAW
     ball_mat, liner_mat = L["yade"]["ball_material"], L["yade"]["liner_material"]
-    if O.iter < _mm_done.get("iter", -1):   # O.reset() or a loaded simulation: start afresh
-        _mm_done.clear()
-    _mm_done["iter"] = O.iter
-    for i in O.interactions:
-        if not i.isReal or _mm_done.get((i.id1, i.id2)) == i.iterMadeReal:
-            continue
-        _mm_done[(i.id1, i.id2)] = i.iterMadeReal
+    last = _mm_last[0] if O.iter >= _mm_last[0] else -1    # O.reset(): start afresh
+    _mm_last[0] = O.iter
+    # the real interactions only (filtered in C++); new ones became real after the last call
+    for i in [i for i in O.interactions.all(True) if i.iterMadeReal > last]:
         b1, b2 = O.bodies[i.id1], O.bodies[i.id2]
         if b1.material.label == ball_mat and b2.material.label == liner_mat:
             ball, liner, n_out = b1, b2, -i.geom.normal
@@ -75,10 +72,6 @@ def millimpact_update():
         p.betan = zeta / _mm_math.sqrt(6.0)
         p.betas = L["yade"]["betas_per_betan"] * p.betan
         p.tangensOfFrictionAngle = L["friction"]
-    if len(_mm_done) > 100000:               # forget interactions that ended
-        live = {(i.id1, i.id2) for i in O.interactions if i.isReal} | {"iter"}
-        for k in [k for k in _mm_done if k not in live]:
-            del _mm_done[k]
 
 
 def millimpact_ball_material(**kw):
