@@ -25,8 +25,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
-from .contact_law import (code_restitution_for_damping, damping_for_restitution, peak_force_factor,
-                          point_law, restitution_of_damping)
+from .contact_law import code_restitution_for_damping, peak_force_factor, point_law, restitution_of_damping
 from .table_input import ContactTable
 
 #: a constant law "holds" at a table point within these (the issue's round-trip tolerances)
@@ -239,4 +238,3 @@ def write_law_json(folder: Path, law: ExportedLaw, code: str) -> Path:
 
 WRITERS = {"yade": write_yade, "liggghts": write_liggghts, "lammps": write_lammps}
 
-__all__ = ["fit_law", "WRITERS", "write_law_json", "damping_for_restitution"]
