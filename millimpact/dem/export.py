@@ -1,0 +1,85 @@
+"""``millimpact export``: a contact table's law written for a DEM code, and checked in Yade.
+
+Reads a ``millimpact table`` folder (:mod:`.table_input`), fits the Hertz-dashpot law that gives
+the table's e_n and F_max at each of its points in that code's own damping formula
+(:mod:`.contact_law`, :mod:`.export_files`) and writes the file to include. ``--check`` runs the
+law in Yade, one ball per table point, and writes ``roundtrip.csv`` and ``roundtrip.png``
+(:mod:`.roundtrip`); ``--to liggghts|lammps --check`` runs their constant law (the same equation)
+in Yade.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+HELP = "write a contact table's law for a DEM code (yade, liggghts, lammps); --check runs it in Yade"
+
+DESCRIPTION = """\
+Write the contact parameters that make a DEM code's Hertz model reproduce a millimpact contact
+table (the folder `millimpact table` wrote): the contact modulus that gives F_max, the damping
+that gives e_n in that code's damping formula, friction and Mindlin's tangential stiffness.
+Yade gets the whole table (a PyRunner sets each new ball-liner contact's law from its impact
+speed and angle); LIGGGHTS and LAMMPS get one constant law and the speed band where it holds.
+With --check, Yade runs the exported law for one ball at each of the table's speeds and angles:
+roundtrip.csv and roundtrip.png compare e_n, e_t and F_max with the table.
+
+Examples:
+  millimpact export out/table-rig --to yade --out out/dem-yade --check
+  millimpact export out/table-rig --to liggghts --out out/dem-liggghts
+"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("table", metavar="TABLE_DIR", help="a folder written by millimpact table")
+    p.add_argument("--to", required=True, metavar="CODE", help="the DEM code: yade, liggghts or lammps")
+    p.add_argument("--out", help="output folder (default out/dem-CODE-TABLE)")
+    p.add_argument("--check", action="store_true", help="run the law in Yade: roundtrip.csv and roundtrip.png")
+    p.add_argument("--force", action="store_true", help="replace a non-empty folder millimpact did not write")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+
+
+def main(args: argparse.Namespace) -> int:
+    from ..console import say, world_rank
+    from ..errors import InputError
+    from ..results.output_folder import prepare_output
+    from ..results.timeseries import staged_output
+    from .export_files import CODES, WRITERS, fit_law, write_law_json
+    from .table_input import read_table
+
+    code = str(args.to).lower()
+    if code not in CODES:
+        raise InputError(f"--to {args.to!r}: must be one of {', '.join(CODES)}")
+    table = read_table(args.table)
+    out = Path(args.out) if args.out else Path("out") / f"dem-{code}-{Path(args.table).resolve().name}"
+    out = prepare_output(out, "--out", force=args.force)
+    if args.check:
+        from .yade import yade_executable
+
+        yade_executable()                  # not installed: one line and exit 2, before any output
+    if world_rank() != 0:
+        return 0                           # a serial command: under mpirun rank 0 alone writes
+    talk = (lambda *a: None) if args.quiet else say
+    law = fit_law(table)
+    with staged_output(out, kind="export") as stage:
+        files = [WRITERS[code](stage, law), write_law_json(stage, law, code)]
+        talk(f"export {code}: {len(table.speeds)} speeds x {len(table.angles)} angles of {table.folder} "
+             f"(scene {table.scene_name}, method {table.method})")
+        if law.band:
+            talk(f"  constant law (LIGGGHTS/LAMMPS): valid for normal speeds {law.band[0]:.3g}-{law.band[1]:.3g} m/s")
+        if args.check:
+            from .roundtrip import constant_law_file, roundtrip_rows, run_roundtrip, write_roundtrip
+
+            (stage / "yade_check").mkdir()
+            # Yade runs the file the user gets; LIGGGHTS' and LAMMPS' constant law is the same equation
+            law_file = files[0] if code == "yade" else constant_law_file(law, stage / "yade_check" / "law.py")
+            talk(f"  --check: Yade, one ball per table point ({table.e_n.size})")
+            res = run_roundtrip(law, stage / "yade_check", "law", law_file,
+                                on_progress=lambda line: talk(f"    {line}"))
+            rows = roundtrip_rows(table, res)
+            write_roundtrip(stage, table, rows, code)
+            worst_e = max(abs(r["restitution_normal_dem"] - r["restitution_normal_table"]) for r in rows)
+            worst_f = max(abs(r["peak_normal_force_N_dem"] / r["peak_normal_force_N_table"] - 1) for r in rows)
+            talk(f"  Yade against the table: largest |e_n difference| {worst_e:.4f}, largest F_max difference "
+                 f"{100 * worst_f:.2f} %")
+    talk(f"  results in {out}/ ({', '.join(f.name for f in files)}{', roundtrip.csv, roundtrip.png' if args.check else ''})")
+    return 0
