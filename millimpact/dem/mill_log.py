@@ -1,0 +1,100 @@
+"""Reading what a Yade mill run leaves (``mill_slice.py``): impacts, charge snapshots, energies, traces.
+
+Each row of ``impacts_raw.csv`` is a ball-liner interaction found real at a check, ``age`` steps
+after it became real (0 <= age < check_every), with the ball's velocity v, the contact point c and
+the liner's normal n (into the ball) at that moment, the overlap delta and Yade's Hertz coefficient
+k_no (F_n = k_no delta^(3/2)). In the liner's moving frame the ball's velocity relative to the
+liner's surface there is
+
+    v_rel = v - omega e_z x c,
+
+its normal part v_n = -v_rel . n (approaching: > 0) and tangential part v_t = |v_rel - (v_rel . n) n|
+(the ball's centre along the liner; its spin is not counted). Since first contact, the Hertz force
+has taken the energy (2/5) k_no delta^(5/2) from the normal motion; the normal speed at first contact
+is given it back,
+
+    v_n0 = sqrt(v_n^2 + (4/5) k_no delta^(5/2) / m)
+
+(exact for an undamped Hertz contact; the damping's share over the first eighth of a contact, the
+longest age, is of the same small order as the < 3 % it corrects), and the impact energy is
+(1/2) m (v_n0^2 + v_t^2). The impact's arc position is its contact point turned back by the
+liner's angle omega t (the liner starts at angle 0 at t = 0), measured by
+:meth:`~millimpact.dem.mill_geometry.MillProfile.arc_position`.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .impacts import Impact
+from .mill_setup import MillSetup
+
+
+@dataclass(frozen=True)
+class MillRun:
+    """A finished Yade mill run: the logged impacts (after the warm-up; times from its end), the
+    charge snapshots (time, ball, x, y, vx, vy: arrays over rows), the energy samples (column ->
+    array), the traced balls' rows and Yade's run record."""
+
+    impacts: list[Impact]
+    snapshots: dict[str, np.ndarray]
+    energy: dict[str, np.ndarray]
+    trace: dict[str, np.ndarray]
+    info: dict
+
+
+def _read_columns(path: Path) -> dict[str, np.ndarray]:
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    header, body = rows[0], rows[1:]
+    if not body:
+        return {h: np.zeros(0) for h in header}
+    data = np.array(body, dtype=float)
+    return {h: data[:, j] for j, h in enumerate(header)}
+
+
+def impacts_from_raw(raw: dict[str, np.ndarray], setup: MillSetup) -> list[Impact]:
+    """The :class:`~millimpact.dem.impacts.Impact` rows of the raw log after the warm-up (module
+    docstring), times counted from the warm-up's end."""
+    if raw["time_s"].size == 0:
+        return []
+    w = setup.omega
+    t = raw["time_s"]
+    v = np.stack([raw["vx"], raw["vy"], raw["vz"]], axis=1)
+    c = np.stack([raw["cx"], raw["cy"], raw["cz"]], axis=1)
+    n = np.stack([raw["nx"], raw["ny"], raw["nz"]], axis=1)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    v_liner = np.stack([-w * c[:, 1], w * c[:, 0], np.zeros_like(t)], axis=1)
+    v_rel = v - v_liner
+    vn_signed = np.einsum("ij,ij->i", v_rel, n)
+    v_t = np.linalg.norm(v_rel - vn_signed[:, None] * n, axis=1)
+    m = setup.ball_mass
+    delta = np.maximum(raw["overlap_m"], 0.0)
+    v_n0 = np.sqrt(vn_signed**2 + 0.8 * raw["kno"] * delta**2.5 / m)
+    energy = 0.5 * m * (v_n0**2 + v_t**2)
+    # the contact point in the liner's frame: turned back by the liner's angle omega t
+    th = -w * t
+    xl = np.cos(th) * c[:, 0] - np.sin(th) * c[:, 1]
+    yl = np.sin(th) * c[:, 0] + np.cos(th) * c[:, 1]
+    place_of = {s.part: s.place for s in setup.profile.segments}
+    out = []
+    keep = t >= setup.warmup_s
+    for k in np.flatnonzero(keep):
+        out.append(Impact(time_s=float(t[k] - setup.warmup_s), ball_radius_m=setup.ball_radius,
+                          normal_speed_m_s=float(v_n0[k]), tangential_speed_m_s=float(v_t[k]),
+                          impact_energy_J=float(energy[k]), place=place_of[int(raw["part"][k])],
+                          arc_position_m=float(setup.profile.arc_position(xl[k], yl[k]))))
+    return out
+
+
+def read_mill_run(folder: Path, setup: MillSetup) -> MillRun:
+    """The files ``mill_slice.py`` wrote in ``folder``."""
+    folder = Path(folder)
+    raw = _read_columns(folder / "impacts_raw.csv")
+    return MillRun(impacts=impacts_from_raw(raw, setup), snapshots=_read_columns(folder / "charge.csv"),
+                   energy=_read_columns(folder / "energy.csv"), trace=_read_columns(folder / "trace.csv"),
+                   info=json.loads((folder / "run.json").read_text()))
