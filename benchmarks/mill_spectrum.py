@@ -46,7 +46,8 @@ def main() -> None:
         y = s["yade"]
         rows.append({"threads": threads, "balls": s["charge"]["balls"], "revolutions": a.revolutions,
                      "warmup_revolutions": a.warmup, "steps": y["steps"], "dt_s": y["dt_s"], "wall_s": wall,
-                     "yade_wall_s": y["wall_s"], "yade_cpu_s": y["cpu_s"], "us_per_step_wall": 1e6 * y["wall_s"] / y["steps"],
+                     "yade_wall_s": y["wall_s"], "yade_cpu_s": y["cpu_s"],
+                     "us_per_step_wall": 1e6 * y["wall_s"] / y["steps"],
                      "impacts_per_revolution": s["impacts_per_revolution"]["all"],
                      "energy_balance_error": s["energy_balance"]["relative_error"],
                      "load_1min": os.getloadavg()[0]})

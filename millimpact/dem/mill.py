@@ -54,7 +54,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--restitution", type=float, metavar="E",
                    help="coefficient of restitution of every contact (default: Thornton's e at the shell speed "
                         "from the scene's yield stresses)")
-    p.add_argument("--friction", type=float, metavar="MU", help="Coulomb friction (default: the scene's contact.friction)")
+    p.add_argument("--friction", type=float, metavar="MU",
+                   help="Coulomb friction (default: the scene's contact.friction)")
     p.add_argument("--stiffness-scale", type=float, default=0.01, metavar="K",
                    help="factor on Young's moduli in the DEM (default 0.01: soft contacts, 6x fewer steps; 1 = steel)")
     p.add_argument("--warmup", type=float, default=1.0, metavar="REV",

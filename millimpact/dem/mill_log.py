@@ -1,24 +1,21 @@
 """Reading what a Yade mill run leaves (``mill_slice.py``): impacts, charge snapshots, energies, traces.
 
-Each row of ``impacts_raw.csv`` is a ball-liner interaction found real at a check, ``age`` steps
-after it became real (0 <= age < check_every), with the ball's velocity v, the contact point c and
-the liner's normal n (into the ball) at that moment, the overlap delta and Yade's Hertz coefficient
-k_no (F_n = k_no delta^(3/2)). In the liner's moving frame the ball's velocity relative to the
-liner's surface there is
+Each row of ``impacts_raw.csv`` is a ball-liner contact found at a check (every ``check_every``
+steps, ``age`` steps after it began) with a part of the liner the ball was not touching at the
+previous check, with the ball's velocity v before the contact (its velocity at the previous check
+plus gravity's pull since: exact for a ball landing from a flight; a ball in the bed may also have
+been pushed by other balls in those few steps), the contact point c and the liner's normal n (into
+the ball) when found. In the liner's moving frame the ball's velocity relative to the liner's
+surface there is
 
     v_rel = v - omega e_z x c,
 
-its normal part v_n = -v_rel . n (approaching: > 0) and tangential part v_t = |v_rel - (v_rel . n) n|
-(the ball's centre along the liner; its spin is not counted). Since first contact, the Hertz force
-has taken the energy (2/5) k_no delta^(5/2) from the normal motion; the normal speed at first contact
-is given it back,
-
-    v_n0 = sqrt(v_n^2 + (4/5) k_no delta^(5/2) / m)
-
-(exact for an undamped Hertz contact; the damping's share over the first eighth of a contact, the
-longest age, is of the same small order as the < 3 % it corrects), and the impact energy is
-(1/2) m (v_n0^2 + v_t^2). The impact's arc position is its contact point turned back by the
-liner's angle omega t (the liner starts at angle 0 at t = 0), measured by
+its normal part v_n = -v_rel . n (approaching: > 0; a ball rolling onto a part can give 0) and
+tangential part v_t = |v_rel - (v_rel . n) n| (the ball's centre along the liner; its spin is not
+counted); the impact energy is (1/2) m (v_n^2 + v_t^2). (The velocity when the contact is found
+is no substitute: Yade's Tsuji damping, proportional to delta^(1/4), takes ~ 10 % of the normal
+speed in the first steps of a contact.) The impact's arc position is its contact point turned back
+by the liner's angle omega t (the liner starts at angle 0 at t = 0), measured by
 :meth:`~millimpact.dem.mill_geometry.MillProfile.arc_position`.
 """
 from __future__ import annotations
@@ -73,8 +70,7 @@ def impacts_from_raw(raw: dict[str, np.ndarray], setup: MillSetup) -> list[Impac
     vn_signed = np.einsum("ij,ij->i", v_rel, n)
     v_t = np.linalg.norm(v_rel - vn_signed[:, None] * n, axis=1)
     m = setup.ball_mass
-    delta = np.maximum(raw["overlap_m"], 0.0)
-    v_n0 = np.sqrt(vn_signed**2 + 0.8 * raw["kno"] * delta**2.5 / m)
+    v_n0 = np.maximum(-vn_signed, 0.0)
     energy = 0.5 * m * (v_n0**2 + v_t**2)
     # the contact point in the liner's frame: turned back by the liner's angle omega t
     th = -w * t

@@ -20,9 +20,9 @@ contact law and the clock; :meth:`MillSetup.yade_input` is the JSON of
   friction mu (``--friction``, else the scene's ``contact.friction``) between balls and with the
   liner.
 - Clock: dt = t_c / 25, t_c the shortest Hertz contact time at the largest speed expected, the
-  shell's speed plus a fall across the mill, v_max = omega R + sqrt(4 g R); impacts are looked for
-  every t_c / 8 (a contact found that late has lost < 3 % of its normal speed to the Hertz force:
-  the log adds its elastic energy back, :mod:`~millimpact.dem.mill_log`).
+  shell's speed plus a fall across the mill, v_max = omega R + sqrt(4 g R); new contacts are looked
+  for every t_c / 8 (none ends unseen) and take the ball's velocity from the check before
+  (:mod:`~millimpact.dem.mill_log`).
 """
 from __future__ import annotations
 

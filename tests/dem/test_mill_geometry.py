@@ -28,7 +28,8 @@ def test_profile_is_the_liner_round_the_shell(name):
     assert len(tops) == n and len([s for s in segs if s.place == "lifter_face"]) == 2 * n
     for s in tops:
         # a top's corners lie at the lifter's height over the shell and its top width apart
-        assert math.hypot(*s.start) == pytest.approx(math.hypot(ln.mill_radius - ln.lifter_height, ln.lifter_top_width / 2), rel=1e-12)
+        corner = math.hypot(ln.mill_radius - ln.lifter_height, ln.lifter_top_width / 2)
+        assert math.hypot(*s.start) == pytest.approx(corner, rel=1e-12)
         assert s.length == pytest.approx(ln.lifter_top_width, rel=1e-12)
     # faces are inclined lifter_face_angle from the lifter's centre line (the radius at its centre)
     k = 3

@@ -10,12 +10,14 @@
 # (Law2_ScGeom_MindlinPhys_Mindlin), restitution parameter en_yade, Coulomb friction mu with the
 # liner and between balls. Gravity -g along y.
 #
-# Every `check_every` steps, each ball-liner interaction made real since the previous check is
-# written to impacts_raw.csv with the ball's velocity, the contact point and normal, the overlap
-# and the Hertz coefficient kno at that moment (mill_log.py reconstructs the speed at first contact
-# from them). Every `power_every` steps the charge's torque on the liner about the axis is summed
-# into the drive's work; snapshots of the balls go to charge.csv; energies to energy.csv; traced
-# balls to trace.csv. Lines starting with "PROGRESS " report progress.
+# Every `check_every` steps, each ball-liner interaction made real since the previous check, with
+# a part of the liner (a plate between two lifters, a lifter face, a lifter top) the ball was not
+# touching at the previous check, is written to impacts_raw.csv with the ball's velocity before
+# the contact (at the previous check, plus gravity's pull since), the contact point and normal,
+# the overlap and the Hertz coefficient kno when found. Every `power_every` steps the charge's
+# torque on the liner about the axis is summed into the drive's work; snapshots of the balls go to
+# charge.csv, energies to energy.csv, traced balls to trace.csv. Lines starting with "PROGRESS "
+# report progress.
 import csv
 import json
 import math
@@ -99,15 +101,21 @@ trace_fh = open("trace.csv", "w", newline="")
 trace = csv.writer(trace_fh)
 trace.writerow(["time_s", "ball", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s", "vz_m_s", "liner_contacts"])
 
-state = {"last_check": 0, "drive_work": 0.0, "snap": 0, "esample": 0, "progress": -1, "n_impacts": 0}
+vel_prev = [Vector3(0.0, 0.0, 0.0) for b in ball_ids]
+state = {"last_check": 0, "drive_work": 0.0, "snap": 0, "esample": 0, "progress": -1, "n_impacts": 0,
+         "touching": set()}
 
 
 def check_impacts():
-    """Ball-liner interactions made real since the previous check."""
+    """Ball-liner interactions made real since the previous check that start a contact of the ball
+    with a part of the liner it was not touching at the previous check (the two facets of a segment,
+    or a ball rolling from one chord of the plate to the next, make no new impact)."""
     last = state["last_check"]
     now = O.iter
+    touching = set()
+    new = []
     for i in O.interactions:
-        if i.iterMadeReal <= last:
+        if not i.isReal:
             continue
         id1, id2 = i.id1, i.id2
         part, b, sign = part_of.get(id1), id2, 1.0
@@ -115,14 +123,33 @@ def check_impacts():
             part, b, sign = part_of.get(id2), id1, -1.0
         if part is None or b not in is_ball:
             continue
-        st = O.bodies[b].state
+        touching.add((b, part))
+        if i.iterMadeReal > last:
+            new.append((i, b, part, sign))
+    before = state["touching"]
+    logged = {}
+    for i, b, part, sign in new:
+        if (b, part) in before:
+            continue
+        before.add((b, part))                     # one impact even if both facets of a segment were hit
+        c = i.geom.contactPoint
+        # a ball striking an edge or a corner (face and top, or lifter and plate) touches two parts at
+        # one point: one impact
+        if any((c - q).norm() < 0.25 * r for q in logged.get(b, ())):
+            continue
+        logged.setdefault(b, []).append(c)
+        # the ball's velocity before the contact: at the previous check, plus gravity's pull until the
+        # step before the contact became real (a flight's velocity exactly; a ball in the bed may also
+        # have been pushed by other balls in those few steps)
+        v = vel_prev[b - ball_ids[0]] + Vector3(0.0, -g * O.dt * max(i.iterMadeReal - 1 - last, 0), 0.0)
         # the normal points from id1 to id2: turned to point from the liner into the ball
-        v, c, n = st.vel, i.geom.contactPoint, i.geom.normal * sign
-        impacts.writerow([O.time, b - ball_ids[0], part,
-                          v[0], v[1], v[2], c[0], c[1], c[2], n[0], n[1], n[2],
+        n = i.geom.normal * sign
+        impacts.writerow([O.time, b - ball_ids[0], part, v[0], v[1], v[2], c[0], c[1], c[2], n[0], n[1], n[2],
                           i.geom.penetrationDepth, i.phys.kno, now - i.iterMadeReal])
         state["n_impacts"] += 1
+    state["touching"] = touching
     state["last_check"] = now
+    vel_prev[:] = [Vector3(O.bodies[b].state.vel) for b in ball_ids]      # copies, not views
 
 
 def ball_energies():
