@@ -6,6 +6,11 @@ case: the wall time of the whole command, Yade's own wall and CPU time (run.json
 the time per step. On a loaded machine the wall time is inflated; Yade's CPU time is not.
 
     .venv/bin/python benchmarks/mill_spectrum.py [--balls 200] [--revolutions 2] [--threads 1 2]
+
+The table is rewritten after each case, so an interrupted run keeps the cases it finished. On an
+oversubscribed machine two Yade threads are far slower than one (OpenMP's threads wait for each
+other at every step): measured 2026-11-27 at load 13, the first 5 % took 40 s with one thread and
+370 s with two.
 """
 from __future__ import annotations
 
@@ -51,13 +56,18 @@ def main() -> None:
                      "impacts_per_revolution": s["impacts_per_revolution"]["all"],
                      "energy_balance_error": s["energy_balance"]["relative_error"],
                      "load_1min": os.getloadavg()[0]})
-    write_report(a.out, "mill_spectrum", rows, 1,
+        report(a.out, rows)
+
+
+def report(out, rows) -> None:
+    """mill_spectrum.csv / .md of the cases run so far."""
+    write_report(out, "mill_spectrum", rows, 1,
                  ["Yade threads", "balls", "revolutions", "steps", "wall (s)", "Yade wall (s)", "Yade CPU (s)",
                   "us/step (wall)", "load (1 min)"],
                  lambda r: [str(r["threads"]), str(r["balls"]), f"{r['revolutions']:g}", str(r["steps"]),
                             f"{r['wall_s']:.0f}", f"{r['yade_wall_s']:.0f}", f"{r['yade_cpu_s']:.0f}",
                             f"{r['us_per_step_wall']:.0f}", f"{r['load_1min']:.1f}"],
-                 note=f"; machine load average at the start {os.getloadavg()[0]:.1f}")
+                 note=f"; load average when written {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

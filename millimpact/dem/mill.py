@@ -184,11 +184,12 @@ def main(args: argparse.Namespace) -> int:
     from .mill_setup import plan_mill
     from .yade import yade_executable
 
+    # every check before any folder is made: options, scene, the plan, Yade, then --out
     opts = options_from_args(args)
     scene = _scene(args)
-    out = prepare_output(args.out or f"out/mill-{scene.name}", force=args.force)
-    yade_executable()
     setup = plan_mill(scene, opts)
+    yade_executable()
+    out = prepare_output(args.out or f"out/mill-{scene.name}", force=args.force)
     say(f"mill: scene '{scene.name}', D {setup.profile.diameter:g} m, {setup.profile.n_lifters} lifters, "
         f"{setup.n_balls} balls of {2e3 * setup.ball_radius:g} mm in a {1e3 * setup.thickness:.0f} mm slice, "
         f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; e {setup.restitution:.3g} "

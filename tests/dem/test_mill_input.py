@@ -24,3 +24,20 @@ def test_bad_input_is_one_line_and_exit_2_and_no_folder(tmp_path, args, words):
     assert len(lines) == 1 and words in lines[0], res.stderr
     assert "Traceback" not in res.stderr
     assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_without_yade_one_line_says_how_to_install_it(tmp_path):
+    import subprocess
+    import sys
+
+    from conftest import ROOT, mpi_env
+
+    out = tmp_path / "mill"
+    env = {**mpi_env(), "MILLIMPACT_YADE": str(tmp_path / "no-yade-here")}
+    res = subprocess.run([sys.executable, "-m", "millimpact.cli", "mill", "liner-panel", "--revolutions", "1",
+                          "--balls", "10", "--out", str(out)], capture_output=True, text=True, env=env, cwd=ROOT,
+                         timeout=120)
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "apt-get install yade" in lines[0], res.stderr
+    assert not list(tmp_path.iterdir())
