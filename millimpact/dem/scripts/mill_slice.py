@@ -71,6 +71,7 @@ O.engines = [
                     [Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=True, label="law")]),
     RotationEngine(rotateAroundZero=True, zeroPoint=(0, 0, 0), rotationAxis=(0, 0, 1), angularVelocity=omega,
                    ids=[clump_id], label="turn"),
+    # no numerical damping (Yade's default is 0.2): the contact law's en is then the restitution
     NewtonIntegrator(damping=0.0, gravity=(0, -g, 0), label="newton"),
     PyRunner(iterPeriod=int(cfg["power_every"]), command="every_step()", label="stepper"),
 ]
