@@ -14,6 +14,7 @@ from conftest import run_cli
     (["liner-panel", "--fill", "0.55"], "--fill 0.55: must lie in [0.05, 0.5]"),
     (["liner-panel", "--fill", "nan"], "--fill nan: must be a finite number"),
     (["paper-rig"], "scene 'paper-rig': has no liner"),
+    (["liner-segment", "--set", "liner.mill_radius=0"], "liner.mill_radius = 0.0: a mill run needs a curved liner"),
     (["liner-panel", "--balls", "10", "--fill", "0.1"], "give one of them"),
 ])
 def test_bad_input_is_one_line_and_exit_2_and_no_folder(tmp_path, args, words):

@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+from millimpact.dem.impacts import read_impacts
 from millimpact.dem.mill import run_mill
 from millimpact.dem.mill_setup import MillOptions, plan_mill
 from millimpact.dem.yade import run_yade
@@ -179,7 +180,10 @@ def test_energy_balance_of_the_charge(tmp_path):
     the contacts' stored energy), within 5 % (the issue's tolerance), over a warm-up and a revolution
     of 30 balls at 75 % of n_c."""
     opts = MillOptions(revolutions=1.0, balls=30, speed_fraction=0.75, stiffness_scale=SOFT, warmup=0.5)
-    _, summary, _ = _run(tmp_path, "energy", opts, power_every=1)
+    _, summary, stage = _run(tmp_path, "energy", opts, power_every=1)
     b = summary["energy_balance"]
     assert b["drive_work_J"] > 0 and b["dissipated_J"] > 0.5 * b["drive_work_J"]
     assert abs(b["relative_error"]) < 0.05, b
+    # the log is one the damage map's checked reader takes, and the per-revolution counts are its rows
+    impacts = read_impacts(stage / "impacts.csv")
+    assert len(impacts) == pytest.approx(summary["impacts_per_revolution"]["all"] * opts.revolutions)
