@@ -251,6 +251,7 @@ EXTRA_COMMANDS = {
     "stability": "millimpact.studies.stability",
     "compare": "millimpact.studies.compare",
     "export": "millimpact.dem.export",
+    "mill": "millimpact.dem.mill",
 }
 
 

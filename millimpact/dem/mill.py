@@ -1,0 +1,206 @@
+"""``millimpact mill SCENE --revolutions R``: a slice of the mill in Yade and its ball-liner impact spectrum.
+
+The scene's liner (shell radius, lifters' count, height, top, face angle, spacing) makes the mill's
+profile round the whole shell (:mod:`~millimpact.dem.mill_geometry`); balls of the scene's radius
+fill a slice of it (:mod:`~millimpact.dem.mill_setup`); Yade turns it at a fraction of the critical
+speed (``millimpact/dem/yade_scripts/mill_slice.py``) and logs every new ball-liner contact; the log
+becomes ``impacts.csv`` (:mod:`~millimpact.dem.mill_log`) and the reports
+(:mod:`~millimpact.dem.mill_report`).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+
+from ..console import say
+from ..errors import InputError
+from ..results.output_folder import prepare_output
+
+HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe"
+
+DESCRIPTION = """\
+Build a slice of the mill from SCENE's liner (the lifters round the whole shell at the scene's
+spacing), fill it with balls of the scene's radius (--balls N, or --fill F: the fraction of the
+mill's volume the ball bed fills, 0.05-0.5; default --fill 0.1), turn it at --speed-fraction S of
+the critical speed n_c = 42.3 / sqrt(D) rpm (default 0.75) in Yade (Hertz-Mindlin contacts), and
+log every ball-liner impact after a warm-up.
+
+Writes DIR/impacts.csv (one row per impact: time_s, ball_radius_m, normal_speed_m_s,
+tangential_speed_m_s, impact_energy_J, place, arc_position_m), spectrum.png and spectrum.csv
+(impact energy against the cumulative number of impacts per revolution), impacts_per_revolution.csv
+(by place), charge.png, summary.json (shoulder and toe angles, energy balance, the run's
+settings) and yade/ (the script, its input and its raw output). Needs Yade (apt-get install yade).
+
+  millimpact mill liner-panel --revolutions 2 --balls 200 --out out/mill
+  millimpact mill liner-panel --revolutions 3 --fill 0.1 --speed-fraction 0.8 --out out/mill80
+"""
+
+#: the Yade script (millimpact/dem/yade_scripts/)
+SCRIPT = Path(__file__).resolve().parent / "yade_scripts" / "mill_slice.py"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", help="a built-in scene with a liner (liner-segment, liner-panel) or a TOML file")
+    p.add_argument("--revolutions", type=float, required=True, metavar="R",
+                   help="revolutions logged (after the warm-up)")
+    p.add_argument("--balls", type=int, metavar="N", help="number of balls (or --fill)")
+    p.add_argument("--fill", type=float, metavar="F",
+                   help="fraction of the mill's volume the ball bed fills, 0.05-0.5 (default 0.1)")
+    p.add_argument("--speed-fraction", type=float, default=0.75, metavar="S",
+                   help="fraction of the critical speed n_c = 42.3/sqrt(D) rpm, in (0, 2] (default 0.75)")
+    p.add_argument("--restitution", type=float, metavar="E",
+                   help="coefficient of restitution of every contact (default: Thornton's e at the shell speed "
+                        "from the scene's yield stresses)")
+    p.add_argument("--friction", type=float, metavar="MU",
+                   help="Coulomb friction (default: the scene's contact.friction)")
+    p.add_argument("--stiffness-scale", type=float, default=0.01, metavar="K",
+                   help="factor on Young's moduli in the DEM (default 0.01: soft contacts, 6x fewer steps; 1 = steel)")
+    p.add_argument("--warmup", type=float, default=1.0, metavar="REV",
+                   help="revolutions run before logging starts (default 1)")
+    p.add_argument("--thickness", type=float, default=2.0, metavar="DIAMETERS",
+                   help="the slice's thickness along the axis, in ball diameters (default 2)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the balls' starting jitter (default 0)")
+    p.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
+    p.add_argument("--out", help="output folder (default out/mill-SCENE); an earlier millimpact output there is "
+                                 "replaced, a folder holding other files is refused")
+    p.add_argument("--force", action="store_true", help="replace --out even if it holds files millimpact did not write")
+    p.add_argument("--no-plots", action="store_true", help="skip spectrum.png and charge.png")
+
+
+def _scene(args: argparse.Namespace):
+    from ..scene.builtin import resolve_scene
+    from ..scene.schema import parse_value
+
+    scene = resolve_scene(args.scene)
+    for assignment in args.set or []:
+        key, sep, value = assignment.partition("=")
+        if not sep or not key.strip():
+            raise InputError(f"--set {assignment}: expected FIELD=VALUE, e.g. --set ball.radius=0.05")
+        scene = scene.with_value(key.strip(), parse_value(value))
+    return scene
+
+
+def options_from_args(args: argparse.Namespace):
+    """The :class:`~millimpact.dem.mill_setup.MillOptions` of the command line, checked."""
+    from .mill_setup import MillOptions, check_mill_options
+
+    opts = MillOptions(revolutions=args.revolutions, balls=args.balls, fill=args.fill,
+                       speed_fraction=args.speed_fraction, restitution=args.restitution, friction=args.friction,
+                       stiffness_scale=args.stiffness_scale, warmup=args.warmup, thickness=args.thickness,
+                       seed=args.seed)
+    check_mill_options(opts)
+    return opts
+
+
+class _Progress:
+    """Prints the Yade run's PROGRESS lines, one every 5 % (every 1 % on a terminal, in place)."""
+
+    def __init__(self) -> None:
+        self.tty = sys.stderr.isatty()
+        self.shown = -1
+
+    def __call__(self, line: str) -> None:
+        words = line.split()
+        try:
+            frac = float(words[0])
+        except (IndexError, ValueError):
+            return
+        step = 1 if self.tty else 5
+        pct = int(100 * frac)
+        if pct // step == self.shown // step and pct < 100:
+            return
+        self.shown = pct
+        text = f"  DEM {pct:3d} % " + " ".join(words[1:])
+        if self.tty:
+            print("\r" + text, end="\n" if pct >= 100 else "", file=sys.stderr, flush=True)
+        else:
+            print(text, file=sys.stderr, flush=True)
+
+
+def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=None) -> dict:
+    """Plan, run and report one mill run into the folder ``stage``; returns the summary."""
+    from .impacts import write_impacts
+    from .mill_log import read_mill_run
+    from .mill_report import (charge_angles, charge_figure, energy_balance, place_table, plot_spectrum,
+                              write_spectrum_csv)
+    from .mill_setup import plan_mill
+    from .yade import run_yade
+
+    if setup is None:
+        setup = plan_mill(scene, opts)
+    work = stage / "yade"
+    work.mkdir()
+    shutil.copy(SCRIPT, work / SCRIPT.name)
+    (work / "input.json").write_text(json.dumps(setup.yade_input()) + "\n")
+    run_yade(work / SCRIPT.name, work, ["input.json"], timeout=timeout, on_progress=_Progress())
+    run = read_mill_run(work, setup)
+    write_impacts(stage / "impacts.csv", run.impacts)
+    revs = setup.revolutions
+    write_spectrum_csv(stage / "spectrum.csv", run.impacts, revs)
+    table = place_table(run.impacts, revs)
+    with open(stage / "impacts_per_revolution.csv", "w") as fh:
+        cols = list(table[0])
+        fh.write(",".join(cols) + "\n")
+        for row in table:
+            fh.write(",".join(row[c] if c == "place" else repr(float(row[c])) for c in cols) + "\n")
+    angles = charge_angles(run.snapshots, setup)
+    balance = energy_balance(run.energy)
+    if plots:
+        title = (f"{setup.scene_name}: {setup.n_balls} balls, {100 * setup.speed_fraction:.0f} % of n_c, "
+                 f"{revs:g} revolutions")
+        plot_spectrum(stage / "spectrum.png", run.impacts, revs, title)
+        charge_figure(stage / "charge.png", run.snapshots, setup, angles)
+    p = setup.profile
+    summary = {
+        "scene": setup.scene_name,
+        "mill": {"diameter_m": p.diameter, "lifters": p.n_lifters, "lifter_height_m": p.lifter_height,
+                 "slice_thickness_m": setup.thickness, "critical_speed_rpm": setup.critical_rpm,
+                 "speed_fraction": setup.speed_fraction, "speed_rpm": setup.speed_fraction * setup.critical_rpm},
+        "charge": {"balls": setup.n_balls, "ball_radius_m": setup.ball_radius, "fill": setup.fill,
+                   "charge_is": "balls alone (no rock, no slurry)"},
+        "contact": {"law": "Yade Hertz-Mindlin (Law2_ScGeom_MindlinPhys_Mindlin)", "restitution": setup.restitution,
+                    "restitution_source": setup.restitution_source, "friction": setup.friction,
+                    "stiffness_scale": setup.stiffness_scale},
+        "clock": {"dt_s": setup.dt, "contact_time_s": setup.contact_time_s, "v_max_m_s": setup.v_max,
+                  "check_every_steps": setup.check_every, "warmup_revolutions": setup.warmup_s / setup.period_s,
+                  "revolutions": revs, "period_s": setup.period_s},
+        "impacts_per_revolution": {row["place"]: row["impacts_per_revolution"] for row in table},
+        "energy_per_revolution_J": {row["place"]: row["energy_per_revolution_J"] for row in table},
+        "shoulder_deg": angles["shoulder_deg"], "toe_deg": angles["toe_deg"],
+        "angles_measured": "from the vertical below the axis, positive in the direction of rotation",
+        "centrifuged_fraction": angles["centrifuged_fraction"],
+        "energy_balance": balance,
+        "yade": run.info,
+        "impacts_time_origin": "the end of the warm-up",
+    }
+    return summary
+
+
+def main(args: argparse.Namespace) -> int:
+    from ..results.timeseries import staged_output, write_summary
+    from .mill_setup import plan_mill
+    from .yade import yade_executable
+
+    # every check before any folder is made: options, scene, the plan, Yade, then --out
+    opts = options_from_args(args)
+    scene = _scene(args)
+    setup = plan_mill(scene, opts)
+    yade_executable()
+    out = prepare_output(args.out or f"out/mill-{scene.name}", force=args.force)
+    say(f"mill: scene '{scene.name}', D {setup.profile.diameter:g} m, {setup.profile.n_lifters} lifters, "
+        f"{setup.n_balls} balls of {2e3 * setup.ball_radius:g} mm in a {1e3 * setup.thickness:.0f} mm slice, "
+        f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; e {setup.restitution:.3g} "
+        f"({setup.restitution_source}), mu {setup.friction:g}, moduli x {setup.stiffness_scale:g}; "
+        f"{(setup.warmup_s + setup.run_s) / setup.dt:.3g} steps of {setup.dt:.3g} s", file=sys.stderr)
+    with staged_output(out, kind="mill") as stage:
+        summary = run_mill(scene, opts, stage, plots=not args.no_plots, setup=setup)
+        write_summary(stage, summary)
+    n = summary["impacts_per_revolution"]
+    say(f"impacts per revolution: {n['all']:.4g} (lifter faces {n['lifter_face']:.4g}, tops {n['lifter_top']:.4g}, "
+        f"plate {n['plate']:.4g}); shoulder {summary['shoulder_deg']} deg, toe {summary['toe_deg']} deg; "
+        f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %")
+    say(f"wrote {out}")
+    return 0

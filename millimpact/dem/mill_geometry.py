@@ -1,0 +1,169 @@
+"""The cross-section of a mill's liner from a scene's liner description, for a DEM slice of the mill.
+
+The scene's :class:`~millimpact.scene.schema.Liner` describes one segment of the shell liner
+(:mod:`millimpact.scene.liner_shape`): the plate's inner face on a circle of radius R =
+``mill_radius`` and lifters ``lifter_height`` h high with a ``lifter_top_width`` top and faces
+inclined ``lifter_face_angle`` from the lifter's centre line, ``lifter_spacing`` s apart (arc length
+on the plate's inner face). Round the whole shell that makes
+
+    n = round(2 pi R / s)
+
+lifters, evenly spaced in angle (2 pi / n apart: the spacing is rounded so that they close the
+circle). Plate, bolts and backing under the plate's inner face do not matter to the charge.
+
+The profile is the closed polygon the charge sees, in the mill's cross-section (x, y) with the
+mill's axis on z through the origin: walking counter-clockwise (the direction the mill turns), the
+plate's inner circle (as chords no more than :func:`plate_chord` long) up to a lifter's trailing
+foot, up its trailing face, across its top, down its leading face (the face that lifts the charge
+when the mill turns counter-clockwise), and on along the plate. Lifter k's centre line points from
+the shell at angle theta_k = 2 pi k / n towards the axis; a face meets the plate where its line
+crosses the circle of radius R (the lifter's foot, in :mod:`~millimpact.scene.liner_shape`, lies on
+the tangent at theta_k: the two differ by ~ (base/2)^2 / (2 R), under 2 mm for the built-in liners).
+
+Every segment carries its ``place`` (``plate``, ``lifter_face``, ``lifter_top``: the places of
+:data:`millimpact.dem.impacts.PLACES`) and a ``part`` number: the plate between two lifters is one
+part, each face and each top another, so a ball rolling from one chord of the plate onto the next
+does not count as a new impact.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import InputError
+from ..scene.liner_shape import LinerShape
+
+#: a plate chord's sagitta, at most this fraction of the ball radius: L <= sqrt(8 R r f)
+CHORD_SAG_FRACTION = 0.01
+
+Point2 = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class ProfileSegment:
+    """One straight segment of the mill's profile (m), its place, the lifter it belongs to (the
+    lifter whose centre line is nearest for the plate) and its part number."""
+
+    start: Point2
+    end: Point2
+    place: str
+    lifter: int
+    part: int
+
+    @property
+    def length(self) -> float:
+        return math.dist(self.start, self.end)
+
+
+@dataclass(frozen=True)
+class MillProfile:
+    """A mill's liner profile in its cross-section: the shell radius R (plate's inner face, m), the
+    number of lifters n, their height (m) and the closed polygon of :class:`ProfileSegment`."""
+
+    radius: float
+    n_lifters: int
+    lifter_height: float
+    segments: tuple[ProfileSegment, ...]
+
+    @property
+    def diameter(self) -> float:
+        """The mill's inside diameter D = 2 R (m), the D of the critical speed n_c = 42.3 / sqrt(D)."""
+        return 2.0 * self.radius
+
+    def lifter_angle(self, k: int) -> float:
+        """Angle (rad) of lifter k's centre line, theta_k = 2 pi k / n."""
+        return 2.0 * math.pi * k / self.n_lifters
+
+    def arc_position(self, x: float, y: float) -> float:
+        """Arc position (m) of the point (x, y) of the liner frame: R times its angle from the nearest
+        lifter's centre line, positive towards that lifter's leading face (counter-clockwise)."""
+        pitch = 2.0 * math.pi / self.n_lifters
+        phi = math.atan2(y, x)
+        d = (phi + 0.5 * pitch) % pitch - 0.5 * pitch
+        return self.radius * d
+
+    def open_area(self) -> float:
+        """Area (m^2) inside the profile (the shell's circle less the lifters): the shoelace sum."""
+        a = 0.0
+        for s in self.segments:
+            a += s.start[0] * s.end[1] - s.end[0] * s.start[1]
+        return 0.5 * abs(a)
+
+
+def plate_chord(radius: float, ball_radius: float) -> float:
+    """The longest plate chord (m): its sagitta L^2 / (8 R) stays below CHORD_SAG_FRACTION of the
+    ball radius, so a ball rolling on the plate feels a circle."""
+    return math.sqrt(8.0 * radius * ball_radius * CHORD_SAG_FRACTION)
+
+
+def lifter_count(liner: LinerShape) -> int:
+    """n = round(2 pi R / s): the lifters round the whole shell at the scene's spacing."""
+    return max(1, round(2.0 * math.pi * liner.mill_radius / liner.lifter_spacing))
+
+
+def _foot_on_circle(R: float, top: Point2, foot: Point2) -> Point2:
+    """Where the face line from ``top`` through ``foot`` crosses the shell's circle: the point at
+    distance R from the mill's axis, which lies at (zeta, eta) = (0, R) in the lifter's local frame
+    (zeta across, eta up from the shell along the lifter's centre line)."""
+    # point p(t) = top + t (foot - top); distance from the axis (0, R) equals R
+    (z0, e0), (z1, e1) = top, foot
+    dz, de = z1 - z0, e1 - e0
+    # |(z0 + t dz, e0 + t de - R)|^2 = R^2
+    a = dz * dz + de * de
+    b = 2.0 * (z0 * dz + (e0 - R) * de)
+    c = z0 * z0 + (e0 - R) ** 2 - R * R
+    disc = b * b - 4.0 * a * c
+    t = (-b + math.sqrt(max(disc, 0.0))) / (2.0 * a)    # the crossing beyond the top (t > 0)
+    return z0 + t * dz, e0 + t * de
+
+
+def build_profile(liner: LinerShape, ball_radius: float) -> MillProfile:
+    """The liner's closed profile round the whole mill (see the module docstring), plate chords no
+    longer than :func:`plate_chord` for balls of ``ball_radius`` (m)."""
+    R = float(liner.mill_radius)
+    if not R > 0:
+        raise InputError(f"liner.mill_radius = {liner.mill_radius!r}: a mill run needs a curved liner "
+                         "(mill_radius > 0 m, the shell's inner radius)")
+    n = lifter_count(liner)
+    h, ht = liner.lifter_height, 0.5 * liner.lifter_top_width
+    hb = 0.5 * liner.lifter_base_width
+    pitch = 2.0 * math.pi / n
+    # local lifter outline (zeta across, positive leading; eta up from the shell at the centre line);
+    # the axis of the mill lies at (0, R) in this frame
+    foot_t = _foot_on_circle(R, (-ht, h), (-hb, 0.0))
+    foot_l = _foot_on_circle(R, (ht, h), (hb, 0.0))
+    outline = [foot_t, (-ht, h), (ht, h), foot_l]
+    half_foot = math.atan2(foot_l[0], R - foot_l[1])              # angle of the foot from the centre line
+    if 2.0 * half_foot >= pitch:
+        raise InputError(f"liner.lifter_spacing = {liner.lifter_spacing!r}: {n} lifters round a shell of radius "
+                         f"{R:g} m overlap (each is {2 * hb:g} m wide at its foot)")
+    gap = pitch - 2.0 * half_foot
+    n_chords = max(1, math.ceil(R * gap / plate_chord(R, ball_radius)))
+
+    def to_global(k: int, zeta: float, eta: float) -> Point2:
+        th = k * pitch
+        # centre line up = -e_r(th), across (leading) = e_theta(th)
+        er, et = (math.cos(th), math.sin(th)), (-math.sin(th), math.cos(th))
+        rho = R - eta
+        return (rho * er[0] + zeta * et[0], rho * er[1] + zeta * et[1])
+
+    segments: list[ProfileSegment] = []
+    part = 0
+    for k in range(n):
+        pts = [to_global(k, z, e) for z, e in outline]
+        segments.append(ProfileSegment(pts[0], pts[1], "lifter_face", k, part))
+        segments.append(ProfileSegment(pts[1], pts[2], "lifter_top", k, part + 1))
+        segments.append(ProfileSegment(pts[2], pts[3], "lifter_face", k, part + 2))
+        part += 3
+        # the plate from this lifter's leading foot to the next lifter's trailing foot
+        a0 = k * pitch + half_foot
+        arc = [a0 + gap * i / n_chords for i in range(n_chords + 1)]
+        ring = [pts[3]] + [(R * math.cos(a), R * math.sin(a)) for a in arc[1:-1]] + \
+            [to_global(k + 1, *foot_t)]
+        mid = a0 + 0.5 * gap
+        for i, (p, q) in enumerate(zip(ring, ring[1:])):
+            a_mid = a0 + gap * (i + 0.5) / n_chords
+            owner = k if a_mid < mid else (k + 1) % n
+            segments.append(ProfileSegment(p, q, "plate", owner, part))
+        part += 1
+    return MillProfile(radius=R, n_lifters=n, lifter_height=h, segments=tuple(segments))

@@ -1,0 +1,44 @@
+"""Bad input to ``millimpact mill``: one line naming the option and its range, exit 2, no folder."""
+from __future__ import annotations
+
+import pytest
+
+from conftest import run_cli
+
+
+@pytest.mark.parametrize("args, words", [
+    (["liner-panel", "--speed-fraction", "0"], "--speed-fraction 0: must lie in (0, 2]"),
+    (["liner-panel", "--speed-fraction", "2.1"], "--speed-fraction 2.1: must lie in (0, 2]"),
+    (["liner-panel", "--speed-fraction", "-0.5"], "--speed-fraction -0.5"),
+    (["liner-panel", "--fill", "0.04"], "--fill 0.04: must lie in [0.05, 0.5]"),
+    (["liner-panel", "--fill", "0.55"], "--fill 0.55: must lie in [0.05, 0.5]"),
+    (["liner-panel", "--fill", "nan"], "--fill nan: must be a finite number"),
+    (["paper-rig"], "scene 'paper-rig': has no liner"),
+    (["liner-segment", "--set", "liner.mill_radius=0"], "liner.mill_radius = 0.0: a mill run needs a curved liner"),
+    (["liner-panel", "--balls", "10", "--fill", "0.1"], "give one of them"),
+])
+def test_bad_input_is_one_line_and_exit_2_and_no_folder(tmp_path, args, words):
+    out = tmp_path / "mill"
+    res = run_cli("mill", *args, "--revolutions", "1", "--out", str(out), timeout=120)
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], res.stderr
+    assert "Traceback" not in res.stderr
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_without_yade_one_line_says_how_to_install_it(tmp_path):
+    import subprocess
+    import sys
+
+    from conftest import ROOT, mpi_env
+
+    out = tmp_path / "mill"
+    env = {**mpi_env(), "MILLIMPACT_YADE": str(tmp_path / "no-yade-here")}
+    res = subprocess.run([sys.executable, "-m", "millimpact.cli", "mill", "liner-panel", "--revolutions", "1",
+                          "--balls", "10", "--out", str(out)], capture_output=True, text=True, env=env, cwd=ROOT,
+                         timeout=120)
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "apt-get install yade" in lines[0], res.stderr
+    assert not list(tmp_path.iterdir())
