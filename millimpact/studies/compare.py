@@ -28,14 +28,16 @@ import json
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Optional
-
-import numpy as np
+from typing import TYPE_CHECKING, Optional
 
 from ..console import say, world_rank
 from ..errors import InputError
 from ..results.output_folder import prepare_output
-from ..results.timeseries import TimeSeries, jsonable, contact_metrics, staged_output, unit_of
+
+if TYPE_CHECKING:   # numpy and the time series are imported where compare computes (`--help` stays fast)
+    import numpy as np
+
+    from ..results.timeseries import TimeSeries
 
 HELP = "score another implementation's CSV histories against a reference run (peak, L2, time shift)"
 
@@ -114,6 +116,8 @@ def peak(t: np.ndarray, y: np.ndarray, sign: float) -> tuple[float, float]:
     sample's value (never overshoots a staircase such as the contact radius) at the time of the
     vertex of the parabola through that sample and its two neighbours (sub-step, within them);
     on a plateau (neighbours equal to the extreme within 1e-9 of it) the plateau's middle."""
+    import numpy as np
+
     sy = sign * y
     i = int(np.argmax(sy))
     level = sy[i] - 1e-9 * abs(sy[i])
@@ -146,6 +150,8 @@ def l2_error(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray,
     """Relative L2-in-time error of y_o(t + shift) against y_r(t) on the reference grid, over the
     part of the reference's span where t + shift lies in the other's span; and that part's share
     of int y_r^2 dt (the coverage). The error is None when the reference is zero there."""
+    import numpy as np
+
     mask = (t_r + shift >= t_o[0]) & (t_r + shift <= t_o[-1])
     total = float(np.trapz(y_r * y_r, t_r))
     if mask.sum() < 2:
@@ -175,6 +181,8 @@ def time_shift(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarra
     own span. So a shifted copy of a finite signal correlates as its zero-padded autocorrelation,
     which is symmetric about the true lag.
     """
+    import numpy as np
+
     from scipy.signal import correlate
 
     span = t_r[-1] - t_r[0]
@@ -199,6 +207,10 @@ def time_shift(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarra
 def score(name: str, t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray,
           max_shift: float) -> Score:
     """All measures of one history (see the module docstring)."""
+    import numpy as np
+
+    from ..results.timeseries import unit_of
+
     lo, hi = max(t_r[0], t_o[0]), min(t_r[-1], t_o[-1])
     wr = (t_r >= lo) & (t_r <= hi)
     wo = (t_o >= lo) & (t_o <= hi)
@@ -223,6 +235,8 @@ def score(name: str, t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.
 
 def default_max_shift(ref: TimeSeries) -> float:
     """The reference's contact duration, or a quarter of its span without a contact force."""
+    from ..results.timeseries import contact_metrics
+
     if "contact_force_N" in ref:
         d = contact_metrics(ref).get("contact_duration_s", 0.0)
         if d > 0:
@@ -245,6 +259,8 @@ def not_modelled(ref: TimeSeries, other: TimeSeries, names: list[str]) -> list[s
     """The shared columns the other does not model: identically zero where the reference's are not
     (a model without that quantity writes zeros): flagged, not scored (a "-100 %" peak error there
     says nothing about the model)."""
+    import numpy as np
+
     return [n for n in names if not np.any(other[n]) and np.any(ref[n])]
 
 
@@ -374,6 +390,7 @@ def plot_compare(ref: TimeSeries, other: TimeSeries, scores: list[Score], path: 
 def main(args: argparse.Namespace) -> int:
     """``millimpact compare``: read, score, print the table, write compare.json/.csv/.png."""
     from ..results.reference import read_history_csv, read_reference
+    from ..results.timeseries import jsonable, staged_output
 
     other_path = Path(args.other)
     out = Path(args.out) if args.out else Path("out") / f"compare-{other_path.stem}"
