@@ -218,13 +218,15 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
 
 
 def _apply_sets(scene, sets: Optional[list[str]]):
-    """The scene with each ``--set FIELD=VALUE`` applied (validated); a malformed one is one line."""
+    """The scene with every ``--set FIELD=VALUE`` applied, validated together (their order does not
+    matter: :meth:`Scene.with_values`); a malformed one is one line."""
+    assignments = []
     for assignment in sets or []:
         key, eq, value = assignment.partition("=")
         if not eq or not key.strip() or not value.strip():
             raise InputError(f"--set {assignment}: expected FIELD=VALUE, e.g. --set ball.radius=0.02")
-        scene = scene.with_value(key.strip(), parse_value(value))
-    return scene
+        assignments.append((key.strip(), parse_value(value)))
+    return scene.with_values(assignments) if assignments else scene
 
 
 def cmd_mesh(args: argparse.Namespace) -> int:

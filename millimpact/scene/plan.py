@@ -73,6 +73,17 @@ def smallest_size(scene: Scene) -> float:
     return min(scene.ball.radius, *body)
 
 
+def smallest_body_side(scene: Scene) -> tuple[str, float]:
+    """The struck body's smallest size (m) and the scene field that sets it."""
+    if scene.liner is not None:
+        ln = scene.liner
+        sides = {"liner.length": ln.length, "liner.thickness": ln.thickness, "liner.lifter_top_width": ln.lifter_top_width}
+    else:
+        sides = {"block.length": scene.block.length, "block.thickness": scene.block.thickness,
+                 "block.height": scene.block.height}
+    return min(sides.items(), key=lambda kv: kv[1])
+
+
 def zone_radius_limit(scene: Scene) -> float:
     """The contact zone must stay below this radius (m): 0.45 of the smallest body size, so the
     zone sphere does not reach the far side of the ball or the body."""
@@ -329,7 +340,12 @@ def make_plan(scene: Scene) -> Plan:
     fine = min(1.5 * h.a_max, zone)
     reasons["fine_radius"] = "1.5 a_max: h_contact over the whole contact patch"
     if h_c > zone / 2:
-        raise SceneError("model.h_contact", h_c, f"must be at most half the contact-zone radius ({zone/2:g} m)")
+        if m.h_contact is not None:
+            raise SceneError("model.h_contact", h_c, f"must be at most half the contact-zone radius ({zone/2:g} m)")
+        if m.zone_radius is not None:
+            raise SceneError("model.zone_radius", zone, f"must be at least 2 h_contact = {2 * h_c:.4g} m "
+                             f"(h_contact = a_max / {ELEMENTS_ACROSS_CONTACT:g} of this impact)")
+        raise contact_too_large(scene, h)
     gap = scene.impact.gap if scene.impact.gap is not None else GAP_FACTOR * h.delta_max
     reasons["gap"] = "user" if scene.impact.gap is not None else f"{GAP_FACTOR:g} delta_max (flight before contact is exact)"
     t = scene.time
@@ -350,6 +366,38 @@ def make_plan(scene: Scene) -> Plan:
                 probes=make_probe_spec(scene, planes, h_c, gap, h.a_max, F_CUT_FACTOR / h.contact_time),
                 reasons=tuple(reasons.items()), plastic_radius=c_p,
                 backing_stiffness=scene.liner.backing_stiffness if scene.liner is not None else 0.0)
+
+
+#: the largest Hertz contact radius a_max the plan meshes, as a share of the smallest of the ball
+#: radius and the struck body's sides: h_contact = a_max / 4 must be at most half the contact
+#: zone, and the zone at most PLASTIC_ZONE_CAP x 0.45 of that size (:func:`zone_radius_limit`)
+MAX_CONTACT_SHARE = 2.0 * PLASTIC_ZONE_CAP * 0.45 * 4.0 / ELEMENTS_ACROSS_CONTACT
+
+
+def contact_too_large(scene: Scene, h: HertzImpact) -> SceneError:
+    """The refusal of a scene whose Hertz contact is too large to mesh, naming the field to change.
+
+    a_max = R (5 pi rho v^2 / (4 E*))^(1/5) (Johnson 1985, section 11.4, with m = 4/3 pi R^3 rho),
+    so a_max / R does not depend on the radius. When a_max exceeds :data:`MAX_CONTACT_SHARE` of the
+    ball radius, the materials and the speed are to blame (a contact as wide as the ball: Hertz's
+    small-contact model no longer holds) and the speed limit is given (a_max ~ v^(2/5)); otherwise
+    the ball is too large for the struck body and the radius limit is given."""
+    share = MAX_CONTACT_SHARE
+    ratio = h.a_max / scene.ball.radius
+    side_field, side = smallest_body_side(scene)
+    if ratio > share:
+        v_max = h.speed * (share * min(scene.ball.radius, side) / h.a_max) ** 2.5
+        return SceneError("impact.velocity", list(scene.impact.velocity),
+                          f"with these materials (ball density {scene.ball.material.density:g} kg/m^3, contact "
+                          f"modulus E* {h.e_star:.3g} Pa) the Hertz contact radius a_max would be {ratio:.3g} x the "
+                          f"ball radius, more than the {share:.3g} the model meshes: the normal speed must be at most "
+                          f"{v_max:.3g} m/s (or the materials stiffer or lighter)")
+    r_max = scene.ball.radius * share * side / h.a_max
+    return SceneError("ball.radius", scene.ball.radius,
+                      f"must be at most {r_max:.3g} m on this {'liner' if scene.liner is not None else 'block'} "
+                      f"({side_field} = {side:g} m): its Hertz contact radius a_max = {h.a_max:.3g} m must stay "
+                      f"under {share:.3g} x the struck body's smallest side (or make the body's sides at least "
+                      f"{h.a_max / share:.3g} m)")
 
 
 #: first yield under a Hertz contact (von Mises, nu = 0.3): p0 = 1.60 Y on the axis at 0.48 a

@@ -110,6 +110,8 @@ def parse_method_options(items: Sequence[str]) -> dict[str, Any]:
 
 
 def apply_sets(scene: Scene, sets: Sequence[str], param: str) -> Scene:
+    """``scene`` with every ``--set FIELD=VALUE``, validated together (order does not matter)."""
+    assignments = []
     for assignment in sets:
         key, sep, value = assignment.partition("=")
         key = key.strip()
@@ -117,8 +119,8 @@ def apply_sets(scene: Scene, sets: Sequence[str], param: str) -> Scene:
             raise InputError(f"--set {assignment!r}: expected FIELD=VALUE (e.g. --set model.h_far=0.008)")
         if key == param or key.startswith(param + ".") or param.startswith(key + "."):
             raise InputError(f"--set {key}: conflicts with the study parameter {param}")
-        scene = scene.with_value(key, parse_value(value))
-    return scene
+        assignments.append((key, parse_value(value)))
+    return scene.with_values(assignments) if assignments else scene
 
 
 def with_param(base: Scene, param: str, value: Any) -> Scene:
