@@ -80,6 +80,11 @@ def cmd_hertz(args: argparse.Namespace) -> int:
     say(f"Hertz impact of scene '{scene.name}' (ball on a half-space of the block's material)")
     for name, value, unit, _ in h.table():
         say(f"  {name:<26s} {value:12.5g} {unit}")
+    from .scene.plan import first_yield_notes
+
+    for note in first_yield_notes(h, scene.ball.material, scene.target_material,
+                                  "liner" if scene.liner is not None else "block"):
+        say(f"  note: {note}")
     return 0
 
 

@@ -413,7 +413,35 @@ def elastic_limit_note(plan: Plan) -> Optional[str]:
     materials' yield stresses (none given: of a typical liner steel), else None."""
     if plan.ball.material.plastic or plan.target.plastic:
         return None
-    p0 = plan.hertz.p0
+    return _typical_steel_note(plan.hertz.p0)
+
+
+def first_yield_notes(h: HertzImpact, ball: Material, target: Material, target_name: str) -> list[str]:
+    """What the Hertz values ``h`` say about yielding: for each body with a yield stress Y, whether
+    p0 exceeds its first-yield pressure 1.6 Y (Johnson 1985, section 6.2: von Mises, nu = 0.3);
+    for an all-elastic scene, :func:`elastic_limit_note`'s comparison with a typical liner steel."""
+    if not (ball.plastic or target.plastic):
+        note = _typical_steel_note(h.p0)
+        return [note] if note else []
+    notes = []
+    for body, m in (("ball", ball), (target_name, target)):
+        if not m.plastic:
+            continue
+        y = m.initial_yield_stress
+        limit = FIRST_YIELD_PRESSURE_FACTOR * y
+        if h.p0 > limit:
+            notes.append(f"beyond the elastic limit: p0 = {h.p0 / 1e9:.3g} GPa exceeds the {body}'s first-yield "
+                         f"pressure 1.6 Y = {limit / 1e9:.3g} GPa (Y {y / 1e9:.3g} GPa; Johnson 1985, 6.2): the "
+                         f"{body} yields, and these elastic values overestimate the peak force and the restitution "
+                         "(millimpact run with a plastic method gives the elastic-plastic answer)")
+        else:
+            notes.append(f"within the elastic limit of the {body}: p0 = {h.p0 / 1e9:.3g} GPa <= 1.6 Y = "
+                         f"{limit / 1e9:.3g} GPa (Johnson 1985, 6.2)")
+    return notes
+
+
+def _typical_steel_note(p0: float) -> Optional[str]:
+    """The elastic-limit note of an all-elastic scene (p0 in Pa), None below the limit."""
     limit = FIRST_YIELD_PRESSURE_FACTOR * TYPICAL_LINER_YIELD
     if p0 <= limit:
         return None

@@ -115,6 +115,9 @@ def parse_list(text: Optional[str], option: str, low: float, high: float, low_op
             raise InputError(f"{option} {text!r}: {part.strip()!r} is not a number (a comma-separated list in {rng})") from None
         if not math.isfinite(v) or v < low or v > high or (low_open and v == low) or (high_open and v == high):
             raise InputError(f"{option} {text!r}: {v:g} is outside {rng}")
+        if v in out:   # a repeated case would be a duplicate row, weighting the fitted laws
+            raise InputError(f"{option} {text!r}: {v:g} is repeated (each value once: a duplicate row would "
+                             "weight the fitted laws)")
         out.append(v)
     return out
 
@@ -348,7 +351,7 @@ def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, wo
     import numpy as np
     from mpi4py import MPI
 
-    from ..integration.solvers import destroy_petsc_tree, release_petsc_garbage
+    from ..integration.solvers import destroy_petsc_tree, release_petsc_garbage, reset_option_usage, unused_options
 
     bands = sorted({c.band for c in todo})
     by_band = [[c for c in todo if c.band == b] for b in bands]
@@ -367,6 +370,7 @@ def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, wo
     current: Optional[int] = None
     setups: dict = {}
     rows = []
+    warned = False
     t0 = time.perf_counter()
     try:
         while True:
@@ -394,12 +398,20 @@ def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, wo
             release_petsc_garbage(group)
             if case.band in setups:
                 release_petsc_garbage(setups[case.band].model.V.mesh.comm)
+            reset_option_usage()
             try:
                 row = run_case(case, method, options, setups, group)
             except (MillimpactError, RuntimeError, ValueError, ArithmeticError) as exc:
                 row = {"case": case.index, "key": case.key, "impact_speed_m_s": case.speed,
                        "impact_angle_deg": case.angle, "ball_radius_m": case.radius,
                        "status": f"failed: {type(exc).__name__}: {str(exc).splitlines()[0][:300]}"}
+            unused = unused_options(options) if not warned and str(row.get("status", "")).startswith("ok") else None
+            if unused:   # as study and run: said once, after the first case that ran (even with -q)
+                warned = True
+                if world.rank == 0:
+                    print(f"millimpact: warning: options that nothing in this table's runs used (misspelled, or for "
+                          f"a solver method {method} does not have): {', '.join('-' + k for k in unused)}",
+                          file=sys.stderr, flush=True)
             if group.rank == 0:
                 tmp = folder / f".{case.key}.{os.getpid()}.tmp"
                 tmp.write_text(json.dumps(row, indent=1, default=float))
