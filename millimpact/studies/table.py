@@ -405,7 +405,9 @@ def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, wo
                 row = {"case": case.index, "key": case.key, "impact_speed_m_s": case.speed,
                        "impact_angle_deg": case.angle, "ball_radius_m": case.radius,
                        "status": f"failed: {type(exc).__name__}: {str(exc).splitlines()[0][:300]}"}
-            unused = unused_options(options) if not warned and str(row.get("status", "")).startswith("ok") else None
+            # a case that reused its band's reduction did not read the options of building it
+            ran = str(row.get("status", "")).startswith("ok") and not row.get("reduction_reused")
+            unused = unused_options(options) if ran and not warned else None
             if unused:   # as study and run: said once, after the first case that ran (even with -q)
                 warned = True
                 if world.rank == 0:
