@@ -84,7 +84,8 @@ def smallest_body_side(scene: Scene) -> tuple[str, float]:
     """The struck body's smallest size (m) and the scene field that sets it."""
     if scene.liner is not None:
         ln = scene.liner
-        sides = {"liner.length": ln.length, "liner.thickness": ln.thickness, "liner.lifter_top_width": ln.lifter_top_width}
+        sides = {"liner.length": ln.length, "liner.thickness": ln.thickness,
+                 "liner.lifter_top_width": ln.lifter_top_width}
     else:
         sides = {"block.length": scene.block.length, "block.thickness": scene.block.thickness,
                  "block.height": scene.block.height}

@@ -244,7 +244,9 @@ def score(name: str, t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.
         dt_peak = tp_o - tp_r
         shift, at_limit = time_shift(t_r, y_r, t_o, y_o, max_shift)
         l2s, _ = l2_error(t_r, y_r, t_o, y_o, shift)
-    return Score(name, unit_of(name), p_r, p_o, sign * (float(p_o) / abs(float(p_r)) - math.copysign(1.0, p_r)) if p_r != 0 else None,
+    # (p_o - p_r) / |p_r| as p_o / |p_r| - sign(p_r): no overflow of the difference near 1e308
+    error = sign * (float(p_o) / abs(float(p_r)) - math.copysign(1.0, p_r)) if p_r != 0 else None
+    return Score(name, unit_of(name), p_r, p_o, error,
                  tp_r, tp_o, dt_peak, l2, coverage, shift, at_limit, l2s)
 
 

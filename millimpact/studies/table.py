@@ -150,7 +150,8 @@ def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], 
                  method: str, options: dict) -> list[TableCase]:
     """The table's cases, grouped in bands that share a mesh (module docstring), each case's scene
     carrying its band's h_contact, zone radius, gap and symmetry."""
-    from ..scene.plan import ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan, scene_hertz
+    from ..scene.plan import (ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan,
+                              scene_hertz)
 
     raw = []
     for r in radii:

@@ -104,7 +104,8 @@ def test_a_material_named_with_set_name_as_the_note_says(tmp_path):
 
     m = tomllib.loads((out / "scene.toml").read_text())["block"]["material"]
     assert m["yield_stress"] == 1.1e9 and m["shear_modulus"] == 80.8e9 and m["hardening_modulus"] == 2.5e9
-    line = one_error_line("run", "--method", "hertz", "--set", "block.material.name=nosuch", "--out", str(tmp_path / "n"))
+    line = one_error_line("run", "--method", "hertz", "--set", "block.material.name=nosuch",
+                          "--out", str(tmp_path / "n"))
     assert "block.material.name = 'nosuch': unknown material" in line
 
 

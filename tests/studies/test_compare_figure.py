@@ -38,4 +38,5 @@ def test_compare_axes_follow_the_unit_rule_without_offsets():
                       "gauge A stress": "gauge A stress [MPa]"}
     # the plotted values are the scaled ones (kN: ~13.85 at the peak)
     force_ax = next(ax for ax in fig.axes if ax.get_title() == "contact force")
-    assert max(force_ax.lines[0].get_ydata()) == np.max(ref["contact_force_N"]) * value_unit("contact_force_N", ref["contact_force_N"])[0]
+    kilo = value_unit("contact_force_N", ref["contact_force_N"])[0]
+    assert kilo == 1e-3 and max(force_ax.lines[0].get_ydata()) == np.max(ref["contact_force_N"]) * kilo
