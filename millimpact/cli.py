@@ -71,19 +71,24 @@ def _is_number(text: str) -> bool:
 
 # --- commands ---------------------------------------------------------------------------------
 def cmd_hertz(args: argparse.Namespace) -> int:
-    from .scene.plan import scene_hertz
     from .scene.builtin import resolve_scene
 
     scene = resolve_scene(args.scene)
+    from .scene.plan import scene_hertz   # numpy and scipy: after the input is read
+
     h = scene_hertz(scene)
     say(f"Hertz impact of scene '{scene.name}' (ball on a half-space of the block's material)")
     for name, value, unit, _ in h.table():
         say(f"  {name:<26s} {value:12.5g} {unit}")
+    from .scene.plan import first_yield_notes
+
+    for note in first_yield_notes(h, scene.ball.material, scene.target_material,
+                                  "liner" if scene.liner is not None else "block"):
+        say(f"  note: {note}")
     return 0
 
 
 def cmd_scene(args: argparse.Namespace) -> int:
-    from .scene.plan import make_plan
     from .scene.builtin import BUILTIN_SCENES, BUILTIN_STUDIES, DEFAULT_SCENE, resolve_scene
     from .scene.toml_io import dump_scene
 
@@ -102,6 +107,8 @@ def cmd_scene(args: argparse.Namespace) -> int:
         return 0
     # show: resolved scene with units, and the plan of the method that will run
     method_entry(args.method)
+    from .scene.plan import make_plan   # numpy and scipy: after the input is read
+
     plan = make_plan(scene)
     method_notes: list[str] = []
     if args.method in method_names("reduced") and args.method != "hertz-modal":
@@ -161,10 +168,10 @@ def cmd_scene(args: argparse.Namespace) -> int:
 
 def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
     method_entry(args.method)   # an unknown method: one line listing them, before any work
-    from .integration.solvers import check_type_options
+    if petsc:
+        from .integration.solvers import check_type_options
 
-    check_type_options(petsc)   # -..._ksp_type nosuch: one line, not a PETSc error number later
-    from .methods.run import run_scene
+        check_type_options(petsc)   # -..._ksp_type nosuch: one line, not a PETSc error number later
     from .scene.builtin import DEFAULT_SCENE, resolve_scene
 
     scene = resolve_scene(args.scene)
@@ -193,6 +200,8 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
         if not value > 0 and not (key == "modes" and value == 0):
             raise InputError(f"{flag} {value:g}: must be > 0" + (" (or 0: constraint modes only)" if key == "modes" else " Hz"))
         options[key] = value
+    from .methods.run import run_scene   # the computing stack: only once the input is accepted
+
     summary = run_scene(scene, args.method, out, options=options, progress=not args.quiet, comm=comm,
                         reference=args.reference)
     h = summary["hertz"]
@@ -214,22 +223,25 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
 
 
 def _apply_sets(scene, sets: Optional[list[str]]):
-    """The scene with each ``--set FIELD=VALUE`` applied (validated); a malformed one is one line."""
+    """The scene with every ``--set FIELD=VALUE`` applied, validated together (their order does not
+    matter: :meth:`Scene.with_values`); a malformed one is one line."""
+    assignments = []
     for assignment in sets or []:
         key, eq, value = assignment.partition("=")
         if not eq or not key.strip() or not value.strip():
             raise InputError(f"--set {assignment}: expected FIELD=VALUE, e.g. --set ball.radius=0.02")
-        scene = scene.with_value(key.strip(), parse_value(value))
-    return scene
+        assignments.append((key.strip(), parse_value(value)))
+    return scene.with_values(assignments) if assignments else scene
 
 
 def cmd_mesh(args: argparse.Namespace) -> int:
-    from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf
-    from .scene.plan import make_plan
     from .scene.builtin import resolve_scene
 
     scene = resolve_scene(args.scene)
     scene = _apply_sets(scene, args.set)
+    from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf   # gmsh, DOLFINx: once the input is read
+    from .scene.plan import make_plan
+
     plan = make_plan(scene)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}-mesh"
     if world_rank() == 0:
@@ -316,7 +328,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true", help="replace --out even if it holds files millimpact did not write")
     r.add_argument("--set", action="append", metavar="FIELD=VALUE",
                    help="override a scene field, e.g. --set ball.radius=0.02 --set model.h_contact=2e-4")
-    r.add_argument("--degree", type=int, choices=[1, 2], help="Lagrange degree of FE methods (default: the plan's, P1)")
+    r.add_argument("--degree", type=int, choices=[1, 2],
+                   help="Lagrange degree of --method full (default the plan's, P1: F_max about +3 %%, P2 within "
+                        "~1 %%); the reduced methods have their own (improved, modal-p2: P2; traditional: P1)")
     r.add_argument("--integrator", choices=["newmark-mr", "newmark", "central-penalty"],
                    help="time integrator of FE methods: newmark-mr (default: Newmark average acceleration with "
                         "mass redistribution), newmark (plain, chatters), central-penalty (explicit)")
@@ -395,25 +409,63 @@ _INTERRUPT_NOTE = ["no output was written"]
 
 
 class _VersionAction(argparse.Action):
-    """``--version``: computed when asked (it imports DOLFINx, ~1 s), not for every command."""
+    """``--version``: computed when asked, not for every command."""
 
     def __call__(self, parser, namespace, values, option_string=None):
         say(version_text())
         parser.exit(0)
 
 
+#: the stack ``--version`` reports: (name, Python module, its distribution's name or None)
+STACK = (("DOLFINx", "dolfinx", "fenics-dolfinx"), ("PETSc", "petsc4py", "petsc4py"),
+         ("SLEPc", "slepc4py", "slepc4py"), ("gmsh", "gmsh", None))
+
+
 def version_text() -> str:
-    """millimpact's version and the stack's, for ``--version`` and bug reports."""
+    """millimpact's version and the stack's, for ``--version`` and bug reports.
+
+    Read without importing the stack (importing DOLFINx, PETSc and gmsh takes ~1 s): from the
+    installed distribution's metadata when it describes the module Python would import, else from
+    the module's source (``__version__ = "..."`` or gmsh's ``GMSH_API_VERSION = "..."``), else by
+    importing it."""
     import importlib
+    import importlib.metadata
+    import importlib.util
 
     from . import __version__
 
     parts = [f"millimpact {__version__}"]
-    for name, module in (("DOLFINx", "dolfinx"), ("PETSc", "petsc4py"), ("SLEPc", "slepc4py"), ("gmsh", "gmsh")):
+    for name, module, dist in STACK:
         try:
-            parts.append(f"{name} {importlib.import_module(module).__version__}")
-        except ImportError:
+            spec = importlib.util.find_spec(module)
+        except (ImportError, ValueError):
+            spec = None
+        if spec is None or spec.origin is None:
             parts.append(f"{name} not installed")
+            continue
+        origin = Path(spec.origin)
+        where = origin.parent if origin.name == "__init__.py" else origin
+        version = None
+        if dist is not None:
+            try:
+                d = importlib.metadata.distribution(dist)
+                if Path(d.locate_file(where.name)).resolve() == where.resolve():
+                    version = d.version
+            except (importlib.metadata.PackageNotFoundError, OSError):
+                pass
+        if version is None and origin.suffix == ".py":
+            try:
+                found = re.search(r'^(?:__version__|GMSH_API_VERSION)\s*=\s*["\']([^"\']+)["\']',
+                                  origin.read_text(errors="replace"), re.M)
+                version = found.group(1) if found else None
+            except OSError:
+                pass
+        if version is None:
+            try:
+                version = importlib.import_module(module).__version__
+            except Exception:   # a broken install: say so rather than fail --version
+                version = "(version unknown)"
+        parts.append(f"{name} {version}")
     return ", ".join(parts)
 
 

@@ -279,6 +279,12 @@ def _load_cached(directory: Path, key: str, params: dict) -> Optional[MeshInfo]:
             logger.warning("mesh cache %s: parameters differ from its key; rebuilding", meta)
             return None
         info = MeshInfo.from_json(data["info"])
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        # the metadata, not the mesh: say which file is broken
+        logger.warning("mesh cache entry %s: its metadata %s is unreadable (%s: %s); rebuilding", key, meta.name,
+                       type(exc).__name__, exc)
+        return None
+    try:
         gmsh.merge(str(msh))
     except Exception as exc:
         logger.warning("mesh cache entry %s unreadable (%s); rebuilding", msh, exc)

@@ -73,6 +73,23 @@ __all__ = ["integrate", "METHODS", "LinearDynamics", "StepState", "IntegrationSt
 METHODS = ("newmark-mr", "newmark", "central-penalty")
 
 
+def terminal_bar(desc: str, total: float, unit: str, file):
+    """The progress bar on a terminal: simulated time ``total`` (in ``unit``) with 3 significant
+    digits. A terminal that reports no width (a pseudo-terminal without a size) is taken as 80
+    columns: with 0, tqdm 4.64 drops the bar format and prints the raw floats
+    (``16.666783564905753/133.33426851924602``)."""
+    import os
+
+    from tqdm import tqdm
+
+    try:
+        columns = os.get_terminal_size(file.fileno()).columns
+    except (AttributeError, OSError, ValueError):
+        columns = 0
+    return tqdm(total=total, unit=unit, desc=desc, file=file, ncols=columns or 80,
+                bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} " + unit + " simulated [{elapsed}<{remaining}]")
+
+
 def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: TimeSchedule,
               method: str = "newmark-mr", observer: Optional[Callable[[StepState], None]] = None,
               options: Optional[Mapping[str, object]] = None, progress: bool = False,
@@ -130,10 +147,7 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
     bar, plain = None, None
     t_scale, t_unit = (1e3, "ms") if schedule.t_end >= 1e-3 else (1e6, "\u00b5s")
     if progress and comm.rank == 0 and sys.stderr.isatty():
-        from tqdm import tqdm
-
-        bar = tqdm(total=schedule.t_end * t_scale, unit=t_unit, desc=method, file=sys.stderr,
-                   bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} " + t_unit + " simulated [{elapsed}<{remaining}]")
+        bar = terminal_bar(method, schedule.t_end * t_scale, t_unit, sys.stderr)
     elif progress and comm.rank == 0:
         # not a terminal (a log, CI, a pipe): a plain line every 10 % of the simulated time
         plain = {"next": 0.1, "t0": time.perf_counter()}

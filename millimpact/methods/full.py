@@ -26,7 +26,7 @@ from ..results.fields import write_fields
 from ..results.output import RunOutput
 from ..results.dent import plastic_report
 from ..results.recorder import Recorder, impact_results
-from ..scene.plan import Plan
+from ..scene.plan import P1_EXPECTED_ERROR, P2_REMEDY, Plan
 from ..scene.schema import Scene
 from .options import take
 
@@ -103,9 +103,8 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
 #: what a P1 run should expect, from the measured convergence (docs/validation.md; benchmarks/
 #: full_hertz.py and reduced_vs_full.py): P1 is too stiff by a few percent whatever h_contact, the
 #: error sits in the far mesh; P2 of the same mesh is within ~1 % of Hertz
-P1_ERROR_NOTE = ("expected accuracy: P1 is too stiff, F_max about +3 % and t_c about -3 % against the converged "
-                 "answer on the half-space (+2.8 % against P2 on the rig), and refining h_contact hardly helps; "
-                 "--degree 2 (or --method improved) is within ~1 % (docs: validation)")
+P1_ERROR_NOTE = (f"expected accuracy: P1 is too stiff, {P1_EXPECTED_ERROR} on the half-space (+2.8 % against P2 "
+                 f"on the rig), and refining h_contact hardly helps; {P2_REMEDY} (docs: validation)")
 
 
 def run(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool) -> RunOutput:

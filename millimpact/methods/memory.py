@@ -117,9 +117,9 @@ def estimate_memory(scene: Scene, plan: Plan, method: str, options: Optional[dic
 def available_memory() -> tuple[float, str]:
     """(bytes, where from): the smaller of MemAvailable and the cgroup's free limit, or the
     ``MILLIMPACT_AVAILABLE_MEMORY`` override."""
-    env = os.environ.get("MILLIMPACT_AVAILABLE_MEMORY")
-    if env:
-        return float(env), "MILLIMPACT_AVAILABLE_MEMORY"
+    override = available_override()
+    if override is not None:
+        return override, "MILLIMPACT_AVAILABLE_MEMORY"
     best, where = float("inf"), "unknown"
     try:
         for line in Path("/proc/meminfo").read_text().splitlines():
@@ -138,10 +138,37 @@ def available_memory() -> tuple[float, str]:
     return best, where
 
 
+def available_override() -> Optional[float]:
+    """``MILLIMPACT_AVAILABLE_MEMORY`` in bytes (None: unset); not a number > 0 is one line (InputError)."""
+    env = os.environ.get("MILLIMPACT_AVAILABLE_MEMORY")
+    if not env:
+        return None
+    try:
+        value = float(env)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and value != float("inf")):
+        raise InputError(f"MILLIMPACT_AVAILABLE_MEMORY={env!r}: must be a number of bytes > 0 (e.g. 8e9), "
+                         "or unset to read the machine's")
+    return value
+
+
+#: the values of ``MILLIMPACT_MEMORY_CHECK`` (case ignored; unset or empty: on)
+CHECK_SWITCH = {"off": False, "0": False, "no": False, "false": False,
+                "on": True, "1": True, "yes": True, "true": True, "": True}
+
+
 def memory_check_applies(method: str) -> bool:
     """Whether :func:`check_memory` looks at a ``method`` run (not ``hertz``, not when
-    ``MILLIMPACT_MEMORY_CHECK=off``)."""
-    return method != "hertz" and os.environ.get("MILLIMPACT_MEMORY_CHECK", "").lower() not in ("off", "0", "no")
+    ``MILLIMPACT_MEMORY_CHECK=off``); another value of it, or a ``MILLIMPACT_AVAILABLE_MEMORY``
+    that is not a number of bytes, is one line (InputError), whatever the method."""
+    available_override()
+    value = os.environ.get("MILLIMPACT_MEMORY_CHECK", "")
+    switch = CHECK_SWITCH.get(value.strip().lower())
+    if switch is None:
+        raise InputError(f"MILLIMPACT_MEMORY_CHECK={value!r}: must be off (or 0, no, false) to turn the memory "
+                         "check off, or on (1, yes, true; the default)")
+    return method != "hertz" and switch
 
 
 def check_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None, ranks: int = 1,

@@ -257,9 +257,20 @@ class Recorder:
         self._fill_last_energies()
         ts = TimeSeries.from_rows(self.names, self.rows)
         if self.c_patch is not None and self.band_limit_hz > 0:
-            for name in ("contact_point_velocity_m_s", "contact_point_acceleration_m_s2"):
-                ts.columns[name] = gaussian_low_pass(ts.time, ts[name], self.band_limit_hz)
+            band_limit_contact_point(ts, self.band_limit_hz)
         return ts
+
+
+def band_limit_contact_point(ts: TimeSeries, f_half: float) -> None:
+    """Band-limit the contact point's velocity and acceleration of ``ts`` (in place) to ``f_half``
+    (Hz), keeping the samples before the first contact (contact force > 0) as they are: the struck
+    body is at rest there and the zero-phase filter would smear the impact back into it
+    (:mod:`.band_limit`)."""
+    touching = np.nonzero(ts["contact_force_N"] > 0)[0]
+    first = float(ts.time[touching[0]]) if len(touching) else None
+    for name in ("contact_point_velocity_m_s", "contact_point_acceleration_m_s2"):
+        if name in ts:
+            ts.columns[name] = gaussian_low_pass(ts.time, ts[name], f_half, rest_until=first)
 
 
 def impact_results(ts: TimeSeries, normal_speed: float, gauge_names: Sequence[str], stats,

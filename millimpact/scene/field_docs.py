@@ -14,11 +14,12 @@ from typing import Iterator
 #: the fields of each body's material table (``ball.material``, ``block.material``, ``liner.material``)
 MATERIAL_DOCS: dict[str, tuple[str, str, str]] = {
     "name": ("", "a name in scene/materials.toml", "named material whose values the other fields override"),
-    "density": ("kg/m^3", "> 0", "mass density"),
-    "shear_modulus": ("Pa", "> 0", "shear modulus G (E = 2 G (1 + nu))"),
+    "density": ("kg/m^3", "[500, 25000]", "mass density"),
+    "shear_modulus": ("Pa", "[1e5, 1e12]", "shear modulus G (E = 2 G (1 + nu))"),
     "poisson": ("-", "(-1, 0.5)", "Poisson's ratio nu"),
     "yield_stress": ("Pa", "> 0; absent = elastic", "initial von Mises yield stress Y (J2 plasticity)"),
-    "hardening_modulus": ("Pa", ">= 0", "linear isotropic hardening modulus H (0: perfectly plastic)"),
+    "hardening_modulus": ("Pa", ">= 0; only with yield_stress",
+                          "linear isotropic hardening modulus H (0: perfectly plastic)"),
     "flow_curve": ("-, Pa", "[[0, Y], ...] strain increasing, stress not decreasing",
                    "tabulated flow stress against equivalent plastic strain (instead of Y and H)"),
     "source": ("", "text", "where the values come from (paper, standard or datasheet)"),

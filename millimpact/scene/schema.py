@@ -28,6 +28,14 @@ Vec2 = tuple[float, float]
 from .materials import named_material
 
 
+#: densities the model takes, kg/m^3: engineering solids from polymers (~900) to the densest metal,
+#: osmium (22,590; CRC Handbook of Chemistry and Physics), with margin
+DENSITY_RANGE = (500.0, 25000.0)
+#: shear moduli the model takes, Pa: from soft rubbers (~0.3 MPa) to diamond (~530 GPa; Ashby,
+#: Materials Selection in Mechanical Design, 2011, chart 4.3), with margin
+SHEAR_MODULUS_RANGE = (1.0e5, 1.0e12)
+
+
 @dataclass(frozen=True)
 class Material:
     """Isotropic steel: density (kg/m^3), shear modulus (Pa), Poisson's ratio; optionally J2
@@ -46,8 +54,8 @@ class Material:
     source: str = ""
 
     def validate(self, where: str) -> None:
-        _positive(f"{where}.density", self.density, "kg/m^3")
-        _positive(f"{where}.shear_modulus", self.shear_modulus, "Pa")
+        _in_range(f"{where}.density", self.density, DENSITY_RANGE, "kg/m^3 (solids: polymers to osmium)")
+        _in_range(f"{where}.shear_modulus", self.shear_modulus, SHEAR_MODULUS_RANGE, "Pa (soft rubber to diamond)")
         if not (-1.0 < self.poisson < 0.5):
             raise SceneError(f"{where}.poisson", self.poisson, "must lie in (-1, 0.5)")
         if self.yield_stress is not None:
@@ -55,6 +63,12 @@ class Material:
         _finite(f"{where}.hardening_modulus", self.hardening_modulus, "Pa")
         if self.hardening_modulus < 0:
             raise SceneError(f"{where}.hardening_modulus", self.hardening_modulus, "must be >= 0 Pa (0: perfectly plastic)")
+        if self.hardening_modulus != 0 and (self.yield_stress is None or self.flow_curve is not None):
+            # it would be ignored: linear hardening needs a yield stress, a flow curve has its own slopes
+            raise SceneError(f"{where}.hardening_modulus", self.hardening_modulus,
+                             "applies with yield_stress only (linear hardening): " +
+                             ("the flow curve gives the hardening; leave it out" if self.flow_curve is not None
+                              else "give yield_stress too, or leave it out for an elastic material"))
         if self.flow_curve is not None:
             pts = self.flow_curve
             if len(pts) < 2:
@@ -299,7 +313,8 @@ class Scene:
     contact: ContactOptions = field(default_factory=ContactOptions)
 
     def __post_init__(self) -> None:
-        self.validate()
+        if _VALIDATE_ON_CONSTRUCTION[0]:
+            self.validate()
 
     # --- derived geometry -------------------------------------------------------------------
     @property
@@ -345,6 +360,13 @@ class Scene:
     def validate(self) -> None:
         self.ball.validate()
         self.block.validate()
+        if self.liner is not None and self.block != Block():
+            # a liner replaces the block: a block field set on a liner scene would be ignored
+            changed = [f"block.{f.name}" for f in dataclasses.fields(Block)
+                       if getattr(self.block, f.name) != getattr(Block(), f.name)]
+            raise SceneError(changed[0], getattr(self.block, changed[0].split(".", 1)[1]),
+                             "is not used by a liner scene (its [liner] replaces the block): set the liner's "
+                             "fields (liner.thickness, liner.material, ...) instead")
         imp, blk = self.impact, self.block
         for i, c in enumerate(imp.velocity):
             _finite(f"impact.velocity[{i}]", c, "m/s")
@@ -444,7 +466,32 @@ class Scene:
 
     def with_value(self, path: str, value: Any) -> "Scene":
         """A copy with the dotted field ``path`` (e.g. ``ball.radius``) set to ``value`` (validated)."""
-        return _replace_path(self, path.split("."), value, path)
+        return self.with_values([(path, value)])
+
+    def with_values(self, assignments: typing.Sequence[tuple[str, Any]]) -> "Scene":
+        """A copy with every ``(path, value)`` set, validated once all are set (so their order does
+        not matter: shrinking a block and dropping its gauges is one change). A material named
+        (``block.material = "NAME"`` or ``block.material.name = "NAME"``) is set before the
+        fields that override its values; otherwise a later value of one field wins."""
+        named_first = sorted(assignments, key=lambda pv: not _names_a_material(pv[0], pv[1]))
+        _VALIDATE_ON_CONSTRUCTION[0] = False
+        try:
+            scene = self
+            for path, value in named_first:
+                scene = _replace_path(scene, path.split("."), value, path)
+        finally:
+            _VALIDATE_ON_CONSTRUCTION[0] = True
+        scene.validate()
+        return scene
+
+
+#: False while :meth:`Scene.with_values` sets several fields: the scene is validated once, at the end
+_VALIDATE_ON_CONSTRUCTION = [True]
+
+
+def _names_a_material(path: str, value: Any) -> bool:
+    """Whether ``path = value`` replaces a whole material by a named one."""
+    return path.endswith(".material.name") or (path.endswith("material") and isinstance(value, str))
 
 
 # --- helpers ---------------------------------------------------------------------------------
@@ -468,9 +515,19 @@ def _positive(name: str, value: Any, unit: str) -> None:
         raise SceneError(name, value, f"must be > 0 {unit}")
 
 
+def _in_range(name: str, value: Any, bounds: tuple[float, float], unit: str) -> None:
+    _finite(name, value, unit)
+    if not bounds[0] <= value <= bounds[1]:
+        raise SceneError(name, value, f"must lie in [{bounds[0]:g}, {bounds[1]:g}] {unit}")
+
+
 def _replace_path(obj: Any, parts: list[str], value: Any, full: str) -> Any:
     if not dataclasses.is_dataclass(obj):
         raise SceneError(full, value, "is not a scene field")
+    if isinstance(obj, Material) and parts == ["name"]:   # block.material.name = "NAME": that material
+        if not isinstance(value, str):
+            raise SceneError(full, value, "must be the name of a material (scene/materials.toml)")
+        return coerce_value(Material, value, full)
     names = {f.name for f in dataclasses.fields(obj)}
     if parts[0] not in names:
         raise SceneError(full, value, f"unknown field '{parts[0]}'; known: {', '.join(sorted(names))}")

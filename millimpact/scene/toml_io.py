@@ -46,9 +46,10 @@ def load_scene(path: str | Path) -> Scene:
     """Read a scene TOML file."""
     p = Path(path)
     try:
-        text = p.read_text()
+        raw = p.read_bytes()
     except OSError as exc:
         raise SceneError("scene", str(p), f"cannot be read ({exc.strerror})") from None
+    text = scene_text(raw, str(p))
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -57,6 +58,21 @@ def load_scene(path: str | Path) -> Scene:
         raise SceneError("scene", str(p), "is empty; start from a built-in scene: millimpact scene export paper-rig > my.toml")
     data.setdefault("name", p.stem)
     return scene_from_dict(data)
+
+
+def scene_text(raw: bytes, where: str) -> str:
+    """A scene file's bytes as text. TOML is UTF-8; a UTF-8 byte-order mark (Windows editors write
+    one) is dropped; other encodings (Latin-1, Windows-1252) are refused in one line naming the
+    first byte that is not UTF-8, since which characters were meant cannot be known."""
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        column = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise SceneError("scene", where, f"is not UTF-8 text (byte 0x{raw[exc.start]:02x} at line {line}, column "
+                         f"{column}; Latin-1 or Windows-1252?): save it as UTF-8, the encoding of TOML") from None
 
 
 def dump_scene(scene: Scene) -> str:

@@ -49,9 +49,10 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
-import numpy as np
+if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact --help` stays fast)
+    import numpy as np
 
 from ..errors import InputError
 
@@ -129,6 +130,8 @@ class RunResult:
 # --- the worker (one run in its own process) -------------------------------------------------------
 def _worker(spec_json: str, out_dir: str) -> int:
     """Run one spec; write ``result.json`` and ``series.npz`` into ``out_dir``."""
+    import numpy as np
+
     import resource
 
     from ..geometry.mesh import create_mesh
@@ -188,6 +191,8 @@ def run_spec(spec: RunSpec, folder: Path, timeout: float = 7200) -> RunResult:
 
 def load_result(spec: RunSpec, folder: Path) -> RunResult:
     """Read a finished run's folder."""
+    import numpy as np
+
     r = json.loads((folder / "result.json").read_text())
     with np.load(folder / "series.npz") as z:
         series = {k: z[k] for k in z.files}
@@ -200,6 +205,8 @@ def load_result(spec: RunSpec, folder: Path) -> RunResult:
 # --- errors against the reference ------------------------------------------------------------------
 def _l2_rel(t: np.ndarray, x: np.ndarray, t_ref: np.ndarray, x_ref: np.ndarray, grid: np.ndarray) -> float:
     """||x - x_ref|| / ||x_ref|| on ``grid`` after linear interpolation (zero outside a series)."""
+    import numpy as np
+
     a = np.interp(grid, t, x, left=0.0, right=0.0)
     b = np.interp(grid, t_ref, x_ref, left=0.0, right=0.0)
     nb = np.linalg.norm(b)
@@ -208,6 +215,8 @@ def _l2_rel(t: np.ndarray, x: np.ndarray, t_ref: np.ndarray, x_ref: np.ndarray, 
 
 def score(run: RunResult, ref: RunResult, gauge: Optional[str]) -> dict[str, float]:
     """Relative errors of a run against the reference (module docstring)."""
+    import numpy as np
+
     m, r = run.metrics, ref.metrics
     t_c = r["t_c_hertz_s"]
     t0 = r["gap_m"] / r["speed_m_s"]
@@ -312,6 +321,8 @@ ERRORS = (("err_force_L2", "contact force, L2-in-time error"), ("err_F_max", "|F
 
 def plot_pareto(rows: list[dict], path: Path, title: str) -> None:
     """Log-log error against wall time, one line per method, a panel per error measure."""
+    import numpy as np
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -343,6 +354,8 @@ def plot_pareto(rows: list[dict], path: Path, title: str) -> None:
 def plot_reference_convergence(levels: list[RunResult], path: Path, title: str) -> dict[str, Any]:
     """The reference levels' errors against the finest (F_max, t_c, force L2) against h_contact,
     with fitted rates; returns the numbers."""
+    import numpy as np
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -379,6 +392,8 @@ def equal_error_ratio(rows: list[dict], a: str, b: str, key: str = "err_force_L2
     """Wall time of method ``a`` over method ``b`` at equal error: both methods' (log wall, log
     error) lines interpolated at the error levels they share; the geometric mean of the ratios
     there, else (no overlap) None with each method's range."""
+    import numpy as np
+
     def line(m):
         rs = [r for r in rows if r["method"] == m and r["status"] == "ok" and np.isfinite(r[key]) and r[key] != 0]
         pts = sorted((math.log(abs(r[key])), math.log(r["wall_s"])) for r in rs)

@@ -28,14 +28,16 @@ import json
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Optional
-
-import numpy as np
+from typing import TYPE_CHECKING, Optional
 
 from ..console import say, world_rank
 from ..errors import InputError
 from ..results.output_folder import prepare_output
-from ..results.timeseries import TimeSeries, jsonable, contact_metrics, staged_output, unit_of
+
+if TYPE_CHECKING:   # numpy and the time series are imported where compare computes (`--help` stays fast)
+    import numpy as np
+
+    from ..results.timeseries import TimeSeries
 
 HELP = "score another implementation's CSV histories against a reference run (peak, L2, time shift)"
 
@@ -114,6 +116,8 @@ def peak(t: np.ndarray, y: np.ndarray, sign: float) -> tuple[float, float]:
     sample's value (never overshoots a staircase such as the contact radius) at the time of the
     vertex of the parabola through that sample and its two neighbours (sub-step, within them);
     on a plateau (neighbours equal to the extreme within 1e-9 of it) the plateau's middle."""
+    import numpy as np
+
     sy = sign * y
     i = int(np.argmax(sy))
     level = sy[i] - 1e-9 * abs(sy[i])
@@ -124,7 +128,7 @@ def peak(t: np.ndarray, y: np.ndarray, sign: float) -> tuple[float, float]:
         j1 += 1
     if j1 > j0:
         return 0.5 * float(t[j0] + t[j1]), float(y[i])
-    tp, _ = _vertex(t, sy, i)
+    tp, _ = _vertex(t, sy / abs(sy[i]) if sy[i] != 0 else sy, i)   # the vertex's time: any scale (no overflow)
     return tp, float(y[i])
 
 
@@ -145,18 +149,32 @@ def l2_error(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray,
              shift: float = 0.0) -> tuple[Optional[float], float]:
     """Relative L2-in-time error of y_o(t + shift) against y_r(t) on the reference grid, over the
     part of the reference's span where t + shift lies in the other's span; and that part's share
-    of int y_r^2 dt (the coverage). The error is None when the reference is zero there."""
+    of int y_r^2 dt (the coverage). The error is None when the reference is zero there.
+
+    Each integral of a square is taken of the values over their largest magnitude, and the
+    magnitudes put back outside the square root (values near 1e308 do not overflow)."""
+    import numpy as np
+
+    def square_integral(y, t) -> tuple[float, float]:
+        """(m, I): int y^2 dt = m^2 I, m the largest |y| (1 for a zero y)."""
+        m = float(np.max(np.abs(y))) if len(y) else 0.0
+        m = m if m > 0 else 1.0
+        return m, float(np.trapz((y / m) ** 2, t))
+
     mask = (t_r + shift >= t_o[0]) & (t_r + shift <= t_o[-1])
-    total = float(np.trapz(y_r * y_r, t_r))
+    m_total, total = square_integral(y_r, t_r)
     if mask.sum() < 2:
         return None, 0.0
     tr, yr = t_r[mask], y_r[mask]
-    yo = np.interp(tr + shift, t_o, y_o) if shift else np.interp(tr, t_o, y_o)
-    den = float(np.trapz(yr * yr, tr))
-    coverage = den / total if total > 0 else 1.0
+    m_den, den = square_integral(yr, tr)
+    coverage = den * (m_den / m_total) ** 2 / total if total > 0 else 1.0
     if den <= 0:
         return None, coverage
-    return math.sqrt(float(np.trapz((yo - yr) ** 2, tr)) / den), coverage
+    m_o = float(np.max(np.abs(y_o))) or 1.0
+    yo = np.interp(tr + shift, t_o, y_o / m_o)       # over its largest magnitude (the slopes would overflow)
+    big = max(m_o, m_den)
+    m_d, num = square_integral(yo * (m_o / big) - yr / big, tr)    # int (y_o - y_r)^2 dt = (big m_d)^2 num
+    return big * m_d / m_den * math.sqrt(num / den), coverage
 
 
 def _corr(o: np.ndarray, r: np.ndarray, j: int) -> float:
@@ -175,6 +193,8 @@ def time_shift(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarra
     own span. So a shifted copy of a finite signal correlates as its zero-padded autocorrelation,
     which is symmetric about the true lag.
     """
+    import numpy as np
+
     from scipy.signal import correlate
 
     span = t_r[-1] - t_r[0]
@@ -182,8 +202,11 @@ def time_shift(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarra
     n = int(math.floor(span / dt + 1e-9)) + 1
     kmax = min(int(math.floor(max_shift / dt + 1e-9)), n - 1)
     g = t_r[0] + dt * np.arange(n)
-    r = np.interp(g, t_r, y_r)
-    o = np.interp(t_r[0] + dt * np.arange(-kmax, n + kmax), t_o, y_o, left=0.0, right=0.0)
+    # each over its largest magnitude: the lag does not depend on the scales, and the interpolation's
+    # slopes of values near 1e308 would overflow
+    r = np.interp(g, t_r, y_r / (np.max(np.abs(y_r)) or 1.0))
+    o = np.interp(t_r[0] + dt * np.arange(-kmax, n + kmax), t_o, y_o / (np.max(np.abs(y_o)) or 1.0),
+                  left=0.0, right=0.0)
     if not np.any(r) or not np.any(o):
         return 0.0, False
     c = correlate(o, r, mode="valid")  # c[j] = sum_n o[n + j] r[n], lag j - kmax
@@ -199,6 +222,10 @@ def time_shift(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarra
 def score(name: str, t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray,
           max_shift: float) -> Score:
     """All measures of one history (see the module docstring)."""
+    import numpy as np
+
+    from ..results.timeseries import unit_of
+
     lo, hi = max(t_r[0], t_o[0]), min(t_r[-1], t_o[-1])
     wr = (t_r >= lo) & (t_r <= hi)
     wo = (t_o >= lo) & (t_o <= hi)
@@ -217,12 +244,32 @@ def score(name: str, t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.
         dt_peak = tp_o - tp_r
         shift, at_limit = time_shift(t_r, y_r, t_o, y_o, max_shift)
         l2s, _ = l2_error(t_r, y_r, t_o, y_o, shift)
-    return Score(name, unit_of(name), p_r, p_o, sign * (p_o - p_r) / abs(p_r) if p_r != 0 else None,
+    # (p_o - p_r) / |p_r| as p_o / |p_r| - sign(p_r): no overflow of the difference near 1e308
+    error = sign * (float(p_o) / abs(float(p_r)) - math.copysign(1.0, p_r)) if p_r != 0 else None
+    return Score(name, unit_of(name), p_r, p_o, error,
                  tp_r, tp_o, dt_peak, l2, coverage, shift, at_limit, l2s)
+
+
+def time_unit_hint(ref: TimeSeries, other: TimeSeries) -> Optional[str]:
+    """A warning when the other's time span is 100x the reference's or more (or 1/100 or less):
+    its time_s is likely in ms or µs (scored as seconds, a pulse 1000x too long leaves the
+    reference's window nearly empty: peak -100 %). None otherwise."""
+    span_r = float(ref.time[-1] - ref.time[0])
+    span_o = float(other.time[-1] - other.time[0])
+    if not (span_r > 0 and span_o > 0):
+        return None
+    ratio = span_o / span_r
+    if 1e-2 < ratio < 1e2:
+        return None
+    likely = {3: " (in ms?)", 6: " (in \u00b5s?)"}.get(round(math.log10(ratio) / 3) * 3, "") if ratio > 1 else ""
+    return (f"the other's time_s spans {span_o:.3g}, {ratio:.3g}x the reference's {span_r:.3g} s{likely}: "
+            "time_s must be in seconds (scale the column, or see --time-offset for a shifted start)")
 
 
 def default_max_shift(ref: TimeSeries) -> float:
     """The reference's contact duration, or a quarter of its span without a contact force."""
+    from ..results.timeseries import contact_metrics
+
     if "contact_force_N" in ref:
         d = contact_metrics(ref).get("contact_duration_s", 0.0)
         if d > 0:
@@ -245,6 +292,8 @@ def not_modelled(ref: TimeSeries, other: TimeSeries, names: list[str]) -> list[s
     """The shared columns the other does not model: identically zero where the reference's are not
     (a model without that quantity writes zeros): flagged, not scored (a "-100 %" peak error there
     says nothing about the model)."""
+    import numpy as np
+
     return [n for n in names if not np.any(other[n]) and np.any(ref[n])]
 
 
@@ -333,11 +382,25 @@ def _title(column: str) -> str:
 def plot_compare(ref: TimeSeries, other: TimeSeries, scores: list[Score], path: Path,
                  ref_label: str, other_label: str) -> None:
     """One panel per quantity: reference and other overlaid over the span they share, the error
-    figures in the legend."""
+    figures in the legend (:func:`compare_figure`), written to ``path``."""
+    import matplotlib.pyplot as plt
+
+    fig = compare_figure(ref, other, scores, ref_label, other_label)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def compare_figure(ref: TimeSeries, other: TimeSeries, scores: list[Score], ref_label: str, other_label: str):
+    """The figure of :func:`plot_compare`. Axes follow the run figures' unit rule
+    (:func:`millimpact.results.plots.time_unit`, :func:`~millimpact.results.plots.value_unit`: µs
+    or ms, kN, MPa, m/s², µm, ... in brackets) and carry no offset or exponent above the axis."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
+
+    from ..results.plots import time_unit, value_unit
 
     n = len(scores)
     ncol = 1 if n == 1 else 2
@@ -347,33 +410,39 @@ def plot_compare(ref: TimeSeries, other: TimeSeries, scores: list[Score], path: 
     t1 = min(ref.time[-1], other.time[-1])
     if t1 <= t0:
         t0, t1 = ref.time[0], ref.time[-1]
-    scale, tunit = (1e6, "us") if t1 - t0 < 2e-3 else (1e3, "ms")
+    scale, tunit = time_unit(t1 - t0)
     for ax, s in zip(axes.flat, scores):
         mr = (ref.time >= t0) & (ref.time <= t1)
         mo = (other.time >= t0) & (other.time <= t1)
-        ax.plot(scale * ref.time[mr], ref[s.quantity][mr], "k-", lw=1.6, label=f"reference ({ref_label})")
+        shown = np.concatenate([ref[s.quantity][mr], other[s.quantity][mo]])
+        vscale, vunit = value_unit(s.quantity, shown[np.isfinite(shown)])
+        ax.plot(scale * ref.time[mr], vscale * ref[s.quantity][mr], "k-", lw=1.6, label=f"reference ({ref_label})")
         def fmt(x):
             return "-" if x is None else f"{100 * x:.2f} %"
-        ax.plot(scale * other.time[mo], other[s.quantity][mo], "C3--", lw=1.3,
+        ax.plot(scale * other.time[mo], vscale * other[s.quantity][mo], "C3--", lw=1.3,
                 label=(f"{other_label}\npeak {fmt(s.peak_error)}, L2 {fmt(s.l2_error)}"
                        + ("" if s.shift_s is None else
-                          f"\nshift {1e6 * s.shift_s:.3g} us, L2 after shift {fmt(s.l2_error_shifted)}")))
+                          f"\nshift {scale * s.shift_s:.3g} {tunit}, L2 after shift {fmt(s.l2_error_shifted)}")))
         ax.set_title(_title(s.quantity), fontsize=10)
-        ax.set_xlabel(f"time ({tunit})")
-        ax.set_ylabel(s.unit or "-")
+        ax.set_xlabel(f"time [{tunit}]")
+        ax.set_ylabel(f"{_title(s.quantity)} [{vunit}]" if vunit else _title(s.quantity))
+        # the units carry the scale: no "1e-5" or "+1.38e4" above an axis (values the SI prefixes
+        # cannot bring below 1e6, such as a history of 1e300, keep matplotlib's exponent)
+        plain = not len(shown) or float(np.nanmax(np.abs(vscale * shown[np.isfinite(shown)]), initial=0.0)) < 1e6
+        ax.ticklabel_format(axis="both", style="plain" if plain else "sci", useOffset=False)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
     fig.suptitle(f"{other_label} against the reference {ref_label}", fontsize=11)
     fig.tight_layout(rect=(0, 0, 1, 0.98 if nrow > 2 else 0.94))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
 def main(args: argparse.Namespace) -> int:
     """``millimpact compare``: read, score, print the table, write compare.json/.csv/.png."""
     from ..results.reference import read_history_csv, read_reference
+    from ..results.timeseries import jsonable, staged_output
 
     other_path = Path(args.other)
     out = Path(args.out) if args.out else Path("out") / f"compare-{other_path.stem}"
@@ -429,6 +498,9 @@ def main(args: argparse.Namespace) -> int:
     if low:
         say(f"note: the other covers less than 99.9 % of the reference's int y^2 dt for {', '.join(low)}: "
              "their L2 errors are over the covered part only (column 'cover')")
+    hint = time_unit_hint(ref.series, other)
+    if hint:
+        say(f"warning: {hint}")
     if world_rank() != 0:
         return 0
     result = {

@@ -49,9 +49,10 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
-import numpy as np
+if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact --help` stays fast)
+    import numpy as np
 
 from ..errors import InputError, MillimpactError
 
@@ -105,6 +106,8 @@ class Case:
 def force_measures(force: np.ndarray) -> tuple[int, float]:
     """(pulse breaks, roughness) of a force history on a uniform step: breaks are returns to zero
     between the first and last positive samples; roughness ||F - median5(F)|| / ||F||."""
+    import numpy as np
+
     from scipy.ndimage import median_filter
 
     pos = np.flatnonzero(force > 0)
@@ -149,6 +152,8 @@ def bar_critical_step_theory(n_el: int = 100, penalty_factor: float = 1.0) -> di
     """Critical steps of central differences on the lumped P1 bar, in units of h / c: free
     (exactly 1) and with the tip's penalty spring k_p = penalty_factor * E/h (dense eigenvalues of
     M_L^-1 (K + k_p e e^T), unit E, rho, h)."""
+    import numpy as np
+
     n = n_el + 1
     K = np.zeros((n, n))
     for e in range(n_el):
@@ -168,6 +173,8 @@ def bar_critical_step_theory(n_el: int = 100, penalty_factor: float = 1.0) -> di
 
 def run_bar_case(integrator: str, courant: float, v0: float, n_el: int = 100) -> Case:
     """One bar run: ``courant`` = dt / (h / c), ``v0`` m/s; the explicit method's step limit off."""
+    import numpy as np
+
     from ..integration.bar import BarCase, run_bar, summarize
 
     case = BarCase(v0=v0, n_el=n_el)
@@ -237,6 +244,8 @@ class _SphereSetup:
 
     def run(self, integrator: str, dt: float, options: dict) -> dict[str, Any]:
         """One run with a fixed step ``dt``; returns histories (force N, energy J, min gap m)."""
+        import numpy as np
+
         from ..integration import integrators as I
 
         m = self.model
@@ -261,6 +270,8 @@ class _SphereSetup:
 def run_sphere_case(setup: _SphereSetup, integrator: str, dt: float, dt_rel: float, axis: str,
                     options: Optional[dict] = None) -> Case:
     """One sphere run with a fixed step ``dt`` (s)."""
+    import numpy as np
+
     from ..results.timeseries import TimeSeries, contact_metrics
 
     h = setup.plan.hertz
@@ -391,6 +402,8 @@ def critical_step_report(cases: list[Case], n_el: int) -> dict[str, Any]:
     """The explicit method's measured stability boundary on the bar (largest passing and smallest
     failing Courant number over all velocities) against theory, and on the sphere against the
     integrator's estimate."""
+    import numpy as np
+
     th = bar_critical_step_theory(n_el)
     out: dict[str, Any] = {"bar_theory_courant": th,
                            "theory": "lumped P1 bar: dt_crit = h/c free; with the tip penalty k_p = E/h "
@@ -447,6 +460,8 @@ STATUS_COLOURS = {"pass": "#4caf50", "degraded": "#ffb300", "failed": "#e53935"}
 def plot_maps(cases: list[Case], folder: Path, crit: dict[str, Any]) -> list[str]:
     """One figure per integrator: pass / degraded / failed over (step, velocity), a panel per
     problem; cells are labelled with the energy drift (%)."""
+    import numpy as np
+
     import matplotlib
 
     matplotlib.use("Agg")

@@ -24,14 +24,16 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import TYPE_CHECKING, Optional, Sequence
 
 from ..errors import InputError, MillimpactError
 from ..scene.builtin import BUILTIN_STUDIES
 from ..methods.registry import method_entry
 from .sweep import (StudyInterrupted, CaseRun, Study, define_study, describe_reuse, parse_method_options, run_cases,
                     say_root)
-from .report import StudyAnalysis, write_study
+
+if TYPE_CHECKING:   # the report imports numpy: loaded when a study reports (`millimpact --help` stays fast)
+    from .report import StudyAnalysis
 
 
 HELP = "run a parameter study: poisson, velocity, radius, thickness (the paper's), or --param FIELD=v1,v2,..."
@@ -139,6 +141,8 @@ def run_study(name: Optional[str] = None, param: Optional[str] = None, base: Opt
     say(f"  method {chosen} ({method_note})")
     if rank0:
         out.mkdir(parents=True, exist_ok=True)
+    from .report import write_study
+
     t0 = time.perf_counter()
     try:
         runs = run_cases(study, out, chosen, options, jobs=jobs, progress=sys.stdout.isatty(), force=force,

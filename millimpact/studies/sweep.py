@@ -100,14 +100,18 @@ def parse_method_options(items: Sequence[str]) -> dict[str, Any]:
         if not sep or not k.strip():
             raise InputError(f"--option {o!r}: expected KEY=VALUE (e.g. --option modes=20)")
         options[k.strip()] = parse_value(v)
-    # a PETSc type or a reduction setting out of range: one line before any case runs (as `run`)
-    from ..integration.solvers import check_type_options
+    # a PETSc type or a reduction setting out of range: one line before any case runs (as `run`);
+    # PETSc is imported only when there is an option to check
+    if options:
+        from ..integration.solvers import check_type_options
 
-    check_type_options(options)
+        check_type_options(options)
     return options
 
 
 def apply_sets(scene: Scene, sets: Sequence[str], param: str) -> Scene:
+    """``scene`` with every ``--set FIELD=VALUE``, validated together (order does not matter)."""
+    assignments = []
     for assignment in sets:
         key, sep, value = assignment.partition("=")
         key = key.strip()
@@ -115,8 +119,8 @@ def apply_sets(scene: Scene, sets: Sequence[str], param: str) -> Scene:
             raise InputError(f"--set {assignment!r}: expected FIELD=VALUE (e.g. --set model.h_far=0.008)")
         if key == param or key.startswith(param + ".") or param.startswith(key + "."):
             raise InputError(f"--set {key}: conflicts with the study parameter {param}")
-        scene = scene.with_value(key, parse_value(value))
-    return scene
+        assignments.append((key, parse_value(value)))
+    return scene.with_values(assignments) if assignments else scene
 
 
 def with_param(base: Scene, param: str, value: Any) -> Scene:
@@ -135,8 +139,6 @@ def define_study(name: Optional[str], param: Optional[str] = None, base: Optiona
     scene field on ``base`` (default study-base), with the ``--set`` overrides and an optional end
     time (s) applied to every case; ``subset``: indices of the values to keep (reduced-size demos).
     Every case scene is validated (and planned) here, so bad input is refused before anything runs."""
-    from ..scene.plan import make_plan
-
     if param is None:
         if name is None:
             raise InputError("study: give a built-in study (" + ", ".join(BUILTIN_STUDIES)
@@ -174,6 +176,8 @@ def define_study(name: Optional[str], param: Optional[str] = None, base: Optiona
         xlabel, param_name, paper = field_, field_, None
     if subset is not None:
         entries = [entries[i] for i in subset]
+    from ..scene.plan import make_plan   # numpy and scipy: once the names and values are read
+
     cases = []
     for i, (v, shown, label, folder, scene) in enumerate(entries):
         if end is not None:

@@ -41,18 +41,18 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional, Sequence
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, Optional, Sequence
 
 from .. import __version__
 from ..errors import InputError, MillimpactError
 from ..scene.builtin import resolve_scene
-from ..scene.plan import ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan, scene_hertz
 from ..scene.schema import Scene
-from ..methods.free_phase import FIRST_SPAN_CONTACTS
-from ..integration.solvers import destroy_petsc_tree, release_petsc_garbage
 from ..scene.toml_io import dump_scene
+
+if TYPE_CHECKING:
+    import numpy as np
+# numpy, the plan (scipy), the methods and PETSc are imported where a table computes, so that
+# building the command line (`millimpact --help`) imports none of them
 
 HELP = "DEM contact tables: restitution and force laws over impact speed x angle (x radius)"
 
@@ -76,11 +76,11 @@ Examples:
 #: a factor 1.5 in speed is 1.18 in a_max, so the slowest case has 4 and the fastest 4.7 elements
 #: across its contact radius)
 BAND_RATIO = 1.5
-#: each case runs to gap / v_n + this many Hertz contact times: past the separation (plastic and
+#: each case runs to gap / v_n + CUT_CONTACT_TIMES Hertz contact times, CUT_CONTACT_TIMES being
+#: :data:`millimpact.methods.free_phase.FIRST_SPAN_CONTACTS` (1.5): past the separation (plastic and
 #: finite-body contacts last up to ~1.1 t_c; a contact still on at the end is flagged in the status
 #: column), and exactly the reduced methods' first integrator segment, so no free-vibration modes
 #: are computed for the rest (2.8 s a case on the rig)
-CUT_CONTACT_TIMES = FIRST_SPAN_CONTACTS
 #: methods whose offline reduction the cases of a band share
 REUSED_METHODS = ("improved", "traditional", "modal-p2")
 
@@ -115,6 +115,9 @@ def parse_list(text: Optional[str], option: str, low: float, high: float, low_op
             raise InputError(f"{option} {text!r}: {part.strip()!r} is not a number (a comma-separated list in {rng})") from None
         if not math.isfinite(v) or v < low or v > high or (low_open and v == low) or (high_open and v == high):
             raise InputError(f"{option} {text!r}: {v:g} is outside {rng}")
+        if v in out:   # a repeated case would be a duplicate row, weighting the fitted laws
+            raise InputError(f"{option} {text!r}: {v:g} is repeated (each value once: a duplicate row would "
+                             "weight the fitted laws)")
         out.append(v)
     return out
 
@@ -122,6 +125,8 @@ def parse_list(text: Optional[str], option: str, low: float, high: float, low_op
 def tangent_direction(scene: Scene) -> np.ndarray:
     """The unit direction t of a table's oblique velocities: the scene's tangential direction, or
     for a normal scene e_x x n (in the plane x = x_p, which holds n for the block and liner faces)."""
+    import numpy as np
+
     n = np.asarray(scene.contact_normal, dtype=float)
     v = np.asarray(scene.impact.velocity, dtype=float)
     vt = v - (v @ n) * n
@@ -133,6 +138,8 @@ def tangent_direction(scene: Scene) -> np.ndarray:
 
 def case_velocity(scene: Scene, speed: float, angle_deg: float) -> list[float]:
     """v = V (-cos(angle) n + sin(angle) t), m/s."""
+    import numpy as np
+
     n = np.asarray(scene.contact_normal, dtype=float)
     a = math.radians(angle_deg)
     v = speed * (-math.cos(a) * n + math.sin(a) * tangent_direction(scene))
@@ -143,6 +150,9 @@ def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], 
                  method: str, options: dict) -> list[TableCase]:
     """The table's cases, grouped in bands that share a mesh (module docstring), each case's scene
     carrying its band's h_contact, zone radius, gap and symmetry."""
+    from ..scene.plan import (ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan,
+                              scene_hertz)
+
     raw = []
     for r in radii:
         b = base.with_value("ball.radius", r) if r != base.ball.radius else base
@@ -189,6 +199,8 @@ def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], 
 
 def _band_zone(fast: Scene, sets: dict, method: str) -> Optional[float]:
     """The contact-zone radius of a band: the method's zone for its fastest case (m)."""
+    from ..scene.plan import make_plan
+
     sc = fast
     for k, val in sets.items():
         sc = sc.with_value(k, val)
@@ -211,6 +223,9 @@ def case_t_end(scene: Scene) -> float:
     """gap / v_n + CUT_CONTACT_TIMES t_c, rounded down to whole contact steps (s): the reduced
     methods' first integrator segment holds the whole case, and every case of a band steps with
     the band's dt_contact itself, so they share its factorization and W."""
+    from ..methods.free_phase import FIRST_SPAN_CONTACTS as CUT_CONTACT_TIMES
+    from ..scene.plan import make_plan
+
     plan = make_plan(scene)
     t = plan.gap / plan.normal_speed + CUT_CONTACT_TIMES * plan.hertz.contact_time
     return max(1, math.floor(t / plan.dt_contact * (1 + 1e-12))) * plan.dt_contact
@@ -220,6 +235,7 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
     """The row of one case (:func:`millimpact.studies.table_report.case_row`), computing it on
     ``comm``; a reduced method reuses (or builds and keeps in ``setups``) its band's reduction."""
     from ..methods.run import compute
+    from ..scene.plan import make_plan
     from .table_report import case_row
 
     t0 = time.perf_counter()
@@ -333,7 +349,10 @@ def next_case(state: np.ndarray, band_sizes: Sequence[int], current: Optional[in
 def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
     """This group's share of ``todo``: cases taken from a shared state (:func:`next_case`) on world
     rank 0 until none is left."""
+    import numpy as np
     from mpi4py import MPI
+
+    from ..integration.solvers import destroy_petsc_tree, release_petsc_garbage, reset_option_usage, unused_options
 
     bands = sorted({c.band for c in todo})
     by_band = [[c for c in todo if c.band == b] for b in bands]
@@ -352,6 +371,7 @@ def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, wo
     current: Optional[int] = None
     setups: dict = {}
     rows = []
+    warned = False
     t0 = time.perf_counter()
     try:
         while True:
@@ -379,12 +399,22 @@ def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, wo
             release_petsc_garbage(group)
             if case.band in setups:
                 release_petsc_garbage(setups[case.band].model.V.mesh.comm)
+            reset_option_usage()
             try:
                 row = run_case(case, method, options, setups, group)
             except (MillimpactError, RuntimeError, ValueError, ArithmeticError) as exc:
                 row = {"case": case.index, "key": case.key, "impact_speed_m_s": case.speed,
                        "impact_angle_deg": case.angle, "ball_radius_m": case.radius,
                        "status": f"failed: {type(exc).__name__}: {str(exc).splitlines()[0][:300]}"}
+            # a case that reused its band's reduction did not read the options of building it
+            ran = str(row.get("status", "")).startswith("ok") and not row.get("reduction_reused")
+            unused = unused_options(options) if ran and not warned else None
+            if unused:   # as study and run: said once, after the first case that ran (even with -q)
+                warned = True
+                if world.rank == 0:
+                    print(f"millimpact: warning: options that nothing in this table's runs used (misspelled, or for "
+                          f"a solver method {method} does not have): {', '.join('-' + k for k in unused)}",
+                          file=sys.stderr, flush=True)
             if group.rank == 0:
                 tmp = folder / f".{case.key}.{os.getpid()}.tmp"
                 tmp.write_text(json.dumps(row, indent=1, default=float))

@@ -80,3 +80,21 @@ def test_a_million_dof_reduction_is_estimated_by_its_slabs():
     coarse = make_plan(coarse_scene)
     assert (estimate_memory(coarse_scene, coarse, "improved").per_rank
             == estimate_memory(coarse_scene, coarse, "improved", {"reduction_block_substructures": "1"}).per_rank)
+
+
+@pytest.mark.parametrize("variable,value,expect", [
+    ("MILLIMPACT_AVAILABLE_MEMORY", "abc", "MILLIMPACT_AVAILABLE_MEMORY='abc': must be a number of bytes > 0"),
+    ("MILLIMPACT_AVAILABLE_MEMORY", "-4e9", "MILLIMPACT_AVAILABLE_MEMORY='-4e9': must be a number of bytes > 0"),
+    ("MILLIMPACT_MEMORY_CHECK", "maybe", "MILLIMPACT_MEMORY_CHECK='maybe': must be off"),
+])
+@pytest.mark.parametrize("method", ["improved", "hertz"])
+def test_a_bad_memory_variable_is_one_line_exit_2(variable, value, expect, method, tmp_path):
+    # issue 35, row 16: a traceback (abc) or silently accepted (maybe) before
+    env = {**mpi_env(), variable: value}
+    p = subprocess.run([sys.executable, "-m", "millimpact.cli", "run", "--method", method, "-q",
+                        "--out", str(tmp_path / "out")], capture_output=True, text=True, env=env, cwd=ROOT,
+                       timeout=300)
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and expect in lines[0] and "Traceback" not in p.stderr, p.stderr
+    assert not (tmp_path / "out" / "summary.json").exists()

@@ -1,0 +1,37 @@
+"""The contact point is at rest before the first contact (issue 35, row 20): the zero-phase
+band limit (results.band_limit) must not smear the impact back into it (v(0) read 0.29 m/s with
+F = 0 on the rig)."""
+import math
+
+import numpy as np
+
+from millimpact.results.band_limit import gaussian_low_pass
+from millimpact.results.recorder import band_limit_contact_point
+from millimpact.results.timeseries import TimeSeries
+
+
+def impact_series(t0: float = 2e-6, tc: float = 80e-6) -> TimeSeries:
+    """A struck point at rest until first contact at ``t0``, then a half-sine velocity over ``tc``
+    (a Hertz-like pulse) sampled at t_c / 100, the rig's contact step; the flight to contact is
+    shorter than the filter's sigma (0.187 / f_half = 0.047 t_c at f_half = 4 / t_c)."""
+    t = np.arange(0.0, 3 * tc, tc / 100)
+    on = (t >= t0) & (t <= t0 + tc)
+    v = np.where(on, 0.5 * np.sin(math.pi * (t - t0) / tc), 0.0)
+    a = np.where(on, 0.5 * math.pi / tc * np.cos(math.pi * (t - t0) / tc), 0.0)
+    f = np.where(on, 1e4 * np.clip(np.sin(math.pi * (t - t0) / tc), 0.0, None) ** 1.5, 0.0)
+    return TimeSeries({"time_s": t, "contact_force_N": f, "contact_point_velocity_m_s": v,
+                       "contact_point_acceleration_m_s2": a})
+
+
+def test_no_motion_before_the_first_contact():
+    ts = impact_series()
+    t, f_half = ts.time, 4 / 80e-6
+    leaky = gaussian_low_pass(t, ts["contact_point_velocity_m_s"], f_half)
+    before = t < t[np.nonzero(ts["contact_force_N"] > 0)[0][0]]
+    assert np.max(np.abs(leaky[before])) > 1e-3          # the plain zero-phase filter leaks backwards
+    raw = {n: ts[n].copy() for n in ("contact_point_velocity_m_s", "contact_point_acceleration_m_s2")}
+    band_limit_contact_point(ts, f_half)
+    for name, y in raw.items():
+        assert np.all(ts[name][before] == 0.0), name     # at rest: exactly the recorded zeros
+        # from the first contact on, the band-limited values (the zeros before it included)
+        assert np.array_equal(ts[name][~before], gaussian_low_pass(t, y, f_half)[~before]), name
