@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any, Optional
 
 from ..errors import SceneError
-from .liner_shape import LinerShape
+from .liner_shape import IMPACT_PLACES, LinerShape
 
 Vec3 = tuple[float, float, float]
 Vec2 = tuple[float, float]
@@ -168,7 +168,17 @@ class Liner(LinerShape):
     fraction in (0, 1) of the lifter height, measured along its centre line from the plate) and at
     ``x = impact_x`` (m). The contact normal is that face's outward normal; the impact velocity
     (``impact.velocity``, global x, y, z) must point into the face.
+
+    ``impact_place`` moves the impact off the face (the damage map's places, DESIGN.md 12):
+    ``"lifter_face"`` (the default, as above), ``"lifter_top"`` or ``"plate"``, these two at
+    ``impact_arc`` (m) from the struck lifter's centre line along the liner's profile, positive
+    towards its ``impact_face`` (:meth:`LinerShape.impact_site`); the contact normal is the top's
+    or the plate's, and the ball must clear every lifter.
     """
+
+    #: the placement fields added with the places, and their defaults: a liner that keeps them
+    #: writes (and hashes) as it did before them
+    PLACE_DEFAULTS = {"impact_place": "lifter_face", "impact_arc": 0.0}
 
     material: Material = field(default_factory=Material)
     impact_lifter: int = 0
@@ -177,6 +187,8 @@ class Liner(LinerShape):
     impact_x: float = 0.0
     backing_modulus: float = 1.0e9
     backing_thickness: float = 0.006
+    impact_place: str = "lifter_face"
+    impact_arc: float = 0.0
 
     @property
     def backing_stiffness(self) -> float:
@@ -184,14 +196,21 @@ class Liner(LinerShape):
         return self.backing_modulus / self.backing_thickness if self.backing == "rubber" else 0.0
 
     def face_point(self) -> tuple[Vec3, Vec3]:
-        """The impact point on the lifter face and the face's outward unit normal (m)."""
-        return self.lifter_face_point(self.impact_lifter, self.impact_face, self.impact_height, self.impact_x)
+        """The impact point (on the lifter face, or on the ``impact_place``) and the struck
+        surface's outward unit normal (m)."""
+        if self.impact_place == "lifter_face":
+            return self.lifter_face_point(self.impact_lifter, self.impact_face, self.impact_height, self.impact_x)
+        return self.impact_site(self.impact_place, self.impact_lifter, self.impact_face, self.impact_height,
+                                self.impact_x, self.impact_arc)
 
     def validate(self) -> None:
         self.material.validate("liner.material")
         self.validate_shape()
         _finite("liner.impact_height", self.impact_height, "fraction of the lifter height")
         _finite("liner.impact_x", self.impact_x, "m")
+        if self.impact_place not in IMPACT_PLACES:
+            raise SceneError("liner.impact_place", self.impact_place, f"must be one of {', '.join(IMPACT_PLACES)}")
+        _finite("liner.impact_arc", self.impact_arc, "m from the struck lifter's centre line")
         self.face_point()   # refuses a lifter, face, height or x off the liner
         _positive("liner.backing_modulus", self.backing_modulus, "Pa (compression modulus of the rubber backing)")
         _positive("liner.backing_thickness", self.backing_thickness, "m (thickness of the rubber backing)")
@@ -434,6 +453,9 @@ class Scene:
                              f"must point into the struck lifter face (v . n < 0 with its outward normal n = "
                              f"({n[0]:.4g}, {n[1]:.4g}, {n[2]:.4g}))")
         c = self.ball_centre(0.0 if imp.gap is None else imp.gap)
+        if ln.impact_place != "lifter_face":
+            self._check_ball_clear(c)
+            return
         Rm = ln.mill_radius
         # clearance of the ball from the plate's inner face (y = 0, or the cylinder of radius Rm)
         clear = c[1] - self.ball.radius if Rm == 0.0 else Rm - math.hypot(c[1] - Rm, c[2] - 0.5 * ln.width) - self.ball.radius
@@ -441,6 +463,24 @@ class Scene:
             raise SceneError("liner.impact_height", ln.impact_height,
                              f"too low for a ball of radius {self.ball.radius:g} m: the ball would touch the "
                              f"plate ({-clear:.4g} m into it); choose a higher point")
+
+    def _check_ball_clear(self, centre: Vec3) -> None:
+        """Refuse a ball (at ``centre``, m) that would overlap the liner away from the impact point:
+        a lifter beside a plate impact, or the plate or lifter edge beside a top impact. The
+        sphere's surface is sampled (a Fibonacci lattice of 2000 points, ~1/25 of the radius
+        apart) at 99.9 % of the radius, so the first-contact point itself does not count."""
+        ln, r = self.liner, 0.999 * self.ball.radius
+        n = 2000
+        golden = math.pi * (3.0 - math.sqrt(5.0))
+        for i in range(n):
+            zc = 1.0 - 2.0 * (i + 0.5) / n
+            rho = math.sqrt(1.0 - zc * zc)
+            p = (centre[0] + r * rho * math.cos(golden * i), centre[1] + r * rho * math.sin(golden * i), centre[2] + r * zc)
+            if ln.contains(p, tol=0.0):
+                raise SceneError("liner.impact_arc", ln.impact_arc,
+                                 f"a ball of radius {self.ball.radius:g} m striking the {ln.impact_place.replace('_', ' ')} "
+                                 f"here would touch the liner elsewhere (at ({p[0]:.4g}, {p[1]:.4g}, {p[2]:.4g}) m); "
+                                 "move the impact away from the lifter")
 
     def with_value(self, path: str, value: Any) -> "Scene":
         """A copy with the dotted field ``path`` (e.g. ``ball.radius``) set to ``value`` (validated)."""
