@@ -140,15 +140,16 @@ def case_velocity(scene: Scene, speed: float, angle_deg: float) -> list[float]:
 
 
 def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], radii: Sequence[float],
-                 method: str, options: dict) -> list[TableCase]:
+                 method: str, options: dict,
+                 pairs: Optional[Sequence[tuple[float, float]]] = None) -> list[TableCase]:
     """The table's cases, grouped in bands that share a mesh (module docstring), each case's scene
-    carrying its band's h_contact, zone radius, gap and symmetry."""
+    carrying its band's h_contact, zone radius, gap and symmetry. ``pairs`` (speed, angle), when
+    given, replace the product speeds x angles (the damage map's bins)."""
     raw = []
     for r in radii:
         b = base.with_value("ball.radius", r) if r != base.ball.radius else base
-        for v in speeds:
-            for a in angles:
-                raw.append((v, a, r, b.with_value("impact.velocity", case_velocity(b, v, a))))
+        for v, a in (pairs if pairs is not None else [(v, a) for v in speeds for a in angles]):
+            raw.append((v, a, r, b.with_value("impact.velocity", case_velocity(b, v, a))))
     # bands per radius by normal speed
     cases, band = [], -1
     for r in radii:
