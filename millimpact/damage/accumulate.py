@@ -9,7 +9,9 @@ table row, e_t of the contact point's tangential velocity with a rigid ball's sp
 (the ball's loss of translational and rotational kinetic energy: a sphere's tangential impact with
 spin omega = -5 J_t / (2 m R) keeps (m/2)(v_t + J_t/m)^2 + (m R^2/5) omega^2 of (m/2) v_t^2, and
 with u_out = e_t v_t = v_t + 7 J_t / (2 m) the loss is (1 - e_t^2) m v_t^2 / 7; Maw, Barber &
-Fawcett, Wear 38 (1976) 101-114). It is spent as plastic work, friction and the liner's vibration.
+Fawcett, Wear 38 (1976) 101-114). A bin whose representative is normal (v_t = 0, e_t undefined)
+takes the tangential term from its tangential impulse: -7 J_t^2 / (4 m), the energy a curved or
+asymmetric surface turns into the ball's sliding and spin. It is spent as plastic work, friction and the liner's vibration.
 
     plastic work      W_p = (W_p,bin / T_bin) T_i
 
@@ -60,15 +62,24 @@ def impact_damage(imp: Impact, row: dict, below_yield: bool, density: float, sce
     m = 4.0 / 3.0 * math.pi * imp.ball_radius_m**3 * density
     e_n = finite(row.get("restitution_normal"))
     e_t = finite(row.get("restitution_tangential"))
-    if math.isnan(e_t):
-        e_t = 1.0             # a normal representative: no tangential loss measured
+    vn, vt = finite(row.get("normal_velocity_in_m_s")), finite(row.get("tangential_velocity_in_m_s"))
+    vt = 0.0 if math.isnan(vt) else vt
     t_n = 0.5 * m * imp.normal_speed_m_s**2
     t_t = 0.5 * m * imp.tangential_speed_m_s**2
-    absorbed = (1.0 - e_n**2) * t_n + (1.0 - e_t**2) * 2.0 / 7.0 * t_t
+    if not math.isnan(e_t):
+        tangential = (1.0 - e_t**2) * 2.0 / 7.0 * t_t
+    else:
+        # a normal representative (v_t = 0): the tangential impulse J_t it still takes (a curved or
+        # asymmetric surface) gives the ball m v_t'^2/2 + I omega^2/2 = 7 J_t^2 / (4 m), a negative
+        # loss, scaled with the impact's normal kinetic energy
+        j_t = finite(row.get("tangential_impulse_N_s"))
+        gain = 0.0 if math.isnan(j_t) else 7.0 * j_t**2 / (4.0 * scene_ball_mass)
+        t_n_rep = 0.5 * scene_ball_mass * vn**2
+        tangential = -gain * t_n / t_n_rep if t_n_rep > 0 else 0.0
+    absorbed = (1.0 - e_n**2) * t_n + tangential
     if below_yield:
         return ImpactDamage(absorbed, 0.0)
-    vn, vt = finite(row.get("normal_velocity_in_m_s")), finite(row.get("tangential_velocity_in_m_s"))
-    t_rep = 0.5 * scene_ball_mass * (vn**2 + (0.0 if math.isnan(vt) else vt**2))
+    t_rep = 0.5 * scene_ball_mass * (vn**2 + vt**2)
     w_p = finite(row.get("plastic_dissipation_J"))
     frac = w_p / t_rep if t_rep > 0 and not math.isnan(w_p) else 0.0
     return ImpactDamage(absorbed, frac * (t_n + t_t))

@@ -4,8 +4,8 @@ and angle, so that each bin's response is resolved by one impact computed at its
 Speed edges (per place). The bin's response is read at one normal speed, so the restitution must
 vary little across the bin. Thornton's e(V) (Thornton 1997, :mod:`millimpact.theory.thornton`)
 is the estimate: the edges v_0 < v_1 < ... are placed so that e(v_k) - e(v_k+1) <= ``tolerance``
-(0.02 by default) above the yield-onset speed V_y (Thornton 1997, eq. 13), and V_y is an edge
-itself, so no bin holds both sub-yield impacts (no plastic work) and yielding ones. Below V_y
+(0.02 by default) from the yield-onset speed V_y (Thornton 1997, eq. 13) up, and V_y is an edge
+itself (the edges above it do not depend on the slowest impact), so no bin holds both sub-yield impacts (no plastic work) and yielding ones. Below V_y
 Thornton's e is 1: the sub-yield impacts form one bin. At high speed e ~ V^(-1/4), so the edges
 are nearly log-spaced, de/d ln V = -e/4: a ratio ~exp(0.08 / e) (1.14 at e = 0.6). An elastic
 liner (no V_y) gets log-spaced edges a factor ELASTIC_SPEED_RATIO apart.
@@ -103,13 +103,12 @@ def speed_edges(v_lo: float, v_hi: float, v_y: float, tolerance: float) -> list[
         ratio = ELASTIC_SPEED_RATIO ** (tolerance / DEFAULT_TOLERANCE)
         n = max(1, math.ceil(math.log(hi / max(v_lo, 1e-300)) / math.log(ratio))) if v_lo > 0 else 1
         return list(np.geomspace(max(v_lo, 1e-12), hi, n + 1)) if v_lo > 0 else [0.0, hi]
-    edges = [v_lo]
-    cur = v_lo
-    if v_lo < v_y < hi:
-        edges.append(v_y)
-        cur = v_y
-    elif v_hi <= v_y:
+    if v_hi <= v_y:
         return [v_lo, hi]
+    # anchored at V_y whatever the slowest impact: the bins above V_y do not depend on which
+    # sub-yield impacts the log holds (empty bins are not computed)
+    edges = [min(v_lo, v_y), v_y] if v_lo < v_y else [v_y]
+    cur = v_y
     while cur < hi * (1 - 1e-12):
         target = restitution_thornton(max(cur, v_y), v_y) - tolerance
         if restitution_thornton(hi, v_y) >= target:

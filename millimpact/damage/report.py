@@ -129,6 +129,7 @@ def plot_map(path: Path, profile: dict, impacts: Sequence[Impact], liner, revolu
     from matplotlib.colors import LogNorm, Normalize
 
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.8))
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.13, top=0.93, wspace=0.3)
     hb, ht, h = 0.5 * liner.lifter_base_width, 0.5 * liner.lifter_top_width, liner.lifter_height
     span = max([abs(s) for d in profile.values() for s in d["arc_m"]] + [hb + 0.05])
     outline = np.array([[-span, 0], [-hb, 0], [-ht, h], [ht, h], [hb, 0], [span, 0]])
@@ -170,6 +171,5 @@ def plot_map(path: Path, profile: dict, impacts: Sequence[Impact], liner, revolu
     bx.set_ylabel("impacts per revolution with at least this energy (1/rev)")
     bx.set_title("impact-energy spectrum", fontsize=9)
     bx.legend(fontsize=8)
-    fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
     plt.close(fig)

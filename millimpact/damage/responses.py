@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
 from .. import __version__
+from ..errors import SceneError
 from ..scene.schema import Scene
 from ..scene.toml_io import dump_scene
 from ..studies.table import TableCase, define_cases
@@ -65,13 +66,27 @@ def define_bin_cases(bins: Sequence[Bin], placed: dict[int, PlacedScene], method
     offset = 0
     for members in groups.values():
         scene = placed[members[0].index].scene
-        cases = define_cases(scene, [], [], [scene.ball.radius], method, options,
-                             pairs=[(b.speed_m_s, b.angle_deg) for b in members])
+        try:
+            cases = define_cases(scene, [], [], [scene.ball.radius], method, options,
+                                 pairs=[(b.speed_m_s, b.angle_deg) for b in members])
+        except SceneError:
+            # a bin the scene's settings cannot mesh (a --set h_contact too coarse for a slow bin's
+            # contact zone): each bin alone, the failing ones refused with the scene's reason
+            cases = []
+            for b in members:
+                try:
+                    cases += define_cases(scene, [], [], [scene.ball.radius], method, options,
+                                          pairs=[(b.speed_m_s, b.angle_deg)])
+                except SceneError as exc:
+                    out[b.index] = BinCase(b, placed[b.index], None, str(exc))
+                else:
+                    cases[-1] = dataclasses.replace(cases[-1], band=len(cases) - 1)
         by_pair = {(c.speed, c.angle): c for c in cases}
         for b in members:
-            c = by_pair[(b.speed_m_s, b.angle_deg)]
-            out[b.index] = BinCase(b, placed[b.index], dataclasses.replace(c, index=b.index, band=c.band + offset))
-        offset += 1 + max(c.band for c in cases)
+            c = by_pair.get((b.speed_m_s, b.angle_deg))
+            if c is not None:
+                out[b.index] = BinCase(b, placed[b.index], dataclasses.replace(c, index=b.index, band=c.band + offset))
+        offset += 1 + max((c.band for c in cases), default=0)
     return [out[b.index] for b in bins]
 
 

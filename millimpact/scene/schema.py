@@ -14,6 +14,7 @@ direction. ``support = "base"`` clamps the ``z = 0`` face (the paper's rig), ``"
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 import typing
@@ -466,21 +467,14 @@ class Scene:
 
     def _check_ball_clear(self, centre: Vec3) -> None:
         """Refuse a ball (at ``centre``, m) that would overlap the liner away from the impact point:
-        a lifter beside a plate impact, or the plate or lifter edge beside a top impact. The
-        sphere's surface is sampled (a Fibonacci lattice of 2000 points, ~1/25 of the radius
-        apart) at 99.9 % of the radius, so the first-contact point itself does not count."""
-        ln, r = self.liner, 0.999 * self.ball.radius
-        n = 2000
-        golden = math.pi * (3.0 - math.sqrt(5.0))
-        for i in range(n):
-            zc = 1.0 - 2.0 * (i + 0.5) / n
-            rho = math.sqrt(1.0 - zc * zc)
-            p = (centre[0] + r * rho * math.cos(golden * i), centre[1] + r * rho * math.sin(golden * i), centre[2] + r * zc)
-            if ln.contains(p, tol=0.0):
-                raise SceneError("liner.impact_arc", ln.impact_arc,
-                                 f"a ball of radius {self.ball.radius:g} m striking the {ln.impact_place.replace('_', ' ')} "
-                                 f"here would touch the liner elsewhere (at ({p[0]:.4g}, {p[1]:.4g}, {p[2]:.4g}) m); "
-                                 "move the impact away from the lifter")
+        a lifter beside a plate impact, or the plate or lifter edge beside a top impact."""
+        hit = _ball_overlap(self.liner, self.ball.radius, tuple(float(c) for c in centre))
+        if hit is not None:
+            ln = self.liner
+            raise SceneError("liner.impact_arc", ln.impact_arc,
+                             f"a ball of radius {self.ball.radius:g} m striking the {ln.impact_place.replace('_', ' ')} "
+                             f"here would touch the liner elsewhere (at (y, z) = ({hit[0]:.4g}, {hit[1]:.4g}) m); "
+                             "move the impact away from the lifter")
 
     def with_value(self, path: str, value: Any) -> "Scene":
         """A copy with the dotted field ``path`` (e.g. ``ball.radius``) set to ``value`` (validated)."""
@@ -488,6 +482,23 @@ class Scene:
 
 
 # --- helpers ---------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=256)
+def _ball_overlap(liner: Liner, radius: float, centre: Vec3) -> Optional[tuple[float, float]]:
+    """A point (y, z) where a ball of ``radius`` at ``centre`` (m) lies inside the liner, or None.
+    The liner is prismatic along x (bolt holes only take material away), so the ball overlaps it
+    if its section through the centre, a disk, overlaps the profile: its circle is sampled at 720
+    points (0.5 mm apart for a 62.5 mm ball) at 99.9 % of the radius, so the first-contact point
+    itself does not count. Cached: a study's copies of one scene check the same ball."""
+    r = 0.999 * radius
+    x, y, z = centre
+    for k in range(720):
+        t = 2.0 * math.pi * k / 720
+        p = (x, y + r * math.cos(t), z + r * math.sin(t))
+        if liner.contains(p, tol=0.0):
+            return p[1], p[2]
+    return None
+
+
 def parse_value(text: str):
     """The value of a ``FIELD=VALUE`` override: a TOML value (number, string, array, boolean), or
     the text itself when it is not one (a bare word such as ``base``)."""
