@@ -105,16 +105,16 @@ def stored(folder: Path, key: str) -> Optional[dict]:
 
 def table_runner(method: str, options: dict, ranks_per_case: int = 1) -> CaseRunner:
     """The table engine as a case runner: MPI groups of ``ranks_per_case`` ranks take cases from a
-    shared counter, a band's reduction is reused (:func:`millimpact.studies.table._compute`)."""
+    shared counter, a band's reduction is reused (:func:`millimpact.studies.table.compute_cases`)."""
     def run(todo: list, folder: Path, say: Callable) -> None:
         from mpi4py import MPI
 
-        from ..studies.table import _compute
+        from ..studies.table import compute_cases
 
         world = MPI.COMM_WORLD
         group = world.Split(world.rank // ranks_per_case, world.rank)
         try:
-            _compute(sorted(todo, key=lambda c: (c.band, c.index)), method, options, folder, world, group, say)
+            compute_cases(sorted(todo, key=lambda c: (c.band, c.index)), method, options, folder, world, group, say)
         finally:
             group.Free()
     return run

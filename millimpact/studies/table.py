@@ -331,6 +331,12 @@ def next_case(state: np.ndarray, band_sizes: Sequence[int], current: Optional[in
     return band, index
 
 
+def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
+    """Compute ``todo`` on the groups of ranks of ``world`` (``group``: this rank's), each finished
+    case stored as ``folder/<key>.json``; the rows this group computed (the damage map's bins)."""
+    return _compute(todo, method, options, folder, world, group, say)
+
+
 def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
     """This group's share of ``todo``: cases taken from a shared state (:func:`next_case`) on world
     rank 0 until none is left."""
