@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import inspect
 import json
 import math
 import os
@@ -185,8 +186,13 @@ def run_repeat(bc: BinCase, n: int, method: str, options: dict, petsc_options: d
     spec = (spec_type or _Spec)(speed_m_s=bc.case.speed, angle_deg=bc.case.angle)
     say(f"  repeat at bin {bc.bin.index} ({bc.bin.place}, v = {bc.case.speed:.4g} m/s, angle {bc.case.angle:.3g} deg): "
         f"{n} impacts")
+    extra = {}
+    if "store_dir" in inspect.signature(run_sequence).parameters:
+        # the sequence keeps each finished impact and its plastic state: an interrupted sequence
+        # continues from its last impact
+        extra["store_dir"] = folder / f"{key}.impacts"
     outcomes = run_sequence(scene, [spec] * n, method=method, petsc_options=petsc_options, comm=comm,
-                            progress=None)
+                            progress=say, **extra)
     rows = [dataclasses.asdict(o) if dataclasses.is_dataclass(o) else dict(o) for o in outcomes]
     cls = classify or real_classify
     if cls is not None:
