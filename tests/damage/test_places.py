@@ -70,3 +70,18 @@ def test_a_bin_off_the_scene_is_moved_and_said():
     assert q.scene.liner.impact_face == "-z" and q.scene.contact_normal[2] < 0
     assert place_scene(SEG, "lifter_face", 0.1).scene.liner.impact_height == pytest.approx(
         (0.5 * SEG.liner.lifter_base_width - 0.1) / (0.5 * (SEG.liner.lifter_base_width - SEG.liner.lifter_top_width)))
+
+
+def test_speed_edges_keep_thorntons_restitution_within_the_tolerance():
+    from millimpact.damage.bins import speed_edges
+    from millimpact.theory.thornton import restitution_thornton
+
+    v_y = 0.12
+    edges = speed_edges(0.05, 9.0, v_y, 0.02)
+    assert edges[0] == 0.05 and edges[1] == v_y and edges[-1] >= 9.0
+    spreads = [restitution_thornton(a, v_y) - restitution_thornton(b, v_y) for a, b in zip(edges[1:], edges[2:])]
+    # every bin above V_y at the tolerance (the last one may be narrower), to the bisection's 2^-60
+    assert max(spreads) == pytest.approx(0.02, rel=1e-9) and spreads[-1] <= 0.02 * (1 + 1e-9)
+    assert all(s == pytest.approx(0.02, rel=1e-9) for s in spreads[:-1])
+    # the edges above V_y do not depend on the slowest impact
+    assert speed_edges(1.0, 9.0, v_y, 0.02) == edges[1:]
