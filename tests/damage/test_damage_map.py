@@ -301,6 +301,7 @@ def test_the_impact_reader_refuses_what_the_map_would_misread(tmp_path):
 
 
 # --- the real engines -----------------------------------------------------------------------------
+@pytest.mark.slow
 def test_one_bin_on_the_real_table_engine(tmp_path):
     """Two identical face impacts on the coarse liner-segment, one on the plate, through the CLI:
     each bin's numbers are its table case's, and the absorbed energy formula (restitutions, spin)
@@ -329,6 +330,7 @@ def test_one_bin_on_the_real_table_engine(tmp_path):
     assert r.returncode == 0 and "0 to run" in r.stdout
 
 
+@pytest.mark.slow
 def test_one_bin_on_the_real_repeated_impact_sequence(tmp_path):
     """The place's dominant bin repeated with millimpact.repeat.sequence: the map's dent and strain
     numbers are the sequence's. Skipped until the repeated-impact issue's module is merged."""
