@@ -130,7 +130,12 @@ def main(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
         write_marker(out, "damage")
     world.barrier()
-    run_damage_map(scene, impacts, out, settings, str(path), quiet=args.quiet, comm=world)
+    try:
+        run_damage_map(scene, impacts, out, settings, str(path), quiet=args.quiet, comm=world)
+    except KeyboardInterrupt as exc:
+        # the CLI's one line: what an interrupted map keeps (its finished bins and sequences)
+        raise type(exc)(f"the finished bins are kept in {out}/cases and {out}/repeat; the same command "
+                        "continues the map") from None
     if not args.quiet and world.rank == 0:
         print(f"  results in {out}/ (damage.csv, bins.csv, profile.csv, damage.json, damage_map.png)", flush=True)
     return 0
