@@ -11,7 +11,8 @@ spin omega = -5 J_t / (2 m R) keeps (m/2)(v_t + J_t/m)^2 + (m R^2/5) omega^2 of 
 with u_out = e_t v_t = v_t + 7 J_t / (2 m) the loss is (1 - e_t^2) m v_t^2 / 7; Maw, Barber &
 Fawcett, Wear 38 (1976) 101-114). A bin whose representative is normal (v_t = 0, e_t undefined)
 takes the tangential term from its tangential impulse: -7 J_t^2 / (4 m), the energy a curved or
-asymmetric surface turns into the ball's sliding and spin. It is spent as plastic work, friction and the liner's vibration.
+asymmetric surface turns into the ball's sliding and spin. The absorbed energy is spent as plastic
+work, friction and the liner's vibration.
 
     plastic work      W_p = (W_p,bin / T_bin) T_i
 

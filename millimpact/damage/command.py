@@ -1,10 +1,10 @@
 """``millimpact damage``: the liner's damage map from a mill's impact log (impacts.csv).
 
 Reads the impacts (:func:`millimpact.dem.impacts.read_impacts`), bins them by place, arc position,
-normal speed and angle (:mod:`.bins`), computes each bin's impact with the table engine on the
+normal speed and angle (:mod:`millimpact.damage.bins`), computes each bin's impact with the table engine on the
 liner scene with its impact moved to the bin's place, and the repeated-impact response of each
 place's dominant bin, and writes per place and revolution the energy absorbed, the plastic work,
-the dent growth and the plastic strain's trend (:mod:`.damage_map`). Finished bins and sequences
+the dent growth and the plastic strain's trend (:mod:`millimpact.damage.damage_map`). Finished bins and sequences
 are kept in DIR/cases and DIR/repeat: an interrupted map continues where it stopped.
 """
 from __future__ import annotations

@@ -1,6 +1,8 @@
-"""The damage map's flow: impacts -> bins (:mod:`.bins`) -> placed scenes (:mod:`.places`) -> table
-cases and repeated-impact sequences (:mod:`.responses`) -> sums per place and revolution
-(:mod:`.accumulate`) -> files (:mod:`.report`). Rank 0 writes and prints.
+"""The damage map's flow: impacts -> bins (:mod:`millimpact.damage.bins`) -> placed scenes
+(:mod:`millimpact.damage.places`) -> table cases and repeated-impact sequences
+(:mod:`millimpact.damage.responses`) -> sums per place and revolution
+(:mod:`millimpact.damage.accumulate`) -> files (:mod:`millimpact.damage.report`). Rank 0 writes
+and prints.
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """A bin's place on the liner scene: the scene's impact moved to the lifter face, the lifter top or
-the plate at the bin's arc position (``liner.impact_place`` / ``impact_arc``, :class:`Liner`).
+the plate at the bin's arc position (``liner.impact_place`` / ``impact_arc``, :class:`millimpact.scene.schema.Liner`).
 
 Arc positions follow impacts.csv (:mod:`millimpact.dem.impacts`): from the centre line of the
 nearest lifter, positive towards its leading face, which is taken to be the scene's struck face

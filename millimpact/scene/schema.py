@@ -173,7 +173,7 @@ class Liner(LinerShape):
     ``impact_place`` moves the impact off the face (the damage map's places, DESIGN.md 12):
     ``"lifter_face"`` (the default, as above), ``"lifter_top"`` or ``"plate"``, these two at
     ``impact_arc`` (m) from the struck lifter's centre line along the liner's profile, positive
-    towards its ``impact_face`` (:meth:`LinerShape.impact_site`); the contact normal is the top's
+    towards its ``impact_face`` (:meth:`millimpact.scene.liner_shape.LinerShape.impact_site`); the contact normal is the top's
     or the plate's, and the ball must clear every lifter.
     """
 
