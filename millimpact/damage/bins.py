@@ -7,8 +7,9 @@ is the estimate: the edges v_0 < v_1 < ... are placed so that e(v_k) - e(v_k+1) 
 (0.02 by default) from the yield-onset speed V_y (Thornton 1997, eq. 13) up, and V_y is an edge
 itself (the edges above it do not depend on the slowest impact), so no bin holds both sub-yield
 impacts (no plastic work) and yielding ones. Below V_y Thornton's e is 1: the sub-yield impacts
-form one bin. At high speed e ~ V^(-1/4), so the edges are nearly log-spaced, de/d ln V = -e/4: a ratio ~exp(0.08 / e) (1.14 at e = 0.6). An elastic
-liner (no V_y) gets log-spaced edges a factor ELASTIC_SPEED_RATIO apart.
+form one bin. At high speed e ~ V^(-1/4), so the edges are nearly log-spaced, de/d ln V = -e/4:
+a ratio ~exp(0.08 / e) (1.14 at e = 0.6). An elastic liner (no V_y) gets log-spaced edges a
+factor ELASTIC_SPEED_RATIO apart.
 
 Angle and arc edges (per place): equal-count (quantile) edges over the place's impacts,
 ``angle_bins`` and ``arc_bins`` of them. The arc position only moves the impact on the same kind
