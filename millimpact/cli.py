@@ -134,7 +134,13 @@ def cmd_scene(args: argparse.Namespace) -> int:
                    f"k_n {ln.backing_stiffness:.3g} Pa/m"))
         say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, normal "
              f"{scene.normal_speed:.4g} m/s; point ({', '.join(f'{c*1e3:.4g}' for c in p)}) mm on lifter "
-             f"{ln.impact_lifter} face {ln.impact_face}, normal ({', '.join(f'{c:.4g}' for c in n)})")
+             f"{ln.impact_lifter} face {ln.impact_face}, normal ({', '.join(f'{c:.4g}' for c in n)})"
+            if ln.impact_place == "lifter_face" else
+            f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, normal "
+            f"{scene.normal_speed:.4g} m/s; point ({', '.join(f'{c*1e3:.4g}' for c in p)}) mm on the "
+            f"{'top of lifter ' + str(ln.impact_lifter) if ln.impact_place == 'lifter_top' else 'plate'}, "
+            f"{ln.impact_arc*1e3:.4g} mm from lifter {ln.impact_lifter}'s centre line, normal "
+            f"({', '.join(f'{c:.4g}' for c in n)})")
     else:
         say(f"  block   {k.length*1e3:g} x {k.thickness*1e3:g} x {k.height*1e3:g} mm (length x thickness x height), "
              f"support '{k.support}', rho {k.material.density:g} kg/m^3, G {k.material.shear_modulus/1e9:g} GPa, "
@@ -264,6 +270,7 @@ EXTRA_COMMANDS = {
     "compare": "millimpact.studies.compare",
     "export": "millimpact.dem.export",
     "mill": "millimpact.dem.mill",
+    "damage": "millimpact.damage.command",
 }
 
 

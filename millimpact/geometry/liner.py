@@ -22,11 +22,14 @@ from .builders import (BACKING, BALL_CONTACT, BALL_SURFACE, BLOCK_CONTACT, BLOCK
 # --- the liner model -----------------------------------------------------------------------------
 def build_liner_model(liner: LinerShape, sizes: MeshSizes, *, lifter: int = 0, face: str = "+z",
                       height_fraction: float = 0.5, x: float = 0.0, ball_radius: Optional[float] = None,
-                      gap: float = 0.0, symmetry_planes: Sequence[str] = (), generate: bool = True) -> ModelInfo:
+                      gap: float = 0.0, symmetry_planes: Sequence[str] = (), generate: bool = True,
+                      place: str = "lifter_face", arc: float = 0.0) -> ModelInfo:
     """Build a liner segment (tagged as the block) with a contact zone on a lifter face, optionally
     with a ball (radius ``ball_radius``, m) a ``gap`` (m) off the face along its normal, and mesh it.
 
-    The contact point is ``liner.lifter_face_point(lifter, face, height_fraction, x)``.
+    The contact point is ``liner.impact_site(place, lifter, face, height_fraction, x, arc)`` (by
+    default ``liner.lifter_face_point(lifter, face, height_fraction, x)``; ``place`` ``"lifter_top"``
+    or ``"plate"`` puts it on the lifter's top or the plate, ``arc`` m from the lifter's centre line).
     ``symmetry_planes`` may be ``("x",)``: keep ``x >= x`` (the liner is prismatic along x).
     ``SUPPORT`` is the plate's back face (on the mill shell; ``BACKING`` when ``liner.backing`` is
     ``"rubber"``) and the bolt holes' surfaces (:meth:`LinerShape.bolt_holes`). Sizes in m.
@@ -36,7 +39,7 @@ def build_liner_model(liner: LinerShape, sizes: MeshSizes, *, lifter: int = 0, f
     planes = tuple(symmetry_planes)
     if any(p != "x" for p in planes):
         raise MeshError(f"symmetry_planes = {planes!r}: a liner allows only ('x',)")
-    point, normal = liner.lifter_face_point(lifter, face, height_fraction, x)
+    point, normal = liner.impact_site(place, lifter, face, height_fraction, x, arc)
     check_zone_fits("liner", sizes.zone_radius, min(liner.thickness, liner.lifter_top_width, liner.length))
     ball = None
     if ball_radius is not None:

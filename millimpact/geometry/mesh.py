@@ -172,10 +172,12 @@ def create_mesh(scene: Scene, plan: Plan, comm: MPI.Comm = MPI.COMM_WORLD,
     """
     if scene.liner is not None:
         ln = scene.liner
+        # an impact off the lifter face adds its place (a face impact keeps the cache key it had)
+        place = {} if ln.impact_place == "lifter_face" else {"place": ln.impact_place, "arc": ln.impact_arc}
         return create_liner_mesh(ln, MeshSizes.from_plan(plan), comm, cache_dir, use_cache=use_cache,
                                  lifter=ln.impact_lifter, face=ln.impact_face, height_fraction=ln.impact_height,
                                  x=ln.impact_x, ball_radius=scene.ball.radius, gap=plan.gap,
-                                 symmetry_planes=tuple(plan.symmetry_planes), export=export)
+                                 symmetry_planes=tuple(plan.symmetry_planes), export=export, **place)
     params = mesh_parameters(scene, plan)
     return _create(params, lambda: build_impact_model(scene, plan), plan.symmetry, comm, cache_dir, use_cache,
                    export)

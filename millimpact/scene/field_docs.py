@@ -75,6 +75,10 @@ FIELD_DOCS: dict[str, tuple[str, str, str]] = {
     "liner.impact_face": ("", "+z | -z", "the struck face of that lifter"),
     "liner.impact_height": ("-", "(0, 1)", "impact height as a fraction of the lifter height"),
     "liner.impact_x": ("m", "(-length/2, length/2)", "impact position along the mill axis"),
+    "liner.impact_place": ("", "lifter_face | lifter_top | plate", "the struck place (the damage map's places)"),
+    "liner.impact_arc": ("m", "on the top or the plate, the ball clear of the lifters",
+                         "lifter_top / plate: position along the profile from the struck lifter's centre line, "
+                         "positive towards impact_face"),
     "contact.friction": ("-", "[0, 2]", "Coulomb friction coefficient mu between ball and struck body"),
 }
 

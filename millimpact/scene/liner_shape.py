@@ -29,6 +29,9 @@ from ..errors import SceneError
 
 Vec3 = tuple[float, float, float]
 
+#: where on a liner a ball can strike (the places of impacts.csv, millimpact.dem.impacts.PLACES)
+IMPACT_PLACES = ("lifter_face", "lifter_top", "plate")
+
 
 def _size(name: str, value: object) -> None:
     if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0):
@@ -255,3 +258,79 @@ class LinerShape:
         c = self.lifter_centres()[lifter]
         (y, z), (ny, nz) = self.lifter_to_global(c, zeta, eta), self.lifter_rotate(c, n_eta / nn, n_zeta / nn)
         return (float(x), y, z), (0.0, ny, nz)
+
+    def lifter_top_point(self, lifter: int = 0, face: str = "+z", arc: float = 0.0,
+                         x: float = 0.0) -> tuple[Vec3, Vec3]:
+        """A point on a lifter's top and the top's outward unit normal (towards the mill axis):
+        ((x, y, z), (nx, ny, nz)), m. ``arc`` (m) is measured across the top from the lifter's
+        centre line, positive towards ``face``; it must lie in (-top/2, top/2)."""
+        if not (0 <= lifter < self.n_lifters):
+            raise SceneError("liner.impact_lifter", lifter, f"must index a lifter: 0 .. {self.n_lifters - 1}")
+        if face not in ("+z", "-z"):
+            raise SceneError("liner.impact_face", face, "must be '+z' or '-z'")
+        ht = 0.5 * self.lifter_top_width
+        if not (isinstance(arc, (int, float)) and math.isfinite(arc) and -ht < arc < ht):
+            raise SceneError("liner.impact_arc", arc, f"must lie in ({-ht:g}, {ht:g}) m on the lifter top "
+                             "(from its centre line, positive towards liner.impact_face)")
+        if not (-0.5 * self.length < x < 0.5 * self.length):
+            raise SceneError("liner.impact_x", x, f"must lie in (-{self.length / 2:g}, {self.length / 2:g}) m")
+        c = self.lifter_centres()[lifter]
+        zeta = (1.0 if face == "+z" else -1.0) * arc
+        (y, z), (ny, nz) = self.lifter_to_global(c, zeta, self.lifter_height), self.lifter_rotate(c, 1.0, 0.0)
+        return (float(x), y, z), (0.0, ny, nz)
+
+    def plate_point(self, lifter: int = 0, face: str = "+z", arc: float = 0.0,
+                    x: float = 0.0) -> tuple[Vec3, Vec3]:
+        """A point on the plate's inner face and its outward unit normal (towards the mill axis):
+        ((x, y, z), (nx, ny, nz)), m. ``arc`` (m) is the arc length along the inner face from the
+        centre line of ``lifter``, positive towards its ``face``; the point must lie on the plate
+        and not under a lifter's foot (the ball's clearance from the lifters is the scene's check)."""
+        if not (0 <= lifter < self.n_lifters):
+            raise SceneError("liner.impact_lifter", lifter, f"must index a lifter: 0 .. {self.n_lifters - 1}")
+        if face not in ("+z", "-z"):
+            raise SceneError("liner.impact_face", face, "must be '+z' or '-z'")
+        if not (-0.5 * self.length < x < 0.5 * self.length):
+            raise SceneError("liner.impact_x", x, f"must lie in (-{self.length / 2:g}, {self.length / 2:g}) m")
+        c = self.lifter_centres()[lifter]
+        s = c + (1.0 if face == "+z" else -1.0) * arc if isinstance(arc, (int, float)) else math.nan
+        hb = 0.5 * max(self.lifter_base_width, self.lifter_top_width)
+        lo, hi = -c, self.width - c
+        if face == "-z":
+            lo, hi = c - self.width, c
+        if not (math.isfinite(s) and 0.0 < s < self.width):
+            raise SceneError("liner.impact_arc", arc, f"must lie on the plate: ({lo:g}, {hi:g}) m from lifter "
+                             f"{lifter}'s centre line (positive towards liner.impact_face)")
+        if any(abs(s - cc) <= hb for cc in self.lifter_centres()):
+            raise SceneError("liner.impact_arc", arc, f"lies under a lifter's foot: keep it more than {hb:g} m "
+                             "from a lifter's centre line")
+        if any(self.hole_distance((x, *self._plate_yz(s)), hx, hs) <= 0.5 * self.bolt_hole_diameter
+               for hx, hs in self.bolt_holes()):
+            raise SceneError("liner.impact_arc", arc, "lies in a bolt hole")
+        R = self.mill_radius
+        if R == 0:
+            return (float(x), 0.0, float(s)), (0.0, 1.0, 0.0)
+        phi = (s - 0.5 * self.width) / R
+        y, z = self._plate_yz(s)
+        return (float(x), y, z), (0.0, math.cos(phi), -math.sin(phi))
+
+    def _plate_yz(self, s: float) -> tuple[float, float]:
+        """(y, z) of the inner face at arc position ``s`` (m, from the plate's edge)."""
+        R = self.mill_radius
+        if R == 0:
+            return 0.0, s
+        phi = (s - 0.5 * self.width) / R
+        return R - R * math.cos(phi), 0.5 * self.width + R * math.sin(phi)
+
+    def impact_site(self, place: str = "lifter_face", lifter: int = 0, face: str = "+z",
+                    height_fraction: float = 0.5, x: float = 0.0, arc: float = 0.0) -> tuple[Vec3, Vec3]:
+        """The first-contact point and outward unit normal of an impact on ``place``: a lifter face
+        (:meth:`lifter_face_point`: ``height_fraction``), a lifter top (:meth:`lifter_top_point`) or
+        the plate (:meth:`plate_point`), these two at ``arc`` (m) from the lifter's centre line."""
+        if place == "lifter_face":
+            return self.lifter_face_point(lifter, face, height_fraction, x)
+        if place == "lifter_top":
+            return self.lifter_top_point(lifter, face, arc, x)
+        if place == "plate":
+            return self.plate_point(lifter, face, arc, x)
+        raise SceneError("liner.impact_place", place, f"must be one of {', '.join(IMPACT_PLACES)}")
+

@@ -14,6 +14,7 @@ direction. ``support = "base"`` clamps the ``z = 0`` face (the paper's rig), ``"
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 import typing
@@ -21,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any, Optional
 
 from ..errors import SceneError
-from .liner_shape import LinerShape
+from .liner_shape import IMPACT_PLACES, LinerShape
 
 Vec3 = tuple[float, float, float]
 Vec2 = tuple[float, float]
@@ -182,7 +183,17 @@ class Liner(LinerShape):
     fraction in (0, 1) of the lifter height, measured along its centre line from the plate) and at
     ``x = impact_x`` (m). The contact normal is that face's outward normal; the impact velocity
     (``impact.velocity``, global x, y, z) must point into the face.
+
+    ``impact_place`` moves the impact off the face (the damage map's places, DESIGN.md 12):
+    ``"lifter_face"`` (the default, as above), ``"lifter_top"`` or ``"plate"``, these two at
+    ``impact_arc`` (m) from the struck lifter's centre line along the liner's profile, positive
+    towards its ``impact_face`` (:meth:`millimpact.scene.liner_shape.LinerShape.impact_site`); the contact normal is the top's
+    or the plate's, and the ball must clear every lifter.
     """
+
+    #: the placement fields added with the places, and their defaults: a liner that keeps them
+    #: writes (and hashes) as it did before them
+    PLACE_DEFAULTS = {"impact_place": "lifter_face", "impact_arc": 0.0}
 
     material: Material = field(default_factory=Material)
     impact_lifter: int = 0
@@ -191,6 +202,8 @@ class Liner(LinerShape):
     impact_x: float = 0.0
     backing_modulus: float = 1.0e9
     backing_thickness: float = 0.006
+    impact_place: str = "lifter_face"
+    impact_arc: float = 0.0
 
     @property
     def backing_stiffness(self) -> float:
@@ -198,14 +211,21 @@ class Liner(LinerShape):
         return self.backing_modulus / self.backing_thickness if self.backing == "rubber" else 0.0
 
     def face_point(self) -> tuple[Vec3, Vec3]:
-        """The impact point on the lifter face and the face's outward unit normal (m)."""
-        return self.lifter_face_point(self.impact_lifter, self.impact_face, self.impact_height, self.impact_x)
+        """The impact point (on the lifter face, or on the ``impact_place``) and the struck
+        surface's outward unit normal (m)."""
+        if self.impact_place == "lifter_face":
+            return self.lifter_face_point(self.impact_lifter, self.impact_face, self.impact_height, self.impact_x)
+        return self.impact_site(self.impact_place, self.impact_lifter, self.impact_face, self.impact_height,
+                                self.impact_x, self.impact_arc)
 
     def validate(self) -> None:
         self.material.validate("liner.material")
         self.validate_shape()
         _finite("liner.impact_height", self.impact_height, "fraction of the lifter height")
         _finite("liner.impact_x", self.impact_x, "m")
+        if self.impact_place not in IMPACT_PLACES:
+            raise SceneError("liner.impact_place", self.impact_place, f"must be one of {', '.join(IMPACT_PLACES)}")
+        _finite("liner.impact_arc", self.impact_arc, "m from the struck lifter's centre line")
         self.face_point()   # refuses a lifter, face, height or x off the liner
         _positive("liner.backing_modulus", self.backing_modulus, "Pa (compression modulus of the rubber backing)")
         _positive("liner.backing_thickness", self.backing_thickness, "m (thickness of the rubber backing)")
@@ -456,6 +476,9 @@ class Scene:
                              f"must point into the struck lifter face (v . n < 0 with its outward normal n = "
                              f"({n[0]:.4g}, {n[1]:.4g}, {n[2]:.4g}))")
         c = self.ball_centre(0.0 if imp.gap is None else imp.gap)
+        if ln.impact_place != "lifter_face":
+            self._check_ball_clear(c)
+            return
         Rm = ln.mill_radius
         # clearance of the ball from the plate's inner face (y = 0, or the cylinder of radius Rm)
         clear = c[1] - self.ball.radius if Rm == 0.0 else Rm - math.hypot(c[1] - Rm, c[2] - 0.5 * ln.width) - self.ball.radius
@@ -463,6 +486,17 @@ class Scene:
             raise SceneError("liner.impact_height", ln.impact_height,
                              f"too low for a ball of radius {self.ball.radius:g} m: the ball would touch the "
                              f"plate ({-clear:.4g} m into it); choose a higher point")
+
+    def _check_ball_clear(self, centre: Vec3) -> None:
+        """Refuse a ball (at ``centre``, m) that would overlap the liner away from the impact point:
+        a lifter beside a plate impact, or the plate or lifter edge beside a top impact."""
+        hit = _ball_overlap(self.liner, self.ball.radius, tuple(float(c) for c in centre))
+        if hit is not None:
+            ln = self.liner
+            raise SceneError("liner.impact_arc", ln.impact_arc,
+                             f"a ball of radius {self.ball.radius:g} m striking the {ln.impact_place.replace('_', ' ')} "
+                             f"here would touch the liner elsewhere (at (y, z) = ({hit[0]:.4g}, {hit[1]:.4g}) m); "
+                             "move the impact away from the lifter")
 
     def with_value(self, path: str, value: Any) -> "Scene":
         """A copy with the dotted field ``path`` (e.g. ``ball.radius``) set to ``value`` (validated)."""
@@ -495,6 +529,23 @@ def _names_a_material(path: str, value: Any) -> bool:
 
 
 # --- helpers ---------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=256)
+def _ball_overlap(liner: Liner, radius: float, centre: Vec3) -> Optional[tuple[float, float]]:
+    """A point (y, z) where a ball of ``radius`` at ``centre`` (m) lies inside the liner, or None.
+    The liner is prismatic along x (bolt holes only take material away), so the ball overlaps it
+    if its section through the centre, a disk, overlaps the profile: its circle is sampled at 720
+    points (0.5 mm apart for a 62.5 mm ball) at 99.9 % of the radius, so the first-contact point
+    itself does not count. Cached: a study's copies of one scene check the same ball."""
+    r = 0.999 * radius
+    x, y, z = centre
+    for k in range(720):
+        t = 2.0 * math.pi * k / 720
+        p = (x, y + r * math.cos(t), z + r * math.sin(t))
+        if liner.contains(p, tol=0.0):
+            return p[1], p[2]
+    return None
+
+
 def parse_value(text: str):
     """The value of a ``FIELD=VALUE`` override: a TOML value (number, string, array, boolean), or
     the text itself when it is not one (a bare word such as ``base``)."""

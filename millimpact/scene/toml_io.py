@@ -36,6 +36,7 @@ def scene_to_dict(scene: Scene) -> dict:
         defaults = dict(LinerShape.OPTIONAL_DEFAULTS)
         if scene.liner.backing == "clamped":
             defaults.update({f.name: f.default for f in dataclasses.fields(Liner) if f.name.startswith("backing_")})
+        defaults.update(Liner.PLACE_DEFAULTS)     # an impact on a lifter face, as before the places
         for name, default in defaults.items():
             if getattr(scene.liner, name) == default:
                 d["liner"].pop(name, None)

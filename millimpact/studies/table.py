@@ -147,18 +147,19 @@ def case_velocity(scene: Scene, speed: float, angle_deg: float) -> list[float]:
 
 
 def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], radii: Sequence[float],
-                 method: str, options: dict) -> list[TableCase]:
+                 method: str, options: dict,
+                 pairs: Optional[Sequence[tuple[float, float]]] = None) -> list[TableCase]:
     """The table's cases, grouped in bands that share a mesh (module docstring), each case's scene
-    carrying its band's h_contact, zone radius, gap and symmetry."""
+    carrying its band's h_contact, zone radius, gap and symmetry. ``pairs`` (speed, angle), when
+    given, replace the product speeds x angles (the damage map's bins)."""
     from ..scene.plan import (ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan,
                               scene_hertz)
 
     raw = []
     for r in radii:
         b = base.with_value("ball.radius", r) if r != base.ball.radius else base
-        for v in speeds:
-            for a in angles:
-                raw.append((v, a, r, b.with_value("impact.velocity", case_velocity(b, v, a))))
+        for v, a in (pairs if pairs is not None else [(v, a) for v in speeds for a in angles]):
+            raw.append((v, a, r, b.with_value("impact.velocity", case_velocity(b, v, a))))
     # bands per radius by normal speed
     cases, band = [], -1
     for r in radii:
@@ -344,6 +345,12 @@ def next_case(state: np.ndarray, band_sizes: Sequence[int], current: Optional[in
     index = int(taken[band])
     taken[band] += 1
     return band, index
+
+
+def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
+    """Compute ``todo`` on the groups of ranks of ``world`` (``group``: this rank's), each finished
+    case stored as ``folder/<key>.json``; the rows this group computed (the damage map's bins)."""
+    return _compute(todo, method, options, folder, world, group, say)
 
 
 def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:

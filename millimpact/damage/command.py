@@ -1,0 +1,141 @@
+"""``millimpact damage``: the liner's damage map from a mill's impact log (impacts.csv).
+
+Reads the impacts (:func:`millimpact.dem.impacts.read_impacts`), bins them by place, arc position,
+normal speed and angle (:mod:`millimpact.damage.bins`), computes each bin's impact with the table engine on the
+liner scene with its impact moved to the bin's place, and the repeated-impact response of each
+place's dominant bin, and writes per place and revolution the energy absorbed, the plastic work,
+the dent growth and the plastic strain's trend (:mod:`millimpact.damage.damage_map`). Finished bins and sequences
+are kept in DIR/cases and DIR/repeat: an interrupted map continues where it stopped.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+from ..errors import InputError
+
+HELP = "the liner's damage map: energy, plastic work and dent growth per place and revolution"
+
+DESCRIPTION = """\
+Bin the impacts of a mill's DEM log (impacts.csv: millimpact mill) by place (lifter face, lifter top,
+plate, position along the arc), normal speed and angle; compute each bin's impact with the table
+engine on SCENE (a liner scene) with the impact moved to the bin's place, and the repeated-impact
+response of each place's dominant bin; write per place and per revolution the energy absorbed, the
+plastic work, the dent growth (shakedown or ratcheting, impacts to shakedown) and the trend of the
+largest plastic strain: damage.csv, bins.csv, profile.csv, damage.json, damage_map.png.
+Speed bins keep Thornton's restitution within --restitution-tolerance across each bin, with the
+yield-onset speed V_y as an edge (bins below it add no plastic work); at most --max-bins bins.
+Finished bins are kept in DIR/cases and DIR/repeat: a rerun continues an interrupted map.
+The model stops at small strain (plastic strain ~0.1), removes no material (no wear) and has no
+fatigue cracking.
+
+Examples:
+  millimpact damage liner-segment --impacts out/mill/impacts.csv --revolutions 2 --out out/damage
+  mpirun -n 2 millimpact damage liner-segment --impacts impacts.csv --revolutions 2 --ranks-per-case 1
+"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", help="a liner scene: built-in name (liner-segment, liner-panel) or TOML file")
+    p.add_argument("--impacts", required=True, metavar="CSV", help="the impact log (impacts.csv of millimpact mill)")
+    p.add_argument("--out", help="output folder (default out/damage-SCENE); finished bins in it are reused")
+    p.add_argument("--revolutions", type=float, metavar="N",
+                   help="mill revolutions the log covers (default: 'revolutions' of a summary.json beside the log)")
+    p.add_argument("--lifters", type=int, default=1, metavar="N",
+                   help="lifters the log's impacts are folded from (rates per lifter; default 1: the whole log)")
+    p.add_argument("--slice-length", type=float, metavar="M",
+                   help="axial length of the DEM slice, m (spreads a place's impacts; default the liner's length)")
+    p.add_argument("--max-bins", type=int, default=30, metavar="N", help="at most this many bins (default 30)")
+    p.add_argument("--restitution-tolerance", type=float, default=0.02, metavar="DE",
+                   help="largest spread of Thornton's restitution across a speed bin (default 0.02)")
+    p.add_argument("--angle-bins", type=int, default=2, metavar="N", help="angle bins per place (default 2)")
+    p.add_argument("--arc-bins", type=int, default=1, metavar="N",
+                   help="arc-position bins per place, each its own placed scene (default 1)")
+    p.add_argument("--cell", type=float, default=0.01, metavar="M",
+                   help="width of the profile's arc cells, m (default 0.01)")
+    p.add_argument("--repeat-impacts", type=int, default=6, metavar="N",
+                   help="impacts of each place's repeated-impact sequence (default 6; 0: none)")
+    p.add_argument("--method", default="improved", help="solution method of the bins (default improved)")
+    p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="override a scene field")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
+    p.add_argument("--ranks-per-case", type=int, default=1, metavar="K",
+                   help="under mpirun: ranks per bin (divides the rank count; default 1)")
+    p.add_argument("--force", action="store_true", help="replace an --out folder millimpact did not write")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+
+
+def revolutions_of(args: argparse.Namespace, impacts_path: Path) -> float:
+    """--revolutions, else the ``revolutions`` of a summary.json beside the log; InputError if neither."""
+    rev = args.revolutions
+    if rev is None:
+        side = impacts_path.parent / "summary.json"
+        try:
+            rev = float(json.loads(side.read_text())["revolutions"])
+        except (OSError, ValueError, KeyError, TypeError):
+            raise InputError(f"--revolutions: give the number of mill revolutions {impacts_path} covers (no "
+                             f"'revolutions' in {side})") from None
+    if not (math.isfinite(rev) and rev > 0):
+        raise InputError(f"--revolutions {rev:g}: must be > 0")
+    return rev
+
+
+def check_settings(args: argparse.Namespace) -> None:
+    """One line for a setting out of range."""
+    if args.lifters < 1:
+        raise InputError(f"--lifters {args.lifters}: must be >= 1")
+    if args.slice_length is not None and not (math.isfinite(args.slice_length) and args.slice_length > 0):
+        raise InputError(f"--slice-length {args.slice_length:g}: must be > 0 m")
+    if args.angle_bins < 1 or args.arc_bins < 1:
+        raise InputError(f"--angle-bins / --arc-bins: must be >= 1")
+    if not (math.isfinite(args.cell) and args.cell > 0):
+        raise InputError(f"--cell {args.cell:g}: must be > 0 m")
+    if args.repeat_impacts < 0:
+        raise InputError(f"--repeat-impacts {args.repeat_impacts}: must be >= 0")
+    if args.ranks_per_case < 1:
+        raise InputError(f"--ranks-per-case {args.ranks_per_case}: must be >= 1")
+
+
+def main(args: argparse.Namespace) -> int:
+    from mpi4py import MPI
+
+    from ..dem.impacts import read_impacts
+    from ..results.output_folder import prepare_output, write_marker
+    from ..scene.builtin import resolve_scene
+    from ..studies.sweep import apply_sets, parse_method_options
+    from .damage_map import MapSettings, run_damage_map
+
+    check_settings(args)
+    scene = apply_sets(resolve_scene(args.scene), args.set, "impact.velocity")
+    if scene.liner is None:
+        raise InputError(f"scene {args.scene}: has no liner (the damage map needs a liner scene: liner-segment, "
+                         "liner-panel or a TOML file with a [liner] table)")
+    path = Path(args.impacts)
+    impacts = read_impacts(path)
+    settings = MapSettings(revolutions=revolutions_of(args, path), lifters=args.lifters,
+                           slice_length_m=args.slice_length, max_bins=args.max_bins,
+                           tolerance=args.restitution_tolerance, angle_bins=args.angle_bins, arc_bins=args.arc_bins,
+                           cell_m=args.cell, method=args.method, options=parse_method_options(args.option),
+                           repeat_impacts=args.repeat_impacts, ranks_per_case=args.ranks_per_case)
+    world = MPI.COMM_WORLD
+    if world.size % args.ranks_per_case or args.ranks_per_case > world.size:
+        raise InputError(f"--ranks-per-case {args.ranks_per_case}: must divide the number of ranks ({world.size})")
+    from .bins import choose_bins, yield_onset_speed
+
+    choose_bins(impacts, yield_onset_speed(scene), settings.max_bins, settings.tolerance)   # a bad budget: before any folder
+    out = Path(args.out) if args.out else Path("out") / f"damage-{Path(args.scene).stem}"
+    out = prepare_output(out, "--out", force=args.force)
+    if world.rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+        write_marker(out, "damage")
+    world.barrier()
+    try:
+        run_damage_map(scene, impacts, out, settings, str(path), quiet=args.quiet, comm=world)
+    except KeyboardInterrupt as exc:
+        # the CLI's one line: what an interrupted map keeps (its finished bins and sequences)
+        raise type(exc)(f"the finished bins are kept in {out}/cases and {out}/repeat; the same command "
+                        "continues the map") from None
+    if not args.quiet and world.rank == 0:
+        print(f"  results in {out}/ (damage.csv, bins.csv, profile.csv, damage.json, damage_map.png)", flush=True)
+    return 0

@@ -1,0 +1,164 @@
+"""The damage map's flow: impacts -> bins (:mod:`millimpact.damage.bins`) -> placed scenes
+(:mod:`millimpact.damage.places`) -> table cases and repeated-impact sequences
+(:mod:`millimpact.damage.responses`) -> sums per place and revolution
+(:mod:`millimpact.damage.accumulate`) -> files (:mod:`millimpact.damage.report`). Rank 0 writes
+and prints.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional, Sequence
+
+from .. import __version__
+from ..dem.impacts import Impact
+from ..scene.schema import Scene
+from ..scene.toml_io import scene_to_dict
+from .accumulate import accumulate, dent_trend, dominant_bin, place_extent, place_totals, profile_rates
+from .bins import choose_bins, describe, yield_onset_speed
+from .places import place_scene
+from .responses import (BinCase, CaseRunner, compute_bin_rows, define_bin_cases, finite, run_repeat, sequence_api,
+                        table_runner)
+
+#: a bin at or below V_y whose table case reports more plastic work than this fraction of its
+#: kinetic energy is flagged (the map counts no plastic work there: Thornton 1997)
+SUBYIELD_PLASTIC_FLAG = 1e-6
+#: a ball radius this far (relative) from the scene's is flagged (the response is the scene ball's)
+RADIUS_MISMATCH = 0.05
+
+
+@dataclass
+class MapSettings:
+    """The map's choices (see ``millimpact damage --help``)."""
+
+    revolutions: float
+    lifters: int = 1
+    slice_length_m: Optional[float] = None
+    max_bins: int = 30
+    tolerance: float = 0.02
+    angle_bins: int = 2
+    arc_bins: int = 1
+    cell_m: float = 0.01
+    method: str = "improved"
+    options: dict = field(default_factory=dict)
+    petsc_options: dict = field(default_factory=dict)
+    repeat_impacts: int = 6
+    ranks_per_case: int = 1
+
+
+def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path, settings: MapSettings, impacts_file: str = "",
+                   case_runner: Optional[CaseRunner] = None, run_sequence: Optional[Callable] = None,
+                   classify: Optional[Callable] = None, quiet: bool = False, comm=None) -> dict:
+    """Compute the damage map of ``impacts`` on the liner ``scene`` into ``out`` (which the caller
+    prepared); returns the summary. ``case_runner`` (default: the table engine) and
+    ``run_sequence`` / ``classify`` (default: :mod:`millimpact.repeat.sequence`) may be given."""
+    rank = 0 if comm is None else comm.rank
+    say = (lambda *a: None) if quiet or rank != 0 else (lambda *a: print(*a, flush=True))
+    st = settings
+    warnings: list[str] = []
+
+    def warn(text: str) -> None:
+        warnings.append(text)
+        say(f"  warning: {text}")
+
+    v_y = yield_onset_speed(scene)
+    choice = choose_bins(impacts, v_y, st.max_bins, st.tolerance, st.angle_bins, st.arc_bins)
+    say(f"damage map of {scene.name}: {len(impacts)} impacts over {st.revolutions:g} revolution(s); {describe(choice)}")
+    for n in choice.notes:
+        warn(n)
+    off = [i for i in impacts if abs(i.ball_radius_m / scene.ball.radius - 1) > RADIUS_MISMATCH]
+    if off:
+        warn(f"{len(off)} of {len(impacts)} impacts have a ball radius more than {RADIUS_MISMATCH:.0%} from the scene's "
+             f"{scene.ball.radius:g} m: their response is the scene ball's, their energies their own")
+    placed, cache = {}, {}
+    for b in choice.bins:
+        k = (b.place, b.arc_m)
+        if k not in cache:
+            cache[k] = place_scene(scene, b.place, b.arc_m)
+            if cache[k].note:
+                warn(f"{b.place} at arc {b.arc_m:.4g} m extrapolated: {cache[k].note}")
+            if cache[k].refused:
+                warn(f"{b.place} at arc {b.arc_m:.4g} m refused: {cache[k].refused}")
+        placed[b.index] = cache[k]
+    bcs = define_bin_cases(choice.bins, placed, st.method, st.options)
+    for bc in bcs:
+        say(f"  bin {bc.bin.index}: {bc.bin.place}, arc {bc.placed.arc_used_m * 1e3:.0f} mm, v_n "
+            f"{bc.bin.normal_speed_range_m_s[0]:.3g}-{bc.bin.normal_speed_range_m_s[1]:.3g} m/s, angle "
+            f"{bc.bin.angle_range_deg[0]:.0f}-{bc.bin.angle_range_deg[1]:.0f} deg: {len(bc.bin.impacts)} impacts, "
+            + (f"refused ({bc.refused})" if bc.case is None else
+               f"v = {bc.case.speed:.4g} m/s at {bc.case.angle:.3g} deg{' (below V_y)' if bc.bin.below_yield else ''}"))
+    runner = case_runner or table_runner(st.method, st.options, st.ranks_per_case)
+    rows = compute_bin_rows(bcs, out / "cases", runner, say, comm)
+    density = scene.ball.material.density
+    per_bin, shares = accumulate(impacts, choice.bins, rows, density, scene.ball.mass, st.revolutions, st.lifters)
+    places = place_totals(impacts, choice.bins, per_bin, st.revolutions, st.lifters)
+    for bc in bcs:
+        r = rows.get(bc.bin.index)
+        if r is not None and not str(r.get("status", "ok")).startswith("ok"):
+            warn(f"bin {bc.bin.index} failed: {r.get('status')}")
+        if r is not None and bc.bin.below_yield:
+            t = 0.5 * scene.ball.mass * bc.case.speed**2
+            if finite(r.get("plastic_dissipation_J")) > SUBYIELD_PLASTIC_FLAG * t:
+                warn(f"bin {bc.bin.index} lies below V_y = {v_y:.3g} m/s but its case reports plastic work "
+                     f"{r['plastic_dissipation_J']:.3g} J (counted as 0)")
+    # the repeated-impact response of each place's dominant bin
+    seq, cls_real, _ = sequence_api()
+    run_seq = run_sequence or seq
+    slice_length = st.slice_length_m or scene.liner.length
+    repeats = {}
+    for p, tot in places.items():
+        dom = dominant_bin(choice.bins, per_bin, p)
+        bc = next((c for c in bcs if dom is not None and c.bin.index == dom), None)
+        tot["dominant_bin"] = dom if dom is not None else -1
+        tot["dominant_normal_speed_m_s"] = bc.case.speed * math.cos(math.radians(bc.case.angle)) if bc else math.nan
+        tot["dominant_angle_deg"] = bc.case.angle if bc else math.nan
+        rep = None
+        if bc is not None and st.repeat_impacts > 0:
+            if run_seq is None:
+                if not repeats:
+                    warn("millimpact.repeat.sequence is not available: no repeated-impact response (dent growth, "
+                         "shakedown, strain trend left NaN)")
+            else:
+                rep = run_repeat(bc, st.repeat_impacts, st.method, st.options, st.petsc_options, out / "repeat",
+                                 run_seq, classify or cls_real, comm, say)
+        repeats[p] = rep
+        tot.update(dent_trend(rep, tot["impacts_per_rev"], place_extent(scene.liner, p), slice_length))
+        if tot["max_eq_plastic_strain_last"] >= 0.1:
+            warn(f"{p}: the largest equivalent plastic strain {tot['max_eq_plastic_strain_last']:.3g} passes the "
+                 "small-strain limit 0.1 (DESIGN.md 10): the numbers there are beyond the model")
+    profile = profile_rates(impacts, shares, st.cell_m, st.revolutions, st.lifters)
+    bin_rows = []
+    for bc in bcs:
+        b, r, pb = bc.bin, rows.get(bc.bin.index, {}), per_bin.get(bc.bin.index, {})
+        bin_rows.append({"bin": b.index, "place": b.place, "arc_low_m": b.arc_range_m[0], "arc_high_m": b.arc_range_m[1],
+                         "arc_used_m": bc.placed.arc_used_m,
+                         "normal_speed_low_m_s": b.normal_speed_range_m_s[0], "normal_speed_high_m_s": b.normal_speed_range_m_s[1],
+                         "angle_low_deg": b.angle_range_deg[0], "angle_high_deg": b.angle_range_deg[1],
+                         "impacts": len(b.impacts), "normal_speed_m_s": b.normal_speed_m_s,
+                         "tangential_speed_m_s": b.tangential_speed_m_s, "speed_m_s": b.speed_m_s, "angle_deg": b.angle_deg,
+                         "below_yield": b.below_yield,
+                         "restitution_normal": finite(r.get("restitution_normal")),
+                         "restitution_tangential": finite(r.get("restitution_tangential")),
+                         "table_plastic_dissipation_J": finite(r.get("plastic_dissipation_J")),
+                         "residual_dent_depth_m": finite(r.get("residual_dent_depth_m")),
+                         "impacts_per_rev": pb.get("impacts_per_rev", math.nan),
+                         "energy_absorbed_J_per_rev": pb.get("energy_absorbed_J_per_rev", math.nan),
+                         "plastic_work_J_per_rev": pb.get("plastic_work_J_per_rev", math.nan),
+                         "case_key": bc.case.key if bc.case else "",
+                         "status": (r.get("status", "not computed") if bc.case else "refused"),
+                         "note": bc.refused or bc.placed.note})
+    summary = {"millimpact_version": __version__, "scene": scene.name, "impacts_file": impacts_file,
+               "impacts": len(impacts), "revolutions": st.revolutions, "lifters": st.lifters,
+               "slice_length_m": slice_length, "method": st.method, "options": st.options,
+               "repeat_impacts": st.repeat_impacts, "binning": choice.report(), "warnings": warnings,
+               "repeats": {p: r for p, r in repeats.items()}, "base_scene": scene_to_dict(scene)}
+    if rank == 0:
+        from .report import write_outputs
+
+        write_outputs(out, summary, places, bin_rows, profile, impacts, scene.liner, st.revolutions, st.lifters)
+    for p, t in places.items():
+        say(f"  {p}: {t['impacts_per_rev']:.4g} impacts/rev, absorbed {t['energy_absorbed_J_per_rev']:.4g} J/rev, "
+            f"plastic work {t['plastic_work_J_per_rev']:.4g} J/rev; repeat: {t['repeat_verdict']}, dent growth "
+            f"{t['dent_growth_m_per_rev']:.3g} m/rev at a spot")
+    return {**summary, "places": places, "bins": bin_rows}

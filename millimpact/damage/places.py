@@ -1,0 +1,120 @@
+"""A bin's place on the liner scene: the scene's impact moved to the lifter face, the lifter top or
+the plate at the bin's arc position (``liner.impact_place`` / ``impact_arc``, :class:`millimpact.scene.schema.Liner`).
+
+Arc positions follow impacts.csv (:mod:`millimpact.dem.impacts`): from the centre line of the
+nearest lifter, positive towards its leading face, which is taken to be the scene's struck face
+(``liner.impact_face``). So:
+
+- ``lifter_face``: arc >= 0 strikes the scene's face, arc < 0 the other face of the lifter; the
+  height on the face follows from the arc position along the inclined face, f = (b/2 - |s|) /
+  (b/2 - t/2) (b the base and t the top width), and is the scene's ``impact_height`` when the
+  face is radial (the arc position does not fix the height then);
+- ``lifter_top``: the arc position across the top;
+- ``plate``: the arc position along the plate.
+
+A place the scene cannot hold (the ball would touch the plate beside a low face impact, or a
+lifter beside a plate impact near its foot, or the arc lies off the top's edge) is moved to the
+nearest position that it can, in steps of STEP_FRACTION of the ball radius, and the move is
+reported (``extrapolated``); if no position is found the bin is refused with the scene's reason.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+from ..errors import SceneError
+from ..scene.schema import Impact as SceneImpact
+from ..scene.schema import Scene
+
+#: the step (a fraction of the ball radius) by which a place the scene cannot hold is moved
+STEP_FRACTION = 0.05
+#: the face heights (fractions of the lifter height) a face impact is kept within
+FACE_HEIGHT_RANGE = (0.05, 0.95)
+#: a plate impact is kept this many plate thicknesses inside the segment's side edge (beyond it the
+#: impact is placed there: the plate's response away from the lifter is taken as the same)
+PLATE_EDGE_MARGIN = 1.0
+#: a top impact is kept this fraction of the half top width inside its edge
+TOP_EDGE_MARGIN = 0.1
+
+
+@dataclass(frozen=True)
+class PlacedScene:
+    """The liner scene with its impact at a bin's place (a normal unit velocity: the table sets
+    the speed and angle), the position used and what was changed."""
+
+    scene: Optional[Scene]
+    place: str
+    arc_m: float                 #: the arc position asked (m)
+    arc_used_m: float            #: the arc position of the scene's impact (m)
+    note: str = ""               #: why the position was moved ("" if not)
+    refused: str = ""            #: why the bin cannot be computed ("" if it can)
+
+
+def _with_place(base: Scene, place: str, arc: float, face: str, height: float) -> Scene:
+    ln = dataclasses.replace(base.liner, impact_place=place, impact_arc=float(arc), impact_face=face,
+                             impact_height=float(height))
+    # a normal unit velocity into the struck surface (the table gives each case its speed and angle)
+    n = (ln.impact_site(place, ln.impact_lifter, face, height, ln.impact_x, arc)[1])
+    v = tuple(round(-c, 15) + 0.0 for c in n)
+    return dataclasses.replace(base, liner=ln, impact=SceneImpact(velocity=v, point=None, gap=base.impact.gap))
+
+
+def place_scene(base: Scene, place: str, arc: float) -> PlacedScene:
+    """The scene ``base`` (a liner scene) with its impact at ``place`` and arc position ``arc`` (m)
+    (module docstring)."""
+    ln = base.liner
+    hb, ht = 0.5 * ln.lifter_base_width, 0.5 * ln.lifter_top_width
+    step = STEP_FRACTION * base.ball.radius
+    flip = {"+z": "-z", "-z": "+z"}
+    if place == "lifter_face":
+        face = ln.impact_face if arc >= 0 else flip[ln.impact_face]
+        if abs(hb - ht) > 1e-9 * ln.lifter_height:
+            f = (hb - abs(arc)) / (hb - ht)
+        else:
+            f = ln.impact_height
+        lo, hi = FACE_HEIGHT_RANGE
+        tries = [min(max(f, lo), hi)]
+        h_step = step / ln.lifter_height
+        tries += [tries[0] + k * h_step for k in range(1, int((hi - tries[0]) / h_step) + 1)]
+        tries += [tries[0] - k * h_step for k in range(1, int((tries[0] - lo) / h_step) + 1)]
+        reason = ""
+        for k, fh in enumerate(tries):
+            try:
+                sc = _with_place(base, place, 0.0, face, fh)
+            except SceneError as exc:
+                reason = reason or str(exc)
+                continue
+            s_used = math.copysign(hb - fh * (hb - ht), arc if arc != 0 else 1.0)
+            note = "" if abs(fh - f) < 1e-12 else (f"face height {f:.3g} of the lifter height moved to {fh:.3g} "
+                                                    f"({reason or 'kept inside ' + str(FACE_HEIGHT_RANGE)})")
+            return PlacedScene(sc, place, arc, s_used, note)
+        return PlacedScene(None, place, arc, arc, refused=reason or "no face height holds the ball")
+    if place == "lifter_top":
+        lim = (1.0 - TOP_EDGE_MARGIN) * ht
+        a0 = min(max(arc, -lim), lim)
+        sign = -1.0 if a0 > 0 else 1.0
+        tries = [a0] + [a0 + sign * k * step for k in range(1, int(2 * lim / step) + 1)]
+    elif place == "plate":
+        # away from the nearest lifter, towards the middle of the plate between lifters
+        sign = 1.0 if arc >= 0 else -1.0
+        c = ln.lifter_centres()[ln.impact_lifter]
+        edge = (ln.width - c if (sign > 0) == (ln.impact_face == "+z") else c) - PLATE_EDGE_MARGIN * ln.thickness
+        a0 = sign * min(abs(arc), edge)     # a segment narrower than the mill's lifter spacing: its far plate
+        if abs(a0) < abs(arc):
+            sign = -sign                    # then move back towards the lifter if needed
+        tries = [a0] + [a0 + sign * k * step for k in range(1, int(ln.width / step) + 1)]
+    else:
+        return PlacedScene(None, place, arc, arc, refused=f"unknown place '{place}'")
+    reason = ""
+    for a in tries:
+        try:
+            sc = _with_place(base, place, a, ln.impact_face, ln.impact_height)
+        except SceneError as exc:
+            reason = reason or str(exc)
+            continue
+        why = reason or ("off the top edge" if place == "lifter_top" else "beyond the segment's plate")
+        note = "" if abs(a - arc) < 1e-12 else f"arc position {arc:.4g} m moved to {a:.4g} m ({why})"
+        return PlacedScene(sc, place, arc, a, note)
+    return PlacedScene(None, place, arc, arc, refused=reason or "no position on this place holds the ball")
