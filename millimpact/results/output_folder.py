@@ -87,12 +87,12 @@ def is_millimpact_output(folder: Path) -> bool:
 
 
 def write_marker(folder: Path, kind: str, files: Optional[Iterable[str]] = None) -> None:
-    """Write the manifest of ``folder`` (atomically): ``kind`` and the ``files`` it holds (default:
-    every entry but the manifest)."""
+    """Write the manifest of ``folder`` (atomically): ``kind`` and the names millimpact wrote there
+    (None: not known; a rerun then replaces only the names it writes again)."""
     from .. import __version__
 
     folder = Path(folder)
-    names = sorted(set(files if files is not None else (p.name for p in folder.iterdir())) - {MARKER})
+    names = None if files is None else sorted(set(files) - {MARKER})
     tmp = folder / f"{MARKER}.tmp"
     tmp.write_text(json.dumps({"kind": kind, "millimpact_version": __version__, "files": names}) + "\n")
     os.replace(tmp, folder / MARKER)
