@@ -17,8 +17,8 @@ from pathlib import Path
 from typing import Optional
 
 from .console import enable_stages, say, world_rank
-from .errors import InputError, MillimpactError
-from .results.output_folder import prepare_output
+from .errors import InputError, MillimpactError, OutputError
+from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
 from .scene.schema import parse_value
 
@@ -182,11 +182,8 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
 
     scene = resolve_scene(args.scene)
     scene = _apply_sets(scene, args.set)
-    out = Path(args.out) if args.out else Path("out") / (scene.name if args.scene else DEFAULT_SCENE)
-    shown = out
-    replacing = out.is_dir() and any(out.iterdir())
-    out = prepare_output(out, "--out", force=args.force)   # before any computing: a typo costs a second
-    _INTERRUPT_NOTE[0] = f"nothing written to {shown}/" + (" (its earlier content is kept)" if replacing else "")
+    out = args.out if args.out is not None else default_out(scene.name if args.scene else DEFAULT_SCENE)
+    target = claim_output(out, "run", force=args.force)   # before any computing: a typo costs a second
     comm = _comm()
     enable_stages(not args.quiet)
     if args.method == "hertz":
@@ -208,7 +205,7 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
         options[key] = value
     from .methods.run import run_scene   # the computing stack: only once the input is accepted
 
-    summary = run_scene(scene, args.method, out, options=options, progress=not args.quiet, comm=comm,
+    summary = run_scene(scene, args.method, target, options=options, progress=not args.quiet, comm=comm,
                         reference=args.reference)
     h = summary["hertz"]
     rel = summary["relative_to_hertz"]
@@ -223,8 +220,7 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
         say(f"  restitution         {summary['restitution']:10.4f}")
     for note in summary.get("notes", []):
         say(f"  note: {note}")
-    say(f"  results in {shown}/ ({', '.join(summary.get('files', []))})"
-        + (" (replaced its earlier content)" if replacing else ""))
+    say(f"  results in {target.shown}/ ({', '.join(summary.get('files', []))})" + target.replaced_note())
     return 0
 
 
@@ -249,12 +245,14 @@ def cmd_mesh(args: argparse.Namespace) -> int:
     from .scene.plan import make_plan
 
     plan = make_plan(scene)
-    out = Path(args.out) if args.out else Path("out") / f"{scene.name}-mesh"
-    if world_rank() == 0:
-        out.mkdir(parents=True, exist_ok=True)
-    md = create_mesh(scene, plan, _comm(), export=out / "mesh.msh")
-    write_mesh_xdmf(md, out / "mesh.xdmf")
-    say(f"mesh of scene '{scene.name}' -> {out}/mesh.msh (gmsh, physical groups: meshes/README.md), {out}/mesh.xdmf")
+    out = args.out if args.out is not None else default_out(scene.name, suffix="-mesh")
+    target = claim_output(out, "mesh", force=args.force)   # before meshing
+    with target.staged() as stage:
+        md = create_mesh(scene, plan, _comm(), export=stage / "mesh.msh")
+        write_mesh_xdmf(md, stage / "mesh.xdmf")
+    out = target.shown
+    say(f"mesh of scene '{scene.name}' -> {out}/mesh.msh (gmsh, physical groups: meshes/README.md), {out}/mesh.xdmf"
+        + target.replaced_note())
     for name, value in mesh_report(md):
         say(f"  {name:<28s} {value}")
     return 0
@@ -330,9 +328,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
     r.add_argument("--method", default=DEFAULT_METHOD, metavar="METHOD",
                    help=f"solution method (default {DEFAULT_METHOD}):\n{method_help()}")
-    r.add_argument("--out", help="output folder (default out/SCENE); an earlier millimpact output there is "
-                                 "replaced, a folder holding other files is refused")
-    r.add_argument("--force", action="store_true", help="replace --out even if it holds files millimpact did not write")
+    r.add_argument("--out", help=OUT_HELP.format(default="out/SCENE"))
+    r.add_argument("--force", action="store_true", help=FORCE_HELP)
     r.add_argument("--set", action="append", metavar="FIELD=VALUE",
                    help="override a scene field, e.g. --set ball.radius=0.02 --set model.h_contact=2e-4")
     r.add_argument("--degree", type=int, choices=[1, 2],
@@ -368,7 +365,8 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Build (or take from the cache in meshes/) the graded two-body mesh of "
                                    "SCENE and write DIR/mesh.xdmf; prints element counts, h_c, zone sizes, quality.")
     m.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
-    m.add_argument("--out", help="output folder (default out/SCENE-mesh)")
+    m.add_argument("--out", help=OUT_HELP.format(default="out/SCENE-mesh"))
+    m.add_argument("--force", action="store_true", help=FORCE_HELP)
     m.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
 
     for q in sub.choices.values():
@@ -409,10 +407,6 @@ class Terminated(KeyboardInterrupt):
 
 def _on_sigterm(signum, frame):
     raise Terminated()
-
-
-#: what an interruption leaves, said in its one line (set by the command once it knows its output)
-_INTERRUPT_NOTE = ["no output was written"]
 
 
 class _VersionAction(argparse.Action):
@@ -476,7 +470,53 @@ def version_text() -> str:
     return ", ".join(parts)
 
 
+class _CheckedStdout:
+    """Standard output whose failed writes (a full device: ``> /dev/full``) end the command in one
+    line, exit status 1 (an ``OutputError``), not a traceback; a reader going away stays a
+    ``BrokenPipeError``. After a failure the descriptor points to /dev/null, so the interpreter's
+    final flush is quiet."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def _guard(self, call, *args):
+        try:
+            return call(*args)
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            try:
+                os.dup2(os.open(os.devnull, os.O_WRONLY), self._stream.fileno())
+            except (OSError, ValueError, AttributeError):
+                pass
+            raise OutputError(f"cannot write to standard output ({exc.strerror or exc})") from None
+
+    def write(self, text):
+        return self._guard(self._stream.write, text)
+
+    def flush(self):
+        return self._guard(self._stream.flush)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def main(argv: Optional[list[str]] = None) -> int:
+    stdout = sys.stdout
+    sys.stdout = _CheckedStdout(stdout)
+    try:
+        code = _main(argv)
+        sys.stdout.flush()
+        return code
+    except OutputError as exc:   # the last flush of standard output
+        if world_rank() == 0:
+            print(f"millimpact: failed: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
+    finally:
+        sys.stdout = stdout
+
+
+def _main(argv: Optional[list[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     # a native crash (DOLFINx, gmsh; PETSc has its own handler) prints the Python stack on stderr
     # instead of ending the process without a word
@@ -523,7 +563,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     except MillimpactError as exc:
         if world_rank() == 0:
             print(f"millimpact: failed: {exc}", file=sys.stderr)
-        else:
+        elif not getattr(exc, "said_by_rank0", False):
             # a failure on another rank alone would otherwise end the run without a word (mpirun
             # only reports the exit code); a collective failure prints this once per rank
             print(f"millimpact: failed on rank {world_rank()}: {exc}", file=sys.stderr)
@@ -531,7 +571,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     except KeyboardInterrupt as exc:
         code = getattr(exc, "exit_code", 143 if isinstance(exc, Terminated) else 130)
         if world_rank() == 0:
-            print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {str(exc) or _INTERRUPT_NOTE[0]}",
+            print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {str(exc) or interrupt_note()}",
                   file=sys.stderr)
         return code
     except BrokenPipeError:

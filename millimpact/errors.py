@@ -26,3 +26,7 @@ class MeshError(InputError):
 
 class SolverError(MillimpactError):
     """A PETSc/SLEPc solve did not converge: names the reason, the step and the time."""
+
+
+class OutputError(MillimpactError):
+    """A result could not be written (full disk, quota, I/O error): one line, exit status 1."""

@@ -11,14 +11,15 @@ import logging
 import os
 import time
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Optional, Union
 
 from ..console import stage
 from ..integration.solvers import reset_option_usage, unused_options
 from ..results import plots
 from ..results.output import RunOutput
 from ..results.reference import write_reference
-from ..results.timeseries import contact_metrics, staged_output, write_hdf5, write_summary
+from ..results.output_folder import OutputFolder, claim_output
+from ..results.timeseries import contact_metrics, write_hdf5, write_summary
 from ..scene.plan import Plan, elastic_limit_note, make_plan
 from ..scene.schema import Scene
 from ..scene.toml_io import dump_scene, scene_to_dict
@@ -150,16 +151,20 @@ def write_run(folder: Path, scene: Scene, plan: Plan, out: RunOutput, summary: d
     return sorted(p.name for p in folder.iterdir())
 
 
-def run_scene(scene: Scene, method: str, out_dir: Optional[Path], options: Optional[dict] = None,
+def run_scene(scene: Scene, method: str, out_dir: Union[Path, OutputFolder, None], options: Optional[dict] = None,
               progress: bool = False, comm=None, reference: bool = False) -> dict[str, Any]:
-    """Compute and (if ``out_dir``) write a run (with ``reference``: also the reference files);
-    returns the summary. Only rank 0 writes."""
+    """Compute and (if ``out_dir``: a folder, or one claimed with
+    :func:`~millimpact.results.output_folder.claim_output`) write a run (with ``reference``: also
+    the reference files); returns the summary. Only rank 0 writes."""
+    target = out_dir
+    if out_dir is not None and not isinstance(out_dir, OutputFolder):
+        target = claim_output(out_dir, "run", comm=comm)   # checked before computing
     t0 = time.perf_counter()
     out, plan = compute(scene, method, options, progress)
     wall = time.perf_counter() - t0
     summary = build_summary(scene, plan, out, wall)
-    if out_dir is not None:
-        with stage("writing results and figures"), staged_output(Path(out_dir), comm) as folder:
+    if target is not None:
+        with stage("writing results and figures"), target.staged() as folder:
             summary["files"] = write_run(folder, scene, plan, out, summary, comm=comm,
                                          reference=reference)
     return summary

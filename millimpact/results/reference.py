@@ -29,8 +29,8 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
-from .output_folder import is_millimpact_output
-from .timeseries import TimeSeries, jsonable, unit_of, write_hdf5
+from .output_folder import hdf5_file, is_millimpact_output
+from .timeseries import TimeSeries, fill_hdf5, jsonable, unit_of
 
 REFERENCE_FORMAT = "millimpact-reference"
 REFERENCE_CSV_FORMAT = "millimpact-reference-csv"
@@ -120,13 +120,11 @@ def _metadata(scene, plan, out, summary) -> dict[str, Any]:
 
 def write_reference(folder: Path, scene, plan, out, summary: dict, scene_toml: str) -> list[str]:
     """Write ``reference.h5``, ``reference.csv`` and ``reference.json`` into ``folder`` (rank 0)."""
-    import h5py
-
     ts = out.series
     meta = _metadata(scene, plan, out, summary)
     columns = list(ts.columns)
-    path = write_hdf5(folder, ts, summary, scene_toml, filename="reference.h5")
-    with h5py.File(path, "a") as h5:
+    with hdf5_file(folder / "reference.h5") as h5:   # in memory, one write: a full disk is one line
+        fill_hdf5(h5, ts, summary, scene_toml)
         h5.attrs["format"] = REFERENCE_FORMAT
         h5.attrs["format_version"] = REFERENCE_VERSION
         for key in ("scene", "method", "time_origin", "first_contact_s"):

@@ -9,18 +9,14 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
-import shutil
-import tempfile
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
 from .. import __version__
-from .output_folder import apply_umask, write_marker
+from .output_folder import hdf5_file, staged_output  # noqa: F401  (staged_output: its old home)
 
 #: known time-series columns and their units (names end with the unit)
 UNITS = {
@@ -147,46 +143,6 @@ def jsonable(obj: Any) -> Any:
     return obj
 
 
-@contextmanager
-def staged_output(out: Path, comm=None, kind: str = "run") -> Iterator[Path]:
-    """Write an output's files into a hidden staging folder and move it to ``out`` only on success.
-
-    Collective when ``comm`` is given: rank 0 makes the folder and every rank gets its path (for
-    collective writers such as XDMF); only rank 0 moves it. An exception (an interruption too)
-    leaves ``out`` untouched (a previous complete result stays) and removes the staging folder.
-    The folder gets the :data:`~millimpact.results.output_folder.MARKER` of a millimpact output of
-    ``kind`` and the mode the user's umask asks for. Check ``out`` first with
-    :func:`~millimpact.results.output_folder.prepare_output`.
-    """
-    rank = comm.rank if comm is not None else 0
-    out = Path(os.path.abspath(out))
-    stage = None
-    if rank == 0:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
-        apply_umask(stage)
-    if comm is not None:
-        stage = Path(comm.bcast(str(stage) if stage else None, root=0))
-    try:
-        yield stage
-        if comm is not None:
-            comm.barrier()
-    except BaseException:
-        if rank == 0:
-            shutil.rmtree(stage, ignore_errors=True)
-        raise
-    if rank != 0:
-        return
-    write_marker(stage, kind)
-    if out.exists():
-        old = out.parent / f".{out.name}.old-{os.getpid()}"
-        out.rename(old)
-        stage.rename(out)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        stage.rename(out)
-
-
 def write_summary(folder: Path, summary: dict) -> None:
     """``summary.json`` with the package version."""
     data = {"millimpact_version": __version__, **summary}
@@ -197,16 +153,19 @@ def write_hdf5(folder: Path, ts: TimeSeries, summary: dict, scene_toml: str,
                filename: str = "timeseries.h5") -> Path:
     """``timeseries.h5``: one dataset per column with a ``unit`` attribute, the summary as JSON and
     the scene as TOML text in the root attributes. Returns the file's path."""
-    import h5py
-
-    with h5py.File(folder / filename, "w") as h5:
-        h5.attrs["format"] = "millimpact-timeseries"
-        h5.attrs["format_version"] = 1
-        h5.attrs["millimpact_version"] = __version__
-        h5.attrs["scene_toml"] = scene_toml
-        h5.attrs["summary_json"] = json.dumps(jsonable(summary))
-        g = h5.create_group("timeseries")
-        for name, col in ts.columns.items():
-            d = g.create_dataset(name, data=np.asarray(col, dtype=float))
-            d.attrs["unit"] = unit_of(name)
+    with hdf5_file(folder / filename) as h5:
+        fill_hdf5(h5, ts, summary, scene_toml)
     return folder / filename
+
+
+def fill_hdf5(h5, ts: TimeSeries, summary: dict, scene_toml: str) -> None:
+    """The datasets and attributes of :func:`write_hdf5` in an open ``h5py.File``."""
+    h5.attrs["format"] = "millimpact-timeseries"
+    h5.attrs["format_version"] = 1
+    h5.attrs["millimpact_version"] = __version__
+    h5.attrs["scene_toml"] = scene_toml
+    h5.attrs["summary_json"] = json.dumps(jsonable(summary))
+    g = h5.create_group("timeseries")
+    for name, col in ts.columns.items():
+        d = g.create_dataset(name, data=np.asarray(col, dtype=float))
+        d.attrs["unit"] = unit_of(name)

@@ -55,6 +55,7 @@ if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact 
     import numpy as np
 
 from ..errors import InputError
+from ..results.output_folder import FORCE_HELP, OUT_HELP
 
 log = logging.getLogger(__name__)
 
@@ -421,7 +422,8 @@ def equal_error_ratio(rows: list[dict], a: str, b: str, key: str = "err_force_L2
 # --- command line ----------------------------------------------------------------------------------
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
-    p.add_argument("--out", help="output folder (default out/bench-SCENE)")
+    p.add_argument("--out", help=OUT_HELP.format(default="out/bench-SCENE"))
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--quick", action="store_true", help="tiny sizes (tests): two coarse mesh levels, short run")
     p.add_argument("--methods", default=",".join(ENTRIES),
                    help=f"comma-separated subset of {', '.join(ENTRIES)}")
@@ -432,7 +434,7 @@ def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
     from ..scene.plan import make_plan
-    from ..results.timeseries import staged_output
+    from ..results.output_folder import claim_output, default_out
     from ..scene.builtin import DEFAULT_SCENE, resolve_scene
 
     if MPI.COMM_WORLD.size > 1:
@@ -451,7 +453,9 @@ def main(args: argparse.Namespace) -> int:
     if not (end > plan.gap / h.speed):
         raise InputError(f"--end = {end!r} s: must exceed the flight to contact, {plan.gap / h.speed:.3g} s")
     base_far = plan.h_far
-    out = Path(args.out or f"out/bench-{scene.name}")
+    target = claim_output(args.out if args.out is not None else default_out(scene.name, prefix="bench-"), "bench",
+                          force=args.force)   # before the runs
+    out = target.shown
     cache = Path(os.environ.get(CACHE_ENV, "out/bench-cache"))
     print(f"bench of scene '{scene.name}': {', '.join(entries)}; end {end * 1e6:.4g} us"
           + (" (quick)" if args.quick else "") + f" -> {out}/", flush=True)
@@ -463,7 +467,7 @@ def main(args: argparse.Namespace) -> int:
     gauge = scene.gauges[0].name if scene.gauges else None
     specs = bench_specs(scene_name, end, entries, args.quick, base_far, h.a_max, h.contact_time)
     rows: list[dict] = []
-    with staged_output(out) as stage:
+    with target.staged() as stage:
         for i, spec in enumerate(specs):
             res = run_spec(spec, stage / "runs" / f"{i:02d}-{spec.entry}")
             row = {"method": spec.entry, "run_method": spec.method, "resolution": spec.resolution,
@@ -506,7 +510,8 @@ def main(args: argparse.Namespace) -> int:
                 f"{r['ratio']:.3g}")
         else:
             say(f"wall time {k}: no common error range ({r['a_error_range']} vs {r['b_error_range']})")
-    say(f"bench done in {time.perf_counter() - t_all:.0f} s: {out}/bench.csv, pareto.png, reference_convergence.png")
+    say(f"bench done in {time.perf_counter() - t_all:.0f} s: {out}/bench.csv, pareto.png, reference_convergence.png"
+        + target.replaced_note())
     return 0
 
 

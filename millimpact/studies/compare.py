@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Optional
 
 from ..console import say, world_rank
 from ..errors import InputError
-from ..results.output_folder import prepare_output
+from ..results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out
 
 if TYPE_CHECKING:   # numpy and the time series are imported where compare computes (`--help` stays fast)
     import numpy as np
@@ -63,9 +63,8 @@ MAX_GRID = 2**21
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("reference", help="reference.h5 / reference.csv (millimpact run --reference) or a run folder")
     p.add_argument("other", help="the other implementation's CSV: time_s and any of the reference's columns")
-    p.add_argument("--out", help="output folder (default out/compare-OTHER); an earlier millimpact output there "
-                                 "is replaced, a folder holding other files is refused")
-    p.add_argument("--force", action="store_true", help="replace --out even if it holds files millimpact did not write")
+    p.add_argument("--out", help=OUT_HELP.format(default="out/compare-OTHER"))
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--time-offset", type=float, default=0.0, metavar="SECONDS",
                    help="added to OTHER's time_s before comparing, e.g. the reference's first_contact_s when "
                         "OTHER starts at first contact (default 0)")
@@ -442,11 +441,11 @@ def compare_figure(ref: TimeSeries, other: TimeSeries, scores: list[Score], ref_
 def main(args: argparse.Namespace) -> int:
     """``millimpact compare``: read, score, print the table, write compare.json/.csv/.png."""
     from ..results.reference import read_history_csv, read_reference
-    from ..results.timeseries import jsonable, staged_output
+    from ..results.timeseries import contact_metrics, jsonable, unit_of
 
     other_path = Path(args.other)
-    out = Path(args.out) if args.out else Path("out") / f"compare-{other_path.stem}"
-    prepare_output(out, "--out", force=args.force)
+    out = args.out if args.out is not None else default_out(other_path.stem, prefix="compare-")
+    target = claim_output(out, "compare", force=args.force)   # before reading: a typo costs nothing
     ref = read_reference(Path(args.reference))
     if other_path.is_dir() or not other_path.exists():
         raise InputError(f"other {other_path}: no such file (expected a CSV with a time_s column)")
@@ -520,10 +519,11 @@ def main(args: argparse.Namespace) -> int:
         },
         "scores": [asdict(s) for s in scores],
     }
-    with staged_output(out, kind="compare") as stage:
+    with target.staged(collective=False) as stage:
         (stage / "compare.json").write_text(json.dumps(jsonable(result), indent=2) + "\n")
         write_csv(scores, stage / "compare.csv")
         if not args.no_plots:
             plot_compare(ref.series, other, scores, stage / "compare.png", ref.label, other_path.name)
-    say(f"results in {out}/ (compare.json, compare.csv{', compare.png' if not args.no_plots else ''})")
+    say(f"results in {target.shown}/ (compare.json, compare.csv{', compare.png' if not args.no_plots else ''})"
+        + target.replaced_note())
     return 0

@@ -55,6 +55,7 @@ if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact 
     import numpy as np
 
 from ..errors import InputError, MillimpactError
+from ..results.output_folder import FORCE_HELP, OUT_HELP
 
 log = logging.getLogger(__name__)
 
@@ -511,7 +512,8 @@ def plot_maps(cases: list[Case], folder: Path, crit: dict[str, Any]) -> list[str
 # --- command line ----------------------------------------------------------------------------------
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", help="scene of the sphere sweep (default paper-rig)")
-    p.add_argument("--out", help="output folder (default out/stability)")
+    p.add_argument("--out", help=OUT_HELP.format(default="out/stability"))
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--quick", action="store_true", help="tiny sweep (tests): fewer steps and velocities")
     p.add_argument("--integrators", default=",".join(INTEGRATORS),
                    help=f"comma-separated subset of {', '.join(INTEGRATORS)}")
@@ -521,7 +523,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
-    from ..results.timeseries import staged_output
+    from ..results.output_folder import claim_output
     from ..scene.builtin import resolve_scene
 
     integ = [x.strip() for x in args.integrators.split(",") if x.strip()]
@@ -534,14 +536,16 @@ def main(args: argparse.Namespace) -> int:
     scene = resolve_scene(args.scene) if "sphere" in probs else None
     comm = MPI.COMM_WORLD
     say = (lambda *a: print(*a, flush=True)) if comm.rank == 0 else (lambda *a: None)
-    out = Path(args.out or "out/stability")
+    target = claim_output(args.out if args.out is not None else "out/stability", "stability", force=args.force,
+                          comm=comm)   # before the sweep
+    out = target.shown
     say(f"stability sweep: integrators {', '.join(integ)}; problems {', '.join(probs)}"
         + (" (quick)" if args.quick else "") + f" -> {out}/  (letters: P pass, D degraded, F failed)")
     t0 = time.perf_counter()
     cases = sweep(integ, probs, args.quick, scene, say)
     n_el = QUICK["bar_n_el"] if args.quick else 100
     crit = critical_step_report(cases, n_el)
-    with staged_output(out, comm) as stage:
+    with target.staged() as stage:
         if comm.rank == 0:
             write_csv(cases, stage / "stability.csv")
             files = plot_maps(cases, stage, crit)
@@ -552,5 +556,5 @@ def main(args: argparse.Namespace) -> int:
         m, th = crit["bar_measured_courant"], crit["bar_theory_courant"]
         say(f"explicit critical step on the bar: stable up to Courant {m['largest_stable']:g}, failed from "
             f"{m['smallest_failed']:g}; theory {th['free']:.3f} (free), {th['contact']:.3f} (in contact, penalty)")
-    say(f"results in {out}/ (stability.csv, critical_step.json, map_*.png)")
+    say(f"results in {out}/ (stability.csv, critical_step.json, map_*.png)" + target.replaced_note())
     return 0

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Optional, Sequence
 from ..errors import InputError, MillimpactError
 from ..scene.builtin import BUILTIN_STUDIES
 from ..methods.registry import method_entry
+from ..results.output_folder import claim_output, default_out, is_millimpact_output
 from .sweep import (StudyInterrupted, CaseRun, Study, define_study, describe_reuse, parse_method_options, run_cases,
                     say_root)
 
@@ -88,14 +89,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         f"{METHOD_CHOICE.replace('%', '%%')})")
     p.add_argument("--option", action="append", metavar="KEY=VALUE", default=[],
                    help="method option for every case, e.g. --option modes=20 --option integrator=newmark")
-    p.add_argument("--out", help="output folder (default out/study-NAME); each case in a subfolder")
+    p.add_argument("--out", help="output folder (default out/study-NAME); each case in a subfolder; a rerun "
+                   "replaces what millimpact wrote there and keeps your other files (docs/outputs.md)")
     p.add_argument("--jobs", type=int, default=1, help="cases computed at the same time, as separate processes "
                    "(each case serial; default 1)")
     p.add_argument("--set", action="append", metavar="FIELD=VALUE", default=[],
                    help="override a scene field in every case, e.g. --set model.h_far=0.008")
     p.add_argument("--end", type=float, metavar="SECONDS",
                    help="simulated time of every case (= --set time.end=...; e.g. 3e-4 for the impact only)")
-    p.add_argument("--force", action="store_true", help="recompute every case (ignore the cache)")
+    p.add_argument("--force", action="store_true", help="recompute every case (ignore the cache); also write into "
+                   "--out if it holds files millimpact did not write (same-named entries are replaced, and named)")
     p.add_argument("--no-case-figures", action="store_true", help="skip each case's own PNG figures")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
@@ -133,14 +136,15 @@ def run_study(name: Optional[str] = None, param: Optional[str] = None, base: Opt
     method_note = f"default: {METHOD_CHOICE}" if method is None else "chosen with --method"
     options = dict(options or {})
     study = define_study(name, param, base, sets, end, subset)
-    out = Path(out) if out else Path("out") / f"study-{study.name}"
+    target = claim_output(out if out is not None else default_out(study.name, prefix="study-"), "study", force=force,
+                          comm=comm)
+    out, shown = target.path, target.shown
     rank0 = comm is None or comm.rank == 0
     say = (lambda *a: None) if quiet else (lambda *a: say_root(comm, *a))
     say(f"study {study.name}: {study.param} on {study.base}, {len(study.cases)} cases "
-        f"({', '.join(c.label for c in study.cases)}) -> {out}/")
+        f"({', '.join(c.label for c in study.cases)}) -> {shown}/")
     say(f"  method {chosen} ({method_note})")
-    if rank0:
-        out.mkdir(parents=True, exist_ok=True)
+    target.open([c.folder for c in study.cases], note=f"{shown}/ keeps the finished cases; a rerun reuses them")
     from .report import write_study
 
     t0 = time.perf_counter()
@@ -148,7 +152,11 @@ def run_study(name: Optional[str] = None, param: Optional[str] = None, base: Opt
         runs = run_cases(study, out, chosen, options, jobs=jobs, progress=sys.stdout.isatty(), force=force,
                          figures=case_figures, comm=comm, quiet=quiet)
         wall = time.perf_counter() - t0
-        a = write_study(study, runs, out, chosen, method_note, wall) if rank0 else None
+        a = None
+        if rank0:   # the report replaces the last one; every case folder (of any earlier study too) stays
+            cases = [p.name for p in out.iterdir() if p.is_dir() and is_millimpact_output(p)]
+            with target.staged(keep=cases, collective=False) as stage:
+                a = write_study(study, runs, stage, chosen, method_note, wall)
     except StudyInterrupted:
         raise
     except KeyboardInterrupt as exc:   # outside the case loop (before it, or during the report)
@@ -165,8 +173,8 @@ def run_study(name: Optional[str] = None, param: Optional[str] = None, base: Opt
             say(f"  {f['name']:<42s} ~ {study.symbol}^{f['k']:.3f}   (Hertz {study.symbol}^{f['k_hertz']:.3f})")
         for c in a.paper_checks:
             say(f"  paper: {c['claim']}: {c['verdict']}")
-        say(f"  results in {out}/ (study.md, peaks.md, peaks.csv, contact_point.png, contact_force.png, trends.png; "
-            "one run folder per case)")
+        say(f"  results in {shown}/ (study.md, peaks.md, peaks.csv, contact_point.png, contact_force.png, trends.png; "
+            "one run folder per case)" + target.replaced_note())
     return res
 
 

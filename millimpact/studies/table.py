@@ -47,6 +47,7 @@ from .. import __version__
 from ..errors import InputError, MillimpactError
 from ..scene.builtin import resolve_scene
 from ..scene.schema import Scene
+from ..results.output_folder import FORCE_HELP, OUT_HELP, OutputFolder, claim_output, default_out
 from ..scene.toml_io import dump_scene
 
 if TYPE_CHECKING:
@@ -273,9 +274,10 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
 
 # --- the table ----------------------------------------------------------------------------------------
 def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequence[float],
-              radii: Optional[Sequence[float]], method: str, options: dict, out: Path, sets: Sequence[str] = (),
-              ranks_per_case: int = 1, quiet: bool = False) -> list[dict]:
-    """Compute (or take from ``out/cases``) every case and write the table (rank 0). Returns the rows."""
+              radii: Optional[Sequence[float]], method: str, options: dict, out: Path | OutputFolder,
+              sets: Sequence[str] = (), ranks_per_case: int = 1, quiet: bool = False) -> list[dict]:
+    """Compute (or take from ``out/cases``) every case and write the table (rank 0) into ``out``, a
+    folder or one claimed with :func:`~millimpact.results.output_folder.claim_output`. Returns the rows."""
     from mpi4py import MPI
 
     from ..methods.registry import method_entry
@@ -293,10 +295,11 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
                          f"ranks; use --ranks-per-case {world.size} (or a reduced method, or hertz)")
     base = apply_sets(resolve_scene(scene_name), sets, "impact.velocity")
     cases = define_cases(base, speeds, angles, radii or [base.ball.radius], method, options)
-    folder = out / "cases"
+    target = out if isinstance(out, OutputFolder) else claim_output(out, "table")
+    folder = target.open(["cases"], note=lambda: kept_cases_note(target)) / "cases"
     say = (lambda *a: None) if quiet or world.rank != 0 else (lambda *a: print(*a, flush=True))
     if world.rank == 0:
-        folder.mkdir(parents=True, exist_ok=True)
+        folder.mkdir(exist_ok=True)
     world.barrier()
     done = {c.index: json.loads((folder / f"{c.key}.json").read_text()) for c in cases
             if (folder / f"{c.key}.json").is_file()}
@@ -315,8 +318,16 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
         for r in part:
             done[r["case"]] = r
     all_rows = [done[c.index] for c in cases if c.index in done]
-    write_table(out, base, cases, all_rows, method, options)
+    with target.staged(keep=["cases"], collective=False) as stage:
+        write_table(stage, base, cases, all_rows, method, options)
     return all_rows
+
+
+def kept_cases_note(target: OutputFolder) -> str:
+    """What an interrupted table leaves: its finished cases, reused by a rerun."""
+    n = len(list((target.path / "cases").glob("*.json")))
+    return (f"{n} finished case(s) kept in {target.shown}/cases/ (the table itself is not written); rerun the same "
+            "command to compute the rest")
 
 
 def next_case(state: np.ndarray, band_sizes: Sequence[int], current: Optional[int]) -> Optional[tuple[int, int]]:
@@ -450,7 +461,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--radius", metavar="R1,R2,...", help="ball radii, m (default the scene's)")
     p.add_argument("--method", default="improved", help="solution method (default improved; the reduced methods "
                                                         "reuse one reduction per mesh band)")
-    p.add_argument("--out", help="output folder (default out/table-SCENE); finished cases in it are reused")
+    p.add_argument("--out", help=OUT_HELP.format(default="out/table-SCENE") + "; finished cases in it are reused")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="override a scene field")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
     p.add_argument("--ranks-per-case", type=int, default=1, metavar="K",
@@ -466,13 +478,15 @@ def main(args: argparse.Namespace) -> int:
 
     options = parse_method_options(args.option)
     name = args.scene or "paper-rig"
-    out = Path(args.out) if args.out else Path("out") / f"table-{Path(name).stem}"
-    rows = run_table(args.scene, speeds, angles, radii, args.method, options, out, args.set,
+    target = claim_output(args.out if args.out is not None else default_out(Path(name).stem, prefix="table-"), "table",
+                          force=args.force)   # before any computing
+    out = target.shown
+    rows = run_table(args.scene, speeds, angles, radii, args.method, options, target, args.set,
                      args.ranks_per_case, args.quiet)
     failed = [r for r in rows if not str(r.get("status", "")).startswith("ok")]
     if rows and not args.quiet:
         print(f"  results in {out}/ (contact_table.csv, contact_table.json, contact_table.h5, contact_laws.json, "
-              f"e_n_speed.png, e_t_angle.png, force_speed.png)", flush=True)
+              f"e_n_speed.png, e_t_angle.png, force_speed.png){target.replaced_note()}", flush=True)
     if failed:
         raise MillimpactError(f"{len(failed)} of {len(rows)} case(s) failed; see the status column of {out}/contact_table.csv")
     return 0

@@ -142,7 +142,7 @@ def fit_laws(rows: Sequence[dict], base: Scene) -> dict[str, Any]:
 # --- files and figures --------------------------------------------------------------------------------
 def write_table(out: Path, base: Scene, cases, rows: Sequence[dict], method: str, options: dict) -> None:
     """contact_table.csv / .json / .h5, contact_laws.json and the figures (rank 0)."""
-    import h5py
+    from ..results.output_folder import hdf5_file
 
     out.mkdir(parents=True, exist_ok=True)
     names = [c[0] for c in COLUMNS]
@@ -164,7 +164,7 @@ def write_table(out: Path, base: Scene, cases, rows: Sequence[dict], method: str
            "rows": list(rows), "laws": laws}
     (out / "contact_table.json").write_text(json.dumps(jsonable(doc), indent=1) + "\n")
     (out / "contact_laws.json").write_text(json.dumps(jsonable(laws), indent=1) + "\n")
-    with h5py.File(out / "contact_table.h5", "w") as h5:
+    with hdf5_file(out / "contact_table.h5") as h5:   # in memory, one write: a full disk is one line
         h5.attrs["millimpact_version"] = __version__
         h5.attrs["scene"] = base.name
         h5.attrs["method"] = method
