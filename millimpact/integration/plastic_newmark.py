@@ -94,7 +94,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
             raise InputError(f"-impact_plastic_tangent_reuse {self.reuse}: must be in [0, 1) (0 = full Newton)")
         self.linearisation = str(solvers.get_option("plastic_linearisation", options, "elastic")).lower()
         if self.linearisation not in LINEARISATIONS:
-            raise InputError(f"-impact_plastic_linearisation {self.linearisation!r}: choose {' or '.join(LINEARISATIONS)}")
+            raise InputError(f"-impact_plastic_linearisation {self.linearisation!r}: choose {', '.join(LINEARISATIONS)}")
         self.depth = int(solvers.get_option("plastic_anderson_depth", options, 10))
         if self.depth < 0:
             raise InputError(f"-impact_plastic_anderson_depth {self.depth}: must be >= 0 (0 = plain fixed point)")
@@ -122,7 +122,9 @@ class PlasticNewmarkScheme(NewmarkScheme):
                 # strain's (cached), no return map needed before the first solve
                 n_yield, f_c = 0, self.zone.frozen_force()
             else:
-                n_yield = self.comm.allreduce(self.zone.evaluate(u_k, tangent=not elastic), op=MPI.SUM)
+                # the tangent path needs C_t at every iteration, the others only for a new tangent
+                n_yield = self.comm.allreduce(self.zone.evaluate(u_k, tangent=self.linearisation == "tangent"),
+                                              op=MPI.SUM)
                 f_c = self.zone.force_correction()
             yielding_seen |= n_yield > 0
             res, f_scale = self._residual(op, u_k, f_c, x)
@@ -201,6 +203,8 @@ class PlasticNewmarkScheme(NewmarkScheme):
             self._release_held()
             held = None
         if held is None:
+            if self.linearisation == "held":
+                self.zone.evaluate(u_k, tangent=True)     # the same trial state, with C_t
             dK = self.zone.stiffness_correction()
             A_t, ksp, W = self._factorize_tangent(op, dK)
             held = self._held = (dt, dK, A_t, ksp, W)
