@@ -276,10 +276,12 @@ class AndersonMixing:
 
         u_{k+1} = G(u_k) - dG gamma,    dG's columns G(u_{i+1}) - G(u_i).
 
-    Here G(u) is the step's linear problem on the elastic operator with f_c(u) on the right-hand
-    side and the contact inside (the LCP on the elastic S): its fixed point is the step's exact
-    answer, A u + f_c(u) = r + C^T x with complementarity on g0 + C u. Vectors are the ranks' owned
-    parts; the m x m least squares is reduced over the ranks (the same gamma on every rank)."""
+    Here G(u) is the step's linear problem on the elastic operator (or a held tangent A_t = A + dK,
+    with dK u on the right) with f_c(u) on the right-hand side and the contact inside (the LCP on
+    that operator's S): its fixed point is the step's exact answer, A u + f_c(u) = r + C^T x with
+    complementarity on g0 + C u. A new operator makes a new G (:meth:`bind` forgets the pairs).
+    Vectors are the ranks' owned parts; the m x m least squares is reduced over the ranks (the same
+    gamma on every rank)."""
 
     def __init__(self, depth: int, comm: MPI.Comm):
         self.depth, self.comm = depth, comm
