@@ -110,20 +110,20 @@ class PlasticZone:
 
     def evaluate(self, u_vec, tangent: bool = True) -> int:
         """Return-map the strains of displacement ``u_vec`` (PETSc Vec of V) from the committed
-        state: fills the stress and tangent corrections and keeps the trial state. Returns the
-        number of yielding quadrature points (this rank)."""
+        state: fills the stress and (with ``tangent``) the tangent corrections and keeps the trial
+        state. Returns the number of yielding quadrature points (this rank)."""
         self._set_displacement(u_vec)
         sc = self.stress_correction.x.array.reshape(-1, 6)
         tc = self.tangent_correction.x.array.reshape(-1, 6, 6)
-        sc[:] = 0.0
-        tc[:] = 0.0
+        # only the zones' slots are ever written (the Quadrature spaces span the whole mesh: zeroing
+        # all of C_t - C was 8 ms of a 19 ms evaluation on the plastic rig)
         trial, n_yield, yielding_cells = [], 0, []
         for k, zone in enumerate(self.zones):
             if not len(self.cells[k]):
                 trial.append(None)
                 continue
             eps = self._strain.eval(self.cells[k]).reshape(-1, 6)
-            res = return_map(zone.material, eps, self.plastic_strain[k], self.alpha[k])
+            res = return_map(zone.material, eps, self.plastic_strain[k], self.alpha[k], tangent)
             slots = self.quadrature_slots(k)
             sc[slots] = res.stress - eps @ self._elastic[k]
             if tangent:
@@ -133,10 +133,12 @@ class PlasticZone:
             if tangent:
                 yielding_cells.append(self.cells[k][res.yielding.reshape(len(self.cells[k]), self.n_q).any(axis=1)])
         self.stress_correction.x.scatter_forward()
-        self.tangent_correction.x.scatter_forward()
-        self._trial = trial
         if tangent:
-            self._yielding_cells = np.unique(np.concatenate(yielding_cells)) if yielding_cells else np.zeros(0, np.int32)
+            self.tangent_correction.x.scatter_forward()
+        self._trial = trial
+        # without the tangent, stiffness_correction() is zero (no stale C_t - C is assembled)
+        self._yielding_cells = (np.unique(np.concatenate(yielding_cells)) if yielding_cells
+                                else np.zeros(0, np.int32))
         return n_yield
 
     def commit(self) -> None:

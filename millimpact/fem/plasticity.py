@@ -154,7 +154,7 @@ class J2Material:
 
 class ReturnMapResult(NamedTuple):
     """The state at the end of a step, per point: stress (n, 6) Pa, plastic strain (n, 6), alpha
-    (n,), consistent tangent (n, 6, 6) Pa, yielding mask (n,), plastic work of the step (n,) J/m^3."""
+    (n,), consistent tangent (n, 6, 6) Pa or None, yielding mask (n,), plastic work of the step (n,) J/m^3."""
 
     stress: np.ndarray
     plastic_strain: np.ndarray
@@ -182,9 +182,10 @@ def _consistency(flow: FlowCurve, q_tr: np.ndarray, alpha: np.ndarray, G: float)
 
 
 def return_map(material: J2Material, strain: np.ndarray, plastic_strain: np.ndarray,
-               alpha: np.ndarray) -> ReturnMapResult:
+               alpha: np.ndarray, tangent: bool = True) -> ReturnMapResult:
     """Radial return of total strains ``strain`` (n, 6) from the committed state (plastic strain
-    (n, 6), alpha (n,)); see the module docstring for the equations."""
+    (n, 6), alpha (n,)); see the module docstring for the equations. ``tangent=False`` leaves the
+    consistent tangent out (``None``): an iteration on the elastic operator needs none."""
     C = material.elastic_matrix()
     G, flow = material.shear_modulus, material.flow
     strain, plastic_strain, alpha = (np.asarray(x, dtype=float) for x in (strain, plastic_strain, alpha))
@@ -193,7 +194,7 @@ def return_map(material: J2Material, strain: np.ndarray, plastic_strain: np.ndar
     q_tr = np.sqrt(1.5) * np.linalg.norm(dev, axis=1)
     yielding = q_tr - flow.flow_stress(alpha) > CONSISTENCY_RTOL * flow.yield_stress
     stress, eps_p, alpha_new = trial.copy(), plastic_strain.copy(), alpha.copy()
-    tangent = np.repeat(C[None], len(strain), axis=0)
+    C_t = np.repeat(C[None], len(strain), axis=0) if tangent else None
     work = np.zeros(len(strain))
     if np.any(yielding):
         y = yielding
@@ -203,12 +204,13 @@ def return_map(material: J2Material, strain: np.ndarray, plastic_strain: np.ndar
         stress[y] = trial[y] - 2.0 * G * deps_p
         eps_p[y] += deps_p
         alpha_new[y] += dg
-        H = flow.slope(alpha_new[y])
-        a = 6.0 * G * G * dg / q_tr[y]
-        b = 6.0 * G * G * (dg / q_tr[y] - 1.0 / (3.0 * G + H))
-        tangent[y] = C[None] - a[:, None, None] * P_DEV[None] + b[:, None, None] * np.einsum("pi,pj->pij", n, n)
+        if tangent:
+            H = flow.slope(alpha_new[y])
+            a = 6.0 * G * G * dg / q_tr[y]
+            b = 6.0 * G * G * (dg / q_tr[y] - 1.0 / (3.0 * G + H))
+            C_t[y] = C[None] - a[:, None, None] * P_DEV[None] + b[:, None, None] * np.einsum("pi,pj->pij", n, n)
         work[y] = np.einsum("pi,pi->p", stress[y], deps_p)
-    return ReturnMapResult(stress, eps_p, alpha_new, tangent, yielding, work)
+    return ReturnMapResult(stress, eps_p, alpha_new, C_t, yielding, work)
 
 
 def flow_curve_from_fields(yield_stress: Optional[float], hardening_modulus: float = 0.0,

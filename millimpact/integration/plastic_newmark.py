@@ -34,7 +34,22 @@ factorizations and W solves, which are most of a yielding step's cost (on the pl
 tangents for 116 yielding steps in full Newton). A step where no point yields uses the elastic
 operator, exact.
 
-A step whose Newton does not converge in ``plastic_max_iterations`` (default 40) raises
+Linearisation (option ``plastic_linearisation``, issue 31): the iteration above with a factorized
+tangent is ``tangent`` (today's path, kept to compare). The default ``elastic`` solves every
+iteration with the step size's elastic factorization and its cached contact operator W (no
+factorization, no new W column during yielding; the return map without its tangent), i.e. the
+fixed point u = G(u) of
+
+    A u_{k+1} = r - f_c(u_k) + C^T x,    x from the LCP (or friction) on the elastic S,
+
+whose fixed point is the step above (same residual test), accelerated by Anderson mixing of the
+last ``plastic_anderson_depth`` (default 10) iterates (:class:`AndersonMixing`). ``held`` mixes
+the held tangent's iterates the same way. On the coarse plastic half-space (tests) the three
+agree within 5e-9 (F_max, e, plastic work, dent); ``elastic`` takes 9-10 iterations a yielding
+step against 3-4 for full Newton, each as cheap as an elastic step's solve plus a return map.
+
+A step whose Newton does not converge in ``plastic_max_iterations`` (default 40 with
+``tangent``, 80 with the accelerated fixed point) raises
 :class:`SolverError` naming the step, the time and the residual.
 """
 from __future__ import annotations
@@ -55,6 +70,10 @@ from .newmark import NewmarkScheme
 #: the residual of an exact linear solve relative to |r| (a step without contact or plastic
 #: force has a zero force scale: it converges at this round-off floor)
 ROUNDOFF_RTOL = 1e-12
+#: the iterations of a step (``-impact_plastic_linearisation``): ``elastic`` the elastic step operator
+#: and its cached contact operator, accelerated (:class:`AndersonMixing`); ``held`` a tangent A + dK
+#: kept while the accelerated iteration contracts, ``tangent`` the same without acceleration
+LINEARISATIONS = ("elastic", "held", "tangent")
 
 
 class PlasticNewmarkScheme(NewmarkScheme):
@@ -67,13 +86,22 @@ class PlasticNewmarkScheme(NewmarkScheme):
         self.contact_solve = stats.contact_solve = "schur"
         self.zone = system.plastic
         self.rtol = float(solvers.get_option("plastic_rtol", options, 1e-8))
-        self.max_iterations = int(solvers.get_option("plastic_max_iterations", options, 40))
+        self.linearisation = str(solvers.get_option("plastic_linearisation", options, "elastic")).lower()
+        if self.linearisation not in LINEARISATIONS:
+            raise InputError(f"-impact_plastic_linearisation {self.linearisation!r}: choose {', '.join(LINEARISATIONS)}")
+        # the accelerated fixed point converges linearly: up to 26 iterations a step on the plastic
+        # liner segment (15 on the rig), against 17 for the reused tangent
+        default_cap = 40 if self.linearisation == "tangent" else 80
+        self.max_iterations = int(solvers.get_option("plastic_max_iterations", options, default_cap))
         if not (self.rtol > 0 and self.max_iterations >= 1):
             raise InputError(f"-impact_plastic_rtol {self.rtol} / -impact_plastic_max_iterations "
                              f"{self.max_iterations}: must be > 0 and >= 1")
         self.reuse = float(solvers.get_option("plastic_tangent_reuse", options, 0.5))
         if not 0.0 <= self.reuse < 1.0:
             raise InputError(f"-impact_plastic_tangent_reuse {self.reuse}: must be in [0, 1) (0 = full Newton)")
+        self.depth = int(solvers.get_option("plastic_anderson_depth", options, 10))
+        if self.depth < 0:
+            raise InputError(f"-impact_plastic_anderson_depth {self.depth}: must be >= 0 (0 = plain fixed point)")
         self._res, self._rhs, self._force = self.u.duplicate(), self.u.duplicate(), self.u.duplicate()
         self._yielded_last = True     # the first step evaluates the zone at u_0
         self._held = None             # a factorized tangent kept for reuse: (dt, dK, A_t, ksp, W)
@@ -90,13 +118,17 @@ class PlasticNewmarkScheme(NewmarkScheme):
         yielding_seen = False
         fresh = self.reuse == 0.0            # a new tangent at the next yielding iteration
         res_prev = None
+        elastic = self.linearisation == "elastic"
+        mixing = AndersonMixing(self.depth, self.comm) if self.linearisation != "tangent" else None
         for it in range(self.max_iterations + 1):
             if it == 0 and not self._yielded_last:
                 # u_n is the committed state and did not yield: f_c(u_n) is the frozen plastic
                 # strain's (cached), no return map needed before the first solve
                 n_yield, f_c = 0, self.zone.frozen_force()
             else:
-                n_yield = self.comm.allreduce(self.zone.evaluate(u_k), op=MPI.SUM)
+                # the tangent path needs C_t at every iteration, the others only for a new tangent
+                n_yield = self.comm.allreduce(self.zone.evaluate(u_k, tangent=self.linearisation == "tangent"),
+                                              op=MPI.SUM)
                 f_c = self.zone.force_correction()
             yielding_seen |= n_yield > 0
             res, f_scale = self._residual(op, u_k, f_c, x)
@@ -109,7 +141,9 @@ class PlasticNewmarkScheme(NewmarkScheme):
                 raise SolverError(f"plastic Newton did not converge: residual {res:.3e} N (force scale {f_scale:.3e} N) "
                                   f"after {it} iterations at step {step}, t = {t_new:.9g} s "
                                   "(-impact_plastic_max_iterations, a smaller time.dt_contact)")
-            ksp, W, tangent = self._linearisation(op, u_k, f_c, n_yield, dt, fresh)
+            ksp, W, tangent = self._linearisation(op, u_k, f_c, 0 if elastic else n_yield, dt, fresh)
+            if mixing is not None:
+                mixing.bind(ksp)
             fresh = False
             solvers.solve_checked(ksp, self._rhs, self.u_pred, "plastic effective-matrix solve", step, t_new)
             self.stats.n_solves += 1
@@ -122,7 +156,10 @@ class PlasticNewmarkScheme(NewmarkScheme):
             x = self._contact(W, q, gap_tol, step)
             work_step = self.stats.friction_work_J - work0      # only the last iteration's slip counts
             self.stats.friction_work_J = work0
-            self.u_new.copy(u_k)
+            if mixing is not None and n_yield > 0:
+                mixing.next_iterate(u_k, self.u_new)     # u_k <- the accelerated G(u_k)
+            else:
+                self.u_new.copy(u_k)
             self._release(tangent)
             f_c.destroy()
         self.stats.friction_work_J = work0 + work_step
@@ -170,6 +207,8 @@ class PlasticNewmarkScheme(NewmarkScheme):
             self._release_held()
             held = None
         if held is None:
+            if self.linearisation == "held":
+                self.zone.evaluate(u_k, tangent=True)     # the same trial state, with C_t
             dK = self.zone.stiffness_correction()
             A_t, ksp, W = self._factorize_tangent(op, dK)
             held = self._held = (dt, dK, A_t, ksp, W)
@@ -228,3 +267,55 @@ class PlasticNewmarkScheme(NewmarkScheme):
             W.destroy()
             ksp.destroy()
             A_t.destroy()
+
+
+class AndersonMixing:
+    """Anderson acceleration of the fixed point u = G(u) (Walker & Ni, SIAM J. Numer. Anal. 49,
+    2011, eq. 1.1 / "type II" with depth m): with the fixed-point residuals f_i = G(u_i) - u_i of
+    the last m + 1 iterates, gamma = argmin |f_k - dF gamma| (dF's columns f_{i+1} - f_i) and
+
+        u_{k+1} = G(u_k) - dG gamma,    dG's columns G(u_{i+1}) - G(u_i).
+
+    Here G(u) is the step's linear problem on the elastic operator (or a held tangent A_t = A + dK,
+    with dK u on the right) with f_c(u) on the right-hand side and the contact inside (the LCP on
+    that operator's S): its fixed point is the step's exact answer, A u + f_c(u) = r + C^T x with
+    complementarity on g0 + C u. A new operator makes a new G (:meth:`bind` forgets the pairs).
+    Vectors are the ranks' owned parts; the m x m least squares is reduced over the ranks (the same
+    gamma on every rank)."""
+
+    def __init__(self, depth: int, comm: MPI.Comm):
+        self.depth, self.comm = depth, comm
+        self.f_prev = self.g_prev = self.operator = None
+        self.dF: list[np.ndarray] = []
+        self.dG: list[np.ndarray] = []
+
+    def bind(self, operator) -> None:
+        """The operator of G's solve (a KSP): another one than the last makes another G, whose
+        secant pairs are not the last's: they are forgotten."""
+        if operator is not self.operator:
+            self.operator = operator
+            self.f_prev = self.g_prev = None
+            self.dF, self.dG = [], []
+
+    def next_iterate(self, u: PETSc.Vec, g_vec: PETSc.Vec) -> None:
+        """Given u = u_k and g_vec = G(u_k), overwrite u with u_{k+1}."""
+        g = np.array(g_vec.array_r)
+        f = g - u.array_r
+        if self.f_prev is not None and self.depth > 0:
+            self.dF.append(f - self.f_prev)
+            self.dG.append(g - self.g_prev)
+            if len(self.dF) > self.depth:
+                self.dF.pop(0)
+                self.dG.pop(0)
+        self.f_prev, self.g_prev = f, g
+        out = g
+        if self.dF:
+            dF = np.column_stack(self.dF)
+            gram = self.comm.allreduce(dF.T @ dF, op=MPI.SUM)
+            rhs = self.comm.allreduce(dF.T @ f, op=MPI.SUM)
+            # the normal equations with a relative ridge of 1e-12 (a column that repeats another
+            # makes the Gram matrix singular; lstsq then gives the least-norm gamma)
+            gram = gram + 1e-12 * np.trace(gram) * np.eye(gram.shape[0]) / gram.shape[0]
+            gamma = np.linalg.lstsq(gram, rhs, rcond=None)[0]
+            out = g - np.column_stack(self.dG) @ gamma
+        u.array[:] = out

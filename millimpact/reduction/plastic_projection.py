@@ -47,8 +47,8 @@ class ProjectedPlasticZone:
         self.red.Gr.multTranspose(f, r)
         return r
 
-    def evaluate(self, q: PETSc.Vec) -> int:
-        return self.zone.evaluate(self._expand(q))
+    def evaluate(self, q: PETSc.Vec, tangent: bool = True) -> int:
+        return self.zone.evaluate(self._expand(q), tangent)
 
     def force_correction(self) -> PETSc.Vec:
         f = self.zone.force_correction()
