@@ -78,8 +78,15 @@ def residual_dent(model: FEModel, zone, plan: Plan, reduced=None) -> dict[str, A
     """Summary keys of the dent: depth (m), radius (m) and the profile (for the figure);
     ``reduced``: see :func:`residual_displacement`."""
     u = residual_displacement(model, zone, reduced)
-    r, d = dent_profile(model, u, plan)
+    keys = dent_of(model, u, plan)
     u.destroy()
+    return keys
+
+
+def dent_of(model: FEModel, u_res, plan: Plan) -> dict[str, Any]:
+    """Summary keys of the dent of a residual displacement ``u_res`` (a model vector, m): depth,
+    radius (m) and the profile (module docstring)."""
+    r, d = dent_profile(model, u_res, plan)
     depth = float(d[0]) if len(d) else 0.0
     radius = 0.0
     if depth > 0:
