@@ -250,6 +250,7 @@ EXTRA_COMMANDS = {
     "bench": "millimpact.studies.bench",
     "stability": "millimpact.studies.stability",
     "compare": "millimpact.studies.compare",
+    "repeat": "millimpact.repeat.command",
 }
 
 

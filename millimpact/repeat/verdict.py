@@ -105,5 +105,5 @@ def classify(outcomes: Sequence[Any]) -> Verdict:
     need = math.log(CLOSED_SHARE * d1 / inc[-1]) / math.log(q) if inc[-1] > 0 and d1 > 0 else math.nan
     numbers["impacts_more_to_closed_share"] = float(need)
     numbers["reason"] = (f"dent increments decaying by a ratio {q:.3g} an impact, still {inc[-1] / d1:.3g} of the "
-                         f"first dent; ~{need:.0f} more impacts to reach {CLOSED_SHARE:.0%} at that rate")
+                         f"first dent; ~{max(1, math.ceil(need))} more impact(s) to reach {CLOSED_SHARE:.0%} at that rate")
     return Verdict("undecided", None, numbers)
