@@ -23,22 +23,14 @@ import numpy as np
 from .sequence import OUTCOME_COLUMNS, ImpactOutcome, ImpactSpec
 from .verdict import Verdict
 
-#: small-strain J2 (the model's) stops being a good approximation past this plastic strain
-#: (DESIGN.md 10; finite-strain J2 and the small-strain one part by a few % in stress there)
-SMALL_STRAIN_LIMIT = 0.1
+def small_strain_line(outcomes: Sequence[ImpactOutcome], rotations: Sequence[float]) -> str:
+    """One line: the sequence's largest plastic strain and rotation at a peak force, and whether
+    the small-strain model holds (:func:`millimpact.results.dent.small_strain_note`)."""
+    from ..results.dent import small_strain_note
 
-
-def small_strain_note(outcomes: Sequence[ImpactOutcome], rotations: Sequence[float]) -> str:
-    """One line: the largest plastic strain and rotation, and whether the small-strain model holds."""
     eps = max((o.max_equivalent_plastic_strain for o in outcomes), default=0.0)
-    rot = max((r for r in rotations if math.isfinite(r)), default=math.nan)
-    text = (f"small strain: largest equivalent plastic strain {eps:.3g}, largest rotation at a peak force "
-            f"{rot:.3g} rad")
-    if eps > SMALL_STRAIN_LIMIT:
-        return (text + f"; WARNING: past {SMALL_STRAIN_LIMIT:g}, where the small-strain J2 model stops being a "
-                "good approximation (no change of geometry or of the stress measure under the ball): the dent "
-                "depth and plastic work are estimates, a finite-strain model would be needed to trust them")
-    return text + f"; within the small-strain model's range (plastic strain < {SMALL_STRAIN_LIMIT:g})"
+    rot = max((r for r in rotations if r is not None and math.isfinite(r)), default=math.nan)
+    return small_strain_note(eps, rot, "at a peak force")
 
 
 def write_impacts_csv(path: Path, outcomes: Sequence[ImpactOutcome]) -> None:
@@ -120,7 +112,7 @@ def write_sequence(folder: Path, scene, method: str, impacts: Sequence[ImpactSpe
     write_impacts_csv(folder / "impacts.csv", outcomes)
     figures = plot_sequence(folder, outcomes, f"{scene.name}, {method}")
     (folder / "scene.toml").write_text(dump_scene(scene))
-    note = small_strain_note(outcomes, [d.get("max_rotation_at_peak_rad", math.nan) for d in details])
+    note = small_strain_line(outcomes, [d.get("max_rotation_at_peak_rad", math.nan) for d in details])
     summary = {"millimpact_version": __version__, "scene": scene.name, "method": method,
                "impacts": [{"speed_m_s": s.speed_m_s, "angle_deg": s.angle_deg, "offset_m": list(s.offset_m)}
                            for s in impacts],
