@@ -82,19 +82,23 @@ class PlasticNewmarkScheme(NewmarkScheme):
         """Newmark's start with the zone's frozen plastic force: M a0 = -K u0 - f_c(u0). A start
         from a plastic state (a repeated impact from its residual state K u_res = -f_frozen, or a
         state handed back by the closed-form free phase) is otherwise accelerated by f_frozen;
-        with no plastic strain f_c = 0 and the start is Newmark's."""
-        super().initialize(u0, v0)
+        with no plastic strain f_c = 0 and the start is Newmark's. The force joins the start's
+        load (f_ext) for that one mass solve."""
         f = self.zone.frozen_force()
-        if f.norm() > 0.0:
-            f.scale(-1.0)
-            f.array[self.fixed] = 0.0
-            f.array[self.massless] = 0.0
-            da = f.duplicate()
-            da.set(0.0)
-            solvers.solve_mass(self.M, f, da, np.union1d(self.fixed, self.massless), self.options)
-            self.a.axpy(1.0, da)
-            da.destroy()
-        f.destroy()
+        if f.norm() == 0.0:
+            f.destroy()
+            super().initialize(u0, v0)
+            return
+        f.scale(-1.0)
+        saved = self.sys.f_ext
+        if saved is not None:
+            f.axpy(1.0, saved)
+        self.sys.f_ext = f
+        try:
+            super().initialize(u0, v0)
+        finally:
+            self.sys.f_ext = saved
+            f.destroy()
 
     # --- one step -------------------------------------------------------------------------------
     def step(self, dt: float, t_new: float, step: int, allow_reject: bool) -> bool:
