@@ -165,8 +165,10 @@ def main(args: argparse.Namespace) -> int:
                 details.append(json.loads((store / f"impact-{k:03d}.json").read_text()).get("details", {}))
             except (OSError, ValueError):
                 details.append({})
-        write_sequence(out, scene, args.method, impacts, outcomes, verdict, details, {})
+        summary = write_sequence(out, scene, args.method, impacts, outcomes, verdict, details, {})
         if not args.quiet:
             say(verdict_text(verdict))
+            for note in summary["notes"]:
+                say(f"  note: {note}")
             say(f"  results in {out}/ (impacts.csv, restitution.png, dent.png, summary.json, summary.txt)")
     return 0

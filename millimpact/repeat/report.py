@@ -113,15 +113,20 @@ def write_sequence(folder: Path, scene, method: str, impacts: Sequence[ImpactSpe
     figures = plot_sequence(folder, outcomes, f"{scene.name}, {method}")
     (folder / "scene.toml").write_text(dump_scene(scene))
     note = small_strain_line(outcomes, [d.get("max_rotation_at_peak_rad", math.nan) for d in details])
+    reached = [k for k, d in enumerate(details, 1) if d.get("zone_boundary_elastic") is False]
+    notes = [note]
+    if reached:
+        notes.append(f"WARNING: the plastic region reached the contact zone's boundary (where the model is linear) "
+                     f"in impact(s) {', '.join(map(str, reached))}: rerun with a larger --set model.zone_radius")
     summary = {"millimpact_version": __version__, "scene": scene.name, "method": method,
                "impacts": [{"speed_m_s": s.speed_m_s, "angle_deg": s.angle_deg, "offset_m": list(s.offset_m)}
                            for s in impacts],
                "verdict": {"kind": verdict.kind, "impacts_to_shakedown": verdict.impacts_to_shakedown,
                            "numbers": verdict.numbers},
                "outcomes": [asdict(o) for o in outcomes], "details": list(details),
-               "notes": [note], **extra, "files": sorted(["impacts.csv", "scene.toml", *figures])}
+               "notes": notes, **extra, "files": sorted(["impacts.csv", "scene.toml", *figures])}
     lines = [f"millimpact repeat {scene.name}, method {method}: {len(outcomes)} impacts",
-             verdict_text(verdict), note, "",
+             verdict_text(verdict), *notes, "",
              f"{'impact':>6} {'e_n':>7} {'F_max kN':>9} {'t_c us':>7} {'W_p mJ':>8} {'dent um':>8} {'eps_p':>6}"]
     for o in outcomes:
         lines.append(f"{o.impact:6d} {o.restitution_normal:7.4f} {o.peak_normal_force_N / 1e3:9.4g} "

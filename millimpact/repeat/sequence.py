@@ -388,6 +388,18 @@ class _Engine:
                    "dent_profile": dent.get("residual_dent_profile")}
         return o, details
 
+    def boundary(self) -> dict:
+        """Whether the plastic region stayed inside the contact zone (the model is linear beyond
+        it): :func:`millimpact.results.dent.zone_boundary_note`'s strain at the boundary."""
+        if self.zone is None:
+            return {}
+        from ..results.dent import zone_boundary_note
+
+        keys, notes = zone_boundary_note(self.model, self.zone, self.plan)
+        return {"zone_boundary_max_equivalent_plastic_strain": keys["zone_boundary_max_equivalent_plastic_strain"],
+                "zone_boundary_elastic": bool(keys["zone_boundary_elastic"]),
+                "plastic_zone_radius_m": keys["plastic_zone_radius_m"]["struck_body"]}
+
     def dent(self, u_full) -> dict:
         """Depth and radius (m) of the dent of the residual displacement ``u_full`` (a model
         vector) at the scene's impact point (:func:`millimpact.results.dent.dent_of`)."""
@@ -456,7 +468,8 @@ class _ReducedEngine(_Engine):
         u_full.destroy()
         outcome, details = self.outcome(k, plan, ts, results, dent)
         details.update({"launch_shift_m": shift, "max_rotation_at_peak_rad": rotation,
-                        "tangent_factorizations": int(run["stats"].get("n_tangent_factorizations", 0))})
+                        "tangent_factorizations": int(run["stats"].get("n_tangent_factorizations", 0)),
+                        **self.boundary()})
         return ImpactRecord(outcome, spec, ts, details)
 
     _q_res = None
@@ -557,7 +570,7 @@ class _FullEngine(_Engine):
         dent = self.dent(u_new)
         outcome, details = self.outcome(k, plan, ts, results, dent)
         details.update({"launch_shift_m": shift, "max_rotation_at_peak_rad": rotation,
-                        "tangent_factorizations": int(stats.n_tangent_factorizations)})
+                        "tangent_factorizations": int(stats.n_tangent_factorizations), **self.boundary()})
         return ImpactRecord(outcome, spec, ts, details)
 
 
