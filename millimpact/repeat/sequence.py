@@ -207,7 +207,8 @@ def run_sequence(scene, impacts: Sequence[ImpactSpec], method: str = "improved",
     residual state (module docstring); returns one :class:`ImpactOutcome` per impact.
 
     ``petsc_options``: the method's options (as ``millimpact run``'s, keys without ``-impact_``).
-    ``progress``: called with one line per finished impact (rank 0). ``store_dir``: each finished
+    ``progress``: called with one line per finished impact (rank 0); True prints them
+    (:func:`millimpact.console.say`). ``store_dir``: each finished
     impact's outcome and plastic state are kept there (``impact-NNN.json``, ``impact-NNN.rankR.npz``);
     a rerun with the same scene, method, options and rank count takes the finished ones and
     continues from the last state. ``records``: a list that gets an :class:`ImpactRecord` per
@@ -219,6 +220,10 @@ def run_sequence(scene, impacts: Sequence[ImpactSpec], method: str = "improved",
     if isinstance(scene, (str, Path)):
         scene = resolve_scene(str(scene))
     impacts = [i if isinstance(i, ImpactSpec) else ImpactSpec(*i) for i in impacts]
+    if progress is True:
+        from ..console import say as progress
+    elif not callable(progress):
+        progress = None
     check_impacts(scene, impacts)
     comm = comm or MPI.COMM_WORLD
     options = dict(petsc_options or {})
