@@ -233,7 +233,7 @@ def run_sequence(scene, impacts: Sequence[ImpactSpec], method: str = "improved",
     if len(done) == len(impacts):
         return done
     engine = (_FullEngine if method == "full" else _ReducedEngine)(design, method, options, comm)
-    if state is not None:
+    if state is not None and engine.zone is not None:
         engine.zone.set_state(state)
     outcomes = list(done)
     for k in range(len(done), len(impacts)):
