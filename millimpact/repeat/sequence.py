@@ -241,6 +241,7 @@ def run_sequence(scene, impacts: Sequence[ImpactSpec], method: str = "improved",
         t0 = time.perf_counter()
         record = engine.impact(k + 1, spec, scene)
         record.details["wall_time_s"] = time.perf_counter() - t0
+        engine.release()
         outcomes.append(record.outcome)
         if store_dir is not None:
             store_finished(store_dir, key, k + 1, record, engine, comm)
@@ -339,6 +340,16 @@ class _Engine:
         self.contacts: dict[tuple, Any] = {}
         self.systems: dict[tuple, Any] = {}
         self.u_res = None    #: the residual state's vector (model or reduced), None before the first impact
+
+    def release(self) -> None:
+        """Free what the impact dropped (collective): petsc4py 3.18 parks the objects whose
+        handles are gone (the impact's tangent factorizations, its contact operators) until a
+        garbage cleanup of their communicator, and glibc keeps freed memory in the heap."""
+        from ..integration.solvers import release_petsc_garbage, return_freed_memory
+
+        release_petsc_garbage(self.model.V.mesh.comm)
+        release_petsc_garbage(self.comm)
+        return_freed_memory()
 
     def impact_scene(self, scene, spec: ImpactSpec):
         """The impact's scene on the sequence's mesh (its own velocity) and its plan."""
