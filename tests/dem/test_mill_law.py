@@ -25,7 +25,8 @@ from mill_scenes import needs_yade, small_mill_scene
 RIG = ["--set", "model.h_contact=0.8e-3", "--set", "model.h_far=8e-3", "--set", "model.zone_radius=5e-3",
        "--set", "contact.friction=0.2"]
 #: the small mill's liner on the command line (mill_scenes.small_mill_scene) with the table's 15 mm balls
-SMALL_MILL = ["--set", "ball.radius=0.015", "--set", "liner.width=0.3", "--set", "liner.thickness=0.04", "--set", "liner.lifter_height=0.05",
+SMALL_MILL = ["--set", "ball.radius=0.015",
+              "--set", "liner.width=0.3", "--set", "liner.thickness=0.04", "--set", "liner.lifter_height=0.05",
               "--set", "liner.lifter_top_width=0.03", "--set", "liner.lifter_spacing=0.15",
               "--set", "liner.mill_radius=0.4"]
 
@@ -56,7 +57,8 @@ def _fake_export(folder, code, radius=0.015):
            "restitution_normal_table": [[0.92]], "friction": 0.2, "ball_radius_m": radius,
            "yade": {"young_Pa": 2e11, "poisson": 0.3, "ball_material": "millimpact_ball",
                     "liner_material": "millimpact_liner"}}
-    (folder / "contact_law_yade.py").write_text(f"MILLIMPACT_LAW = {json.dumps(law)}\n\ndef millimpact_update():\n    pass\n")
+    runtime = "def millimpact_update():\n    pass\n"
+    (folder / "contact_law_yade.py").write_text(f"MILLIMPACT_LAW = {json.dumps(law)}\n\n{runtime}")
     return folder
 
 
