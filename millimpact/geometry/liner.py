@@ -49,10 +49,10 @@ def build_liner_model(liner: LinerShape, sizes: MeshSizes, *, lifter: int = 0, f
         check_zone_fits("ball", sizes.zone_radius, ball_radius)
         ball = (ball_radius, tuple(p + (ball_radius + gap) * n for p, n in zip(point, normal)),
                 tuple(p + gap * n for p, n in zip(point, normal)))
-    return run_gmsh(lambda: _liner(liner, sizes, point, ball, planes, generate))
+    return run_gmsh(lambda: _liner(liner, sizes, point, normal, ball, planes, generate))
 
 
-def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, generate) -> ModelInfo:
+def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, normal: Vec3, ball, planes, generate) -> ModelInfo:
     occ = gmsh.model.occ
     L, w, t, R = liner.length, liner.width, liner.thickness, liner.mill_radius
     x0 = -0.5 * L
@@ -102,12 +102,15 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, gener
         if common > 1e-9 * rb**3:
             raise MeshError(f"ball_radius = {rb:g} m: the ball overlaps the liner at this contact point "
                             "(choose a smaller ball, a larger gap or a point higher on the lifter face)")
+    # the zone spheres' poles on the contact normal (not OCC's z axis, which on a plate lies along
+    # the surface and put a pole next to it: builders.orient_poles)
     zone, region, v_liner = split_body(body, point, sizes.zone_radius, keep_box(planes, point[0], 0.0, scale, lo, hi),
-                                        "liner")
+                                        "liner", axis=normal)
     ball_zone, ball_region, v_ball = [], [], None
     if ball is not None:
         ball_zone, ball_region, v_ball = split_body(sphere, ball[2], sizes.zone_radius,
-                                                     keep_box(planes, point[0], 0.0, scale, lo, hi), "ball")
+                                                     keep_box(planes, point[0], 0.0, scale, lo, hi), "ball",
+                                                     axis=normal)
     occ.synchronize()
     tol = 1e-9 * scale
 
