@@ -62,7 +62,7 @@ logger = logging.getLogger(__name__)
 
 
 #: bump when the builders change what they produce: part of the mesh cache key
-BUILDER_VERSION = 2   # 2: a liner's zone spheres have their poles on the contact normal
+BUILDER_VERSION = 2   # 2: a liner's zone spheres on a plate or lifter top have their poles on the normal
 
 BALL_ZONE, BALL_REGION, BLOCK_ZONE, BLOCK_REGION = 1, 2, 3, 4
 BALL_CONTACT, BLOCK_CONTACT, BALL_INTERFACE, BLOCK_INTERFACE = 11, 12, 13, 14
@@ -216,6 +216,22 @@ def keep_box(planes: Sequence[str], x_p: float, z_p: float, scale: float, lo: Se
     return gmsh.model.occ.addBox(x0, y0, z0, x1 - x0, y1 - y0, z1 - z0)
 
 
+#: a zone sphere keeps OCC's z axis as its polar axis when its poles are at least this far (deg)
+#: from the struck surface's tangent plane (|n_z| >= sin of it: a lifter face, n_z ~ 0.94 for
+#: liner-segment, keeps the mesh it had); nearer, its poles are turned onto the normal (:func:`zone_axis`)
+ZONE_POLE_MIN_ANGLE = 45.0
+
+
+def zone_axis(normal: Vec3) -> Optional[Vec3]:
+    """The polar axis for a zone sphere on a surface of unit outward ``normal``: None (OCC's z) if
+    the z poles are at least :data:`ZONE_POLE_MIN_ANGLE` from the tangent plane (asin |n_z|),
+    else the normal (the poles 90 deg from it: :func:`orient_poles`)."""
+    norm = math.sqrt(sum(c * c for c in normal))
+    if abs(normal[2]) >= math.sin(math.radians(ZONE_POLE_MIN_ANGLE)) * norm:
+        return None
+    return tuple(normal)
+
+
 def orient_poles(sphere: int, centre: Vec3, axis: Vec3) -> None:
     """Rotate the OCC sphere ``sphere`` about its ``centre`` so that its poles lie on ``axis``.
 
@@ -250,8 +266,8 @@ def split_body(body: int, point: Vec3, zone_radius: float, keep: Optional[int],
     the point's gmsh tag). Pieces are identified through OCC's fragment history (which input each
     output came from) and checked by their OCC volumes.
 
-    ``axis``: the zone sphere's polar axis (:func:`orient_poles`; None keeps OCC's z axis). Give the
-    contact normal: the body's surface then cuts the sphere near its equator, far from its poles."""
+    ``axis``: the zone sphere's polar axis (:func:`orient_poles`; None keeps OCC's z axis):
+    :func:`zone_axis` of the contact normal keeps the poles away from the body's surface."""
     occ = gmsh.model.occ
     if keep is not None:
         out, _ = occ.intersect([(3, body)], [(3, keep)])

@@ -110,3 +110,18 @@ def test_orient_poles_puts_the_poles_on_the_axis():
             n = np.asarray(axis) / np.linalg.norm(axis)
             expected = sorted([tuple(np.add((0.1, 0.2, 0.3), sign * 0.02 * n)) for sign in (-1, 1)])
             assert sorted(map(tuple, poles)) == [pytest.approx(p, abs=1e-12) for p in expected]
+
+
+def test_zone_axis_turns_only_poles_near_the_surface():
+    """A lifter face of liner-segment (n_z = 0.94: the z poles 70 deg from its tangent plane) keeps
+    OCC's axis and its mesh; the plate and the lifter top (n ~ y) get the normal."""
+    liner = builtin_scene("liner-segment").liner
+    face = liner.impact_site("lifter_face", 0, "+z", 0.5)[1]
+    plate = liner.impact_site("plate", 0, "+z", 0.5, 0.0, ARC)[1]
+    top = liner.impact_site("lifter_top", 0, "+z", 0.5, 0.0, 0.02)[1]
+    assert geo.zone_axis(face) is None
+    assert geo.zone_axis(plate) == plate and geo.zone_axis(top) == top
+    # the threshold itself: 45 deg from the tangent plane
+    s = math.sin(math.radians(geo.ZONE_POLE_MIN_ANGLE))
+    assert geo.zone_axis((0.0, math.sqrt(1 - (s - 1e-9) ** 2), s - 1e-9)) is not None
+    assert geo.zone_axis((0.0, math.sqrt(1 - (s + 1e-9) ** 2), s + 1e-9)) is None
