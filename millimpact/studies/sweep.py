@@ -259,20 +259,32 @@ def _worker(task: CaseTask) -> dict:
     return compute_case(task, None)
 
 
-def stop_workers(procs: list, grace_s: float = 1.0) -> None:
+def stop_workers(procs: list, grace_s: float = 1.0) -> list:
     """Stop pool workers: SIGTERM, then SIGKILL for those still alive after ``grace_s``. A worker
     that has initialised PETSc has PETSc's signal handler, which answers SIGTERM with MPI_Abort;
     in an MPI singleton that call can hang for ever, keeping the worker (and the pipes it holds)
-    alive after the study has exited."""
+    alive after the study has exited. Returns the workers that needed the SIGKILL."""
     for proc in procs:
         proc.terminate()
     deadline = time.monotonic() + grace_s
     for proc in procs:
         proc.join(max(0.0, deadline - time.monotonic()))
-    for proc in procs:
-        if proc.is_alive():
-            proc.kill()
-            proc.join(5.0)
+    killed = [proc for proc in procs if proc.is_alive()]
+    for proc in killed:
+        proc.kill()
+        proc.join(5.0)
+    return killed
+
+
+def lost_worker_codes(procs: list, killed: list) -> list[int]:
+    """The exit codes of the workers that ended by themselves, from a broken pool's processes once
+    all have ended. The pool answers a lost worker by SIGTERM to the others (exit code -15), and
+    ``stop_workers`` SIGKILLs those that outlive that (``killed``): these codes are the study's own,
+    said only when no other is there (a worker killed from outside by SIGTERM)."""
+    import signal
+
+    codes = {p.exitcode for p in procs if p not in killed and p.exitcode not in (None, 0)}
+    return sorted({c for c in codes if c != -signal.SIGTERM} or codes)
 
 
 def remove_stages(out: Path, folders: list[str]) -> None:
@@ -408,9 +420,14 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
             except cf.process.BrokenProcessPool:
                 # a worker ended without a word (killed, or a library's exit(): CI runs saw gmsh's,
                 # fixed in geometry.builders.gmsh_session): its cases and those not yet finished
-                # are computed again here, one after the other, and the exit codes said
-                codes = sorted({p.exitcode for p in (getattr(pool, "_processes", None) or {}).values()
-                                if p.exitcode not in (None, 0)})
+                # are computed again here, one after the other, and the exit codes said. The codes
+                # are read once every worker has ended and been reaped: the pool's thread SIGTERMs
+                # the other workers while this one wakes, and reaps the lost one later (read at
+                # once, the codes were [1], [-15], [-15, 1] or unknown from run to run)
+                procs = list((getattr(pool, "_processes", None) or {}).values())
+                killed = stop_workers(procs)
+                pool.shutdown(wait=True)    # its thread joins every worker
+                codes = lost_worker_codes(procs, killed)
                 serial = [i for i in todo if runs[i].status == "pending"]
                 remove_stages(out, [study.cases[i].folder for i in serial])
                 if rank0:

@@ -166,10 +166,9 @@ def test_a_worker_that_ends_without_a_word_is_replaced(tmp_path):
                         "--no-case-figures", "--param", "impact.velocity=1,3", "--out", str(out)],
                        capture_output=True, text=True, env=env, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
-    # the exit code is read from the pool's process handles, which the executor may already have
-    # dropped (a clean-clone CI run saw "unknown"): the code is said when known
-    assert "a study worker process ended without a word (exit codes " in r.stderr
-    assert "(exit codes [1])" in r.stderr or "(exit codes unknown)" in r.stderr
+    # the lost worker's code alone: not "unknown" (read before it was reaped), nor with the -15 of
+    # the worker the pool itself stopped (both seen under load, studies.sweep.lost_worker_codes)
+    assert "a study worker process ended without a word (exit codes [1])" in r.stderr, r.stderr[-3000:]
     for folder in ("velocity=1", "velocity=3"):
         assert (out / folder / "summary.json").stat().st_size > 0
     assert not list(out.glob(".velocity=*.partial-*"))
