@@ -62,6 +62,7 @@ def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     k = np.array([o.impact for o in outcomes])
     e_n = np.array([o.restitution_normal for o in outcomes])
@@ -71,6 +72,7 @@ def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -
     if np.any(np.isfinite(e_t)):
         ax.plot(k, e_t, "s--", label="tangential e_t")
     ax.set_xlabel("impact number")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))   # impacts are counted, not measured
     ax.set_ylabel("coefficient of restitution (-)")
     ax.set_title(f"{title}: restitution")
     ax.grid(True, alpha=0.3)
@@ -82,6 +84,7 @@ def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     ax.plot(k, [o.residual_dent_depth_m * 1e6 for o in outcomes], "o-", color="C0", label="dent depth")
     ax.set_xlabel("impact number")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylabel("residual dent depth (um)", color="C0")
     ax2 = ax.twinx()
     ax2.plot(k, [o.plastic_dissipation_J * 1e3 for o in outcomes], "s--", color="C3", label="plastic work")
