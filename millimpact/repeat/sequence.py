@@ -48,6 +48,7 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 import numpy as np
 
 from .verdict import Verdict, classify
+from ..scene.impact_direction import oblique_velocity
 
 log = logging.getLogger(__name__)
 
@@ -114,24 +115,9 @@ class ImpactRecord:
 
 
 # --- input ------------------------------------------------------------------------------------
-def tangent_direction(scene) -> np.ndarray:
-    """The unit direction t of oblique impacts: the scene's tangential direction, or e_x x n
-    (as :func:`millimpact.studies.table.tangent_direction`)."""
-    n = np.asarray(scene.contact_normal, dtype=float)
-    v = np.asarray(scene.impact.velocity, dtype=float)
-    vt = v - (v @ n) * n
-    if np.linalg.norm(vt) > 1e-9 * np.linalg.norm(v):
-        return vt / np.linalg.norm(vt)
-    t = np.cross([1.0, 0.0, 0.0], n)
-    return t / np.linalg.norm(t)
-
-
 def impact_velocity(scene, spec: ImpactSpec) -> list[float]:
-    """v = V (-cos(angle) n + sin(angle) t), m/s."""
-    n = np.asarray(scene.contact_normal, dtype=float)
-    a = math.radians(spec.angle_deg)
-    v = spec.speed_m_s * (-math.cos(a) * n + math.sin(a) * tangent_direction(scene))
-    return [float(round(c, 15)) + 0.0 for c in v]
+    """v = V (-cos(angle) n + sin(angle) t), m/s (:func:`millimpact.scene.impact_direction.oblique_velocity`)."""
+    return oblique_velocity(scene, spec.speed_m_s, spec.angle_deg)
 
 
 def offset_vector(scene, offset) -> np.ndarray:

@@ -48,6 +48,7 @@ from ..errors import InputError, MillimpactError
 from ..scene.builtin import resolve_scene
 from ..scene.schema import Scene
 from ..results.output_folder import FORCE_HELP, OUT_HELP, OutputFolder, claim_output, default_out
+from ..scene.impact_direction import oblique_velocity
 from ..scene.toml_io import dump_scene
 
 if TYPE_CHECKING:
@@ -123,28 +124,7 @@ def parse_list(text: Optional[str], option: str, low: float, high: float, low_op
     return out
 
 
-def tangent_direction(scene: Scene) -> np.ndarray:
-    """The unit direction t of a table's oblique velocities: the scene's tangential direction, or
-    for a normal scene e_x x n (in the plane x = x_p, which holds n for the block and liner faces)."""
-    import numpy as np
-
-    n = np.asarray(scene.contact_normal, dtype=float)
-    v = np.asarray(scene.impact.velocity, dtype=float)
-    vt = v - (v @ n) * n
-    if np.linalg.norm(vt) > 1e-9 * np.linalg.norm(v):
-        return vt / np.linalg.norm(vt)
-    t = np.cross([1.0, 0.0, 0.0], n)
-    return t / np.linalg.norm(t)
-
-
-def case_velocity(scene: Scene, speed: float, angle_deg: float) -> list[float]:
-    """v = V (-cos(angle) n + sin(angle) t), m/s."""
-    import numpy as np
-
-    n = np.asarray(scene.contact_normal, dtype=float)
-    a = math.radians(angle_deg)
-    v = speed * (-math.cos(a) * n + math.sin(a) * tangent_direction(scene))
-    return [float(round(c, 15)) + 0.0 for c in v]
+case_velocity = oblique_velocity   # the name the table and the damage map call it by
 
 
 def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], radii: Sequence[float],

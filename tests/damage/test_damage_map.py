@@ -15,7 +15,6 @@ import json
 import math
 import subprocess
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,8 @@ from millimpact.damage.bins import yield_onset_speed
 from millimpact.damage.damage_map import MapSettings, run_damage_map
 from millimpact.damage.responses import store_row
 from millimpact.dem.impacts import Impact, read_impacts, write_impacts
+from millimpact.repeat.sequence import ImpactOutcome as Outcome   # the fake sequence runner returns the real types
+from millimpact.repeat.verdict import Verdict
 from millimpact.scene.builtin import builtin_scene
 from millimpact.theory.thornton import restitution_thornton
 
@@ -86,24 +87,6 @@ class FakeRunner:
             self.done.append(c.key)
 
 
-@dataclass(frozen=True)
-class Outcome:
-    impact: int
-    restitution_normal: float
-    restitution_tangential: float
-    peak_normal_force_N: float
-    contact_duration_s: float
-    plastic_dissipation_J: float
-    residual_dent_depth_m: float
-    residual_dent_radius_m: float
-    max_equivalent_plastic_strain: float
-
-
-@dataclass(frozen=True)
-class Verdict:
-    kind: str
-    impacts_to_shakedown: int
-    numbers: dict
 
 
 def fake_sequence(scene, impacts, method="improved", petsc_options=None, comm=None, progress=None):
@@ -333,8 +316,7 @@ def test_one_bin_on_the_real_table_engine(tmp_path):
 @pytest.mark.slow
 def test_one_bin_on_the_real_repeated_impact_sequence(tmp_path):
     """The place's dominant bin repeated with millimpact.repeat.sequence: the map's dent and strain
-    numbers are the sequence's. Skipped until the repeated-impact issue's module is merged."""
-    pytest.importorskip("millimpact.repeat.sequence")
+    numbers are the sequence's."""
     from millimpact.repeat.sequence import classify, run_sequence
 
     imps = [_impact(3.0, 0.0)] * 2
