@@ -269,6 +269,7 @@ EXTRA_COMMANDS = {
     "export": "millimpact.dem.export",
     "mill": "millimpact.dem.mill",
     "damage": "millimpact.damage.command",
+    "repeat": "millimpact.repeat.command",
 }
 
 

@@ -43,9 +43,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--impacts", required=True, metavar="CSV", help="the impact log (impacts.csv of millimpact mill)")
     p.add_argument("--out", help=OUT_HELP.format(default="out/damage-SCENE") + "; finished bins in it are reused")
     p.add_argument("--revolutions", type=float, metavar="N",
-                   help="mill revolutions the log covers (default: 'revolutions' of a summary.json beside the log)")
-    p.add_argument("--lifters", type=int, default=1, metavar="N",
-                   help="lifters the log's impacts are folded from (rates per lifter; default 1: the whole log)")
+                   help="mill revolutions the log covers (default: those of the millimpact mill summary.json "
+                        "beside the log)")
+    p.add_argument("--lifters", type=int, metavar="N",
+                   help="lifters the log's impacts are folded from (rates per lifter; default: the mill's, from the "
+                        "summary.json beside the log, else 1: the whole log)")
     p.add_argument("--slice-length", type=float, metavar="M",
                    help="axial length of the DEM slice, m (spreads a place's impacts; default the liner's length)")
     p.add_argument("--max-bins", type=int, default=30, metavar="N", help="at most this many bins (default 30)")
@@ -67,24 +69,44 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
+def mill_summary(impacts_path: Path) -> dict:
+    """The summary.json that ``millimpact mill`` wrote beside the log ({} if there is none or it is unreadable)."""
+    try:
+        summary = json.loads((impacts_path.parent / "summary.json").read_text())
+    except (OSError, ValueError):
+        return {}
+    return summary if isinstance(summary, dict) else {}
+
+
 def revolutions_of(args: argparse.Namespace, impacts_path: Path) -> float:
-    """--revolutions, else the ``revolutions`` of a summary.json beside the log; InputError if neither."""
+    """--revolutions, else the logged revolutions of the mill's summary.json beside the log (``clock.revolutions``;
+    a top-level ``revolutions`` also counts); InputError if neither."""
     rev = args.revolutions
     if rev is None:
-        side = impacts_path.parent / "summary.json"
+        summary = mill_summary(impacts_path)
         try:
-            rev = float(json.loads(side.read_text())["revolutions"])
-        except (OSError, ValueError, KeyError, TypeError):
+            rev = float(summary["revolutions"] if "revolutions" in summary else summary["clock"]["revolutions"])
+        except (KeyError, ValueError, TypeError):
             raise InputError(f"--revolutions: give the number of mill revolutions {impacts_path} covers (no "
-                             f"'revolutions' in {side})") from None
+                             f"revolutions in {impacts_path.parent / 'summary.json'})") from None
     if not (math.isfinite(rev) and rev > 0):
         raise InputError(f"--revolutions {rev:g}: must be > 0")
     return rev
 
 
+def lifters_of(args: argparse.Namespace, impacts_path: Path) -> int:
+    """--lifters, else the mill's lifter count from its summary.json beside the log (``mill.lifters``), else 1."""
+    if args.lifters is not None:
+        return args.lifters
+    try:
+        return max(1, int(mill_summary(impacts_path)["mill"]["lifters"]))
+    except (KeyError, ValueError, TypeError):
+        return 1
+
+
 def check_settings(args: argparse.Namespace) -> None:
     """One line for a setting out of range."""
-    if args.lifters < 1:
+    if args.lifters is not None and args.lifters < 1:
         raise InputError(f"--lifters {args.lifters}: must be >= 1")
     if args.slice_length is not None and not (math.isfinite(args.slice_length) and args.slice_length > 0):
         raise InputError(f"--slice-length {args.slice_length:g}: must be > 0 m")
@@ -114,7 +136,7 @@ def main(args: argparse.Namespace) -> int:
                          "liner-panel or a TOML file with a [liner] table)")
     path = Path(args.impacts)
     impacts = read_impacts(path)
-    settings = MapSettings(revolutions=revolutions_of(args, path), lifters=args.lifters,
+    settings = MapSettings(revolutions=revolutions_of(args, path), lifters=lifters_of(args, path),
                            slice_length_m=args.slice_length, max_bins=args.max_bins,
                            tolerance=args.restitution_tolerance, angle_bins=args.angle_bins, arc_bins=args.arc_bins,
                            cell_m=args.cell, method=args.method, options=parse_method_options(args.option),

@@ -25,8 +25,10 @@ DESCRIPTION = """\
 Build a slice of the mill from SCENE's liner (the lifters round the whole shell at the scene's
 spacing), fill it with balls of the scene's radius (--balls N, or --fill F: the fraction of the
 mill's volume the ball bed fills, 0.05-0.5; default --fill 0.1), turn it at --speed-fraction S of
-the critical speed n_c = 42.3 / sqrt(D) rpm (default 0.75) in Yade (Hertz-Mindlin contacts), and
-log every ball-liner impact after a warm-up.
+the critical speed n_c = 42.3 / sqrt(D) rpm (default 0.75) in Yade (Hertz-Mindlin contacts with
+--restitution or Thornton's e; or --law DIR, a law `millimpact export TABLE --to yade` wrote: each
+ball-liner contact's e_n from the table at its impact speed and angle), and log every ball-liner
+impact after a warm-up.
 
 Writes DIR/impacts.csv (one row per impact: time_s, ball_radius_m, normal_speed_m_s,
 tangential_speed_m_s, impact_energy_J, place, arc_position_m), spectrum.png and spectrum.csv
@@ -36,6 +38,7 @@ settings) and yade/ (the script, its input and its raw output). Needs Yade (apt-
 
   millimpact mill liner-panel --revolutions 2 --balls 200 --out out/mill
   millimpact mill liner-panel --revolutions 3 --fill 0.1 --speed-fraction 0.8 --out out/mill80
+  millimpact mill liner-panel --revolutions 2 --balls 200 --law out/dem-yade --out out/mill-law
 """
 
 #: the Yade script (millimpact/dem/yade_scripts/)
@@ -54,6 +57,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--restitution", type=float, metavar="E",
                    help="coefficient of restitution of every contact (default: Thornton's e at the shell speed "
                         "from the scene's yield stresses)")
+    p.add_argument("--law", metavar="DIR",
+                   help="a contact law exported for Yade (millimpact export TABLE --to yade --out DIR): each "
+                        "ball-liner contact's e_n from its impact speed and angle (instead of --restitution)")
+    p.add_argument("--law-every", type=int, metavar="STEPS",
+                   help="with --law: steps between the law's updates of new contacts (default: the impact "
+                        "check's, 1/8 of the shortest contact)")
     p.add_argument("--friction", type=float, metavar="MU",
                    help="Coulomb friction (default: the scene's contact.friction)")
     p.add_argument("--stiffness-scale", type=float, default=0.01, metavar="K",
@@ -89,7 +98,7 @@ def options_from_args(args: argparse.Namespace):
     opts = MillOptions(revolutions=args.revolutions, balls=args.balls, fill=args.fill,
                        speed_fraction=args.speed_fraction, restitution=args.restitution, friction=args.friction,
                        stiffness_scale=args.stiffness_scale, warmup=args.warmup, thickness=args.thickness,
-                       seed=args.seed)
+                       seed=args.seed, law=args.law, law_every=args.law_every)
     check_mill_options(opts)
     return opts
 
@@ -119,6 +128,18 @@ class _Progress:
             print(text, file=sys.stderr, flush=True)
 
 
+def _contact_summary(setup) -> dict:
+    if setup.law is None:
+        return {"law": "Yade Hertz-Mindlin (Law2_ScGeom_MindlinPhys_Mindlin)", "restitution": setup.restitution,
+                "restitution_source": setup.restitution_source, "friction": setup.friction,
+                "stiffness_scale": setup.stiffness_scale}
+    lo, hi = setup.law.restitution_range
+    return {"law": f"exported by millimpact export (Hertz-dashpot, betan per contact): {setup.law.folder}",
+            "source_table": setup.law.data.get("source_table"), "restitution_normal_range": [lo, hi],
+            "restitution_source": setup.restitution_source, "friction": setup.friction,
+            "stiffness_scale": setup.stiffness_scale, "law_update_every_steps": setup.law_every}
+
+
 def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=None) -> dict:
     """Plan, run and report one mill run into the folder ``stage``; returns the summary."""
     from .impacts import write_impacts
@@ -133,6 +154,8 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
     work = stage / "yade"
     work.mkdir()
     shutil.copy(SCRIPT, work / SCRIPT.name)
+    if setup.law is not None:
+        shutil.copy(setup.law.script, work / setup.law.script.name)
     (work / "input.json").write_text(json.dumps(setup.yade_input()) + "\n")
     run_yade(work / SCRIPT.name, work, ["input.json"], timeout=timeout, on_progress=_Progress())
     run = read_mill_run(work, setup)
@@ -160,9 +183,7 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
                  "speed_fraction": setup.speed_fraction, "speed_rpm": setup.speed_fraction * setup.critical_rpm},
         "charge": {"balls": setup.n_balls, "ball_radius_m": setup.ball_radius, "fill": setup.fill,
                    "charge_is": "balls alone (no rock, no slurry)"},
-        "contact": {"law": "Yade Hertz-Mindlin (Law2_ScGeom_MindlinPhys_Mindlin)", "restitution": setup.restitution,
-                    "restitution_source": setup.restitution_source, "friction": setup.friction,
-                    "stiffness_scale": setup.stiffness_scale},
+        "contact": _contact_summary(setup),
         "clock": {"dt_s": setup.dt, "contact_time_s": setup.contact_time_s, "v_max_m_s": setup.v_max,
                   "check_every_steps": setup.check_every, "warmup_revolutions": setup.warmup_s / setup.period_s,
                   "revolutions": revs, "period_s": setup.period_s},
@@ -176,6 +197,12 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
         "impacts_time_origin": "the end of the warm-up",
     }
     return summary
+
+
+def _restitution_text(setup) -> str:
+    if setup.law is None:
+        return f"e {setup.restitution:.3g} ({setup.restitution_source})"
+    return f"{setup.restitution_source}, updated every {setup.law_every} steps"
 
 
 def main(args: argparse.Namespace) -> int:
@@ -193,8 +220,8 @@ def main(args: argparse.Namespace) -> int:
     target = claim_output(out, "mill", force=args.force)   # before the DEM run: checks, lock, leftovers
     say(f"mill: scene '{scene.name}', D {setup.profile.diameter:g} m, {setup.profile.n_lifters} lifters, "
         f"{setup.n_balls} balls of {2e3 * setup.ball_radius:g} mm in a {1e3 * setup.thickness:.0f} mm slice, "
-        f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; e {setup.restitution:.3g} "
-        f"({setup.restitution_source}), mu {setup.friction:g}, moduli x {setup.stiffness_scale:g}; "
+        f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; "
+        f"{_restitution_text(setup)}, mu {setup.friction:g}, moduli x {setup.stiffness_scale:g}; "
         f"{(setup.warmup_s + setup.run_s) / setup.dt:.3g} steps of {setup.dt:.3g} s", file=sys.stderr)
     with target.staged(collective=False) as stage:
         summary = run_mill(scene, opts, stage, plots=not args.no_plots, setup=setup)

@@ -18,7 +18,9 @@ contact law and the clock; :meth:`MillSetup.yade_input` is the JSON of
   ``--stiffness-scale`` (0.01 by default: see :data:`DEFAULT_STIFFNESS_SCALE`), restitution e
   (``--restitution``, else :func:`~millimpact.dem.mill_contact.scene_restitution`), Coulomb
   friction mu (``--friction``, else the scene's ``contact.friction``) between balls and with the
-  liner.
+  liner. ``--law DIR``: an exported contact law instead (:mod:`~millimpact.dem.mill_law`): its
+  moduli times ``--stiffness-scale``, its friction, its e_n per ball-liner contact and its median
+  damping between balls.
 - Clock: dt = t_c / 25, t_c the shortest Hertz contact time at the largest speed expected, the
   shell's speed plus a fall across the mill, v_max = omega R + sqrt(4 g R); new contacts are looked
   for every t_c / 8 (none ends unseen) and take the ball's velocity from the check before
@@ -34,6 +36,7 @@ from typing import Optional
 from ..errors import InputError
 from .mill_contact import GRAVITY, critical_omega, critical_rpm, hertz_contact_time, scene_restitution
 from .mill_geometry import MillProfile, build_profile
+from .mill_law import LAW_SCRIPT, MillLaw, check_law_ball, read_mill_law
 
 #: allowed ranges of the options (the issue's: speed fraction in (0, 2], fill in [0.05, 0.5])
 SPEED_FRACTION_RANGE = (0.0, 2.0)
@@ -69,6 +72,8 @@ class MillOptions:
     warmup: float = 1.0
     thickness: float = 2.0
     seed: int = 0
+    law: Optional[str] = None
+    law_every: Optional[int] = None
 
 
 def check_mill_options(opts: MillOptions) -> None:
@@ -102,6 +107,13 @@ def check_mill_options(opts: MillOptions) -> None:
         e = finite("--restitution", opts.restitution)
         if not 0.0 < e <= 1.0:
             raise InputError(f"--restitution {e:g}: must lie in (0, 1]")
+    if opts.law is not None and opts.restitution is not None:
+        raise InputError("--law and --restitution: give one of them (the exported law sets each contact's restitution)")
+    if opts.law is not None and opts.friction is not None:
+        raise InputError("--law and --friction: give one of them (the exported law carries the table's friction)")
+    if opts.law_every is not None and (isinstance(opts.law_every, bool) or not isinstance(opts.law_every, int)
+                                       or not 1 <= opts.law_every <= 1000):
+        raise InputError(f"--law-every {opts.law_every!r}: must be an integer in [1, 1000] (steps)")
     if opts.friction is not None:
         mu = finite("--friction", opts.friction)
         if not 0.0 <= mu <= 2.0:
@@ -146,6 +158,8 @@ class MillSetup:
     energy_samples: int = 50
     trace_balls: tuple[int, ...] = ()
     trace_every: int = 0
+    law: Optional[MillLaw] = None
+    law_every: int = 0
 
     @property
     def n_balls(self) -> int:
@@ -172,6 +186,8 @@ class MillSetup:
             "snapshot_every_s": self.period_s / self.snapshots_per_revolution,
             "energy_samples": self.energy_samples,
             "trace_balls": list(self.trace_balls), "trace_every": self.trace_every,
+            "law": None if self.law is None else {"file": LAW_SCRIPT, "every": self.law_every,
+                                                  "stiffness_scale": self.stiffness_scale},
         }
 
 
@@ -228,28 +244,45 @@ def plan_mill(scene, opts: MillOptions, restitution_source: Optional[str] = None
         n = ball_count(profile, r, thickness, opts.fill if opts.fill is not None else 0.1)
     positions = lattice_positions(profile, r, thickness, n, opts.seed)
     omega = opts.speed_fraction * critical_omega(R)
-    if opts.restitution is not None:
-        e, src = float(opts.restitution), restitution_source or "--restitution"
-    else:
-        e, src = scene_restitution(scene, omega * R)
-    mu = float(opts.friction) if opts.friction is not None else float(scene.contact.friction)
     k = float(opts.stiffness_scale)
     bm, lm = ball.material, liner.material
-    E_b, E_l = bm.youngs_modulus * k, lm.youngs_modulus * k
-    e_bb = 1.0 / (2.0 * (1.0 - bm.poisson**2) / E_b)
-    e_bl = 1.0 / ((1.0 - bm.poisson**2) / E_b + (1.0 - lm.poisson**2) / E_l)
+    law = None
+    if opts.law is not None:
+        law = read_mill_law(opts.law)
+        check_law_ball(law, r)
+        lo, hi = law.restitution_range
+        e, src = 0.5 * (lo + hi), (f"the exported law {law.folder}: e_n {lo:.3g}-{hi:.3g} per ball-liner contact "
+                                   f"from its impact speed ({min(law.speeds):g}-{max(law.speeds):g} m/s) and "
+                                   "angle, the table's median damping between balls")
+        mu = law.friction
+        E_b = E_l = law.young * k
+        nu_b = nu_l = law.poisson
+        # the runtime's k_no = (4/3) E* r^(1/2): a flat liner, R* = r
+        e_bl, r_bl = law.e_star_max * k, r
+    else:
+        if opts.restitution is not None:
+            e, src = float(opts.restitution), restitution_source or "--restitution"
+        else:
+            e, src = scene_restitution(scene, omega * R)
+        mu = float(opts.friction) if opts.friction is not None else float(scene.contact.friction)
+        E_b, E_l = bm.youngs_modulus * k, lm.youngs_modulus * k
+        nu_b, nu_l = bm.poisson, lm.poisson
+        e_bl = 1.0 / ((1.0 - nu_b**2) / E_b + (1.0 - nu_l**2) / E_l)
+        # Yade's facet contact takes the facet as a sphere of radius 2 r: R* = 2 r / 3
+        r_bl = 2.0 * r / 3.0
+    e_bb = 1.0 / (2.0 * (1.0 - nu_b**2) / E_b)
     v_max = omega * R + math.sqrt(4.0 * GRAVITY * R)
     m = ball.mass
-    # Yade's facet contact takes the facet as a sphere of radius 2 r: R* = 2 r / 3
-    t_c = min(hertz_contact_time(0.5 * m, 0.5 * r, e_bb, v_max), hertz_contact_time(m, 2.0 * r / 3.0, e_bl, v_max))
+    t_c = min(hertz_contact_time(0.5 * m, 0.5 * r, e_bb, v_max), hertz_contact_time(m, r_bl, e_bl, v_max))
     dt = t_c / STEPS_PER_CONTACT
     check_every = max(1, round(STEPS_PER_CONTACT / CHECKS_PER_CONTACT))
     period = 2.0 * math.pi / omega
     return MillSetup(
         scene_name=scene.name, profile=profile, ball_radius=r, ball_mass=m,
-        ball_material=(E_b, bm.poisson, bm.density), liner_material=(E_l, lm.poisson, lm.density),
+        ball_material=(E_b, nu_b, bm.density), liner_material=(E_l, nu_l, lm.density),
         thickness=thickness, positions=tuple(positions), speed_fraction=opts.speed_fraction, omega=omega,
         critical_rpm=critical_rpm(2.0 * R), restitution=e, restitution_source=src, friction=mu,
         stiffness_scale=k, dt=dt, check_every=check_every, power_every=check_every,
         warmup_s=opts.warmup * period, run_s=opts.revolutions * period, revolutions=opts.revolutions,
-        fill=opts.fill if opts.balls is None else None, contact_time_s=t_c, v_max=v_max)
+        fill=opts.fill if opts.balls is None else None, contact_time_s=t_c, v_max=v_max,
+        law=law, law_every=0 if law is None else (opts.law_every or check_every))

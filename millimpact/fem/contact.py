@@ -77,11 +77,14 @@ def tangent_basis(n: np.ndarray) -> np.ndarray:
 
 
 def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
-                   friction: Optional[bool] = None) -> ContactSet:
+                   friction: Optional[bool] = None, ball_offset=None) -> ContactSet:
     """Build the contact constraint rows of a model (collective) at its impact point and contact
     normal; candidates within ``radius`` (m; default 2.5 a_max, inside the plan's zone) of the
     contact axis; with ``friction`` (default: the plan's coefficient > 0) also the tangential
-    rows."""
+    rows. ``ball_offset`` (m, a vector in the face's plane; repeated impacts at a shifted place,
+    :mod:`millimpact.repeat`): the ball stands at its meshed place shifted by it, so each slave
+    node's master point is the face point below the shifted node, p_i = x_i + d - ((x_i - p) . n) n
+    (the ball's displacement is then measured from the shifted place)."""
     V = model.V
     comm = model.comm
     mesh = V.mesh
@@ -142,6 +145,9 @@ def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
 
     # master side: the block's face point below each slave node, found on whichever rank owns it
     proj = points - np.outer(g0, n)                      # on the face
+    if ball_offset is not None:
+        d_t = np.asarray(ball_offset, dtype=float)
+        proj = proj + (d_t - (d_t @ n) * n)[None, :]
     face_points = proj - 1e-9 * plan.h_contact * n       # just inside the block
     cells = locate_points(V, face_points, model.block_cells)
     block_face_dofs = []

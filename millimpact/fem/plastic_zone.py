@@ -157,6 +157,30 @@ class PlasticZone:
         if self.comm.allreduce(changed, op=MPI.LOR):
             self.version += 1
 
+    def get_state(self) -> dict[str, np.ndarray]:
+        """The committed plastic state of this rank: ``plastic_strain_<k>`` (n, 6, Mandel) and
+        ``alpha_<k>`` (n,) per zone k, copies (a repeated impact's stored state,
+        :mod:`millimpact.repeat.sequence`)."""
+        out = {}
+        for k in range(len(self.zones)):
+            out[f"plastic_strain_{k}"] = self.plastic_strain[k].copy()
+            out[f"alpha_{k}"] = self.alpha[k].copy()
+        return out
+
+    def set_state(self, state) -> None:
+        """Make ``state`` (of :meth:`get_state`, on the same mesh and ranks) the committed state;
+        the outputs cached for the old state are dropped (collective: the version is bumped)."""
+        for k in range(len(self.zones)):
+            ep, a = np.asarray(state[f"plastic_strain_{k}"], float), np.asarray(state[f"alpha_{k}"], float)
+            if ep.shape != self.plastic_strain[k].shape or a.shape != self.alpha[k].shape:
+                raise ValueError(f"plastic state of zone {k}: shapes {ep.shape}, {a.shape} do not fit the zone's "
+                                 f"{self.plastic_strain[k].shape}, {self.alpha[k].shape} (another mesh or rank count)")
+            self.plastic_strain[k], self.alpha[k] = ep.copy(), a.copy()
+        self._trial = None
+        self._stress = [None] * len(self.zones)
+        self._cache = {}
+        self.version += 1
+
     # --- operators ----------------------------------------------------------------------------
     def force_correction(self):
         """f_c = int_zone B^T (sigma - C eps) dV (N, a PETSc Vec of V; zero on Dirichlet rows)."""
@@ -338,6 +362,21 @@ class PlasticZone:
         if not cells:
             return np.zeros(0, np.int32), np.zeros(0), np.zeros(0)
         return np.concatenate(cells), np.concatenate(alpha), np.concatenate(vm)
+
+    def max_rotation(self, u_vec) -> float:
+        """The largest infinitesimal rotation |w| (rad), w the axial vector of the skew part of
+        grad u, over the zone's quadrature points for the displacement ``u_vec`` (global): the
+        small-strain model needs it well below 1 (DESIGN.md 10)."""
+        if not hasattr(self, "_rotation"):
+            g = ufl.grad(self.u)
+            w = ufl.as_vector([g[2, 1] - g[1, 2], g[0, 2] - g[2, 0], g[1, 0] - g[0, 1]]) * 0.5
+            self._rotation = fem.Expression(w, basix.make_quadrature(basix.CellType.tetrahedron, self.q_degree)[0])
+        self._set_displacement(u_vec)
+        local = 0.0
+        for c in self.cells:
+            if len(c):
+                local = max(local, float(np.linalg.norm(self._rotation.eval(c).reshape(-1, 3), axis=1).max()))
+        return self.comm.allreduce(local, op=MPI.MAX)
 
     def max_equivalent_plastic_strain(self) -> float:
         """Largest committed alpha over all zones and ranks."""

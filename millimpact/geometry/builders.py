@@ -62,7 +62,7 @@ logger = logging.getLogger(__name__)
 
 
 #: bump when the builders change what they produce: part of the mesh cache key
-BUILDER_VERSION = 1
+BUILDER_VERSION = 2   # 2: a liner's zone spheres on a plate or lifter top have their poles on the normal
 
 BALL_ZONE, BALL_REGION, BLOCK_ZONE, BLOCK_REGION = 1, 2, 3, 4
 BALL_CONTACT, BLOCK_CONTACT, BALL_INTERFACE, BLOCK_INTERFACE = 11, 12, 13, 14
@@ -216,12 +216,58 @@ def keep_box(planes: Sequence[str], x_p: float, z_p: float, scale: float, lo: Se
     return gmsh.model.occ.addBox(x0, y0, z0, x1 - x0, y1 - y0, z1 - z0)
 
 
+#: a zone sphere keeps OCC's z axis as its polar axis when its poles are at least this far (deg)
+#: from the struck surface's tangent plane (|n_z| >= sin of it: a lifter face, n_z ~ 0.94 for
+#: liner-segment, keeps the mesh it had); nearer, its poles are turned onto the normal (:func:`zone_axis`)
+ZONE_POLE_MIN_ANGLE = 45.0
+
+
+def zone_axis(normal: Vec3) -> Optional[Vec3]:
+    """The polar axis for a zone sphere on a surface of unit outward ``normal``: None (OCC's z) if
+    the z poles are at least :data:`ZONE_POLE_MIN_ANGLE` from the tangent plane (asin |n_z|),
+    else the normal (the poles 90 deg from it: :func:`orient_poles`)."""
+    norm = math.sqrt(sum(c * c for c in normal))
+    if abs(normal[2]) >= math.sin(math.radians(ZONE_POLE_MIN_ANGLE)) * norm:
+        return None
+    return tuple(normal)
+
+
+def orient_poles(sphere: int, centre: Vec3, axis: Vec3) -> None:
+    """Rotate the OCC sphere ``sphere`` about its ``centre`` so that its poles lie on ``axis``.
+
+    An OCC sphere is parametrized by longitude and latitude about the z axis; its poles (centre +-
+    r e_z) are singular points of that map. A zone sphere centred on a surface whose normal is
+    nearly perpendicular to z (a liner's plate: n ~ e_y) has a pole next to that surface: the
+    surface cuts a sliver off the sphere's cap (at a plate impact 0.175 m from the lifter of
+    liner-segment, with a zone of 24.2 mm, a 0.82 mm edge beside the pole) and gmsh's 2D mesher
+    aborted the process ("The 1D mesh seems not to be forming a closed loop", a C++ exception
+    Python cannot catch; issue 34). With the poles on the contact normal the surface cuts the
+    sphere near its equator, as far from both poles as it can be. The sphere itself is unchanged.
+    """
+    ex, ey, ez = axis
+    norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if not norm > 0:
+        raise MeshError(f"zone sphere axis {tuple(axis)}: must be a nonzero vector")
+    ex, ey, ez = ex / norm, ey / norm, ez / norm
+    # rotation taking e_z to the axis: about e_z x axis = (-ey, ex, 0), by angle acos(ez)
+    kx, ky = -ey, ex
+    angle = math.atan2(math.hypot(kx, ky), ez)
+    if math.hypot(kx, ky) < 1e-12:
+        if ez > 0:
+            return
+        kx, ky = 1.0, 0.0            # the axis is -z: half a turn about x (the poles swap)
+    gmsh.model.occ.rotate([(3, sphere)], *centre, kx, ky, 0.0, angle)
+
+
 def split_body(body: int, point: Vec3, zone_radius: float, keep: Optional[int],
-                name: str) -> tuple[list[int], list[int], int]:
+                name: str, axis: Optional[Vec3] = None) -> tuple[list[int], list[int], int]:
     """Cut ``body`` by the symmetry box ``keep``, then fragment it with the zone sphere (radius m,
     centred at the contact ``point``) and the point itself. Returns (zone volumes, region volumes,
     the point's gmsh tag). Pieces are identified through OCC's fragment history (which input each
-    output came from) and checked by their OCC volumes."""
+    output came from) and checked by their OCC volumes.
+
+    ``axis``: the zone sphere's polar axis (:func:`orient_poles`; None keeps OCC's z axis):
+    :func:`zone_axis` of the contact normal keeps the poles away from the body's surface."""
     occ = gmsh.model.occ
     if keep is not None:
         out, _ = occ.intersect([(3, body)], [(3, keep)])
@@ -231,6 +277,8 @@ def split_body(body: int, point: Vec3, zone_radius: float, keep: Optional[int],
         body = vols[0]
     full = occ.getMass(3, body)
     sphere = occ.addSphere(*point, zone_radius)
+    if axis is not None:
+        orient_poles(sphere, point, axis)
     pt = occ.addPoint(*point)
     out, children = occ.fragment([(3, body)], [(3, sphere), (0, pt)])
     from_body = {t for d, t in children[0] if d == 3}

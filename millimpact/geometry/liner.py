@@ -16,7 +16,7 @@ from ..scene.schema import Vec3
 
 logger = logging.getLogger(__name__)
 
-from .builders import (BACKING, BALL_CONTACT, BALL_SURFACE, BLOCK_CONTACT, BLOCK_SURFACE, SUPPORT, SYM_X, MeshSizes, ModelInfo, on_plane, surface_samples, symmetry_tag, check_zone_fits, generate_mesh, keep_box, polygon_face, positive_size, run_gmsh, size_field, split_body, tag_groups)
+from .builders import (BACKING, BALL_CONTACT, BALL_SURFACE, BLOCK_CONTACT, BLOCK_SURFACE, SUPPORT, SYM_X, MeshSizes, ModelInfo, on_plane, surface_samples, symmetry_tag, check_zone_fits, generate_mesh, keep_box, polygon_face, positive_size, run_gmsh, size_field, split_body, tag_groups, zone_axis)
 
 
 # --- the liner model -----------------------------------------------------------------------------
@@ -49,10 +49,10 @@ def build_liner_model(liner: LinerShape, sizes: MeshSizes, *, lifter: int = 0, f
         check_zone_fits("ball", sizes.zone_radius, ball_radius)
         ball = (ball_radius, tuple(p + (ball_radius + gap) * n for p, n in zip(point, normal)),
                 tuple(p + gap * n for p, n in zip(point, normal)))
-    return run_gmsh(lambda: _liner(liner, sizes, point, ball, planes, generate))
+    return run_gmsh(lambda: _liner(liner, sizes, point, normal, ball, planes, generate))
 
 
-def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, generate) -> ModelInfo:
+def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, normal: Vec3, ball, planes, generate) -> ModelInfo:
     occ = gmsh.model.occ
     L, w, t, R = liner.length, liner.width, liner.thickness, liner.mill_radius
     x0 = -0.5 * L
@@ -102,12 +102,16 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, ball, planes, gener
         if common > 1e-9 * rb**3:
             raise MeshError(f"ball_radius = {rb:g} m: the ball overlaps the liner at this contact point "
                             "(choose a smaller ball, a larger gap or a point higher on the lifter face)")
+    # the zone spheres' poles on the contact normal where OCC's z axis would put one next to the
+    # surface (a plate or lifter top, whose normal is ~ y: builders.zone_axis, orient_poles)
+    axis = zone_axis(normal)
     zone, region, v_liner = split_body(body, point, sizes.zone_radius, keep_box(planes, point[0], 0.0, scale, lo, hi),
-                                        "liner")
+                                        "liner", axis=axis)
     ball_zone, ball_region, v_ball = [], [], None
     if ball is not None:
         ball_zone, ball_region, v_ball = split_body(sphere, ball[2], sizes.zone_radius,
-                                                     keep_box(planes, point[0], 0.0, scale, lo, hi), "ball")
+                                                     keep_box(planes, point[0], 0.0, scale, lo, hi), "ball",
+                                                     axis=axis)
     occ.synchronize()
     tol = 1e-9 * scale
 

@@ -106,6 +106,28 @@ class PlasticNewmarkScheme(NewmarkScheme):
         self._yielded_last = True     # the first step evaluates the zone at u_0
         self._held = None             # a factorized tangent kept for reuse: (dt, dK, A_t, ksp, W)
 
+    def initialize(self, u0: PETSc.Vec, v0: PETSc.Vec) -> None:
+        """Newmark's start with the zone's frozen plastic force: M a0 = -K u0 - f_c(u0). A start
+        from a plastic state (a repeated impact from its residual state K u_res = -f_frozen, or a
+        state handed back by the closed-form free phase) is otherwise accelerated by f_frozen;
+        with no plastic strain f_c = 0 and the start is Newmark's. The force joins the start's
+        load (f_ext) for that one mass solve."""
+        f = self.zone.frozen_force()
+        if f.norm() == 0.0:
+            f.destroy()
+            super().initialize(u0, v0)
+            return
+        f.scale(-1.0)
+        saved = self.sys.f_ext
+        if saved is not None:
+            f.axpy(1.0, saved)
+        self.sys.f_ext = f
+        try:
+            super().initialize(u0, v0)
+        finally:
+            self.sys.f_ext = saved
+            f.destroy()
+
     # --- one step -------------------------------------------------------------------------------
     def step(self, dt: float, t_new: float, step: int, allow_reject: bool) -> bool:
         op = self._ops(dt)

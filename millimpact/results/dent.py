@@ -78,8 +78,34 @@ def residual_dent(model: FEModel, zone, plan: Plan, reduced=None) -> dict[str, A
     """Summary keys of the dent: depth (m), radius (m) and the profile (for the figure);
     ``reduced``: see :func:`residual_displacement`."""
     u = residual_displacement(model, zone, reduced)
-    r, d = dent_profile(model, u, plan)
+    keys = dent_of(model, u, plan)
+    keys["max_residual_rotation_rad"] = zone.max_rotation(u)
     u.destroy()
+    return keys
+
+
+#: small-strain J2 (the model's) stops being a good approximation past this equivalent plastic
+#: strain (DESIGN.md 10): beyond it the change of geometry under the ball and the difference
+#: between stress measures reach several percent
+SMALL_STRAIN_LIMIT = 0.1
+
+
+def small_strain_note(max_plastic_strain: float, max_rotation: float, where: str = "of the residual state") -> str:
+    """One note line: the largest equivalent plastic strain and rotation (rad), and whether the
+    small-strain model holds (a warning past SMALL_STRAIN_LIMIT)."""
+    text = (f"small strain: largest equivalent plastic strain {max_plastic_strain:.3g}, largest rotation {where} "
+            f"{max_rotation:.3g} rad")
+    if max_plastic_strain > SMALL_STRAIN_LIMIT:
+        return (text + f"; WARNING: past {SMALL_STRAIN_LIMIT:g}, where the small-strain J2 model stops being a good "
+                "approximation (no change of geometry under the ball, no finite-strain stress measure): the dent, "
+                "plastic work and restitution are estimates there, a finite-strain model is needed to trust them")
+    return text + f"; within the small-strain model's range (plastic strain < {SMALL_STRAIN_LIMIT:g})"
+
+
+def dent_of(model: FEModel, u_res, plan: Plan) -> dict[str, Any]:
+    """Summary keys of the dent of a residual displacement ``u_res`` (a model vector, m): depth,
+    radius (m) and the profile (module docstring)."""
+    r, d = dent_profile(model, u_res, plan)
     depth = float(d[0]) if len(d) else 0.0
     radius = 0.0
     if depth > 0:
@@ -149,6 +175,8 @@ def plastic_report(model: FEModel, zone, plan: Plan, stats, reduced=None) -> tup
 
     notes = [plastic_notes(zone, stats, model.sym_factor)]
     keys = residual_dent(model, zone, plan, reduced)
+    keys["max_equivalent_plastic_strain_final"] = zone.max_equivalent_plastic_strain()
+    notes.append(small_strain_note(keys["max_equivalent_plastic_strain_final"], keys["max_residual_rotation_rad"]))
     more_keys, more = zone_boundary_note(model, zone, plan)
     keys.update(more_keys)
     section = plastic_section(zone, plan, plan.h_contact)

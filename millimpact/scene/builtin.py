@@ -80,6 +80,30 @@ def _study_base() -> Scene:
     )
 
 
+#: the mill-regime block scenes (issue 32): a 125 mm ball, a liner-thick block backed by the shell
+MILL_BALL_RADIUS = 0.0625
+MILL_BLOCK = dict(length=0.250, thickness=0.075, height=0.250, support="back")
+
+
+def _mill_block(name: str, liner_material: str, what: str) -> Scene:
+    """A 125 mm forged ball at 8 m/s normal to a 75 mm liner plate of ``liner_material`` backed by
+    the shell (the back face clamped): the mill's regime on a block, for repeated impacts."""
+    block = Block(**MILL_BLOCK, material=coerce_value(Material, liner_material, "block.material"))
+    return Scene(
+        name=name,
+        description=(f"A 125 mm forged 60 HRC ball (Y 1.9 GPa) at 8 m/s normal to a 75 mm {what} liner plate, "
+                     "250 x 250 mm, clamped at its back (the shell). Balls of 100-150 mm strike SAG liners at "
+                     "3-13 m/s (100-580 J for 125 mm; DESIGN.md 10); the plate thickness is the liner-segment "
+                     "scene's shell plate (Royston 2007: 75-100 mm). Material values and sources: "
+                     "scene/materials.toml. Impact only (0.6 ms)."),
+        ball=Ball(radius=MILL_BALL_RADIUS, material=coerce_value(Material, "forged-ball-60hrc", "ball.material")),
+        block=block,
+        impact=Impact(velocity=(0.0, -8.0, 0.0)),
+        gauges=_default_gauges(block, MILL_BALL_RADIUS),
+        time=TimeSpan(end=0.6e-3),
+    )
+
+
 #: the liner-segment scene's impact: speed (m/s) and angle (deg) between the velocity and the lifter
 #: face's inward normal, in the plane of incidence x = 0 (the ball comes down along the face)
 LINER_IMPACT_SPEED = 8.0
@@ -205,6 +229,9 @@ BUILTIN_SCENES = {
     "study-base": _study_base,
     "liner-segment": _liner_segment,
     "liner-panel": _liner_panel,
+    "mill-crmo": lambda: _mill_block("mill-crmo", "cr-mo-liner", "Cr-Mo steel (Y 0.95 GPa)"),
+    "mill-hadfield": lambda: _mill_block("mill-hadfield", "hadfield-mn-liner",
+                                         "Hadfield manganese steel (Y 380 MPa, strong hardening)"),
 }
 DEFAULT_SCENE = "paper-rig"
 
@@ -239,6 +266,10 @@ BUILTIN_STUDIES = {
                         "above 20 mm the stress changes greatly and the peak acceleration comes earlier."),
     "velocity-plastic": StudySpec("velocity-plastic", "paper-rig-plastic", "impact.velocity",
                                   (0.1, 0.3, 1.0, 3.0, 10.0), "v", (0.1, 0.3, 1.0, 3.0, 10.0), "m/s", ""),
+    "mill-crmo": StudySpec("mill-crmo", "mill-crmo", "impact.velocity", (3.0, 5.0, 8.0, 13.0), "v",
+                           (3.0, 5.0, 8.0, 13.0), "m/s", ""),
+    "mill-hadfield": StudySpec("mill-hadfield", "mill-hadfield", "impact.velocity", (3.0, 5.0, 8.0, 13.0), "v",
+                               (3.0, 5.0, 8.0, 13.0), "m/s", ""),
     "thickness": StudySpec("thickness", "study-base", "block.thickness", (0.030, 0.040, 0.050),
                            "b", (30.0, 40.0, 50.0), "mm",
                            "(5) displacement and acceleration grow with b, stress amplitude falls; above "

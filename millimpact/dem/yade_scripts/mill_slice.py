@@ -8,7 +8,9 @@
 # members of one clump that RotationEngine turns about z at omega (rad/s, counter-clockwise).
 # Frictionless walls close the slice at z = 0 and z = L. Balls: Hertz-Mindlin
 # (Law2_ScGeom_MindlinPhys_Mindlin), restitution parameter en_yade, Coulomb friction mu with the
-# liner and between balls. Gravity -g along y.
+# liner and between balls; or, with "law" in INPUT.json, an exported law (contact_law_yade.py of
+# millimpact export --to yade): its materials' labels, millimpact_ip2() and its per-contact runner
+# every law["every"] steps. Gravity -g along y.
 #
 # Every `check_every` steps, each ball-liner interaction made real since the previous check, with
 # a part of the liner (a plate between two lifters, a lifter face, a lifter top) the ball was not
@@ -35,10 +37,21 @@ ball = cfg["ball"]
 liner = cfg["liner"]
 r = ball["radius_m"]
 
+law_cfg = cfg.get("law")
+if law_cfg:
+    # an exported law (millimpact export --to yade): its file defines MILLIMPACT_LAW and the runtime
+    # (millimpact_ip2, millimpact_update, ...); its moduli are scaled as the scene's would be (the
+    # restitution depends on the damping ratio alone), the materials carry its labels
+    exec(open(law_cfg["file"]).read())
+    _k = law_cfg["stiffness_scale"]
+    MILLIMPACT_LAW["e_star_Pa"] = [[_k * x for x in row] for row in MILLIMPACT_LAW["e_star_Pa"]]
+    liner_label, ball_label = MILLIMPACT_LAW["yade"]["liner_material"], MILLIMPACT_LAW["yade"]["ball_material"]
+else:
+    liner_label, ball_label = "liner", "ball"
 O.materials.append(FrictMat(young=liner["young_Pa"], poisson=liner["poisson"], density=liner["density_kg_m3"],
-                            frictionAngle=math.atan(cfg["friction"]), label="liner"))
+                            frictionAngle=math.atan(cfg["friction"]), label=liner_label))
 O.materials.append(FrictMat(young=ball["young_Pa"], poisson=ball["poisson"], density=ball["density_kg_m3"],
-                            frictionAngle=math.atan(cfg["friction"]), label="ball"))
+                            frictionAngle=math.atan(cfg["friction"]), label=ball_label))
 O.materials.append(FrictMat(young=liner["young_Pa"], poisson=liner["poisson"], density=liner["density_kg_m3"],
                             frictionAngle=0.0, label="end"))
 
@@ -47,7 +60,7 @@ facets, facet_part = [], []
 for x0, y0, x1, y1, part in cfg["segments"]:
     a, b, c, d = (x0, y0, 0.0), (x1, y1, 0.0), (x1, y1, L), (x0, y0, L)
     for tri in ((a, b, c), (a, c, d)):
-        f = utils.facet(tri, material="liner", fixed=True)
+        f = utils.facet(tri, material=liner_label, fixed=True)
         # a clump needs members with mass; the clump is not dynamic, so these values do not act
         f.state.mass, f.state.inertia = 1.0, (1.0, 1.0, 1.0)
         facets.append(f)
@@ -58,17 +71,25 @@ part_of = dict(zip(member_ids, facet_part))
 end_ids = [O.bodies.append(utils.wall(0.0, axis=2, sense=1, material="end")),
            O.bodies.append(utils.wall(L, axis=2, sense=-1, material="end"))]
 
-ball_ids = [O.bodies.append(utils.sphere(tuple(p), r, material="ball")) for p in cfg["ball_positions"]]
+ball_ids = [O.bodies.append(utils.sphere(tuple(p), r, material=ball_label)) for p in cfg["ball_positions"]]
 mass = O.bodies[ball_ids[0]].state.mass
 inertia = O.bodies[ball_ids[0]].state.inertia[0]
 is_ball = set(ball_ids)
 
+if law_cfg:
+    ip2 = millimpact_ip2()
+    # the law's update right after the InteractionLoop (its notes), every law_cfg["every"] steps
+    law_runner = [millimpact_law_runner()]
+    law_runner[0].iterPeriod = int(law_cfg["every"])
+else:
+    ip2 = Ip2_FrictMat_FrictMat_MindlinPhys(en=MatchMaker(algo="val", val=cfg["en_yade"]))
+    law_runner = []
 O.engines = [
     ForceResetter(),
     InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Facet_Aabb(), Bo1_Wall_Aabb()], label="collider"),
     InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Facet_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
-                    [Ip2_FrictMat_FrictMat_MindlinPhys(en=MatchMaker(algo="val", val=cfg["en_yade"]))],
-                    [Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=True, label="law")]),
+                    [ip2], [Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=True, label="law")]),
+    *law_runner,
     RotationEngine(rotateAroundZero=True, zeroPoint=(0, 0, 0), rotationAxis=(0, 0, 1), angularVelocity=omega,
                    ids=[clump_id], label="turn"),
     # no numerical damping (Yade's default is 0.2): the contact law's en is then the restitution
@@ -232,6 +253,7 @@ for fh in (impacts_fh, charge_fh, energy_fh, trace_fh):
 json.dump({"steps": O.iter, "time_s": O.time, "dt_s": O.dt, "wall_s": time.time() - wall0,
            "cpu_s": time.process_time() - cpu0, "balls": len(ball_ids), "facets": len(member_ids),
            "impacts_logged": state["n_impacts"], "ball_mass_kg": mass, "power_every": power_every,
-           "check_every": check_every},
+           "check_every": check_every,
+           "law_every": int(law_cfg["every"]) if law_cfg else 0},
           open("run.json", "w"), indent=1)
 print("PROGRESS 1.0000 done", flush=True)

@@ -1,0 +1,174 @@
+"""``millimpact repeat``: N impacts at one spot, each from the previous one's residual state."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Optional, Sequence
+
+HELP = "repeated impacts at one spot: restitution, dent and plastic work per impact; shakedown or ratcheting"
+
+DESCRIPTION = """\
+Run N impacts of SCENE's ball at one spot, each starting from the previous impact's residual state
+(plastic strain, hardening, residual stress and the dent, which the next contact sees); the ball is
+launched again each time. One mesh and one reduction serve the whole sequence. Writes impacts.csv
+(one row per impact), restitution.png and dent.png against the impact number, and summary.json /
+summary.txt with the verdict (elastic shakedown, plastic shakedown, ratcheting or undecided) and its
+numbers. Each finished impact is kept in DIR/impacts/: an interrupted sequence keeps them and the
+same command continues it.
+
+--velocities and --angles take one value (every impact) or one per impact. --offset DX,DY (m, the
+face coordinates of impact.point): the even impacts land shifted by it from the odd ones.
+
+Examples:
+  millimpact repeat paper-rig-plastic --impacts 5 --out out/repeat
+  millimpact repeat paper-rig-plastic --impacts 10 --velocities 3 --offset 0.0006,0 --out out/repeat-offset
+  millimpact repeat paper-rig-plastic --impacts 3 --velocities 2,3,4 --set model.h_contact=0.0006 --out out/r
+"""
+
+METHODS = ("improved", "traditional", "modal-p2", "full")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig-plastic)")
+    p.add_argument("--impacts", type=int, required=True, metavar="N", help="number of impacts (>= 1)")
+    p.add_argument("--velocities", metavar="V1,...", help="impact speeds, m/s: one, or one per impact "
+                                                          "(default the scene's speed)")
+    p.add_argument("--angles", metavar="A1,...", help="angles from the face normal, deg in [0, 90): one, or one "
+                                                      "per impact (default the scene's)")
+    p.add_argument("--offset", metavar="DX,DY", help="the even impacts' shift from the odd ones on the face, m "
+                                                     "(impact.point's coordinates; default none)")
+    p.add_argument("--method", default="improved", help="improved (default), traditional, modal-p2 or full")
+    p.add_argument("--out", required=True, help="output folder (its finished impacts are reused)")
+    p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="override a scene field")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+
+
+def parse_numbers(text: Optional[str], option: str, n: int, default: float) -> list[float]:
+    """One number or ``n`` comma-separated numbers of ``option`` as a list of ``n``."""
+    from ..errors import InputError
+
+    if text is None:
+        return [default] * n
+    try:
+        vals = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise InputError(f"{option} {text!r}: give numbers separated by commas") from None
+    if len(vals) == 1:
+        return vals * n
+    if len(vals) != n:
+        raise InputError(f"{option} {text!r}: {len(vals)} values for --impacts {n}; give one or {n}")
+    return vals
+
+
+def build_impacts(scene, n: int, velocities: Optional[str], angles: Optional[str], offset: Optional[str]):
+    """The sequence's ImpactSpecs from the command line (one InputError line for a bad one)."""
+    import numpy as np
+
+    from ..errors import InputError
+    from .sequence import ImpactSpec
+
+    if n < 1:
+        raise InputError(f"--impacts {n}: must be at least 1")
+    v = np.asarray(scene.impact.velocity, float)
+    nrm = np.asarray(scene.contact_normal, float)
+    v_n = -float(v @ nrm)
+    angle0 = math.degrees(math.atan2(float(np.linalg.norm(v + v_n * nrm)), v_n))
+    speeds = parse_numbers(velocities, "--velocities", n, scene.impact.speed)
+    angs = parse_numbers(angles, "--angles", n, round(angle0, 12))
+    shift = (0.0, 0.0)
+    if offset is not None:
+        d = parse_numbers(offset, "--offset", 2, 0.0)
+        if len(offset.split(",")) != 2 or not all(math.isfinite(x) for x in d):
+            raise InputError(f"--offset {offset!r}: give DX,DY in m")
+        shift = (d[0], d[1])
+    return [ImpactSpec(speeds[k], angs[k], shift if k % 2 else (0.0, 0.0)) for k in range(n)]
+
+
+def parse_options(items: Sequence[str]) -> dict:
+    from ..errors import InputError
+    from ..integration.solvers import check_type_options
+    from ..scene.schema import parse_value
+
+    options = {}
+    for o in items:
+        k, sep, v = o.partition("=")
+        if not sep or not k.strip():
+            raise InputError(f"--option {o!r}: expected KEY=VALUE (e.g. --option modes=20)")
+        options[k.strip()] = parse_value(v)
+    check_type_options(options)
+    return options
+
+
+def apply_sets(scene, sets: Sequence[str]):
+    from ..errors import InputError
+    from ..scene.schema import parse_value
+
+    for assignment in sets:
+        key, sep, value = assignment.partition("=")
+        if not sep or not key.strip():
+            raise InputError(f"--set {assignment!r}: expected FIELD=VALUE (e.g. --set model.h_far=0.008)")
+        scene = scene.with_value(key.strip(), parse_value(value))
+    return scene
+
+
+def main(args: argparse.Namespace) -> int:
+    from mpi4py import MPI
+
+    from ..console import say
+    from ..errors import InputError
+    from ..results.output_folder import MARKER, is_millimpact_output, prepare_output, write_marker
+    from ..scene.builtin import resolve_scene
+    from .report import verdict_text, write_sequence
+    from .sequence import check_impacts, run_sequence
+    from .verdict import classify
+
+    comm = MPI.COMM_WORLD
+    if args.method not in METHODS:
+        raise InputError(f"--method {args.method}: choose one of {', '.join(METHODS)}")
+    scene = apply_sets(resolve_scene(args.scene or "paper-rig-plastic"), args.set)
+    impacts = build_impacts(scene, args.impacts, args.velocities, args.angles, args.offset)
+    check_impacts(scene, impacts)
+    options = parse_options(args.option)
+    out = prepare_output(args.out)
+    if out.is_dir() and is_millimpact_output(out) and (out / MARKER).is_file():
+        kind = json.loads((out / MARKER).read_text()).get("kind")
+        if kind != "repeat":
+            raise InputError(f"--out {args.out}: holds another millimpact output ({kind}); give a new folder")
+    store = out / "impacts"
+    quiet = args.quiet or comm.rank != 0
+    if comm.rank == 0:
+        store.mkdir(parents=True, exist_ok=True)
+        write_marker(out, "repeat")
+        (out / "summary.json").unlink(missing_ok=True)   # complete again only when this sequence is
+    comm.barrier()
+    done_before = len(list(store.glob("impact-*.json")))
+    if not quiet:
+        say(f"repeat {scene.name}: {len(impacts)} impacts, method {args.method}"
+            + (f"; {done_before} finished impact file(s) in {store}" if done_before else ""))
+    try:
+        outcomes = run_sequence(scene, impacts, args.method, options, comm,
+                                progress=None if quiet else say, store_dir=store)
+    except KeyboardInterrupt as exc:
+        n = len(list(store.glob("impact-*.json")))
+        err = KeyboardInterrupt(f"{n} finished impact(s) kept in {store}; the same command continues the sequence; "
+                                f"{out} has no summary.json (incomplete)")
+        err.exit_code = getattr(exc, "exit_code", 130)
+        raise err from None
+    verdict = classify(outcomes)
+    if comm.rank == 0:
+        details = []
+        for k in range(1, len(outcomes) + 1):
+            try:
+                details.append(json.loads((store / f"impact-{k:03d}.json").read_text()).get("details", {}))
+            except (OSError, ValueError):
+                details.append({})
+        summary = write_sequence(out, scene, args.method, impacts, outcomes, verdict, details, {})
+        if not args.quiet:
+            say(verdict_text(verdict))
+            for note in summary["notes"]:
+                say(f"  note: {note}")
+            say(f"  results in {out}/ (impacts.csv, restitution.png, dent.png, summary.json, summary.txt)")
+    return 0

@@ -1,0 +1,151 @@
+"""What ``millimpact repeat`` writes: ``impacts.csv``, the figures, ``summary.json`` / ``summary.txt``.
+
+``impacts.csv``: one row per impact, the columns of
+:data:`millimpact.repeat.sequence.OUTCOME_COLUMNS` (SI; the unit is each name's suffix,
+restitutions and the plastic strain dimensionless), with a ``#`` header saying so.
+Figures: ``restitution.png`` (e_n, and e_t for oblique impacts, against the impact number),
+``dent.png`` (dent depth and the plastic work of each impact against the impact number).
+``summary.json``: the scene, method, impacts, the verdict (:func:`millimpact.repeat.verdict.classify`)
+with its numbers, per-impact details (energy balance, rotation, launch shift, wall time) and the
+small-strain note; written last, its presence marks a complete sequence.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .sequence import OUTCOME_COLUMNS, ImpactOutcome, ImpactSpec
+from .verdict import Verdict
+
+def small_strain_line(outcomes: Sequence[ImpactOutcome], rotations: Sequence[float]) -> str:
+    """One line: the sequence's largest plastic strain and rotation at a peak force, and whether
+    the small-strain model holds (:func:`millimpact.results.dent.small_strain_note`)."""
+    from ..results.dent import small_strain_note
+
+    eps = max((o.max_equivalent_plastic_strain for o in outcomes), default=0.0)
+    rot = max((r for r in rotations if r is not None and math.isfinite(r)), default=math.nan)
+    return small_strain_note(eps, rot, "at a peak force")
+
+
+def write_impacts_csv(path: Path, outcomes: Sequence[ImpactOutcome]) -> None:
+    """``impacts.csv`` (module docstring)."""
+    lines = ["# repeated impacts at one spot (millimpact repeat): one row per impact, SI units "
+             "(suffix of each name); restitutions and the equivalent plastic strain dimensionless; "
+             "the dent is the residual state's after the impact (cumulative), the plastic work the impact's own",
+             ",".join(OUTCOME_COLUMNS)]
+    for o in outcomes:
+        d = asdict(o)
+        lines.append(",".join(str(d[c]) if c == "impact" else f"{d[c]:.10g}" for c in OUTCOME_COLUMNS))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def read_impacts_csv(path: Path) -> list[ImpactOutcome]:
+    """The outcomes of an ``impacts.csv``."""
+    rows = [ln for ln in Path(path).read_text().splitlines() if ln and not ln.startswith("#")]
+    head = rows[0].split(",")
+    out = []
+    for ln in rows[1:]:
+        vals = dict(zip(head, ln.split(",")))
+        out.append(ImpactOutcome(**{c: (int(vals[c]) if c == "impact" else float(vals[c])) for c in OUTCOME_COLUMNS}))
+    return out
+
+
+def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -> list[str]:
+    """``restitution.png`` and ``dent.png`` (module docstring); returns their names."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    k = np.array([o.impact for o in outcomes])
+    e_n = np.array([o.restitution_normal for o in outcomes])
+    e_t = np.array([o.restitution_tangential for o in outcomes])
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(k, e_n, "o-", label="normal e_n")
+    if np.any(np.isfinite(e_t)):
+        ax.plot(k, e_t, "s--", label="tangential e_t")
+    ax.set_xlabel("impact number")
+    ax.set_ylabel("coefficient of restitution (-)")
+    ax.set_title(f"{title}: restitution")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(folder / "restitution.png", dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(k, [o.residual_dent_depth_m * 1e6 for o in outcomes], "o-", color="C0", label="dent depth")
+    ax.set_xlabel("impact number")
+    ax.set_ylabel("residual dent depth (um)", color="C0")
+    ax2 = ax.twinx()
+    ax2.plot(k, [o.plastic_dissipation_J * 1e3 for o in outcomes], "s--", color="C3", label="plastic work")
+    ax2.set_ylabel("plastic work of the impact (mJ)", color="C3")
+    ax2.set_ylim(bottom=0.0)
+    ax.set_ylim(bottom=0.0)
+    ax.set_title(f"{title}: dent and plastic work")
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(folder / "dent.png", dpi=120)
+    plt.close(fig)
+    return ["restitution.png", "dent.png"]
+
+
+def verdict_text(v: Verdict) -> str:
+    """One line: the verdict and its reason."""
+    return f"verdict: {v.kind}" + (f" from impact {v.impacts_to_shakedown}" if v.impacts_to_shakedown else "") + \
+        (f" ({v.numbers['reason']})" if "reason" in v.numbers else "")
+
+
+def write_sequence(folder: Path, scene, method: str, impacts: Sequence[ImpactSpec], outcomes: Sequence[ImpactOutcome],
+                   verdict: Verdict, details: Sequence[dict], extra: dict) -> dict[str, Any]:
+    """Write the sequence's files into ``folder`` (rank 0); ``summary.json`` last. Returns the summary."""
+    from .. import __version__
+    from ..scene.toml_io import dump_scene
+
+    folder = Path(folder)
+    write_impacts_csv(folder / "impacts.csv", outcomes)
+    figures = plot_sequence(folder, outcomes, f"{scene.name}, {method}")
+    (folder / "scene.toml").write_text(dump_scene(scene))
+    note = small_strain_line(outcomes, [d.get("max_rotation_at_peak_rad", math.nan) for d in details])
+    reached = [k for k, d in enumerate(details, 1) if d.get("zone_boundary_elastic") is False]
+    notes = [note]
+    if reached:
+        notes.append(f"WARNING: the plastic region reached the contact zone's boundary (where the model is linear) "
+                     f"in impact(s) {', '.join(map(str, reached))}: rerun with a larger --set model.zone_radius")
+    summary = {"millimpact_version": __version__, "scene": scene.name, "method": method,
+               "impacts": [{"speed_m_s": s.speed_m_s, "angle_deg": s.angle_deg, "offset_m": list(s.offset_m)}
+                           for s in impacts],
+               "verdict": {"kind": verdict.kind, "impacts_to_shakedown": verdict.impacts_to_shakedown,
+                           "numbers": verdict.numbers},
+               "outcomes": [asdict(o) for o in outcomes], "details": list(details),
+               "notes": notes, **extra, "files": sorted(["impacts.csv", "scene.toml", *figures])}
+    lines = [f"millimpact repeat {scene.name}, method {method}: {len(outcomes)} impacts",
+             verdict_text(verdict), *notes, "",
+             f"{'impact':>6} {'e_n':>7} {'F_max kN':>9} {'t_c us':>7} {'W_p mJ':>8} {'dent um':>8} {'eps_p':>6}"]
+    for o in outcomes:
+        lines.append(f"{o.impact:6d} {o.restitution_normal:7.4f} {o.peak_normal_force_N / 1e3:9.4g} "
+                     f"{o.contact_duration_s * 1e6:7.4g} {o.plastic_dissipation_J * 1e3:8.4g} "
+                     f"{o.residual_dent_depth_m * 1e6:8.4g} {o.max_equivalent_plastic_strain:6.3g}")
+    (folder / "summary.txt").write_text("\n".join(lines) + "\n")
+    tmp = folder / f".summary.{os.getpid()}.json"
+    tmp.write_text(json.dumps(_jsonable(summary), indent=1) + "\n")
+    os.replace(tmp, folder / "summary.json")
+    return summary
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x

@@ -1,0 +1,108 @@
+"""``millimpact repeat``: bad input, the verdict's rules, an interrupted sequence continued."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from conftest import ROOT, mpi_env, run_cli
+from millimpact.repeat.report import read_impacts_csv
+from millimpact.repeat.sequence import OUTCOME_COLUMNS, ImpactOutcome, classify
+
+COARSE = ["--set", "model.h_contact=8e-4", "--set", "model.h_far=0.012", "-q"]
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--impacts", "0"], "--impacts 0"),
+    (["--impacts", "3", "--velocities", "1,2"], "--velocities"),
+    (["--impacts", "2", "--angles", "10,20,30"], "--angles"),
+    (["--impacts", "2", "--offset", "0.05,0"], "leaves the face"),
+    (["--impacts", "2", "--offset", "0.001"], "--offset"),
+    (["--impacts", "2", "--velocities", "-1"], "speed"),
+    (["--impacts", "2", "--method", "hertz"], "--method"),
+])
+def test_bad_input_is_one_line_exit_2_and_no_folder(tmp_path, args, words):
+    out = tmp_path / "r"
+    r = run_cli("repeat", "paper-rig-plastic", *args, "--out", str(out))
+    assert r.returncode == 2, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and words in lines[0], r.stderr
+    assert not out.exists()
+
+
+def _outcomes(w, d):
+    return [ImpactOutcome(k + 1, 0.8, float("nan"), 1e4, 8e-5, wk, dk, 1e-3, 0.03) for k, (wk, dk) in enumerate(zip(w, d))]
+
+
+def test_verdicts_follow_their_definitions():
+    """Johnson (1985) ch. 9's three outcomes from plastic work and dent per impact."""
+    # plastic work below 1 % of the first's from impact 4 on: elastic shakedown there
+    v = classify(_outcomes([1.0, 0.2, 0.05, 0.009, 0.001], [10, 12, 12.5, 12.51, 12.511]))
+    assert v.kind == "elastic shakedown" and v.impacts_to_shakedown == 4
+    # a constant dent growth: ratcheting
+    v = classify(_outcomes([1.0, 0.5, 0.5, 0.5, 0.5], [10, 13, 16, 19, 22]))
+    assert v.kind == "ratcheting"
+    # plastic work every impact but the dent stops growing: a closed plastic cycle
+    v = classify(_outcomes([1.0, 0.4, 0.3, 0.3, 0.3], [10, 11, 11.05, 11.05, 11.05]))
+    assert v.kind == "plastic shakedown" and v.impacts_to_shakedown == 3     # dD_3 = 0.05 < 1 % of 10
+    # decaying but not yet small: undecided, with the impacts still needed
+    v = classify(_outcomes([1.0, 0.5, 0.25, 0.12, 0.06], [10, 15, 17.5, 18.75, 19.4]))
+    assert v.kind == "undecided" and v.numbers["impacts_more_to_closed_share"] > 1
+    assert classify(_outcomes([1.0, 0.5], [10, 12])).kind == "undecided"
+
+
+@pytest.mark.slow
+def test_interrupted_sequence_keeps_its_impacts_and_a_rerun_continues(tmp_path):
+    out = tmp_path / "seq"
+    cmd = [sys.executable, "-m", "millimpact.cli", "repeat", "paper-rig-plastic", "--impacts", "3", *COARSE,
+           "--out", str(out)]
+    p = subprocess.Popen(cmd, cwd=ROOT, env=mpi_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = out / "impacts" / "impact-001.json"
+    t0 = time.time()
+    while not first.exists() and p.poll() is None and time.time() - t0 < 500:
+        time.sleep(0.5)
+    assert first.exists(), p.communicate()[1][-2000:]
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 130, err
+    assert "finished impact(s) kept" in err and "continues" in err
+    assert not (out / "summary.json").exists()
+    kept = sorted(f.name for f in (out / "impacts").glob("impact-*.json"))
+    assert kept and kept[0] == "impact-001.json"
+    before = json.loads(first.read_text())["outcome"]
+    r = run_cli("repeat", "paper-rig-plastic", "--impacts", "3", *COARSE[:-1], "--out", str(out))
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert f"{len(kept)} finished impact file(s)" in r.stdout + r.stderr
+    rows = read_impacts_csv(out / "impacts.csv")
+    assert [o.impact for o in rows] == [1, 2, 3]
+    assert rows[0].restitution_normal == pytest.approx(before["restitution_normal"], rel=1e-9)
+    header = [ln for ln in (out / "impacts.csv").read_text().splitlines() if not ln.startswith("#")][0]
+    assert header.split(",") == list(OUTCOME_COLUMNS)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["verdict"]["kind"] in ("elastic shakedown", "plastic shakedown", "ratcheting", "undecided")
+    for name in ("restitution.png", "dent.png", "summary.txt"):
+        assert (out / name).is_file()
+    assert os.path.getsize(out / "dent.png") > 1000
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+def test_mpi_sequence_equals_serial(tmp_path):
+    """Two impacts under mpirun -n 2 (each rank stores and reloads its own part of the plastic
+    state) equal the serial sequence (round-off of the distributed solves: 1e-7)."""
+    rows = {}
+    for np_ in (1, 2):
+        out = tmp_path / f"np{np_}"
+        r = run_cli("repeat", "paper-rig-plastic", "--impacts", "2", *COARSE, "--out", str(out), np=np_, timeout=1200)
+        assert r.returncode == 0, r.stderr[-3000:]
+        rows[np_] = read_impacts_csv(out / "impacts.csv")
+        assert len(list((out / "impacts").glob("impact-002.rank*.npz"))) == np_
+    for a, b in zip(rows[1], rows[2]):
+        for c in OUTCOME_COLUMNS[1:]:
+            x, y = getattr(a, c), getattr(b, c)
+            assert (x != x and y != y) or x == pytest.approx(y, rel=1e-7, abs=1e-12), c
