@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 from ..errors import InputError
+from ..results.output_folder import FORCE_HELP, OUT_HELP
 
 HELP = "the liner's damage map: energy, plastic work and dent growth per place and revolution"
 
@@ -40,7 +41,7 @@ Examples:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", help="a liner scene: built-in name (liner-segment, liner-panel) or TOML file")
     p.add_argument("--impacts", required=True, metavar="CSV", help="the impact log (impacts.csv of millimpact mill)")
-    p.add_argument("--out", help="output folder (default out/damage-SCENE); finished bins in it are reused")
+    p.add_argument("--out", help=OUT_HELP.format(default="out/damage-SCENE") + "; finished bins in it are reused")
     p.add_argument("--revolutions", type=float, metavar="N",
                    help="mill revolutions the log covers (default: those of the millimpact mill summary.json "
                         "beside the log)")
@@ -64,7 +65,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
     p.add_argument("--ranks-per-case", type=int, default=1, metavar="K",
                    help="under mpirun: ranks per bin (divides the rank count; default 1)")
-    p.add_argument("--force", action="store_true", help="replace an --out folder millimpact did not write")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
@@ -123,7 +124,7 @@ def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
     from ..dem.impacts import read_impacts
-    from ..results.output_folder import prepare_output, write_marker
+    from ..results.output_folder import claim_output, default_out
     from ..scene.builtin import resolve_scene
     from ..studies.sweep import apply_sets, parse_method_options
     from .damage_map import MapSettings, run_damage_map
@@ -146,18 +147,12 @@ def main(args: argparse.Namespace) -> int:
     from .bins import choose_bins, yield_onset_speed
 
     choose_bins(impacts, yield_onset_speed(scene), settings.max_bins, settings.tolerance)   # a bad budget: before any folder
-    out = Path(args.out) if args.out else Path("out") / f"damage-{Path(args.scene).stem}"
-    out = prepare_output(out, "--out", force=args.force)
-    if world.rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
-        write_marker(out, "damage")
-    world.barrier()
-    try:
-        run_damage_map(scene, impacts, out, settings, str(path), quiet=args.quiet, comm=world)
-    except KeyboardInterrupt as exc:
-        # the CLI's one line: what an interrupted map keeps (its finished bins and sequences)
-        raise type(exc)(f"the finished bins are kept in {out}/cases and {out}/repeat; the same command "
-                        "continues the map") from None
+    out = args.out if args.out is not None else default_out(Path(args.scene).stem, prefix="damage-")
+    # before computing: checks, lock, leftovers (collective); an interruption's one line says which
+    # finished bins and sequences are kept (damage_map.kept_bins_note)
+    target = claim_output(out, "damage", force=args.force, comm=world)
+    run_damage_map(scene, impacts, target, settings, str(path), quiet=args.quiet, comm=world)
     if not args.quiet and world.rank == 0:
-        print(f"  results in {out}/ (damage.csv, bins.csv, profile.csv, damage.json, damage_map.png)", flush=True)
+        print(f"  results in {target.shown}/ (damage.csv, bins.csv, profile.csv, damage.json, damage_map.png)"
+              + target.replaced_note(), flush=True)
     return 0

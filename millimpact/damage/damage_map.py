@@ -13,6 +13,7 @@ from typing import Callable, Optional, Sequence
 
 from .. import __version__
 from ..dem.impacts import Impact
+from ..results.output_folder import OutputFolder, claim_output
 from ..scene.schema import Scene
 from ..scene.toml_io import scene_to_dict
 from .accumulate import accumulate, dent_trend, dominant_bin, place_extent, place_totals, profile_rates
@@ -26,6 +27,8 @@ from .responses import (BinCase, CaseRunner, compute_bin_rows, define_bin_cases,
 SUBYIELD_PLASTIC_FLAG = 1e-6
 #: a ball radius this far (relative) from the scene's is flagged (the response is the scene ball's)
 RADIUS_MISMATCH = 0.05
+#: what a map keeps in its folder as it goes (finished bins, finished sequences): reused by a rerun
+KEPT = ("cases", "repeat")
 
 
 @dataclass
@@ -47,13 +50,21 @@ class MapSettings:
     ranks_per_case: int = 1
 
 
-def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path, settings: MapSettings, impacts_file: str = "",
+def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFolder, settings: MapSettings,
+                   impacts_file: str = "",
                    case_runner: Optional[CaseRunner] = None, run_sequence: Optional[Callable] = None,
                    classify: Optional[Callable] = None, quiet: bool = False, comm=None) -> dict:
-    """Compute the damage map of ``impacts`` on the liner ``scene`` into ``out`` (which the caller
-    prepared); returns the summary. ``case_runner`` (default: the table engine) and
-    ``run_sequence`` / ``classify`` (default: :mod:`millimpact.repeat.sequence`) may be given."""
+    """Compute the damage map of ``impacts`` on the liner ``scene`` into ``out``, a folder or one
+    claimed with :func:`~millimpact.results.output_folder.claim_output` (docs/outputs.md); returns
+    the summary. Finished bins and sequences are kept in ``out/cases`` and ``out/repeat`` as they
+    finish (:data:`KEPT`); the reports are staged and published at the end (rank 0).
+    ``case_runner`` (default: the table engine) and ``run_sequence`` / ``classify`` (default:
+    :mod:`millimpact.repeat.sequence`) may be given."""
     rank = 0 if comm is None else comm.rank
+    target = out if isinstance(out, OutputFolder) else claim_output(out, "damage", comm=comm)
+    out = target.open(KEPT, note=lambda: kept_bins_note(target))
+    if comm is not None:
+        comm.barrier()                     # the folder exists before any rank stores a bin
     say = (lambda *a: None) if quiet or rank != 0 else (lambda *a: print(*a, flush=True))
     st = settings
     warnings: list[str] = []
@@ -156,9 +167,18 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path, settings:
     if rank == 0:
         from .report import write_outputs
 
-        write_outputs(out, summary, places, bin_rows, profile, impacts, scene.liner, st.revolutions, st.lifters)
+        with target.staged(keep=KEPT, collective=False) as stage:
+            write_outputs(stage, summary, places, bin_rows, profile, impacts, scene.liner, st.revolutions, st.lifters)
     for p, t in places.items():
         say(f"  {p}: {t['impacts_per_rev']:.4g} impacts/rev, absorbed {t['energy_absorbed_J_per_rev']:.4g} J/rev, "
             f"plastic work {t['plastic_work_J_per_rev']:.4g} J/rev; repeat: {t['repeat_verdict']}, dent growth "
             f"{t['dent_growth_m_per_rev']:.3g} m/rev at a spot")
     return {**summary, "places": places, "bins": bin_rows}
+
+
+def kept_bins_note(target: OutputFolder) -> str:
+    """What an interrupted map leaves: its finished bins and sequences, reused by a rerun."""
+    bins = len(list((target.path / "cases").glob("*.json")))
+    seqs = len(list((target.path / "repeat").glob("*.json")))
+    return (f"{bins} finished bin(s) kept in {target.shown}/cases/ and {seqs} repeated-impact sequence(s) in "
+            f"{target.shown}/repeat/ (the map itself is not written); rerun the same command to continue")

@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..results.output_folder import FORCE_HELP, OUT_HELP
+
 HELP = "write a contact table's law for a DEM code (yade, liggghts, lammps); --check runs it in Yade"
 
 DESCRIPTION = """\
@@ -32,17 +34,16 @@ Examples:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("table", metavar="TABLE_DIR", help="a folder written by millimpact table")
     p.add_argument("--to", required=True, metavar="CODE", help="the DEM code: yade, liggghts or lammps")
-    p.add_argument("--out", help="output folder (default out/dem-CODE-TABLE)")
+    p.add_argument("--out", help=OUT_HELP.format(default="out/dem-CODE-TABLE"))
     p.add_argument("--check", action="store_true", help="run the law in Yade: roundtrip.csv and roundtrip.png")
-    p.add_argument("--force", action="store_true", help="replace a non-empty folder millimpact did not write")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
 def main(args: argparse.Namespace) -> int:
     from ..console import say, world_rank
     from ..errors import InputError
-    from ..results.output_folder import prepare_output
-    from ..results.timeseries import staged_output
+    from ..results.output_folder import claim_output, default_out
     from .export_files import CODES, WRITERS, fit_law, write_law_json
     from .table_input import read_table
 
@@ -50,17 +51,17 @@ def main(args: argparse.Namespace) -> int:
     if code not in CODES:
         raise InputError(f"--to {args.to!r}: must be one of {', '.join(CODES)}")
     table = read_table(args.table)
-    out = Path(args.out) if args.out else Path("out") / f"dem-{code}-{Path(args.table).resolve().name}"
-    out = prepare_output(out, "--out", force=args.force)
     if args.check:
         from .yade import yade_executable
 
         yade_executable()                  # not installed: one line and exit 2, before any output
+    out = args.out if args.out is not None else default_out(Path(args.table).resolve().name, prefix=f"dem-{code}-")
+    target = claim_output(out, "export", force=args.force)   # before fitting: checks, lock, leftovers
     if world_rank() != 0:
         return 0                           # a serial command: under mpirun rank 0 alone writes
     talk = (lambda *a: None) if args.quiet else say
     law = fit_law(table)
-    with staged_output(out, kind="export") as stage:
+    with target.staged(collective=False) as stage:
         files = [WRITERS[code](stage, law), write_law_json(stage, law, code)]
         talk(f"export {code}: {len(table.speeds)} speeds x {len(table.angles)} angles of {table.folder} "
              f"(scene {table.scene_name}, method {table.method})")
@@ -81,5 +82,6 @@ def main(args: argparse.Namespace) -> int:
             worst_f = max(abs(r["peak_normal_force_N_dem"] / r["peak_normal_force_N_table"] - 1) for r in rows)
             talk(f"  Yade against the table: largest |e_n difference| {worst_e:.4f}, largest F_max difference "
                  f"{100 * worst_f:.2f} %")
-    talk(f"  results in {out}/ ({', '.join(f.name for f in files)}{', roundtrip.csv, roundtrip.png' if args.check else ''})")
+    talk(f"  results in {target.shown}/ ({', '.join(f.name for f in files)}"
+         f"{', roundtrip.csv, roundtrip.png' if args.check else ''})" + target.replaced_note())
     return 0

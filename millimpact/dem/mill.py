@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..console import say
 from ..errors import InputError
-from ..results.output_folder import prepare_output
+from ..results.output_folder import FORCE_HELP, OUT_HELP
 
 HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe"
 
@@ -73,9 +73,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the slice's thickness along the axis, in ball diameters (default 2)")
     p.add_argument("--seed", type=int, default=0, help="seed of the balls' starting jitter (default 0)")
     p.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
-    p.add_argument("--out", help="output folder (default out/mill-SCENE); an earlier millimpact output there is "
-                                 "replaced, a folder holding other files is refused")
-    p.add_argument("--force", action="store_true", help="replace --out even if it holds files millimpact did not write")
+    p.add_argument("--out", help=OUT_HELP.format(default="out/mill-SCENE"))
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--no-plots", action="store_true", help="skip spectrum.png and charge.png")
 
 
@@ -207,7 +206,8 @@ def _restitution_text(setup) -> str:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..results.timeseries import staged_output, write_summary
+    from ..results.output_folder import claim_output, default_out
+    from ..results.timeseries import write_summary
     from .mill_setup import plan_mill
     from .yade import yade_executable
 
@@ -216,18 +216,19 @@ def main(args: argparse.Namespace) -> int:
     scene = _scene(args)
     setup = plan_mill(scene, opts)
     yade_executable()
-    out = prepare_output(args.out or f"out/mill-{scene.name}", force=args.force)
+    out = args.out if args.out is not None else default_out(scene.name, prefix="mill-")
+    target = claim_output(out, "mill", force=args.force)   # before the DEM run: checks, lock, leftovers
     say(f"mill: scene '{scene.name}', D {setup.profile.diameter:g} m, {setup.profile.n_lifters} lifters, "
         f"{setup.n_balls} balls of {2e3 * setup.ball_radius:g} mm in a {1e3 * setup.thickness:.0f} mm slice, "
         f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; "
         f"{_restitution_text(setup)}, mu {setup.friction:g}, moduli x {setup.stiffness_scale:g}; "
         f"{(setup.warmup_s + setup.run_s) / setup.dt:.3g} steps of {setup.dt:.3g} s", file=sys.stderr)
-    with staged_output(out, kind="mill") as stage:
+    with target.staged(collective=False) as stage:
         summary = run_mill(scene, opts, stage, plots=not args.no_plots, setup=setup)
         write_summary(stage, summary)
     n = summary["impacts_per_revolution"]
     say(f"impacts per revolution: {n['all']:.4g} (lifter faces {n['lifter_face']:.4g}, tops {n['lifter_top']:.4g}, "
         f"plate {n['plate']:.4g}); shoulder {summary['shoulder_deg']} deg, toe {summary['toe_deg']} deg; "
         f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %")
-    say(f"wrote {out}")
+    say(f"results in {target.shown}/" + target.replaced_note())
     return 0

@@ -7,6 +7,8 @@ import math
 from pathlib import Path
 from typing import Optional, Sequence
 
+from ..results.output_folder import FORCE_HELP, OUT_HELP
+
 HELP = "repeated impacts at one spot: restitution, dent and plastic work per impact; shakedown or ratcheting"
 
 DESCRIPTION = """\
@@ -40,7 +42,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--offset", metavar="DX,DY", help="the even impacts' shift from the odd ones on the face, m "
                                                      "(impact.point's coordinates; default none)")
     p.add_argument("--method", default="improved", help="improved (default), traditional, modal-p2 or full")
-    p.add_argument("--out", required=True, help="output folder (its finished impacts are reused)")
+    p.add_argument("--out", required=True, help=OUT_HELP.replace(" (default {default})", " (required)")
+                   + "; its finished impacts are reused")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="override a scene field")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
@@ -119,7 +123,7 @@ def main(args: argparse.Namespace) -> int:
 
     from ..console import say
     from ..errors import InputError
-    from ..results.output_folder import MARKER, is_millimpact_output, prepare_output, write_marker
+    from ..results.output_folder import claim_output, read_manifest
     from ..scene.builtin import resolve_scene
     from .report import verdict_text, write_sequence
     from .sequence import check_impacts, run_sequence
@@ -132,31 +136,24 @@ def main(args: argparse.Namespace) -> int:
     impacts = build_impacts(scene, args.impacts, args.velocities, args.angles, args.offset)
     check_impacts(scene, impacts)
     options = parse_options(args.option)
-    out = prepare_output(args.out)
-    if out.is_dir() and is_millimpact_output(out) and (out / MARKER).is_file():
-        kind = json.loads((out / MARKER).read_text()).get("kind")
-        if kind != "repeat":
-            raise InputError(f"--out {args.out}: holds another millimpact output ({kind}); give a new folder")
-    store = out / "impacts"
+    # before computing: checks, lock, leftovers (collective; docs/outputs.md)
+    target = claim_output(args.out, "repeat", force=args.force, comm=comm)
+    out = target.path
+    old = read_manifest(out) if comm.rank == 0 and out.is_dir() else None
+    store = target.open(["impacts"], note=lambda: kept_impacts_note(target)) / "impacts"
     quiet = args.quiet or comm.rank != 0
     if comm.rank == 0:
-        store.mkdir(parents=True, exist_ok=True)
-        write_marker(out, "repeat")
-        (out / "summary.json").unlink(missing_ok=True)   # complete again only when this sequence is
+        store.mkdir(exist_ok=True)
+        if old is not None and old["kind"] == "repeat" and "summary.json" in (old["files"] or ["summary.json"]):
+            # the earlier sequence's summary: complete again only when this sequence is
+            (out / "summary.json").unlink(missing_ok=True)
     comm.barrier()
     done_before = len(list(store.glob("impact-*.json")))
     if not quiet:
         say(f"repeat {scene.name}: {len(impacts)} impacts, method {args.method}"
             + (f"; {done_before} finished impact file(s) in {store}" if done_before else ""))
-    try:
-        outcomes = run_sequence(scene, impacts, args.method, options, comm,
-                                progress=None if quiet else say, store_dir=store)
-    except KeyboardInterrupt as exc:
-        n = len(list(store.glob("impact-*.json")))
-        err = KeyboardInterrupt(f"{n} finished impact(s) kept in {store}; the same command continues the sequence; "
-                                f"{out} has no summary.json (incomplete)")
-        err.exit_code = getattr(exc, "exit_code", 130)
-        raise err from None
+    outcomes = run_sequence(scene, impacts, args.method, options, comm,
+                            progress=None if quiet else say, store_dir=store)
     verdict = classify(outcomes)
     if comm.rank == 0:
         details = []
@@ -165,10 +162,19 @@ def main(args: argparse.Namespace) -> int:
                 details.append(json.loads((store / f"impact-{k:03d}.json").read_text()).get("details", {}))
             except (OSError, ValueError):
                 details.append({})
-        summary = write_sequence(out, scene, args.method, impacts, outcomes, verdict, details, {})
+        with target.staged(keep=["impacts"], collective=False) as stage:
+            summary = write_sequence(stage, scene, args.method, impacts, outcomes, verdict, details, {})
         if not args.quiet:
             say(verdict_text(verdict))
             for note in summary["notes"]:
                 say(f"  note: {note}")
-            say(f"  results in {out}/ (impacts.csv, restitution.png, dent.png, summary.json, summary.txt)")
+            say(f"  results in {target.shown}/ (impacts.csv, restitution.png, dent.png, summary.json, summary.txt)"
+                + target.replaced_note())
     return 0
+
+
+def kept_impacts_note(target) -> str:
+    """What an interrupted sequence leaves (the CLI's one line on Ctrl-C): its finished impacts."""
+    n = len(list((target.path / "impacts").glob("impact-*.json")))
+    return (f"{n} finished impact(s) kept in {target.shown}/impacts/; the same command continues the sequence; "
+            f"{target.shown}/ has no summary.json (incomplete)")

@@ -335,3 +335,47 @@ def test_one_bin_on_the_real_repeated_impact_sequence(tmp_path):
     # the first impact of the sequence is the bin's table case (same scene, mesh and impact):
     # the restitution to the time-step error of its contact steps (t_c / 100: ~1e-3)
     assert rep["outcomes"][0]["restitution_normal"] == pytest.approx(res["bins"][0]["restitution_normal"], abs=2e-3)
+
+
+# --- the output policy (docs/outputs.md, issue 35) -------------------------------------------------
+def _damage_in_process(monkeypatch, capsys, impacts: Path, out: Path, runners: list) -> tuple[int, str, str]:
+    """``millimpact damage`` in this process with a fake case runner (no finite elements), appended
+    to ``runners``."""
+    import signal
+
+    import millimpact.damage.damage_map as damage_map
+    from millimpact.cli import main
+
+    runners.append(FakeRunner())
+    monkeypatch.setattr(damage_map, "table_runner", lambda *a, **k: runners[-1])
+    sigterm = signal.getsignal(signal.SIGTERM)
+    try:
+        code = main(["damage", "liner-segment", "--impacts", str(impacts), "--revolutions", "1",
+                     "--repeat-impacts", "0", "--out", str(out)])
+    finally:
+        signal.signal(signal.SIGTERM, sigterm)
+    got = capsys.readouterr()
+    return code, got.out, got.err
+
+
+def test_damage_rerun_keeps_the_users_file_and_a_second_writer_is_refused(tmp_path, monkeypatch, capsys):
+    """A rerun takes its bins from cases/, replaces the reports and keeps notes.txt (said in the
+    results line); while another millimpact holds the folder, damage is refused in one line before
+    computing (before the policy: no lock, both wrote)."""
+    from output_lock import another_writer, assert_notes_kept, assert_refused_by_the_lock
+
+    impacts = tmp_path / "impacts.csv"
+    write_impacts(impacts, _spectrum(40))
+    out = tmp_path / "map"
+    runners: list = []
+    code, stdout, stderr = _damage_in_process(monkeypatch, capsys, impacts, out, runners)
+    bins = len(json.loads((out / "damage.json").read_text())["bins"]) if code == 0 else 0
+    assert code == 0 and bins >= 2 and len(runners[-1].done) == bins, stderr
+    (out / "notes.txt").write_text("my notes\n")
+    code, stdout, stderr = _damage_in_process(monkeypatch, capsys, impacts, out, runners)
+    assert code == 0 and runners[-1].done == [], stderr          # every bin from cases/
+    assert len(list((out / "cases").glob("*.json"))) == bins
+    assert_notes_kept(out, stdout + stderr)
+    with another_writer(out, "damage") as pid:
+        code, stdout, stderr = _damage_in_process(monkeypatch, capsys, impacts, out, runners)
+    assert_refused_by_the_lock(code, stderr, out, pid)

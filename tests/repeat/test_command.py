@@ -106,3 +106,44 @@ def test_mpi_sequence_equals_serial(tmp_path):
         for c in OUTCOME_COLUMNS[1:]:
             x, y = getattr(a, c), getattr(b, c)
             assert (x != x and y != y) or x == pytest.approx(y, rel=1e-7, abs=1e-12), c
+
+
+# --- the output policy (docs/outputs.md, issue 35) -------------------------------------------------
+def _fake_sequence(scene, impacts, method="improved", petsc_options=None, comm=None, progress=None, *,
+                   store_dir=None, records=None):
+    """Outcomes without finite elements: a dent whose increments halve (a plastic shakedown)."""
+    return [ImpactOutcome(k, 0.8, float("nan"), 1e5, 1e-4, 1e-3 * 0.5**k, 1e-6 * (2 - 0.5 ** (k - 1)), 1e-4, 0.01)
+            for k in range(1, len(impacts) + 1)]
+
+
+def _repeat_in_process(monkeypatch, capsys, out) -> tuple[int, str, str]:
+    """``millimpact repeat`` in this process with the fake sequence."""
+    import millimpact.repeat.sequence as sequence
+    from millimpact.cli import main
+
+    monkeypatch.setattr(sequence, "run_sequence", _fake_sequence)
+    sigterm = signal.getsignal(signal.SIGTERM)
+    try:
+        code = main(["repeat", "paper-rig-plastic", "--impacts", "3", "--out", str(out)])
+    finally:
+        signal.signal(signal.SIGTERM, sigterm)
+    got = capsys.readouterr()
+    return code, got.out, got.err
+
+
+def test_repeat_rerun_keeps_the_users_file_and_a_second_writer_is_refused(tmp_path, monkeypatch, capsys):
+    """A rerun into its own folder replaces the sequence's files and keeps notes.txt (said in the
+    results line); while another millimpact holds the folder, repeat is refused in one line before
+    computing (before the policy: no lock, both wrote)."""
+    from output_lock import another_writer, assert_notes_kept, assert_refused_by_the_lock
+
+    out = tmp_path / "seq"
+    code, stdout, stderr = _repeat_in_process(monkeypatch, capsys, out)
+    assert code == 0 and (out / "summary.json").is_file(), stderr
+    (out / "notes.txt").write_text("my notes\n")
+    code, stdout, stderr = _repeat_in_process(monkeypatch, capsys, out)
+    assert code == 0 and [o.impact for o in read_impacts_csv(out / "impacts.csv")] == [1, 2, 3], stderr
+    assert_notes_kept(out, stdout + stderr)
+    with another_writer(out, "repeat") as pid:
+        code, stdout, stderr = _repeat_in_process(monkeypatch, capsys, out)
+    assert_refused_by_the_lock(code, stderr, out, pid)
