@@ -17,7 +17,10 @@ f_half = sqrt(ln 2 / 2) / (pi sigma) ~ 0.187 / sigma, so sigma = 0.187 / f_half.
 A zero-phase kernel is not causal: it spreads the response sigma-wide backwards in time, before the
 impact, where the struck body is at rest (on the rig sigma ~ 0.05 t_c, longer than the flight to
 contact: v(0) read 0.29 m/s with F = 0). Samples before ``rest_until`` (the first contact) are
-therefore kept as they are, not filtered.
+therefore kept as they are, and the motion from the last sample at rest t_r on is filtered as
+the odd extension y(t_r - s) = -y(t_r + s): the kernel is symmetric, so the filtered motion is 0
+at t_r and rises from rest continuously (keeping the raw zeros before and the plainly filtered
+series after made a step of 0.25 of the peak velocity at the first contact).
 """
 from __future__ import annotations
 
@@ -38,10 +41,14 @@ def gaussian_low_pass(t: np.ndarray, y: np.ndarray, f_half: float, rest_until: O
     y = np.asarray(y, dtype=float)
     if len(t) < 3 or not f_half > 0:
         return y.copy()
-    if rest_until is not None:
-        before = t < rest_until
-        out = gaussian_low_pass(t, y, f_half)
-        out[before] = y[before]
+    if rest_until is not None and t[0] < rest_until <= t[-1]:
+        r = int(np.searchsorted(t, rest_until)) - 1          # the last sample at rest
+        ta, ya = t[r:] - t[r], y[r:] - y[r]
+        near = ta[1:][ta[1:] <= 4.0 * SIGMA_TIMES_F_HALF / f_half][::-1]
+        ext_t = np.concatenate([-near, ta])
+        ext_y = np.concatenate([-ya[1:1 + len(near)][::-1], ya])
+        out = y.copy()                                       # t_r itself stays as recorded
+        out[r + 1:] = gaussian_low_pass(ext_t, ext_y, f_half)[len(near) + 1:] + y[r]
         return out
     sigma = SIGMA_TIMES_F_HALF / f_half
     dt = np.gradient(t)
