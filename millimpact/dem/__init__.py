@@ -1,7 +1,8 @@
-"""The DEM round trip (DESIGN.md 11). :mod:`.export` (``millimpact export``) takes a contact table's
-folder and gives the contact law for Yade, LIGGGHTS and LAMMPS (:mod:`.contact_law`,
-:mod:`.export_files`), checked in Yade with ``--check`` (:mod:`.roundtrip`); :mod:`.mill`
-(``millimpact mill``) takes a liner scene and gives a mill slice's impact log, ``impacts.csv``
-(:mod:`.impacts`, the contract the damage map reads). Yade runs as a subprocess (:mod:`.yade`,
-scripts in ``yade_scripts/``). Imports studies and below.
+"""The DEM round trip (DESIGN.md 11). :mod:`millimpact.dem.export` (``millimpact export``) takes a
+contact table's folder and gives the contact law for Yade, LIGGGHTS and LAMMPS
+(:mod:`millimpact.dem.contact_law`, :mod:`millimpact.dem.export_files`), checked in Yade with
+``--check`` (:mod:`millimpact.dem.roundtrip`); :mod:`millimpact.dem.mill` (``millimpact mill``)
+takes a liner scene and gives a mill slice's impact log, ``impacts.csv``
+(:mod:`millimpact.dem.impacts`, the contract the damage map reads). Yade runs as a subprocess
+(:mod:`millimpact.dem.yade`, scripts in ``yade_scripts/``). Imports studies and below.
 """
