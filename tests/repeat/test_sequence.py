@@ -25,12 +25,12 @@ ZONE = 0.004542404586583575
 
 
 def _scene(hardening: float):
-    s = resolve_scene("paper-rig-plastic")
-    for k, v in [("model.h_contact", 6e-4), ("model.h_far", 0.01), ("model.zone_radius", ZONE),
-                 ("ball.material.yield_stress", None), ("block.support", "back"),
-                 ("block.material.hardening_modulus", hardening)]:
-        s = s.with_value(k, v)
-    return s
+    # set together (Scene.with_values): an elastic ball, its steel's hardening going with its yield
+    # stress (a hardening modulus alone is refused, scene.schema)
+    return resolve_scene("paper-rig-plastic").with_values([
+        ("model.h_contact", 6e-4), ("model.h_far", 0.01), ("model.zone_radius", ZONE),
+        ("ball.material.yield_stress", None), ("ball.material.hardening_modulus", 0.0),
+        ("block.support", "back"), ("block.material.hardening_modulus", hardening)])
 
 
 @pytest.fixture(scope="module")
