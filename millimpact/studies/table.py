@@ -290,7 +290,7 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
         f"cases in {n_bands} mesh band(s), method {method}; {len(done)} from {folder}, {len(todo)} to compute "
         f"on {world.size // ranks_per_case} group(s) of {ranks_per_case} rank(s)")
     group = world.Split(world.rank // ranks_per_case, world.rank)
-    rows = _compute(todo, method, options, folder, world, group, say)
+    rows = compute_cases(todo, method, options, folder, world, group, say)
     gathered = world.gather(rows, root=0)
     if world.rank != 0:
         return []
@@ -338,15 +338,12 @@ def next_case(state: np.ndarray, band_sizes: Sequence[int], current: Optional[in
     return band, index
 
 
-def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
-    """Compute ``todo`` on the groups of ranks of ``world`` (``group``: this rank's), each finished
-    case stored as ``folder/<key>.json``; the rows this group computed (the damage map's bins)."""
-    return _compute(todo, method, options, folder, world, group, say)
-
-
-def _compute(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
-    """This group's share of ``todo``: cases taken from a shared state (:func:`next_case`) on world
-    rank 0 until none is left."""
+def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Path, world, group,
+                  say) -> list[dict]:
+    """This group's share of ``todo`` (``group``: this rank's group of ranks of ``world``): cases
+    taken from a shared state (:func:`next_case`) on world rank 0 until none is left, each finished
+    case stored as ``folder/<key>.json``; the rows this group computed (the table's and the damage
+    map's bins)."""
     import numpy as np
     from mpi4py import MPI
 
