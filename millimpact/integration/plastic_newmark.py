@@ -163,8 +163,11 @@ class PlasticNewmarkScheme(NewmarkScheme):
                                               op=MPI.SUM)
                 f_c = self.zone.force_correction()
             yielding_seen |= n_yield > 0
-            res, f_scale = self._residual(op, u_k, f_c, x, Au)
-            tol = max(self.rtol * f_scale, ROUNDOFF_RTOL * r_norm)
+            if it == 0 and carry:
+                res = f_scale = tol = np.inf      # never tested (only later iterates converge)
+            else:
+                res, f_scale = self._residual(op, u_k, f_c, x, Au)
+                tol = max(self.rtol * f_scale, ROUNDOFF_RTOL * r_norm)
             if it > 0 and res <= tol and Au is not None:
                 res, f_scale = self._residual(op, u_k, f_c, x)     # the test on the true product
                 tol = max(self.rtol * f_scale, ROUNDOFF_RTOL * r_norm)
