@@ -14,7 +14,7 @@ least its contact margin
 with r_c the method's candidate radius for the bin's band (the band's fastest case: reduced
 methods 1.75 a_max, at most zone - 2 h_contact, :func:`millimpact.methods.reduced.reduced_plan`;
 the full method min(2.5 a_max, 0.95 zone) or ``-candidate_radius``), a_p Thornton's plastic
-contact radius (R delta_max)^(1/2) at the bin's normal speed
+contact radius (R delta_max)^(1/2) at the normal speed of the band's fastest case
 (:func:`millimpact.theory.thornton.plastic_zone_radius`; Thornton 1997), and one contact element
 h_contact so that the outermost point lies inside a face cell. Concave corners (a lifter's foot on
 the plate) hold the face below them and are not edges here; the ball's clearance from them is the
@@ -92,7 +92,9 @@ def contact_margin(bc: BinCase, method: str, options: dict) -> float:
         given = options.get("candidate_radius")
         r_c = float(given) if given not in (None, "") else min(CANDIDATE_RADIUS_FACTOR * plan.hertz.a_max,
                                                                0.95 * plan.zone_radius)
-    sc = case.scene
+    # the band's fastest case (a_p grows with the speed): every bin of a band gets one margin, so a
+    # band moved off an edge stays one placed scene, one mesh and one reduction
+    sc = case.band_scene or case.scene
     m = sc.ball.mass
     e_star = effective_modulus(sc.ball.material, sc.target_material)
     ys = [mat.initial_yield_stress for mat in (sc.ball.material, sc.target_material) if mat.plastic]

@@ -16,10 +16,13 @@ import math
 import pytest
 
 from conftest import run_cli
+from millimpact.damage.bins import choose_bins, yield_onset_speed
 from millimpact.damage.damage_map import MapSettings, run_damage_map
-from millimpact.damage.edges import MAX_EDGE_SHIFT_SHARE, edge_room, face_slant
+from millimpact.damage.edges import MAX_EDGE_SHIFT_SHARE, edge_room, face_slant, fit_contacts
 from millimpact.damage.places import place_scene
+from millimpact.damage.responses import define_bin_cases
 from millimpact.dem.impacts import write_impacts
+from millimpact.scene.toml_io import dump_scene
 from test_damage_map import SCENE, SETS, FakeRunner, _impact, _map, _truth
 
 TOP_HALF = 0.5 * SCENE.liner.lifter_top_width     # 50 mm on liner-segment
@@ -92,6 +95,26 @@ def test_a_move_too_large_for_the_place_refuses_the_bin_and_the_sums_say_so(tmp_
     # the refused bin adds nothing: the sums are those of the computed impacts (a lower bound)
     for q in ("energy_absorbed_J_per_rev", "plastic_work_J_per_rev"):
         assert t[q] == res["clamped"]["places"]["lifter_top"][q] > 0
+
+
+def test_a_band_moved_off_an_edge_stays_one_band_and_a_refused_bin_does_not_split_it():
+    # the coarse mesh (h_contact 4 mm) cannot hold the slow bin's contact zone: refused; the two
+    # fast bins (normal speeds within the table's band ratio) keep one band, one margin, one place
+    coarse = SCENE.with_value("model.h_far", 0.04).with_value("model.h_contact", 0.004)
+    imps = [_impact(0.2, 0.1, "lifter_top", TOP_HALF - 0.001), _impact(3.0, 1.0, "lifter_top", TOP_HALF - 0.001),
+            _impact(3.6, 1.0, "lifter_top", TOP_HALF - 0.001)]
+    choice = choose_bins(imps, yield_onset_speed(coarse), 30)
+    assert len(choice.bins) == 3
+    placed = {b.index: place_scene(coarse, b.place, b.arc_m) for b in choice.bins}
+    bcs = define_bin_cases(choice.bins, placed, "improved", {})
+    warned = []
+    _, bcs, info = fit_contacts(coarse, choice.bins, placed, bcs, "improved", {}, warned.append)
+    slow, *fast = sorted(bcs, key=lambda bc: bc.bin.normal_speed_m_s)
+    assert slow.case is None and "h_contact" in slow.refused
+    assert fast[0].case.band == fast[1].case.band and fast[0].case.band_scene == fast[1].case.band_scene
+    assert dump_scene(fast[0].placed.scene) == dump_scene(fast[1].placed.scene)
+    assert info[fast[0].bin.index] == info[fast[1].bin.index] and info[fast[0].bin.index]["edge_shift_m"] > 0
+    assert len(warned) == 1 and "clamped" in warned[0]
 
 
 @pytest.mark.slow
