@@ -8,17 +8,23 @@ less their tangential part), angles 0-70 deg, half of them on the plate, a third
 face, the rest on its top, arc positions over each place. The map runs under ``mpirun -n RANKS
 --ranks-per-case 1`` (the table engine's groups); with ``--serial`` also at 1 rank into its own
 folder, side by side (the parallel efficiency). Reported: wall time, bins computed, the bins'
-own wall times (sum, first of a band against the others: the reduction's reuse), the repeated
-impacts' time, peak memory. Writes benchmarks/out/damage_map/damage_map_bench.{csv,md}.
+own wall times (sum, first of a band against the others: the reduction's reuse), the CPU time of
+the ranks (user + system, from wait4: on a shared machine the wall time is inflated, the CPU time
+much less), the load average before and after, peak memory, the bins refused and those moved off
+an edge (docs/damage.md, edge impacts). Writes benchmarks/out/damage_map/damage_map_bench.{csv,md}.
+``--resume`` keeps --out, so a map interrupted there continues (its finished bins are then not
+timed again: the wall and CPU times cover the rerun only).
 
     .venv/bin/python benchmarks/damage_map.py                                  # the issue's benchmark
     .venv/bin/python benchmarks/damage_map.py --max-bins 10 --set model.h_far=0.04   # a quick look
     .venv/bin/python benchmarks/damage_map.py --impacts out/mill/impacts.csv   # from a mill run
+    .venv/bin/millimpact mill liner-segment --revolutions 2 --balls 200 --out out/mill-segment   # that run
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -29,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT))
 
-from _report import timed_run, write_report  # noqa: E402
+from _report import timed_run_cpu, write_report  # noqa: E402
 
 
 def synthetic_log(path: Path, per_rev: int, revolutions: float, seed: int = 34) -> None:
@@ -54,13 +60,14 @@ def synthetic_log(path: Path, per_rev: int, revolutions: float, seed: int = 34) 
     write_impacts(path, out)
 
 
-def damage(folder: Path, impacts: Path, revolutions: float, ranks: int, extra: list[str]) -> tuple[dict, float, float]:
+def damage(folder: Path, impacts: Path, revolutions: float, ranks: int, extra: list[str]
+           ) -> tuple[dict, float, float, float]:
     cmd = [sys.executable, "-m", "millimpact.cli", "damage", "liner-segment", "--impacts", str(impacts),
            "--revolutions", f"{revolutions:g}", "--out", str(folder), *extra]
-    code, wall, peak_gb = timed_run(cmd + (["--ranks-per-case", "1"] if ranks > 1 else []), ranks, ROOT)
+    code, wall, peak_gb, cpu = timed_run_cpu(cmd + (["--ranks-per-case", "1"] if ranks > 1 else []), ranks, ROOT)
     if code != 0:
         raise SystemExit(f"millimpact damage failed (exit {code})")
-    return json.loads((folder / "damage.json").read_text()), wall, peak_gb
+    return json.loads((folder / "damage.json").read_text()), wall, peak_gb, cpu
 
 
 def main() -> int:
@@ -74,10 +81,13 @@ def main() -> int:
     ap.add_argument("--serial", action="store_true", help="also at 1 rank, side by side")
     ap.add_argument("--set", action="append", default=[], help="FIELD=VALUE for the map's scene")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "damage_map"))
+    ap.add_argument("--resume", action="store_true",
+                    help="keep --out: a map interrupted there continues (its finished bins are not re-timed)")
     a = ap.parse_args()
     out = Path(a.out)
-    shutil.rmtree(out, ignore_errors=True)
-    out.mkdir(parents=True)
+    if not a.resume:
+        shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True, exist_ok=True)
     impacts = Path(a.impacts) if a.impacts else out / "impacts.csv"
     if not a.impacts:
         synthetic_log(impacts, a.synthetic, a.revolutions)
@@ -85,13 +95,20 @@ def main() -> int:
              *[x for s in a.set for x in ("--set", s)]]
     results = []
     for ranks in sorted({a.ranks} | ({1} if a.serial else set()), reverse=True):
-        res, wall, peak_gb = damage(out / f"np{ranks}", impacts, a.revolutions, ranks, extra)
+        load_before = os.getloadavg()[0]
+        res, wall, peak_gb, cpu = damage(out / f"np{ranks}", impacts, a.revolutions, ranks, extra)
         rows = [json.loads(p.read_text()) for p in (out / f"np{ranks}" / "cases").glob("*.json")]
         first = [r["wall_time_s"] for r in rows if not r.get("reduction_reused")]
         reused = [r["wall_time_s"] for r in rows if r.get("reduction_reused")]
-        results.append({"ranks": ranks, "wall_s": round(wall, 1), "peak_rss_gb": round(peak_gb, 2),
+        results.append({"ranks": ranks, "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
+                        "load_1min_before": round(load_before, 1), "load_1min_after": round(os.getloadavg()[0], 1),
+                        "peak_rss_gb": round(peak_gb, 2),
                         "bins": len(res["bins"]), "bins_computed": len(rows),
                         "bins_refused": sum(b["status"] == "refused" for b in res["bins"]),
+                        "bins_edge_clamped": sum(b.get("edge_shift_m", 0) > 0 for b in res["bins"]),
+                        "impacts": res["impacts"],
+                        "impacts_left_out_per_rev": round(sum(t["impacts_left_out_per_rev"]
+                                                              for t in res["places"].values()), 4),
                         "restitution_spread": round(res["binning"]["widest_thornton_restitution_spread"], 4),
                         "cases_wall_sum_s": round(sum(first) + sum(reused), 1),
                         "first_of_band_mean_s": round(float(np.mean(first)), 1) if first else float("nan"),
@@ -100,10 +117,13 @@ def main() -> int:
                         "repeats_run": sum(1 for r in res["repeats"].values() if r),
                         "under_20_min": wall < 1200.0})
     write_report(out, "damage_map_bench", results, a.ranks,
-                 ["ranks", "wall (s)", "peak RSS (GB)", "bins (computed)", "Thornton spread", "cases' wall sum (s)",
+                 ["ranks", "wall (s)", "CPU (s)", "load (1 min) before/after", "peak RSS (GB)",
+                  "bins (computed, refused, clamped)", "Thornton spread", "cases' wall sum (s)",
                   "first of band / reused (s)", "repeats", "< 20 min"],
-                 lambda r: [str(r["ranks"]), f"{r['wall_s']:.0f}", f"{r['peak_rss_gb']:.2f}",
-                            f"{r['bins']} ({r['bins_computed']})", f"{r['restitution_spread']:.3g}",
+                 lambda r: [str(r["ranks"]), f"{r['wall_s']:.0f}", f"{r['cpu_s']:.0f}",
+                            f"{r['load_1min_before']:.1f} / {r['load_1min_after']:.1f}", f"{r['peak_rss_gb']:.2f}",
+                            f"{r['bins']} ({r['bins_computed']}, {r['bins_refused']}, {r['bins_edge_clamped']})",
+                            f"{r['restitution_spread']:.3g}",
                             f"{r['cases_wall_sum_s']:.0f}", f"{r['first_of_band_mean_s']} / {r['reused_mean_s']}",
                             f"{r['repeats_run']} x {r['repeat_impacts']}", "yes" if r["under_20_min"] else "no"],
                  note=f"; liner-segment, {a.revolutions:g} revolutions, {'synthetic' if not a.impacts else impacts}")

@@ -18,6 +18,7 @@ from ..scene.schema import Scene
 from ..scene.toml_io import scene_to_dict
 from .accumulate import accumulate, dent_trend, dominant_bin, place_extent, place_totals, profile_rates
 from .bins import choose_bins, describe, yield_onset_speed
+from .edges import fit_contacts
 from .places import place_scene
 from .responses import (BinCase, CaseRunner, compute_bin_rows, define_bin_cases, finite, run_repeat, sequence_api,
                         table_runner)
@@ -93,6 +94,8 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
                 warn(f"{b.place} at arc {b.arc_m:.4g} m refused: {cache[k].refused}")
         placed[b.index] = cache[k]
     bcs = define_bin_cases(choice.bins, placed, st.method, st.options)
+    # edge impacts: each bin's contact must fit on its place, decided before anything is computed
+    placed, bcs, edges = fit_contacts(scene, choice.bins, placed, bcs, st.method, st.options, warn)
     for bc in bcs:
         say(f"  bin {bc.bin.index}: {bc.bin.place}, arc {bc.placed.arc_used_m * 1e3:.0f} mm, v_n "
             f"{bc.bin.normal_speed_range_m_s[0]:.3g}-{bc.bin.normal_speed_range_m_s[1]:.3g} m/s, angle "
@@ -104,6 +107,11 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
     density = scene.ball.material.density
     per_bin, shares = accumulate(impacts, choice.bins, rows, density, scene.ball.mass, st.revolutions, st.lifters)
     places = place_totals(impacts, choice.bins, per_bin, st.revolutions, st.lifters)
+    per_rev = 1.0 / (st.revolutions * st.lifters)
+    for p, tot in places.items():
+        moved = [b for b in choice.bins if b.place == p and edges.get(b.index, {}).get("edge_shift_m", 0.0) > 0]
+        tot["impacts_edge_clamped_per_rev"] = sum(len(b.impacts) for b in moved) * per_rev
+        tot["largest_edge_shift_m"] = max((edges[b.index]["edge_shift_m"] for b in moved), default=0.0)
     for bc in bcs:
         r = rows.get(bc.bin.index)
         if r is not None and not str(r.get("status", "ok")).startswith("ok"):
@@ -156,6 +164,8 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
                          "impacts_per_rev": pb.get("impacts_per_rev", math.nan),
                          "energy_absorbed_J_per_rev": pb.get("energy_absorbed_J_per_rev", math.nan),
                          "plastic_work_J_per_rev": pb.get("plastic_work_J_per_rev", math.nan),
+                         "contact_margin_m": edges.get(b.index, {}).get("contact_margin_m", math.nan),
+                         "edge_shift_m": edges.get(b.index, {}).get("edge_shift_m", math.nan),
                          "case_key": bc.case.key if bc.case else "",
                          "status": (r.get("status", "not computed") if bc.case else "refused"),
                          "note": bc.refused or bc.placed.note})

@@ -16,6 +16,8 @@ A place the scene cannot hold (the ball would touch the plate beside a low face 
 lifter beside a plate impact near its foot, or the arc lies off the top's edge) is moved to the
 nearest position that it can, in steps of STEP_FRACTION of the ball radius, and the move is
 reported (``extrapolated``); if no position is found the bin is refused with the scene's reason.
+With a ``margin`` the position also keeps that distance from the place's free edges along the
+surface (the room a bin's contact needs: :mod:`millimpact.damage.edges`).
 """
 from __future__ import annotations
 
@@ -61,13 +63,17 @@ def _with_place(base: Scene, place: str, arc: float, face: str, height: float) -
     return dataclasses.replace(base, liner=ln, impact=SceneImpact(velocity=v, point=None, gap=base.impact.gap))
 
 
-def place_scene(base: Scene, place: str, arc: float) -> PlacedScene:
+def place_scene(base: Scene, place: str, arc: float, margin: float = 0.0) -> PlacedScene:
     """The scene ``base`` (a liner scene) with its impact at ``place`` and arc position ``arc`` (m)
-    (module docstring)."""
+    (module docstring); with ``margin`` (m) at least that far, along the struck surface, from its
+    free edges (the contact's room: :mod:`millimpact.damage.edges`)."""
     ln = base.liner
     hb, ht = 0.5 * ln.lifter_base_width, 0.5 * ln.lifter_top_width
     step = STEP_FRACTION * base.ball.radius
     flip = {"+z": "-z", "-z": "+z"}
+    if margin >= 0.5 * ln.length - abs(ln.impact_x):
+        return PlacedScene(None, place, arc, arc, refused=f"the segment is {ln.length * 1e3:.4g} mm long "
+                           f"(liner.length), less than twice the contact's {margin * 1e3:.3g} mm")
     if place == "lifter_face":
         face = ln.impact_face if arc >= 0 else flip[ln.impact_face]
         if abs(hb - ht) > 1e-9 * ln.lifter_height:
@@ -75,6 +81,13 @@ def place_scene(base: Scene, place: str, arc: float) -> PlacedScene:
         else:
             f = ln.impact_height
         lo, hi = FACE_HEIGHT_RANGE
+        kept = f"kept inside {FACE_HEIGHT_RANGE}"
+        if 1.0 - margin / math.hypot(ln.lifter_height, hb - ht) < hi:
+            hi = 1.0 - margin / math.hypot(ln.lifter_height, hb - ht)
+            kept = f"the contact's {margin * 1e3:.3g} mm from the top corner"
+        if hi < lo:
+            return PlacedScene(None, place, arc, arc, refused=f"the face is shorter than the contact's "
+                               f"{margin * 1e3:.3g} mm from its top corner")
         tries = [min(max(f, lo), hi)]
         h_step = step / ln.lifter_height
         tries += [tries[0] + k * h_step for k in range(1, int((hi - tries[0]) / h_step) + 1)]
@@ -88,11 +101,14 @@ def place_scene(base: Scene, place: str, arc: float) -> PlacedScene:
                 continue
             s_used = math.copysign(hb - fh * (hb - ht), arc if arc != 0 else 1.0)
             note = "" if abs(fh - f) < 1e-12 else (f"face height {f:.3g} of the lifter height moved to {fh:.3g} "
-                                                    f"({reason or 'kept inside ' + str(FACE_HEIGHT_RANGE)})")
+                                                    f"({reason or kept})")
             return PlacedScene(sc, place, arc, s_used, note)
         return PlacedScene(None, place, arc, arc, refused=reason or "no face height holds the ball")
     if place == "lifter_top":
-        lim = (1.0 - TOP_EDGE_MARGIN) * ht
+        lim = min((1.0 - TOP_EDGE_MARGIN) * ht, ht - margin)
+        if lim < 0:
+            return PlacedScene(None, place, arc, arc, refused=f"the top is {2 * ht * 1e3:.4g} mm wide, narrower than "
+                               f"twice the contact's {margin * 1e3:.3g} mm")
         a0 = min(max(arc, -lim), lim)
         sign = -1.0 if a0 > 0 else 1.0
         tries = [a0] + [a0 + sign * k * step for k in range(1, int(2 * lim / step) + 1)]
@@ -100,7 +116,8 @@ def place_scene(base: Scene, place: str, arc: float) -> PlacedScene:
         # away from the nearest lifter, towards the middle of the plate between lifters
         sign = 1.0 if arc >= 0 else -1.0
         c = ln.lifter_centres()[ln.impact_lifter]
-        edge = (ln.width - c if (sign > 0) == (ln.impact_face == "+z") else c) - PLATE_EDGE_MARGIN * ln.thickness
+        edge = (ln.width - c if (sign > 0) == (ln.impact_face == "+z") else c) - max(PLATE_EDGE_MARGIN * ln.thickness,
+                                                                                    margin)
         a0 = sign * min(abs(arc), edge)     # a segment narrower than the mill's lifter spacing: its far plate
         if abs(a0) < abs(arc):
             sign = -sign                    # then move back towards the lifter if needed

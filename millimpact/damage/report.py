@@ -31,7 +31,11 @@ PLACE_COLUMNS = [
     ("impact_energy_J_per_rev", "the impacts' kinetic energy per revolution"),
     ("energy_absorbed_J_per_rev", "sum of (1 - e_n^2) m v_n^2/2 + (1 - e_t^2) m v_t^2/7 per revolution"),
     ("plastic_work_J_per_rev", "plastic work in the liner and ball per revolution"),
-    ("impacts_left_out_per_rev", "impacts of refused or failed bins per revolution (not in the sums)"),
+    ("impacts_left_out_per_rev", "impacts of refused or failed bins per revolution (not in the sums: when > 0 "
+                                 "the sums are lower bounds)"),
+    ("impacts_edge_clamped_per_rev", "impacts of bins computed away from an edge so that their contact fits "
+                                     "on the place (docs/damage.md, edge impacts)"),
+    ("largest_edge_shift_m", "the largest such move of a bin's representative, along the surface"),
     ("dominant_bin", "the bin with the largest plastic work (else absorbed energy) per revolution"),
     ("dominant_normal_speed_m_s", "its representative normal speed"),
     ("dominant_angle_deg", "its representative angle from the surface normal"),
@@ -54,7 +58,7 @@ BIN_COLUMNS = ["bin", "place", "arc_low_m", "arc_high_m", "arc_used_m", "normal_
                "angle_low_deg", "angle_high_deg", "impacts", "normal_speed_m_s", "tangential_speed_m_s", "speed_m_s",
                "angle_deg", "below_yield", "restitution_normal", "restitution_tangential", "table_plastic_dissipation_J",
                "residual_dent_depth_m", "impacts_per_rev", "energy_absorbed_J_per_rev", "plastic_work_J_per_rev",
-               "case_key", "status", "note"]
+               "contact_margin_m", "edge_shift_m", "case_key", "status", "note"]
 
 
 def _atomic(path: Path, write) -> None:

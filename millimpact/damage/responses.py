@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
 from .. import __version__
-from ..errors import SceneError
+from ..errors import InputError, SceneError
 from ..scene.schema import Scene
 from ..scene.toml_io import dump_scene
 from ..studies.table import TableCase, define_cases
@@ -70,17 +70,25 @@ def define_bin_cases(bins: Sequence[Bin], placed: dict[int, PlacedScene], method
         try:
             cases = define_cases(scene, [], [], [scene.ball.radius], method, options,
                                  pairs=[(b.speed_m_s, b.angle_deg) for b in members])
-        except SceneError:
+        except (SceneError, InputError):
             # a bin the scene's settings cannot mesh (a --set h_contact too coarse for a slow bin's
-            # contact zone): each bin alone, the failing ones refused with the scene's reason
-            cases = []
+            # contact zone): refused with the scene's reason, the others banded together as before
+            cases, ok = [], []
             for b in members:
                 try:
-                    cases += define_cases(scene, [], [], [scene.ball.radius], method, options,
-                                          pairs=[(b.speed_m_s, b.angle_deg)])
-                except SceneError as exc:
+                    define_cases(scene, [], [], [scene.ball.radius], method, options, pairs=[(b.speed_m_s, b.angle_deg)])
+                except (SceneError, InputError) as exc:
                     out[b.index] = BinCase(b, placed[b.index], None, str(exc))
                 else:
+                    ok.append(b)
+            try:
+                cases = define_cases(scene, [], [], [scene.ball.radius], method, options,
+                                     pairs=[(b.speed_m_s, b.angle_deg) for b in ok]) if ok else []
+            except (SceneError, InputError):
+                # bins that mesh alone but not in one band: each alone
+                for b in ok:
+                    cases += define_cases(scene, [], [], [scene.ball.radius], method, options,
+                                          pairs=[(b.speed_m_s, b.angle_deg)])
                     cases[-1] = dataclasses.replace(cases[-1], band=len(cases) - 1)
         by_pair = {(c.speed, c.angle): c for c in cases}
         for b in members:
