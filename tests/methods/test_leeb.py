@@ -41,3 +41,29 @@ def test_leeb_below_yield_is_hertz_with_the_body_mass(tmp_path):
     assert 0.99 < s["restitution"] < 1.001
     # the kinetic energy at the start is the body's (exact mass in the FE model)
     assert s["energy_initial_J"] == pytest.approx(0.5 * 5.5e-3 * v**2, rel=1e-3)
+
+
+@pytest.mark.parametrize("args, field", [(["-candidate_radius", "0.01"], "candidate_radius"),
+                                         (["--set", "ball.body_mass=1.0"], "ball.body_mass")])
+def test_bad_leeb_input_is_one_line(tmp_path, args, field):
+    # candidates beyond the contact zone (0.56 mm here), a body lighter than its tip or over 1000x it
+    out = tmp_path / "bad"
+    r = run_cli("run", "leeb-d", "--out", str(out), *args)
+    assert r.returncode == 2 and field in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert "Traceback" not in r.stderr and not out.exists()
+
+
+def test_contact_reaching_the_candidates_edge_is_warned():
+    from types import SimpleNamespace
+
+    from millimpact.methods.reduced import candidate_notes
+
+    plan = SimpleNamespace(h_contact=5e-5, zone_radius=1e-3)
+    # the 108 HB steel's contact under the default candidates: 0.338 of 0.339 mm (measured)
+    results = {}
+    notes = candidate_notes({"contact_radius_m": [0.0, 3.38e-4, 0.0]}, 3.39e-4, plan, results)
+    assert results["contact_candidates_saturated"] and "-candidate_radius" in notes[0]
+    # the 400 HB steel's: 0.264 mm, more than one contact element inside: no warning
+    results = {}
+    assert candidate_notes({"contact_radius_m": [0.0, 2.64e-4]}, 3.39e-4, plan, results) == []
+    assert results["contact_candidates_saturated"] is False
