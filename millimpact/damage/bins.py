@@ -215,7 +215,7 @@ def yield_onset_speed(scene) -> float:
     if not ys:
         return math.inf
     e_star = effective_modulus(scene.ball.material, scene.target_material)
-    return yield_onset_velocity(min(ys), e_star, scene.ball.material.density)
+    return yield_onset_velocity(min(ys), e_star, scene.ball.effective_density)
 
 
 def describe(choice: BinChoice, counts: Optional[dict] = None) -> str:

@@ -95,7 +95,7 @@ def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
     n = np.array(model.contact_normal, dtype=float)
     if friction is None:
         friction = plan.friction > 0.0
-    radius = radius or min(CANDIDATE_RADIUS_FACTOR * plan.hertz.a_max, 0.95 * plan.zone_radius)
+    radius = radius or min(CANDIDATE_RADIUS_FACTOR * plan.hertz.a_max, 0.95 * min(plan.zone_radius, plan.ball_zone))
 
     fdim = mesh.topology.dim - 1
     nodes = fem.locate_dofs_topological(V, fdim, model.contact_facets)

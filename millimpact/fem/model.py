@@ -144,6 +144,8 @@ def _assign_materials(V: fem.FunctionSpace, ball_cells: np.ndarray, plan: Plan,
     vol = mesh.comm.allreduce(fem.assemble_scalar(fem.form(ball_indicator * ufl.dx(domain=mesh))), op=MPI.SUM)
     ball_volume_exact = 4.0 / 3.0 * np.pi * plan.ball.radius**3
     density_scale = ball_volume_exact / (sym_factor * vol)
+    if plan.ball.body_mass is not None:   # the tip of a heavier body carries its mass (scene.schema.Ball)
+        density_scale *= plan.ball.body_mass / plan.ball.sphere_mass
     rho = _cellwise(V0, ball_cells, mb.density * density_scale, mk.density, "rho")
     return mu, lmbda, rho, {"ball_density_scale": density_scale, "ball_volume_mesh_m3": sym_factor * vol}
 

@@ -43,7 +43,7 @@ def build_impact_model(scene: Scene, plan: Plan, *, generate: bool = True) -> Mo
         logger.warning("the contact zone (radius %.3g m) reaches another face of the block (%.3g m from the "
                        "impact point): those faces are tagged as usual (support / block surface)",
                        sizes.zone_radius, clearance)
-    check_zone_fits("ball", sizes.zone_radius, R)
+    check_zone_fits("ball", sizes.ball_zone, R)
     return run_gmsh(lambda: _impact(blk, R, centre, contact_block, contact_ball, planes, sizes, generate))
 
 
@@ -57,7 +57,7 @@ def _impact(blk, R, centre, contact_block, contact_ball, planes, sizes, generate
     lo, hi = (-L, -b - scale, -scale), (L, centre[1] + 2 * R + scale, H + scale)   # holds both bodies
     block_zone, block_region, v_block = split_body(box, contact_block, sizes.zone_radius,
                                                     keep_box(planes, x_p, z_p, scale, lo, hi), "block")
-    ball_zone, ball_region, v_ball = split_body(ball, contact_ball, sizes.zone_radius,
+    ball_zone, ball_region, v_ball = split_body(ball, contact_ball, sizes.ball_zone,
                                                  keep_box(planes, x_p, z_p, scale, lo, hi), "ball")
     occ.synchronize()
 
@@ -81,7 +81,7 @@ def _impact(blk, R, centre, contact_block, contact_ball, planes, sizes, generate
     info = ModelInfo(contact_block=contact_block, contact_ball=contact_ball, volumes=volumes,
                      symmetry_planes=planes, sizes=sizes, contact_vertices=(v_block, v_ball),
                      block_volumes=tuple(block_zone + block_region), ball_volumes=tuple(ball_zone + ball_region))
-    size_field([v_block, v_ball], sizes)
+    size_field([v_block, v_ball], sizes, ball=(centre, R))
     if generate:
         info = generate_mesh(info)
     return info

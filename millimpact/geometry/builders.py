@@ -14,8 +14,10 @@ and the ball's lowest point), so contact-point outputs are nodal values. Symmetr
 ``x >= x_p`` (plane ``"x"``) and ``z >= z_p`` (plane ``"z"``).
 
 Element size: ``h_contact`` within ``fine_radius`` of either contact point, growing linearly with
-the distance to ``h_far`` at ``fine_radius + SIZE_GROWTH_ZONE_RADII * zone_radius``, never above
-``h_far`` (gmsh Distance + Threshold fields). Elements are first-order tetrahedra.
+the distance to ``h_far`` at ``fine_radius + SIZE_GROWTH_ZONE_RADII * zone_radius`` (a small ball's
+plan: further when that growth would exceed :data:`millimpact.scene.plan.MAX_SIZE_GROWTH`), never above ``h_far``
+(gmsh Distance + Threshold fields); inside a small ball, never above ``h_ball`` (a Ball field).
+Elements are first-order tetrahedra.
 
 Physical groups (integer tags below, also named with ``setPhysicalName``):
 
@@ -54,7 +56,7 @@ import gmsh
 import numpy as np
 
 from ..errors import MeshError
-from ..scene.plan import Plan
+from ..scene.plan import SIZE_GROWTH_ZONE_RADII, Plan, size_growth_distance
 from ..scene.schema import Vec3
 
 logger = logging.getLogger(__name__)
@@ -62,7 +64,8 @@ logger = logging.getLogger(__name__)
 
 
 #: bump when the builders change what they produce: part of the mesh cache key
-BUILDER_VERSION = 2   # 2: a liner's zone spheres on a plate or lifter top have their poles on the normal
+BUILDER_VERSION = 3   # 2: a liner's zone spheres on a plate or lifter top have their poles on the normal;
+# 3: the growth to h_far capped at MAX_SIZE_GROWTH, a small ball's own far size h_ball
 
 BALL_ZONE, BALL_REGION, BLOCK_ZONE, BLOCK_REGION = 1, 2, 3, 4
 BALL_CONTACT, BLOCK_CONTACT, BALL_INTERFACE, BLOCK_INTERFACE = 11, 12, 13, 14
@@ -78,9 +81,9 @@ FACET_TAG_NAMES: dict[int, str] = {
     BALL_SURFACE: "ball_surface", BLOCK_SURFACE: "block_surface", BACKING: "backing",
 }
 
-#: the size reaches h_far this many zone radii beyond fine_radius: a growth rate
-#: (h_far - h_contact) / (3 zone_radius) ~ 0.25 at the default scene keeps the tetrahedra well shaped
-SIZE_GROWTH_ZONE_RADII = 3.0
+#: the size reaches h_far SIZE_GROWTH_ZONE_RADII zone radii beyond fine_radius (a growth rate
+#: (h_far - h_contact) / (3 zone_radius) ~ 0.25 at the default scene keeps the tetrahedra well
+#: shaped), or further: :func:`millimpact.scene.plan.size_growth_distance`
 #: gmsh 3D algorithm: 1 = Delaunay, deterministic (HXT, 10, is faster but its counts vary run to run)
 MESH_ALGORITHM_3D = 1
 #: gmsh 2D algorithm: 6 = Frontal-Delaunay
@@ -96,11 +99,18 @@ class MeshSizes:
     h_far: float
     zone_radius: float
     fine_radius: float
+    h_ball: float = 0.0     #: the ball's far size when smaller than h_far (a small ball); 0: h_far
+    ball_zone_radius: float = 0.0   #: the zone's radius in the ball when smaller (a small ball); 0: zone_radius
 
     @classmethod
     def from_plan(cls, plan: Plan) -> "MeshSizes":
         """The sizes a plan chose."""
-        return cls(plan.h_contact, plan.h_far, plan.zone_radius, plan.fine_radius)
+        return cls(plan.h_contact, plan.h_far, plan.zone_radius, plan.fine_radius, plan.h_ball, plan.ball_zone_radius)
+
+    @property
+    def ball_zone(self) -> float:
+        """The contact zone's radius in the ball, m."""
+        return self.ball_zone_radius or self.zone_radius
 
     def validate(self) -> None:
         """Refuse non-positive or inconsistent sizes with a :class:`MeshError` naming the field."""
@@ -110,6 +120,9 @@ class MeshSizes:
                 raise MeshError(f"mesh size {name} = {v!r}: must be a finite number > 0 m")
         if self.h_far < self.h_contact:
             raise MeshError(f"mesh size h_far = {self.h_far:g} m: must be >= h_contact = {self.h_contact:g} m")
+        if self.h_ball != 0 and not (self.h_contact <= self.h_ball <= self.h_far):
+            raise MeshError(f"mesh size h_ball = {self.h_ball!r}: must be 0 (h_far) or between h_contact "
+                            f"= {self.h_contact:g} m and h_far = {self.h_far:g} m")
         if self.zone_radius < 2.0 * self.h_contact:
             raise MeshError(f"zone_radius = {self.zone_radius:g} m: must be at least 2 h_contact "
                             f"= {2 * self.h_contact:g} m (two elements across the zone)")
@@ -369,11 +382,13 @@ def hole_size(diameter: float, h_far: float) -> float:
     return min(h_far, math.pi * diameter / HOLE_ELEMENTS_AROUND)
 
 
-def size_field(points: Sequence[int], sizes: MeshSizes, holes: Sequence[tuple[int, float]] = ()) -> None:
+def size_field(points: Sequence[int], sizes: MeshSizes, holes: Sequence[tuple[int, float]] = (),
+               ball: Optional[tuple[Vec3, float]] = None) -> None:
     """h = h_contact within fine_radius of the contact points, linear growth to h_far at
-    fine_radius + SIZE_GROWTH_ZONE_RADII zone_radius, capped at h_far; first-order tets.
+    fine_radius + :func:`size_growth_distance`, capped at h_far; first-order tets.
     ``holes``: (gmsh curve tag, hole diameter m) of the bolt holes' edges: h = :func:`hole_size` on
-    them, growing linearly to h_far one diameter away (the smaller of the two fields wins)."""
+    them, growing linearly to h_far one diameter away (the smaller of the two fields wins).
+    ``ball``: (centre, radius m) of the ball, capped at ``sizes.h_ball`` when that is set."""
     f = gmsh.model.mesh.field
     dist = f.add("Distance")
     f.setNumbers(dist, "PointsList", list(points))
@@ -382,10 +397,20 @@ def size_field(points: Sequence[int], sizes: MeshSizes, holes: Sequence[tuple[in
     f.setNumber(thr, "SizeMin", sizes.h_contact)
     f.setNumber(thr, "SizeMax", sizes.h_far)
     f.setNumber(thr, "DistMin", sizes.fine_radius)
-    f.setNumber(thr, "DistMax", sizes.fine_radius + SIZE_GROWTH_ZONE_RADII * sizes.zone_radius)
+    f.setNumber(thr, "DistMax", sizes.fine_radius + size_growth_distance(
+        sizes.h_contact, sizes.h_far, sizes.zone_radius, small_ball=sizes.h_ball > 0))
     background = thr
+    fields = [thr]
+    if ball is not None and 0 < sizes.h_ball < sizes.h_far:
+        centre, radius = ball
+        cap = f.add("Ball")
+        for key, value in zip(("XCenter", "YCenter", "ZCenter"), centre):
+            f.setNumber(cap, key, value)
+        f.setNumber(cap, "Radius", radius * 1.01)   # the sphere's faceted surface inside
+        f.setNumber(cap, "VIn", sizes.h_ball)
+        f.setNumber(cap, "VOut", sizes.h_far)
+        fields.append(cap)
     if holes:
-        fields = [thr]
         for curve, diameter in holes:
             d_h = f.add("Distance")
             f.setNumbers(d_h, "CurvesList", [curve])
@@ -397,6 +422,7 @@ def size_field(points: Sequence[int], sizes: MeshSizes, holes: Sequence[tuple[in
             f.setNumber(t_h, "DistMin", 0.0)
             f.setNumber(t_h, "DistMax", diameter)
             fields.append(t_h)
+    if len(fields) > 1:
         background = f.add("Min")
         f.setNumbers(background, "FieldsList", fields)
     f.setAsBackgroundMesh(background)

@@ -46,7 +46,7 @@ def build_liner_model(liner: LinerShape, sizes: MeshSizes, *, lifter: int = 0, f
         positive_size("ball_radius", ball_radius)
         if not (math.isfinite(gap) and gap >= 0):
             raise MeshError(f"gap = {gap!r} m: must be >= 0")
-        check_zone_fits("ball", sizes.zone_radius, ball_radius)
+        check_zone_fits("ball", sizes.ball_zone, ball_radius)
         ball = (ball_radius, tuple(p + (ball_radius + gap) * n for p, n in zip(point, normal)),
                 tuple(p + gap * n for p, n in zip(point, normal)))
     return run_gmsh(lambda: _liner(liner, sizes, point, normal, ball, planes, generate))
@@ -109,7 +109,7 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, normal: Vec3, ball,
                                         "liner", axis=axis)
     ball_zone, ball_region, v_ball = [], [], None
     if ball is not None:
-        ball_zone, ball_region, v_ball = split_body(sphere, ball[2], sizes.zone_radius,
+        ball_zone, ball_region, v_ball = split_body(sphere, ball[2], sizes.ball_zone,
                                                      keep_box(planes, point[0], 0.0, scale, lo, hi), "ball",
                                                      axis=axis)
     occ.synchronize()
@@ -153,7 +153,8 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, normal: Vec3, ball,
                      block_volumes=tuple(zone + region), ball_volumes=tuple(ball_zone + ball_region))
     # the holes' edges (and seams) get the hole size: their walls are the clamped support
     hole_curves = sorted({int(c) for s in hole_surfaces for c in gmsh.model.getAdjacencies(2, s)[1]})
-    size_field(vertices, sizes, holes=[(c, liner.bolt_hole_diameter) for c in hole_curves])
+    size_field(vertices, sizes, holes=[(c, liner.bolt_hole_diameter) for c in hole_curves],
+               ball=(ball[1], ball[0]) if ball else None)
     if generate:
         info = generate_mesh(info)
     return info

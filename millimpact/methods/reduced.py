@@ -50,7 +50,7 @@ from ..errors import InputError
 from ..fem.contact import ContactSet, create_contact
 from ..fem.model import FEModel, create_fe_model
 from ..fem.plastic_zone import create_plastic_zone
-from ..geometry.builders import BALL_ZONE, BLOCK_ZONE, SIZE_GROWTH_ZONE_RADII
+from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
 from ..geometry.mesh import create_mesh
 from ..integration import integrators
 from ..integration.integrators import SeparationStop
@@ -66,7 +66,7 @@ from ..results.fields import write_fields
 from ..results.output import RunOutput
 from ..results.recorder import impact_results
 from ..results.reduced_recorder import ReducedRecorder
-from ..scene.plan import PLASTIC_ZONE_CAP, PLASTIC_ZONE_MARGIN, Plan, make_plan, zone_radius_limit
+from ..scene.plan import PLASTIC_ZONE_CAP, PLASTIC_ZONE_MARGIN, Plan, make_plan, size_growth_distance, zone_radius_limit
 from ..scene.schema import Scene
 from .free_phase import FREE_MODES_FACTOR, integrate_reduced
 from .options import float_option, int_option, take
@@ -115,6 +115,7 @@ class ReducedOptions(NamedTuple):
     free_phase: str              #: modal | step
     free_factor: float           #: free modes up to this many times the plan's f_cut
     min_span: Optional[float]    #: s
+    candidate_radius: Optional[float] = None   #: m; None: the reduced plan's (REDUCED_CANDIDATE_FACTOR a_max)
 
 
 def read_reduced_options(method: str, scene: Scene, plan: Plan, options: dict[str, Any]) -> ReducedOptions:
@@ -141,8 +142,11 @@ def read_reduced_options(method: str, scene: Scene, plan: Plan, options: dict[st
         raise InputError(f"option free_phase = {free_phase!r}: choose modal or step")
     free_factor = float_option(options, "free_modes_factor", FREE_MODES_FACTOR)
     min_span = float_option(options, "modal_min_span", None)
+    cand = float_option(options, "candidate_radius", None)
+    if cand is not None and not (math.isfinite(cand) and cand > 0):
+        raise InputError(f"option candidate_radius = {cand!r}: must be a length > 0 m")
     return ReducedOptions(degree, kind, integrator, t_end, n_modes, f_cut, remedy, recovery, augment, free_phase,
-                          free_factor, min_span)
+                          free_factor, min_span, cand)
 
 
 def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str]]:
@@ -169,7 +173,7 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
         notes.append(f"contact zone radius {zone * 1e3:.4g} mm = {zone / a:.3g} a_max (reduced methods' default"
                      + (f", {zone / c_p:.3g} x the predicted plastic radius {c_p * 1e3:.3g} mm" if c_p > 0 and zone >= 0.9 * plastic else "")
                      + f"; full on the same mesh: --set model.zone_radius={zone!r})")
-    radius = min(REDUCED_CANDIDATE_FACTOR * a, plan.zone_radius - 2.0 * plan.h_contact)
+    radius = min(REDUCED_CANDIDATE_FACTOR * a, min(plan.zone_radius, plan.ball_zone) - 2.0 * plan.h_contact)
     if radius < 1.2 * a:
         raise InputError(f"model.zone_radius = {plan.zone_radius:g} m: too small for the contact candidates "
                          f"(needs at least {1.2 * a + 2.0 * plan.h_contact:g} m = 1.2 a_max + 2 h_contact)")
@@ -184,9 +188,10 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
 def boundary_element_size(plan: Plan, zone: float) -> float:
     """The element size (m) the mesh has at distance ``zone`` from the contact point when the zone
     radius is ``zone``: h_contact within fine_radius, then the linear growth to h_far over
-    SIZE_GROWTH_ZONE_RADII zone radii (:mod:`millimpact.geometry.builders`)."""
+    :func:`millimpact.scene.plan.size_growth_distance` (:mod:`millimpact.geometry.builders`)."""
     fine = min(1.5 * plan.hertz.a_max, zone)
-    grow = (plan.h_far - plan.h_contact) * max(0.0, zone - fine) / (SIZE_GROWTH_ZONE_RADII * zone)
+    grow = (plan.h_far - plan.h_contact) * max(0.0, zone - fine) / size_growth_distance(plan.h_contact, plan.h_far, zone,
+                                                                              plan.h_ball > 0)
     return min(plan.h_far, plan.h_contact + grow)
 
 
@@ -274,6 +279,15 @@ def build_reduced_setup(scene: Scene, plan: Plan, options: dict[str, Any], metho
     step operators are reused by impacts with the same time step (a contact table's band)."""
     opt = read_reduced_options(method, scene, plan, options)
     scene, plan, cand_radius, plan_notes = reduced_plan(scene, plan)
+    if opt.candidate_radius is not None:
+        # a plastic contact wider than the Hertz estimate (a soft block) needs more candidates: the
+        # run's saturation warning names this option
+        room = min(plan.zone_radius, plan.ball_zone) - 2.0 * plan.h_contact
+        if opt.candidate_radius > room:
+            raise InputError(f"option candidate_radius = {opt.candidate_radius!r}: must be at most the contact zone's "
+                             f"radius less 2 h_contact, {room:.4g} m (or --set model.zone_radius larger)")
+        cand_radius = opt.candidate_radius
+        plan_notes = plan_notes + [f"contact candidates within {cand_radius * 1e3:.4g} mm (-candidate_radius)"]
     t0 = time.perf_counter()
     with stage("meshing (gmsh, or the mesh cache)"):
         md = create_mesh(scene, plan, comm)
@@ -370,6 +384,7 @@ def _run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: di
         "zone_radius_m": plan.zone_radius, "candidate_radius_m": setup.cand_radius,
     }
     notes = reduced_notes(method, opt, model, red) + setup.notes + mode_notes(red)
+    notes += candidate_notes(ts, setup.cand_radius, plan, results)
     writers = []
     if zone is not None:
         keys, more, writer = plastic_report(model, zone, plan, SimpleNamespace(**run["stats"]), reduced=red)
@@ -380,6 +395,27 @@ def _run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: di
         fields = list(rec.fields)
         writers.append(lambda folder: write_fields(model, fields, Path(folder) / "fields.xdmf", rec.plastic_fields))
     return RunOutput(method, ts, results, model_info, extra_writers=writers, notes=notes)
+
+
+#: the contact reached the candidates' edge when its radius came within this many contact
+#: elements of the candidate radius (the discrete radius is the outermost node in contact)
+CANDIDATE_EDGE_ELEMENTS = 1.0
+
+
+def candidate_notes(ts, cand_radius: float, plan: Plan, results: dict) -> list[str]:
+    """A warning when the contact's radius reached the candidates' edge, where the contact could
+    not grow further (a plastic contact wider than the Hertz estimate): the run's contact is then
+    too small and its restitution too high. Sets ``results["contact_candidates_saturated"]``."""
+    radius = ts["contact_radius_m"]
+    reached = float(max(radius)) if len(radius) else 0.0
+    saturated = reached >= cand_radius - CANDIDATE_EDGE_ELEMENTS * plan.h_contact
+    results["contact_candidates_saturated"] = bool(saturated)
+    results["contact_radius_max_m"] = reached
+    if not saturated:
+        return []
+    return [f"WARNING: the contact reached the candidates' edge ({reached * 1e3:.4g} mm of {cand_radius * 1e3:.4g} mm): "
+            f"rerun with -candidate_radius {1.3 * cand_radius!r} (and --set model.zone_radius="
+            f"{max(plan.zone_radius, 1.3 * cand_radius + 3.0 * plan.h_contact)!r} if the zone is too small)"]
 
 
 def reduced_notes(method: str, opt: ReducedOptions, model: FEModel, red: ReducedModel) -> list[str]:

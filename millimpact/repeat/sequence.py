@@ -523,7 +523,8 @@ class _FullEngine(_Engine):
         self.integrator = take(self.options, "integrator") or "newmark-mr"
         a = self.plan.hertz.a_max
         # the reduced methods' candidates (methods/reduced.py reduced_plan): the same model as improved's
-        self.cand_radius = min(REDUCED_CANDIDATE_FACTOR * a, self.plan.zone_radius - 2.0 * self.plan.h_contact)
+        self.cand_radius = min(REDUCED_CANDIDATE_FACTOR * a,
+                               min(self.plan.zone_radius, self.plan.ball_zone) - 2.0 * self.plan.h_contact)
         md = create_mesh(design, self.plan, comm)
         self.model = create_fe_model(md, self.plan, self.degree)
         self.zone = create_plastic_zone(self.model, [(BALL_ZONE, self.plan.ball.material), (BLOCK_ZONE, self.plan.target)])

@@ -1,5 +1,5 @@
 """The built-in scenes (``paper-rig`` the default, ``paper-rig-plastic``, ``hertz-halfspace``, ``study-base``,
-``liner-segment``, ``liner-panel``) and the paper's parameter studies; :func:`resolve_scene` takes a built-in name or a TOML file.
+``liner-segment``, ``liner-panel``, ``mill-crmo``, ``mill-hadfield``, ``leeb-d``) and the paper's parameter studies; :func:`resolve_scene` takes a built-in name or a TOML file.
 """
 from __future__ import annotations
 
@@ -222,6 +222,41 @@ def _liner_panel() -> Scene:
     )
 
 
+#: the Leeb D impact device (ASTM A956-12; ISO 16859-1; PCE Instruments PCE-2800 manual, Table 3):
+#: a 5.5 g impact body with a 3 mm tungsten-carbide ball tip, impact energy 11 mJ (N mm)
+LEEB_D_BODY_MASS = 5.5e-3
+LEEB_D_TIP_RADIUS = 1.5e-3
+LEEB_D_ENERGY = 11.0e-3
+#: the speed of that energy, sqrt(2 E / m) = 2.0 m/s
+LEEB_D_SPEED = math.sqrt(2.0 * LEEB_D_ENERGY / LEEB_D_BODY_MASS)
+#: the test block: 25 mm thick (the D probe's least uncoupled sample thickness, Proceq Equotip 3
+#: manual 2012, 2.3), 40 x 40 mm, clamped at its back (a sample coupled to a solid base)
+LEEB_BLOCK = dict(length=0.040, thickness=0.025, height=0.040, support="back")
+
+
+def _leeb_d() -> Scene:
+    """The Leeb D rebound hardness test on a steel block (sources in the description)."""
+    block = Block(**LEEB_BLOCK, material=coerce_value(Material, "steel-400hb", "block.material"))
+    return Scene(
+        name="leeb-d",
+        description=(
+            "The Leeb rebound hardness test, D impact device (ASTM A956; ISO 16859-1): a 5.5 g impact body "
+            "with a 3 mm tungsten-carbide ball tip strikes the steel at 2.0 m/s (11 mJ; PCE-2800 manual, "
+            "Table 3); HLD = 1000 v_rebound / v_impact, the restitution x 1000. The tip is the ball (wc-co-tip: "
+            "E 630 GPa, nu 0.24) carrying the body's mass (ball.body_mass); the block 40 x 40 x 25 mm clamped "
+            "at its back, of a steel of known hardness, perfectly plastic at Tabor's flow stress Y = 9.807 HB / "
+            "2.8 MPa (steel-400hb, ~600 HLD; steel-108hb, steel-551hb: --set block.material=NAME; sources "
+            "in scene/materials.toml). A small ball: the mesh grows from the contact and the block's far size "
+            "is its own (scene/plan.py). Impact only (0.25 ms). benchmarks/leeb_rebound.py compares e with "
+            "HLD / 1000."),
+        ball=Ball(radius=LEEB_D_TIP_RADIUS, material=coerce_value(Material, "wc-co-tip", "ball.material"),
+                  body_mass=LEEB_D_BODY_MASS),
+        block=block,
+        impact=Impact(velocity=(0.0, -round(LEEB_D_SPEED, 12), 0.0)),
+        time=TimeSpan(end=0.25e-3),
+    )
+
+
 BUILTIN_SCENES = {
     "paper-rig": _paper_rig,
     "paper-rig-plastic": _paper_rig_plastic,
@@ -232,6 +267,7 @@ BUILTIN_SCENES = {
     "mill-crmo": lambda: _mill_block("mill-crmo", "cr-mo-liner", "Cr-Mo steel (Y 0.95 GPa)"),
     "mill-hadfield": lambda: _mill_block("mill-hadfield", "hadfield-mn-liner",
                                          "Hadfield manganese steel (Y 380 MPa, strong hardening)"),
+    "leeb-d": _leeb_d,
 }
 DEFAULT_SCENE = "paper-rig"
 

@@ -30,6 +30,8 @@ FIELD_DOCS: dict[str, tuple[str, str, str]] = {
     "name": ("", "text", "the scene's name (output folder default)"),
     "description": ("", "text", "what the scene is, with its sources"),
     "ball.radius": ("m", "[1e-4, 1]", "ball radius R"),
+    "ball.body_mass": ("kg", "[sphere's mass, 1000 x it]; absent = the sphere's",
+                       "impacting mass when the ball is the tip of a heavier body (a Leeb probe)"),
     "block.length": ("m", "> 0", "block size along x (the struck face is length x height)"),
     "block.thickness": ("m", "> 0", "block size along the impact direction (-y)"),
     "block.height": ("m", "> 0", "block size along z"),

@@ -47,6 +47,30 @@ F_CUT_FACTOR = 4.0
 #: --method improved gives P2's accuracy at a fraction of its cost
 P1_EXPECTED_ERROR = "F_max about +3 % and t_c about -3 % against the converged answer"
 P2_REMEDY = "--degree 2 (model.degree = 2) or --method improved is within ~1 %"
+#: a ball whose radius is at most this share of the struck body's smallest side is a *small ball*
+#: (a hardness-test tip on a block, a 2.5 mm ball on hertz-halfspace's 100 mm block): its far
+#: size R / 4 stays inside the ball, and the struck body's far size is its own side / 4, so the
+#: block's cost follows the contact, not the ball (issue 32: the 2.5 mm ball on the 100 mm block
+#: meshed everything at R / 4 and passed 9 GB). Every built-in scene has a ball larger than this
+#: (hertz-halfspace: 0.15 of its 100 mm block) and keeps its plan.
+SMALL_BALL_SHARE = 0.1
+#: a small ball's plan (:data:`SMALL_BALL_SHARE`) grows the element size by at most this much per
+#: unit distance from the contact zone (the builders' Threshold field), so its block's element
+#: count goes with log(block size / contact size) (int 4 pi r^2 dr / (g r)^3). Other plans keep
+#: their growth over SIZE_GROWTH_ZONE_RADII zone radii (0.13-0.26 on the built-in scenes' full
+#: plans, up to ~0.4 with the reduced methods' smaller zones), so their meshes are unchanged.
+MAX_SIZE_GROWTH = 0.3
+#: the size reaches h_far this many zone radii beyond fine_radius
+SIZE_GROWTH_ZONE_RADII = 3.0
+
+
+def size_growth_distance(h_contact: float, h_far: float, zone_radius: float, small_ball: bool) -> float:
+    """The distance (m) beyond fine_radius over which the element size grows linearly from
+    h_contact to h_far: SIZE_GROWTH_ZONE_RADII zone radii; for a ``small_ball`` plan (h_ball > 0)
+    longer when needed, so that the growth rate (h_far - h_contact) / distance stays at most
+    MAX_SIZE_GROWTH."""
+    distance = SIZE_GROWTH_ZONE_RADII * zone_radius
+    return max(distance, (h_far - h_contact) / MAX_SIZE_GROWTH) if small_ball else distance
 
 
 #: elements per shear wavelength at f_cut in the far mesh of a liner with gauges: the phase error
@@ -92,10 +116,21 @@ def smallest_body_side(scene: Scene) -> tuple[str, float]:
     return min(sides.items(), key=lambda kv: kv[1])
 
 
+#: a zone sphere reaches at most this share of its body's smallest size (the far side stays out)
+ZONE_SIZE_SHARE = 0.45
+
+
+def is_small_ball(scene: Scene) -> bool:
+    """True when the ball's radius is at most :data:`SMALL_BALL_SHARE` of the struck body's
+    smallest side: its far size and its contact zone are the ball's own (:func:`make_plan`)."""
+    return scene.ball.radius <= SMALL_BALL_SHARE * smallest_body_side(scene)[1]
+
+
 def zone_radius_limit(scene: Scene) -> float:
     """The contact zone must stay below this radius (m): 0.45 of the smallest body size, so the
-    zone sphere does not reach the far side of the ball or the body."""
-    return 0.45 * smallest_size(scene)
+    zone sphere does not reach the far side of the ball or the body. A small ball's zone in the
+    ball is capped on its own (:attr:`Plan.ball_zone_radius`): the limit is then the struck body's."""
+    return ZONE_SIZE_SHARE * (smallest_body_side(scene)[1] if is_small_ball(scene) else smallest_size(scene))
 
 
 def predict_plastic_radius(h: HertzImpact, materials: tuple[Material, ...]) -> float:
@@ -180,6 +215,17 @@ class Plan:
     #: normal stiffness per area (Pa/m) of a liner's rubber backing on its back face (a Winkler
     #: layer, :mod:`millimpact.fem.model`); 0: the back face is clamped (or not a liner)
     backing_stiffness: float = 0.0
+    #: the ball's far element size (m) when it differs from h_far (a small ball:
+    #: :data:`SMALL_BALL_SHARE`); 0: h_far in both bodies
+    h_ball: float = 0.0
+    #: the contact zone's radius in the ball (m) when smaller than zone_radius (a small ball whose
+    #: zone in the block is larger than the ball allows); 0: zone_radius in both bodies
+    ball_zone_radius: float = 0.0
+
+    @property
+    def ball_zone(self) -> float:
+        """The contact zone's radius in the ball, m."""
+        return self.ball_zone_radius or self.zone_radius
 
     @property
     def normal_speed(self) -> float:
@@ -193,7 +239,10 @@ class Plan:
             ("symmetry", f"{self.symmetry} (cut planes: {', '.join(self.symmetry_planes) or 'none'})", why.get("symmetry", "")),
             ("h_contact", f"{self.h_contact*1e3:.4g} mm", why.get("h_contact", "")),
             ("h_far", f"{self.h_far*1e3:.4g} mm", why.get("h_far", "")),
+            *([("h_ball", f"{self.h_ball*1e3:.4g} mm", why.get("h_ball", ""))] if self.h_ball > 0 else []),
             ("zone_radius", f"{self.zone_radius*1e3:.4g} mm", why.get("zone_radius", "")),
+            *([("ball_zone_radius", f"{self.ball_zone_radius*1e3:.4g} mm", why.get("ball_zone_radius", ""))]
+              if self.ball_zone_radius > 0 else []),
             ("fine_radius", f"{self.fine_radius*1e3:.4g} mm", why.get("fine_radius", "")),
             ("gap", f"{self.gap*1e6:.4g} um", why.get("gap", "")),
             ("dt_contact", f"{self.dt_contact*1e6:.4g} us", why.get("dt_contact", "")),
@@ -202,7 +251,7 @@ class Plan:
             ("degree", f"P{self.degree}", why.get("degree", "")),
         ]
         if self.plastic_radius > 0:
-            rows.insert(3, ("plastic_radius", f"{self.plastic_radius*1e3:.4g} mm ({self.plastic_radius/self.hertz.a_max:.3g} a_max)",
+            rows.insert(4 if self.h_ball > 0 else 3, ("plastic_radius", f"{self.plastic_radius*1e3:.4g} mm ({self.plastic_radius/self.hertz.a_max:.3g} a_max)",
                             why.get("plastic_radius", "")))
         return rows
 
@@ -320,6 +369,17 @@ def make_plan(scene: Scene) -> Plan:
     smallest = smallest_size(scene)
     h_far = m.h_far if m.h_far is not None else smallest / 4.0
     reasons["h_far"] = "user" if m.h_far is not None else "smallest body size / 4"
+    side_field, side = smallest_body_side(scene)
+    h_ball = 0.0
+    if m.h_far is None and is_small_ball(scene):
+        # a small ball on a large body: the body far from the contact carries only the static
+        # compliance and the low modes, which its own size sets; the contact's stress field decays
+        # within a few contact radii, which the growth from h_contact resolves
+        h_far, h_ball = side / 4.0, scene.ball.radius / 4.0
+        reasons["h_far"] = (f"{side_field} / 4: a small ball (radius <= {SMALL_BALL_SHARE:g} x the body's smallest "
+                            f"side), the size grows from the contact at <= {MAX_SIZE_GROWTH:g} per unit distance: "
+                            "the cost follows the contact, not the block")
+        reasons["h_ball"] = "ball radius / 4 inside the ball (small ball)"
     f_cut_plan = m.f_cut if m.f_cut is not None else F_CUT_FACTOR / h.contact_time
     h_wave = wave_element_size(scene.target_material, f_cut_plan)
     if m.h_far is None and scene.liner is not None and scene.gauges and h_wave < h_far:
@@ -328,6 +388,9 @@ def make_plan(scene: Scene) -> Plan:
         h_far = h_wave
         reasons["h_far"] = (f"shear wavelength at f_cut / {WAVE_ELEMENTS:g} (gauges away from the impact; "
                             "P1 phase error (k h)^2 / 24 ~ 0.4 %)")
+    if h_ball >= h_far:    # the wave size above took the body's far size below the ball's
+        h_ball = 0.0
+        reasons.pop("h_ball", None)
     c_p = predict_plastic_radius(h, (scene.ball.material, scene.target_material))
     reasons["plastic_radius"] = "Johnson's cavity model on Thornton's contact radius (theory/thornton.py)"
     zone = m.zone_radius if m.zone_radius is not None else max(ZONE_RADIUS_FACTOR * h.a_max, PLASTIC_ZONE_MARGIN * c_p)
@@ -345,9 +408,17 @@ def make_plan(scene: Scene) -> Plan:
                                   f"(0.45 x the smallest, {limit:g} m)")
     if zone >= limit:
         raise SceneError("model.zone_radius", zone, f"the contact zone must be smaller than {limit:g} m for this scene")
-    fine = min(1.5 * h.a_max, zone)
+    ball_zone = 0.0
+    ball_limit = PLASTIC_ZONE_CAP * ZONE_SIZE_SHARE * scene.ball.radius
+    if is_small_ball(scene) and zone > ball_limit:
+        # the block's plastic region is larger than the ball: the ball's zone stays inside it and
+        # holds the contact patch (the candidates need 1.2 a_max + 2 h_contact)
+        ball_zone = ball_limit
+        reasons["ball_zone_radius"] = (f"{PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} ball radius: a small ball's zone "
+                                       "in the ball (the block's is larger)")
+    fine = min(1.5 * h.a_max, ball_zone or zone)
     reasons["fine_radius"] = "1.5 a_max: h_contact over the whole contact patch"
-    if h_c > zone / 2:
+    if h_c > (ball_zone or zone) / 2:
         if m.h_contact is not None:
             raise SceneError("model.h_contact", h_c, f"must be at most half the contact-zone radius ({zone/2:g} m)")
         if m.zone_radius is not None:
@@ -373,7 +444,8 @@ def make_plan(scene: Scene) -> Plan:
                 friction=scene.contact.friction,
                 probes=make_probe_spec(scene, planes, h_c, gap, h.a_max, F_CUT_FACTOR / h.contact_time),
                 reasons=tuple(reasons.items()), plastic_radius=c_p,
-                backing_stiffness=scene.liner.backing_stiffness if scene.liner is not None else 0.0)
+                backing_stiffness=scene.liner.backing_stiffness if scene.liner is not None else 0.0,
+                h_ball=h_ball, ball_zone_radius=ball_zone)
 
 
 #: the largest Hertz contact radius a_max the plan meshes, as a share of the smallest of the ball

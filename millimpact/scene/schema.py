@@ -122,12 +122,22 @@ BALL_RADIUS_RANGE = (1e-4, 1.0)
 MAX_IMPACT_SPEED = 100.0
 
 
+#: a ball's ``body_mass`` may be up to this many times its sphere's own mass: the sphere carries the
+#: body's mass as a uniformly denser sphere (a Leeb D tip, 3 mm tungsten carbide on a 5.5 g body:
+#: ~25x), whose own lowest vibration period grows with the square root of the ratio (at 1000x,
+#: ~30 x the sphere's wave transit time R / c)
+BODY_MASS_RATIO_MAX = 1000.0
+
+
 @dataclass(frozen=True)
 class Ball:
-    """The grinding ball: a sphere of ``radius`` (m)."""
+    """The grinding ball: a sphere of ``radius`` (m). ``body_mass`` (kg; None: the sphere's own
+    mass) is the mass of a heavier body whose tip the ball is (a hardness tester's impact body):
+    the model's sphere carries it as a uniformly denser sphere, its stiffness the material's."""
 
     radius: float = 0.015
     material: Material = field(default_factory=Material)
+    body_mass: Optional[float] = None
 
     def validate(self) -> None:
         _positive("ball.radius", self.radius, "m")
@@ -135,11 +145,29 @@ class Ball:
             raise SceneError("ball.radius", self.radius, f"must lie in [{BALL_RADIUS_RANGE[0]:g}, {BALL_RADIUS_RANGE[1]:g}] m "
                              "(test and grinding balls; a small-contact impact model)")
         self.material.validate("ball.material")
+        if self.body_mass is not None:
+            own = self.sphere_mass
+            lo, hi = own, BODY_MASS_RATIO_MAX * own
+            _finite("ball.body_mass", self.body_mass, "kg")
+            if not (lo * (1 - 1e-12) <= self.body_mass <= hi):
+                raise SceneError("ball.body_mass", self.body_mass,
+                                 f"must lie in [{lo:.4g}, {hi:.4g}] kg: at least the sphere's own mass and at most "
+                                 f"{BODY_MASS_RATIO_MAX:g} x it (or leave it out: the sphere's mass)")
+
+    @property
+    def sphere_mass(self) -> float:
+        """The sphere's own mass 4/3 pi R^3 rho, kg."""
+        return 4.0 / 3.0 * math.pi * self.radius**3 * self.material.density
 
     @property
     def mass(self) -> float:
-        """kg."""
-        return 4.0 / 3.0 * math.pi * self.radius**3 * self.material.density
+        """The impacting mass, kg: ``body_mass`` if given, else the sphere's."""
+        return self.sphere_mass if self.body_mass is None else self.body_mass
+
+    @property
+    def effective_density(self) -> float:
+        """The density of a sphere of this radius and :attr:`mass`, kg/m^3 (Thornton's V_y)."""
+        return self.mass / (4.0 / 3.0 * math.pi * self.radius**3)
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """How big a scene's mesh will be, from its plan, before meshing: vertices, edges, DOFs.
 
 The mesh follows the size field of :mod:`millimpact.geometry.builders` (h_contact within
-fine_radius of the contact points, linear growth to h_far over SIZE_GROWTH_ZONE_RADII zone radii;
+fine_radius of the contact points, linear growth to h_far over
+:func:`millimpact.scene.plan.size_growth_distance`; a small ball's own far size h_ball inside it;
 on a liner's bolt holes pi d / 16 growing to h_far one diameter away from their edges: a tube
 about each hole here). A tetrahedral mesh of local
 size h(x) has about ``int dV / (c h^3)`` vertices; the number of edges is about
@@ -16,7 +17,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from .plan import Plan, smallest_size
+from .plan import Plan, size_growth_distance, smallest_size
 from .schema import Scene
 
 #: vertices per int dV / h^3 of a Delaunay tetrahedral mesh in the bulk, and the boundary's extra
@@ -27,8 +28,6 @@ SURFACE_VERTICES = 1.457
 #: edges per vertex: EDGES_PER_VERTEX - SURFACE_EDGES x (6.9 in the bulk, fewer on the boundary; fitted)
 EDGES_PER_VERTEX = 6.88
 SURFACE_EDGES = 2.275
-#: the builders' growth of the size over this many zone radii (builders.SIZE_GROWTH_ZONE_RADII)
-SIZE_GROWTH_ZONE_RADII = 3.0
 #: elements around a bolt hole (builders.HOLE_ELEMENTS_AROUND)
 HOLE_ELEMENTS_AROUND = 16
 
@@ -73,12 +72,22 @@ def estimate_mesh(scene: Scene, plan: Plan) -> MeshEstimate:
     """The plan's mesh of ``scene``, estimated (module docstring): counts of the model (a half or
     quarter model holds that share of the bodies)."""
     share = 0.5 ** len(plan.symmetry_planes)
-    volume = share * (body_volume(scene) + 4.0 / 3.0 * math.pi * scene.ball.radius**3)
+    ball_volume = 4.0 / 3.0 * math.pi * scene.ball.radius**3
+    volume = share * (body_volume(scene) + ball_volume)
     h_far = plan.h_far
-    integral = volume / h_far**3
-    # about the contact point each body holds about half of a sphere of radius r (both: all of it)
-    r1 = plan.fine_radius + SIZE_GROWTH_ZONE_RADII * plan.zone_radius
-    integral += share * _graded(plan.h_contact, h_far, plan.fine_radius, r1, lambda r: 4.0 * math.pi * r * r)
+    small = plan.h_ball > 0
+    r1 = plan.fine_radius + size_growth_distance(plan.h_contact, h_far, plan.zone_radius, small)
+    if plan.h_ball > 0:
+        # a small ball: the body (half a sphere about the contact) grows to h_far, the ball to h_ball
+        h_b = plan.h_ball
+        integral = share * (body_volume(scene) / h_far**3 + ball_volume / h_b**3)
+        integral += share * _graded(plan.h_contact, h_far, plan.fine_radius, r1, lambda r: 2.0 * math.pi * r * r)
+        r1_b = plan.fine_radius + size_growth_distance(plan.h_contact, h_b, plan.zone_radius, small)
+        integral += share * _graded(plan.h_contact, h_b, plan.fine_radius, r1_b, lambda r: 2.0 * math.pi * r * r)
+    else:
+        integral = volume / h_far**3
+        # about the contact point each body holds about half of a sphere of radius r (both: all of it)
+        integral += share * _graded(plan.h_contact, h_far, plan.fine_radius, r1, lambda r: 4.0 * math.pi * r * r)
     ln = scene.liner
     if ln is not None and ln.bolt_holes():
         d = ln.bolt_hole_diameter
@@ -86,6 +95,7 @@ def estimate_mesh(scene: Scene, plan: Plan) -> MeshEstimate:
         kept = sum(1 for x, _ in ln.bolt_holes() if "x" not in plan.symmetry_planes or x >= plan.impact_point[0])
         # a tube about each hole, through the plate: the size grows from h_hole on the wall to h_far one d away
         integral += kept * _graded(h_hole, h_far, 0.0, d, lambda r: 2.0 * math.pi * (0.5 * d + r) * ln.thickness)
-    x = min(h_far / smallest_size(scene), 1.0)   # the fit's range: x <= 0.8
+    # the fit's range: x <= 0.8 (a small ball: the block's far size against its side)
+    x = min(h_far / (smallest_size(scene) if plan.h_ball == 0 else 4.0 * h_far), 1.0)
     vertices = (VERTICES_PER_UNIT + SURFACE_VERTICES * x) * integral
     return MeshEstimate(int(round(vertices)), int(round((EDGES_PER_VERTEX - SURFACE_EDGES * x) * vertices)), volume)

@@ -439,7 +439,7 @@ def thornton_curve(scene) -> Optional[tuple[float, str]]:
     if not ys:
         return None
     y = min(ys)
-    vy = yield_onset_velocity(y, effective_modulus(scene.ball.material, scene.target_material), scene.ball.material.density)
+    vy = yield_onset_velocity(y, effective_modulus(scene.ball.material, scene.target_material), scene.ball.effective_density)
     return vy, f"Thornton 1997 (Y = {y / 1e9:.3g} GPa, V_y = {vy:.3g} m/s; a lower bound of FE)"
 
 
