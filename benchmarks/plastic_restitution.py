@@ -29,7 +29,8 @@ each case's folder keeps its run and is reused when its settings are unchanged (
 forces the runs):
 
     nice -n 5 .venv/bin/python benchmarks/plastic_restitution.py [--ratios 1.5,3,10,30,100,183,300,1000]
-        [--refine 1,1.5] [--third 3,30,100,183,1000] [--hc 3] [--fit-from 30]
+        [--refine 1,1.5] [--third 3,30,100,183,1000] [--hc 3] [--fit-from 30] [--method full|improved]
+        [--out DIR]
 """
 from __future__ import annotations
 
@@ -102,13 +103,13 @@ def case_settings(stiff, ratio: float, vy: float, hc: float, refine: float, whol
     return sets, info
 
 
-def run_case(case: Path, sets: dict, rerun: bool) -> tuple[dict, float]:
+def run_case(case: Path, sets: dict, rerun: bool, method: str = "full") -> tuple[dict, float]:
     """Run (or reuse) one case; its summary and wall time (s, NaN when reused)."""
     stamp = case / "benchmark_settings.json"
     if not rerun and (case / "summary.json").exists() and stamp.exists() and json.loads(stamp.read_text()) == sets:
         s = json.loads((case / "summary.json").read_text())
         return s, float(json.loads(stamp.with_name("benchmark_wall.json").read_text())["wall_s"])
-    cmd = [sys.executable, "-m", "millimpact.cli", "run", "hertz-halfspace", "--method", "full", "-q",
+    cmd = [sys.executable, "-m", "millimpact.cli", "run", "hertz-halfspace", "--method", method, "-q",
            "--out", str(case), "--force"] + [x for k, val in sets.items() for x in ("--set", f"{k}={val}")]
     t0 = time.perf_counter()
     r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
@@ -139,6 +140,8 @@ def main() -> int:
     ap.add_argument("--fit-from", type=float, default=30.0, help="the slope is fitted over V/V_y >= this")
     ap.add_argument("--plan-fine", action="store_true",
                     help="keep the plan's fine radius (1.5 Hertz a_max) instead of meshing the whole zone at h")
+    ap.add_argument("--method", default="full", choices=("full", "improved"),
+                    help="full FE P1 (the default) or improved (P2, reduced: the cross-check of P1's contact)")
     ap.add_argument("--rerun", action="store_true", help="run every case even if its folder holds it")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "plastic_restitution"))
     a = ap.parse_args()
@@ -156,9 +159,10 @@ def main() -> int:
     for ratio in ratios:
         for refine in refines + ([refines[-1] * 1.5] if ratio in third else []):
             sets, info = case_settings(stiff, ratio, vy, a.hc, refine, not a.plan_fine)
-            case = out / f"v_over_vy_{ratio:g}_h_ac_over_{a.hc * refine:.4g}{'_planfine' if a.plan_fine else ''}"
+            case = out / (f"v_over_vy_{ratio:g}_h_ac_over_{a.hc * refine:.4g}{'_planfine' if a.plan_fine else ''}"
+                          f"{'' if a.method == 'full' else '_' + a.method}")
             try:
-                s, wall = run_case(case, sets, a.rerun)
+                s, wall = run_case(case, sets, a.rerun, a.method)
             except RuntimeError as err:
                 print(f"V/V_y {ratio:g}, h/{refine:g}: failed: {err}", flush=True)
                 continue
@@ -183,7 +187,8 @@ def main() -> int:
     table, _ = summarise(rows, refines, a.fit_from)
     (out / "restitution.md").write_text(table)
     print(table)
-    plot(out, rows, sorted({r["refine"] for r in rows}), vy, a.hc)
+    plot(out, rows, sorted({r["refine"] for r in rows}), vy, a.hc,
+         "full FE P1" if a.method == "full" else "improved (P2, reduced)")
     print(f"-> {out}/restitution.csv, restitution.md, restitution.png (V_y = {vy:.4g} m/s; "
           f"{time.perf_counter() - t_all:.0f} s in all)")
     return 0
@@ -255,7 +260,7 @@ def summarise(rows: list[dict], refines: list[float], fit_from: float) -> tuple[
     return text, fits
 
 
-def plot(out: Path, rows: list[dict], refines: list[float], vy: float, hc: float) -> None:
+def plot(out: Path, rows: list[dict], refines: list[float], vy: float, hc: float, method: str = "full FE P1") -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -276,7 +281,7 @@ def plot(out: Path, rows: list[dict], refines: list[float], vy: float, hc: float
                       or not r["zone_boundary_elastic"]) for r in rows if r["refine"] == refine)
         if not pts:
             continue
-        ax.loglog([p[0] for p in pts], [p[1] for p in pts], mk, label=f"millimpact full FE P1, h = a_c / {hc * refine:.3g}")
+        ax.loglog([p[0] for p in pts], [p[1] for p in pts], mk, label=f"millimpact {method}, h = a_c / {hc * refine:.3g}")
         bad = [p for p in pts if p[2]]
         if bad:
             ax.loglog([p[0] for p in bad], [p[1] for p in bad], "x", color="k", ms=10)
