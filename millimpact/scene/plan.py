@@ -418,6 +418,13 @@ def make_plan(scene: Scene) -> Plan:
                                        "in the ball (the block's is larger)")
     fine = min(1.5 * h.a_max, ball_zone or zone)
     reasons["fine_radius"] = "1.5 a_max: h_contact over the whole contact patch"
+    if m.fine_radius is not None:
+        # a fast plastic impact's plastic region (and contact) outgrows 1.5 a_max: the user can
+        # mesh the whole region at h_contact (benchmarks/plastic_restitution.py)
+        if m.fine_radius > (ball_zone or zone):
+            raise SceneError("model.fine_radius", m.fine_radius,
+                             f"must be at most the contact-zone radius ({ball_zone or zone:g} m)")
+        fine, reasons["fine_radius"] = m.fine_radius, "user"
     if h_c > (ball_zone or zone) / 2:
         if m.h_contact is not None:
             raise SceneError("model.h_contact", h_c, f"must be at most half the contact-zone radius ({zone/2:g} m)")

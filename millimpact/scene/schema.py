@@ -319,7 +319,8 @@ class ModelOptions:
     """Overrides of the plan's modelling choices; ``None`` leaves the choice to the plan.
 
     ``h_contact`` element size at the contact point (m), ``h_far`` far from it (m),
-    ``zone_radius`` contact-zone radius (m), ``symmetry`` one of auto/full/half/quarter,
+    ``zone_radius`` contact-zone radius (m), ``fine_radius`` radius within which the size is
+    ``h_contact`` (m, at most ``zone_radius``), ``symmetry`` one of auto/full/half/quarter,
     ``degree`` Lagrange degree of the full model, ``f_cut`` modal cutoff (Hz), ``modes`` a fixed
     mode count per body.
     """
@@ -331,6 +332,7 @@ class ModelOptions:
     degree: int = 1
     f_cut: Optional[float] = None
     modes: Optional[int] = None
+    fine_radius: Optional[float] = None
 
 
 @dataclass(frozen=True)
@@ -473,7 +475,7 @@ class Scene:
         if t.dt_free is not None:
             _positive("time.dt_free", t.dt_free, "s")
         m = self.model
-        for name in ("h_contact", "h_far", "zone_radius", "f_cut"):
+        for name in ("h_contact", "h_far", "zone_radius", "fine_radius", "f_cut"):
             v = getattr(m, name)
             if v is not None:
                 _positive(f"model.{name}", v, "Hz" if name == "f_cut" else "m")

@@ -89,3 +89,23 @@ def plastic_zone_radius(radius: float, mass: float, speed: float, e_star: float,
         return a, 0.0
     ratio3 = (e_star * a / (yield_stress * radius) + 4.0 * (1.0 - 2.0 * nu)) / (6.0 * (1.0 - nu))
     return a, a * ratio3 ** (1.0 / 3.0)
+
+
+#: mean contact pressure of a fully plastic spherical indentation in units of the yield stress
+#: (Tabor's H ~ 3 Y; Johnson, Contact Mechanics, 1985, section 6.2 and Fig. 6.9: p_m ~ 2.8-3 Y)
+FULLY_PLASTIC_PRESSURE_FACTOR = 3.0
+
+
+def fully_plastic_contact_radius(radius: float, mass: float, speed: float, mean_pressure: float) -> float:
+    """The largest contact radius a (m) of a fully plastic impact: the ball's kinetic energy
+    m V^2 / 2 (``mass`` kg, ``speed`` m/s) is the work of a constant mean pressure p_m
+    (``mean_pressure``, Pa; FULLY_PLASTIC_PRESSURE_FACTOR x Y) over the dent volume
+    pi a^4 / (4 R) of a truncated sphere, a^2 = 2 R delta (Johnson, Contact Mechanics, 1985,
+    section 11.4, after Tabor's dynamic hardness):
+
+        m V^2 / 2 = p_m pi a^4 / (4 R),   a = (2 R m V^2 / (pi p_m))^(1/4).
+
+    Thornton's law at high speed is the same balance with a^2 = R delta and p_m = p_y (1.6 Y), so
+    the two radii coincide for p_m = 2 p_y; with p_m = 3 Y the fully plastic radius is
+    (3.2 / 3)^(1/4) = 1.016 x Thornton's (1.6 Y) one at high speed. Elastic work and pile-up are neglected."""
+    return (2.0 * radius * mass * speed**2 / (math.pi * mean_pressure)) ** 0.25

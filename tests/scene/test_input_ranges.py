@@ -73,6 +73,22 @@ def test_a_user_h_contact_or_zone_is_still_named():
     assert exc.value.field == "model.zone_radius" and "at least" in str(exc.value)
 
 
+def test_a_user_fine_radius_is_meshed_up_to_the_zone():
+    """model.fine_radius replaces the plan's 1.5 a_max (a fast plastic impact's region outgrows it),
+    up to the contact zone: beyond it one line names the field and the zone's radius."""
+    rig = builtin_scene("paper-rig")
+    plan = make_plan(rig)
+    assert plan.fine_radius == pytest.approx(1.5 * plan.hertz.a_max)
+    wider = make_plan(rig.with_value("model.fine_radius", plan.zone_radius))
+    assert wider.fine_radius == plan.zone_radius and dict(wider.reasons)["fine_radius"] == "user"
+    with pytest.raises(SceneError) as exc:
+        make_plan(rig.with_value("model.fine_radius", 1.01 * plan.zone_radius))
+    assert exc.value.field == "model.fine_radius" and "contact-zone radius" in str(exc.value)
+    with pytest.raises(SceneError) as exc:
+        rig.with_value("model.fine_radius", -1e-3)
+    assert exc.value.field == "model.fine_radius"
+
+
 # --- row 17: settings that would be silently ignored ---------------------------------------------
 def test_block_fields_on_a_liner_scene_are_refused(tmp_path):
     line = one_error_line("run", "liner-segment", "--method", "hertz", "--set", "block.thickness=0.02",

@@ -67,3 +67,30 @@ def test_plastic_zone_radius_follows_the_cavity_model():
     assert (c / a) ** 3 == pytest.approx((E * a / (Y * R) + 4 * 0.4) / (6 * 0.7), rel=1e-12)
     assert c > a
     assert plastic_zone_radius(R, m, 10.0, E, Y)[1] > c > plastic_zone_radius(R, m, 3.0, E, 2 * Y)[1]
+
+
+def test_fully_plastic_contact_radius_is_the_energy_balance_of_the_dent():
+    """Johnson 11.4 / Tabor: m V^2 / 2 = p_m x dent volume. The exact volume of a spherical cap of
+    depth delta (pi delta^2 (3R - delta) / 3, independent of the shallow-dent formula) with a^2 = 2 R
+    delta, times p_m = 3 Y, equals the impact energy; and at high speed Thornton's contact radius
+    (Hertz to the yield onset, then F = F_y + pi p_y R (delta - delta_y) over a^2 = R delta) tends
+    to the fully plastic one with p_m = 2 p_y, the same balance written with its own geometry."""
+    from millimpact.theory.thornton import (FULLY_PLASTIC_PRESSURE_FACTOR, fully_plastic_contact_radius,
+                                            plastic_zone_radius)
+
+    R, rho, Y, E = 0.015, 7800.0, 1e9, 182e9
+    m = 4.0 / 3.0 * np.pi * R**3 * rho
+    for v in (1.0, 10.0, 55.0):
+        p_m = FULLY_PLASTIC_PRESSURE_FACTOR * Y
+        a = fully_plastic_contact_radius(R, m, v, p_m)
+        delta = a**2 / (2 * R)
+        cap = np.pi * delta**2 * (3 * R - delta) / 3
+        # the shallow-dent volume pi a^4 / (4 R) omits the cap's -delta^3 term: a relative
+        # difference delta / (3 R), 3 % at 55 m/s (a = 0.38 R), hence this tolerance
+        assert p_m * cap == pytest.approx(0.5 * m * v**2, rel=delta / (3 * R) * 1.01)
+    # Thornton's radius tends to the fully plastic one with p_m = 2 p_y as delta_y / delta -> 0: the
+    # Hertz part's offset leaves 1.2 % at 1 m/s (18 V_y), 0.12 % at 10 m/s and 0.02 % at 55 m/s
+    # (1000 V_y), hence 1e-3 there; p_m = 3 Y instead of 3.2 Y makes a (3.2 / 3)^(1/4) = 1.6 % larger
+    a_th = plastic_zone_radius(R, m, 55.0, E, Y)[0]
+    assert a_th == pytest.approx(fully_plastic_contact_radius(R, m, 55.0, 2 * 1.6 * Y), rel=1e-3)
+    assert fully_plastic_contact_radius(R, m, 55.0, 3 * Y) / a_th == pytest.approx((3.2 / 3) ** 0.25, rel=1e-3)
