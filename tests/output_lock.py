@@ -44,3 +44,19 @@ def assert_notes_kept(out: Path, said: str) -> None:
     """The user's notes.txt in a rerun's folder: untouched, and the results line says it was kept."""
     assert (out / "notes.txt").read_text() == "my notes\n"
     assert "kept 1 entry millimpact did not write: notes.txt" in said, said[-3000:]
+
+
+def main_in_process(capsys, argv: list[str]) -> tuple[int, str, str]:
+    """``millimpact ARGV`` in this process (its SIGTERM handler put back after): (exit code,
+    stdout, stderr)."""
+    import signal
+
+    from millimpact.cli import main
+
+    sigterm = signal.getsignal(signal.SIGTERM)
+    try:
+        code = main(argv)
+    finally:
+        signal.signal(signal.SIGTERM, sigterm)
+    got = capsys.readouterr()
+    return code, got.out, got.err

@@ -285,19 +285,26 @@ def test_the_impact_reader_refuses_what_the_map_would_misread(tmp_path):
 
 # --- the real engines -----------------------------------------------------------------------------
 @pytest.mark.slow
+def map_through_cli(tmp_path, imps, revolutions: int):
+    """``millimpact damage liner-segment`` on the coarse SETS for impacts ``imps``, no repeats:
+    (its folder, its damage.json)."""
+    path = tmp_path / "impacts.csv"
+    write_impacts(path, imps)
+    out = tmp_path / "map"
+    r = run_cli("damage", "liner-segment", "--impacts", str(path), "--revolutions", str(revolutions),
+                "--repeat-impacts", "0", *SETS, "--out", str(out))
+    assert r.returncode == 0, r.stderr[-3000:]
+    return out, json.loads((out / "damage.json").read_text())
+
+
 def test_one_bin_on_the_real_table_engine(tmp_path):
     """Two identical face impacts on the coarse liner-segment, one on the plate, through the CLI:
     each bin's numbers are its table case's, and the absorbed energy formula (restitutions, spin)
     equals the case's own energy balance, plastic + friction + energy left in the liner (the table
     computes the ball's rebound energy from its impulses: round-off)."""
     imps = [_impact(3.0, 1.0), _impact(3.0, 1.0), _impact(3.0, 0.0, "plate", 0.2)]
+    out, res = map_through_cli(tmp_path, imps, revolutions=2)
     path = tmp_path / "impacts.csv"
-    write_impacts(path, imps)
-    out = tmp_path / "map"
-    r = run_cli("damage", "liner-segment", "--impacts", str(path), "--revolutions", "2", "--repeat-impacts", "0",
-                *SETS, "--out", str(out))
-    assert r.returncode == 0, r.stderr[-3000:]
-    res = json.loads((out / "damage.json").read_text())
     assert len(res["bins"]) == 2
     for b in res["bins"]:
         row = json.loads((out / "cases" / f"{b['case_key']}.json").read_text())
@@ -341,21 +348,13 @@ def test_one_bin_on_the_real_repeated_impact_sequence(tmp_path):
 def _damage_in_process(monkeypatch, capsys, impacts: Path, out: Path, runners: list) -> tuple[int, str, str]:
     """``millimpact damage`` in this process with a fake case runner (no finite elements), appended
     to ``runners``."""
-    import signal
-
     import millimpact.damage.damage_map as damage_map
-    from millimpact.cli import main
+    from output_lock import main_in_process
 
     runners.append(FakeRunner())
     monkeypatch.setattr(damage_map, "table_runner", lambda *a, **k: runners[-1])
-    sigterm = signal.getsignal(signal.SIGTERM)
-    try:
-        code = main(["damage", "liner-segment", "--impacts", str(impacts), "--revolutions", "1",
-                     "--repeat-impacts", "0", "--out", str(out)])
-    finally:
-        signal.signal(signal.SIGTERM, sigterm)
-    got = capsys.readouterr()
-    return code, got.out, got.err
+    return main_in_process(capsys, ["damage", "liner-segment", "--impacts", str(impacts), "--revolutions", "1",
+                                    "--repeat-impacts", "0", "--out", str(out)])
 
 
 def test_damage_rerun_keeps_the_users_file_and_a_second_writer_is_refused(tmp_path, monkeypatch, capsys):

@@ -15,15 +15,13 @@ import math
 
 import pytest
 
-from conftest import run_cli
 from millimpact.damage.bins import choose_bins, yield_onset_speed
 from millimpact.damage.damage_map import MapSettings, run_damage_map
 from millimpact.damage.edges import MAX_EDGE_SHIFT_SHARE, edge_room, face_slant, fit_contacts
 from millimpact.damage.places import place_scene
 from millimpact.damage.responses import define_bin_cases
-from millimpact.dem.impacts import write_impacts
 from millimpact.scene.toml_io import dump_scene
-from test_damage_map import SCENE, SETS, FakeRunner, _impact, _map, _truth
+from test_damage_map import SCENE, SETS, FakeRunner, _impact, _map, _truth, map_through_cli
 
 TOP_HALF = 0.5 * SCENE.liner.lifter_top_width     # 50 mm on liner-segment
 #: the face's arc position 1 mm below the top corner: hb - s = f (hb - ht) (places.py)
@@ -124,13 +122,7 @@ def test_corner_impacts_on_the_real_table_engine(tmp_path):
     them (the run used to stop there); moved, each bin computes and its absorbed energy equals its
     case's own energy balance, plastic + friction + energy left in the liner."""
     imps = [_impact(4.0, 1.0, "lifter_top", TOP_HALF - 0.001), _impact(4.0, 1.0, "lifter_face", FACE_CORNER_ARC)]
-    path = tmp_path / "impacts.csv"
-    write_impacts(path, imps)
-    out = tmp_path / "map"
-    r = run_cli("damage", "liner-segment", "--impacts", str(path), "--revolutions", "1", "--repeat-impacts", "0",
-                *SETS, "--out", str(out))
-    assert r.returncode == 0, r.stderr[-3000:]
-    res = json.loads((out / "damage.json").read_text())
+    out, res = map_through_cli(tmp_path, imps, revolutions=1)
     assert len(res["bins"]) == 2
     for b in res["bins"]:
         row = json.loads((out / "cases" / f"{b['case_key']}.json").read_text())

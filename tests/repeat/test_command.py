@@ -124,16 +124,10 @@ def _fake_sequence(scene, impacts, method="improved", petsc_options=None, comm=N
 def _repeat_in_process(monkeypatch, capsys, out) -> tuple[int, str, str]:
     """``millimpact repeat`` in this process with the fake sequence."""
     import millimpact.repeat.sequence as sequence
-    from millimpact.cli import main
+    from output_lock import main_in_process
 
     monkeypatch.setattr(sequence, "run_sequence", _fake_sequence)
-    sigterm = signal.getsignal(signal.SIGTERM)
-    try:
-        code = main(["repeat", "paper-rig-plastic", "--impacts", "3", "--out", str(out)])
-    finally:
-        signal.signal(signal.SIGTERM, sigterm)
-    got = capsys.readouterr()
-    return code, got.out, got.err
+    return main_in_process(capsys, ["repeat", "paper-rig-plastic", "--impacts", "3", "--out", str(out)])
 
 
 def test_repeat_rerun_keeps_the_users_file_and_a_second_writer_is_refused(tmp_path, monkeypatch, capsys):
