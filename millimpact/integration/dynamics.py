@@ -48,6 +48,9 @@ class LinearDynamics:
     #: that share a model and a time step: the cases of a contact table); None: each call factorizes
     #: and frees its own
     operator_cache: Optional[dict] = None
+    #: the initial-acceleration mass solve's PETSc defaults (keys relative to ``-impact_mass_``);
+    #: None: Jacobi-CG (:func:`millimpact.integration.solvers.mass_solver_defaults`)
+    mass_solver: Optional[dict] = None
 
 
 class NonlinearZone(Protocol):

@@ -121,7 +121,8 @@ class NewmarkScheme:
         rhs.array[self.massless] = 0.0
         self.a.set(0.0)
         if rhs.norm() > 0.0:
-            solvers.solve_mass(self.M, rhs, self.a, np.union1d(self.fixed, self.massless), self.options)
+            solvers.solve_mass(self.M, rhs, self.a, np.union1d(self.fixed, self.massless), self.options,
+                               self.sys.mass_solver, self.sys.operator_cache)
         rhs.destroy()
 
     def _ops(self, dt: float) -> StepOperators:

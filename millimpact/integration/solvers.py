@@ -32,6 +32,7 @@ the exact small LCP of a contact step (:mod:`.lcp`).
 """
 from __future__ import annotations
 
+import hashlib
 import logging
 import math
 from contextlib import contextmanager
@@ -463,26 +464,42 @@ def solve_or_factorize(ksp: PETSc.KSP, A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec,
 
 
 def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
-               options: Optional[Mapping[str, object]] = None) -> None:
+               options: Optional[Mapping[str, object]] = None, defaults: Optional[Mapping[str, str]] = None,
+               cache: Optional[dict] = None) -> None:
     """Solve ``M x = b`` with ``x = 0`` on ``unit_rows`` (local owned indices: clamped and
-    massless dofs), prefix ``impact_mass_``. Used once, for the initial acceleration (m/s^2)."""
+    massless dofs), prefix ``impact_mass_``, for the initial acceleration (m/s^2).
+
+    ``defaults``: the solver's defaults (keys relative to ``-impact_mass_``; None:
+    :func:`mass_solver_defaults`, Jacobi-CG). ``cache``: a dict (a system's ``operator_cache``)
+    that keeps the solver that solved, with its matrix, for the next solve with the same M and
+    unit rows (the impacts of a repeated-impact sequence each start from a residual state)."""
+    rows = np.asarray(unit_rows, dtype=np.int64)
+    key = ("initial_mass", M.handle, hashlib.sha1(rows.tobytes()).hexdigest())
+    rhs = b.copy()
+    rhs.array[rows] = 0.0
+    if cache is not None and key in cache:
+        ksp, _ = cache[key]
+        solve_checked(ksp, rhs, x, "initial-acceleration mass solve", 0, 0.0)
+        rhs.destroy()
+        return
     rstart = M.getOwnershipRange()[0]
     Ms = M.copy()
-    Ms.zeroRowsColumns(np.asarray(unit_rows, dtype=PETSc.IntType) + rstart, diag=1.0)
-    rhs = b.copy()
-    rhs.array[np.asarray(unit_rows, dtype=np.int64)] = 0.0
+    Ms.zeroRowsColumns(rows.astype(PETSc.IntType) + rstart, diag=1.0)
     ksp = PETSc.KSP().create(M.getComm())
     ksp.setOptionsPrefix(PREFIX + "mass_")
     ksp.setOperators(Ms)
     pre = "mass_"
     user = {k[len(pre):]: v for k, v in normalize_options(options).items() if k.startswith(pre)}
-    with petsc_options(mass_solver_defaults(), user, PREFIX + pre):
+    with petsc_options(dict(defaults) if defaults is not None else mass_solver_defaults(), user, PREFIX + pre):
         ksp.setFromOptions()
         ksp.setUp()
     ksp = solve_or_factorize(ksp, Ms, rhs, x, "initial-acceleration mass solve", PREFIX + "mass_direct_")
+    rhs.destroy()
+    if cache is not None:
+        cache[key] = (ksp, Ms)
+        return
     ksp.destroy()
     Ms.destroy()
-    rhs.destroy()
 
 
 # ----------------------------------------------------------------------------- eigenvalues

@@ -56,7 +56,7 @@ from ..integration import integrators
 from ..integration.integrators import SeparationStop
 from ..integration.solvers import normalize_options, petsc_options
 from ..reduction.craig_bampton import reduce_model
-from ..reduction.reduced_model import ReducedModel
+from ..reduction.reduced_model import MASS_FACTORIZATION, ReducedModel
 from ..reduction.augmentation import AUGMENTATION_PATTERNS
 from ..reduction.partition import create_nodal_zone_basis, partition_dofs
 from ..reduction.nmm_zone import create_nmm_zone
@@ -227,7 +227,7 @@ def reduced_system(red: ReducedModel, contact: ContactSet, friction: float) -> i
     return integrators.LinearDynamics(M=red.M, K=red.K, B=B_r, g0=contact.g0,
                                       fixed_dofs=np.zeros(0, dtype=np.int32), contact_dofs=contact_coords,
                                       T=red.project_rows(contact.T) if contact.T is not None else None,
-                                      friction=friction)
+                                      friction=friction, mass_solver=dict(MASS_FACTORIZATION))
 
 
 def initial_state(red: ReducedModel, velocity) -> tuple[PETSc.Vec, PETSc.Vec]:

@@ -481,8 +481,7 @@ class _ReducedEngine(_Engine):
         u_full.destroy()
         outcome, details = self.outcome(k, plan, ts, results, dent)
         details.update({"launch_shift_m": shift, "max_rotation_at_peak_rad": rotation,
-                        "tangent_factorizations": int(run["stats"].get("n_tangent_factorizations", 0)),
-                        **self.boundary()})
+                        **solver_counts(run["stats"].get), **self.boundary()})
         return ImpactRecord(outcome, spec, ts, details)
 
     _q_res = None
@@ -584,8 +583,16 @@ class _FullEngine(_Engine):
         dent = self.dent(u_new)
         outcome, details = self.outcome(k, plan, ts, results, dent)
         details.update({"launch_shift_m": shift, "max_rotation_at_peak_rad": rotation,
-                        "tangent_factorizations": int(stats.n_tangent_factorizations), **self.boundary()})
+                        **solver_counts(lambda k, d: getattr(stats, k, d)), **self.boundary()})
         return ImpactRecord(outcome, spec, ts, details)
+
+
+def solver_counts(get) -> dict:
+    """What an impact's time loop cost in solver work, from its integration statistics (``get(key,
+    default)``): steps that yielded, their plastic iterations, effective-matrix solves, tangent
+    factorizations."""
+    return {"plastic_steps": int(get("n_plastic_steps", 0)), "plastic_iterations": int(get("n_plastic_iterations", 0)),
+            "solves": int(get("n_solves", 0)), "tangent_factorizations": int(get("n_tangent_factorizations", 0))}
 
 
 def impact_t_end(plan) -> float:

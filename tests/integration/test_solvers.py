@@ -33,6 +33,35 @@ def test_mass_solve_falls_back_to_a_factorization():
     assert np.allclose(x.array, want, rtol=1e-9, atol=0)
 
 
+def test_mass_solve_with_a_system_default_and_a_kept_factorization():
+    # the reduced systems' default (a Cholesky factorization, reduction/reduced_model.py
+    # MASS_FACTORIZATION) on the badly scaled matrix above, kept in a cache dict: a second solve
+    # with another right-hand side reuses it and both equal the dense solution (rounding: 1e-9)
+    from millimpact.reduction.reduced_model import MASS_FACTORIZATION
+
+    n = 30
+    A = np.diag(np.full(n, 4.0)) + np.diag(np.ones(n - 1), 1) + np.diag(np.ones(n - 1), -1)
+    s = np.logspace(0, -4, n)
+    A = s[:, None] * A * s[None, :]
+    M = _aij(A)
+    cache: dict = {}
+    rows = np.array([0], dtype=np.int32)
+    handles = []
+    for seed in (0, 1):
+        b = np.random.default_rng(seed).normal(size=n)
+        rhs = PETSc.Vec().createWithArray(b.copy(), comm=PETSc.COMM_SELF)
+        x = rhs.duplicate()
+        solve_mass(M, rhs, x, rows, None, MASS_FACTORIZATION, cache)
+        want = np.zeros(n)
+        want[1:] = np.linalg.solve(A[1:, 1:], b[1:])
+        assert np.allclose(x.array, want, rtol=1e-9, atol=0)
+        (ksp, _), = cache.values()
+        assert ksp.getPC().getType() == "cholesky" and ksp.getIterationNumber() <= 1
+        handles.append(ksp.handle)
+    # the kept solver is not rebuilt: the same factorization solved both
+    assert len(cache) == 1 and handles[0] == handles[1]
+
+
 def test_lcp_matches_brute_force():
     # the contact LCP g = q + S lam >= 0, lam >= 0, lam.g = 0 for a random SPD S: against the
     # enumeration of all active sets (exact for small n)
