@@ -162,9 +162,11 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
         # the candidates; the rig at 0.1 m/s needs 5 a_max); with plastic materials the plastic
         # region with its margin (plan.py PLASTIC_ZONE_MARGIN)
         plastic = PLASTIC_ZONE_MARGIN * plan.plastic_radius
-        zone = max(REDUCED_ZONE_FACTOR * a, plastic, REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact)
+        # a user's fine radius (model.fine_radius) lies inside the zone, as the plan requires
+        zone = max(REDUCED_ZONE_FACTOR * a, plastic, REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact,
+                   scene.model.fine_radius or 0.0)
         for _ in range(30):     # a fixed point: the boundary size grows with the zone, but slower
-            zone = max(zone, REDUCED_CANDIDATE_FACTOR * a + boundary_element_size(plan, zone))
+            zone = max(zone, REDUCED_CANDIDATE_FACTOR * a + boundary_element_size(plan, zone, scene.model.fine_radius))
         if zone == plastic:     # as the plan: no more than the bodies allow
             zone = min(zone, PLASTIC_ZONE_CAP * zone_radius_limit(scene))
         scene = scene.with_value("model.zone_radius", zone)
@@ -185,11 +187,12 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
     return scene, plan, radius, notes
 
 
-def boundary_element_size(plan: Plan, zone: float) -> float:
+def boundary_element_size(plan: Plan, zone: float, fine_radius: Optional[float] = None) -> float:
     """The element size (m) the mesh has at distance ``zone`` from the contact point when the zone
-    radius is ``zone``: h_contact within fine_radius, then the linear growth to h_far over
+    radius is ``zone``: h_contact within the fine radius (``fine_radius``, the scene's
+    ``model.fine_radius``; None: the plan's default 1.5 a_max), then the linear growth to h_far over
     :func:`millimpact.scene.plan.size_growth_distance` (:mod:`millimpact.geometry.builders`)."""
-    fine = min(1.5 * plan.hertz.a_max, zone)
+    fine = min(fine_radius if fine_radius is not None else 1.5 * plan.hertz.a_max, zone)
     grow = (plan.h_far - plan.h_contact) * max(0.0, zone - fine) / size_growth_distance(plan.h_contact, plan.h_far, zone,
                                                                               plan.h_ball > 0)
     return min(plan.h_far, plan.h_contact + grow)
