@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import SMALL_RIG, run_cli
 from millimpact.results.timeseries import TimeSeries
 
 
@@ -98,10 +98,12 @@ def test_version_unknown_option_and_verbose_after_the_command():
 def test_verbose_run_logs_the_stages_details(tmp_path):
     """-v logs the package's INFO lines (the reduction's modes and eigensolver); it logged none:
     FFCx configures logging when imported, and the CLI's own configuration was then a no-op."""
-    r = run_cli("run", "--set", "time.end=1e-5", "-v", "--out", str(tmp_path / "r"))
+    # the small rig mesh (~10.6k P2 dofs against 67k): the same stages, the same logging
+    small = [a for k, v in SMALL_RIG.items() for a in ("--set", f"{k}={v!r}")]
+    r = run_cli("run", "--set", "time.end=1e-5", *small, "-v", "--out", str(tmp_path / "r"))
     assert r.returncode == 0, r.stderr
     assert "millimpact.reduction.craig_bampton: reduction block:" in r.stderr, r.stderr[-2000:]
-    r = run_cli("run", "--set", "time.end=1e-5", "--out", str(tmp_path / "q"), "--force")
+    r = run_cli("run", "--set", "time.end=1e-5", *small, "--out", str(tmp_path / "q"), "--force")
     assert r.returncode == 0 and "millimpact.reduction" not in r.stderr
 
 
@@ -199,8 +201,17 @@ def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path):
     assert "2.898 mm" in zone and "P2" in [l for l in r.stdout.splitlines() if l.strip().startswith("degree")][0]
     r = run_cli("scene", "show", "--method", "full")
     assert "4.637 mm" in [l for l in r.stdout.splitlines() if l.strip().startswith("zone_radius")][0]
-    run = run_cli("run", "--set", "time.end=1e-4", "-q", "--out", str(tmp_path / "r"))
-    assert "2.898 mm" in run.stdout                     # the run's notes say the same zone
+    # the run's notes say the zone `scene show` printed: on the rig's mesh coarsened (h_contact
+    # 0.8 mm, h_far 8 mm: ~10.6k P2 dofs against 67k), where the reduced zone is another size
+    p = tmp_path / "coarse.toml"
+    p.write_text(run_cli("scene", "export", "paper-rig").stdout.replace("[model]\n", "[model]\nh_contact = 0.0008\n"
+                                                                         "h_far = 0.008\n"))
+    shown = run_cli("scene", "show", str(p))
+    zone = [l for l in shown.stdout.splitlines() if l.strip().startswith("zone_radius")][0].split()[1]
+    assert zone != "2.898", shown.stdout
+    run = run_cli("run", str(p), "--set", "time.end=1e-5", "-q", "--out", str(tmp_path / "r"))
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert f"contact zone radius {zone} mm" in run.stdout, run.stdout
 
 
 @pytest.mark.parametrize("args, words", [
@@ -230,12 +241,14 @@ def test_options_nothing_used_are_warned(tmp_path):
     used = ["-impact_fieldsplit_u_pc_factor_mat_solver_type", "mumps",   # the effective-matrix solver
             "-impact_gap_rtol", "1e-9",                                  # read by the integrator
             "-candidate_radius", "0.002"]                                # a setting of method full
-    r = run_cli("run", "hertz-halfspace", "--method", "full", "--set", "time.end=2e-5", "--out", str(tmp_path / "r"),
-                "-impact_nonsense", "3", *used)
+    # a coarse mesh (h_contact 0.8 mm, h_far 15 mm): the same solvers read the same options
+    r = run_cli("run", "hertz-halfspace", "--method", "full", "--set", "time.end=2e-5", "--set", "model.h_contact=8e-4",
+                "--set", "model.h_far=0.015", "--out", str(tmp_path / "r"), "-impact_nonsense", "3", *used)
     assert r.returncode == 0, r.stderr[-2000:]
     line = [l for l in r.stdout.splitlines() if "nothing in this run used" in l]
     assert len(line) == 1 and "-impact_nonsense" in line[0], r.stdout
     assert not any(o in line[0] for o in used[::2]), line[0]
-    r = run_cli("study", "velocity", "--method", "hertz", "--option", "nosuch=3", "-q", "--out", str(tmp_path / "s"))
+    r = run_cli("study", "velocity", "--method", "hertz", "--option", "nosuch=3", "-q", "--no-case-figures",
+                "--out", str(tmp_path / "s"))
     assert r.returncode == 0, r.stderr[-2000:]
     assert r.stderr.count("nothing in this run used") == 1 and "-nosuch" in r.stderr, r.stderr
