@@ -59,6 +59,19 @@ def shared_out(tmp_path_factory, name):
 SMALL_RIG = {"model.h_contact": 0.8e-3, "model.h_far": 8e-3, "model.zone_radius": 5e-3}
 
 
+@pytest.fixture(scope="session")
+def rig_contact_table(tmp_path_factory):
+    """The contact table of tests/dem (test_export.py, test_mill_law.py, which built it each):
+    paper-rig on :data:`SMALL_RIG`, improved, Coulomb mu = 0.2, speeds 1 and 3 m/s x angles 0 and
+    40 deg. Its folder: read it, do not write in it."""
+    out = tmp_path_factory.mktemp("rig-table") / "table"
+    small = [a for k, v in SMALL_RIG.items() for a in ("--set", f"{k}={v!r}")]
+    r = run_cli("table", "paper-rig", "--velocity", "1,3", "--angle", "0,40", *small, "--set", "contact.friction=0.2",
+                "--out", str(out), "-q")
+    assert r.returncode == 0, r.stderr[-3000:]
+    return out
+
+
 def small_rig_scene():
     """paper-rig with :data:`SMALL_RIG`."""
     from millimpact.scene.builtin import builtin_scene

@@ -22,19 +22,15 @@ from millimpact.dem.contact_law import (HERTZ_PEAK, code_restitution, code_resti
 
 needs_yade = pytest.mark.skipif(shutil.which("yade") is None, reason="yade not installed (packages.txt has it)")
 
-RIG = ["--set", "model.h_contact=0.8e-3", "--set", "model.h_far=8e-3", "--set", "model.zone_radius=5e-3",
-       "--set", "contact.friction=0.2"]
 ROUNDTRIP_COLUMNS = ["impact_speed_m_s", "impact_angle_deg", "restitution_normal_table", "restitution_normal_dem",
                      "restitution_tangential_table", "restitution_tangential_dem", "peak_normal_force_N_table",
                      "peak_normal_force_N_dem"]
 
 
 @pytest.fixture(scope="session")
-def table(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dem") / "table"
-    r = run_cli("table", "paper-rig", "--velocity", "1,3", "--angle", "0,40", *RIG, "--out", str(out), "-q")
-    assert r.returncode == 0, r.stderr[-3000:]
-    return out
+def table(rig_contact_table):
+    """The table of the module docstring: conftest's, shared with test_mill_law.py."""
+    return rig_contact_table
 
 
 def _read_roundtrip(path):
