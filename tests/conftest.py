@@ -72,6 +72,24 @@ def rig_contact_table(tmp_path_factory):
     return out
 
 
+#: the coarse plastic half-space of tests/methods/test_plastic.py and
+#: tests/integration/test_plastic_linearisation.py: full P1, h_contact 0.58 mm = a_max / 2, h_far
+#: 12 mm, 0.2 ms (contact, ~88 us, and a little rebound), the block's yield stress 1 GPa
+PLASTIC_HALFSPACE = ["hertz-halfspace", "--method", "full", "-q", "--set", "model.h_contact=5.8e-4",
+                     "--set", "model.h_far=0.012", "--set", "time.end=2.0e-4",
+                     "--set", "block.material.yield_stress=1e9"]
+
+
+@pytest.fixture(scope="session")
+def plastic_halfspace_run(tmp_path_factory):
+    """The run of :data:`PLASTIC_HALFSPACE` with the default options (plastic linearisation
+    "elastic"): its folder. Both modules checked this very run (one with figures, one without)."""
+    out = tmp_path_factory.mktemp("plastic-halfspace") / "y1"
+    r = run_cli("run", *PLASTIC_HALFSPACE, "--out", str(out))
+    assert r.returncode == 0, r.stderr[-3000:]
+    return out
+
+
 def small_rig_scene():
     """paper-rig with :data:`SMALL_RIG`."""
     from millimpact.scene.builtin import builtin_scene
