@@ -125,17 +125,29 @@ def test_traditional_converges_to_full_p1_with_the_cutoff(traditional_runs):
 
 
 @pytest.fixture(scope="module")
-def improved_runs():
+def improved_default():
+    """``improved`` with the plan's settings over the first contact: (scene, plan, run output). Its
+    cutoff is the plan's 4 / t_c (plan.F_CUT_FACTOR / t_c, the same float as 4 / t_c below)."""
     from millimpact.methods import reduced as reduced_methods
 
     scene, plan = small_scene()
+    return scene, plan, reduced_methods.run_reduced(scene, plan, {"t_end": first_contact_end(scene, plan)}, False,
+                                                    "improved")
+
+
+@pytest.fixture(scope="module")
+def improved_runs(improved_default):
+    from millimpact.methods import reduced as reduced_methods
+
+    scene, plan, default = improved_default
     t_end = first_contact_end(scene, plan)
     tc = plan.hertz.contact_time
-    runs, outs = {}, {}
-    for key, k, extra in ((2, 2, {}), (4, 4, {}), ("anchors", 4, {"nmm_remedy": "anchors"})):
+    assert default.model["reduction"]["bodies"]["block"]["f_cut_Hz"] == 4 / tc
+    outs = {4: default}
+    for key, k, extra in ((2, 2, {}), ("anchors", 4, {"nmm_remedy": "anchors"})):
         outs[key] = reduced_methods.run_reduced(scene, plan, {"t_end": t_end, "f_cut": k / tc, **extra}, False,
                                                 "improved")
-        runs[key] = metrics(outs[key])
+    runs = {key: metrics(out) for key, out in outs.items()}
     runs["full"] = same_model_full(scene, plan, t_end, 2, outs[4])
     return runs
 
@@ -308,14 +320,11 @@ def test_second_impact_hands_back_to_the_integrator():
 
 @pytest.mark.mpi
 @serial
-def test_improved_under_mpi_matches_serial():
+def test_improved_under_mpi_matches_serial(improved_default):
     """mpirun -n 2 gives the serial numbers for ``improved`` (same model sizes, modes, F_max, t_c and
     the contact force at every step)."""
-    from millimpact.methods import reduced as reduced_methods
-
-    scene, plan = small_scene()
+    scene, plan, out = improved_default
     t_end = first_contact_end(scene, plan)
-    out = reduced_methods.run_reduced(scene, plan, {"t_end": t_end}, False, "improved")
     ser = metrics(out)
     code = f"""
 import json
@@ -461,7 +470,7 @@ def test_reduced_notes_give_the_full_run_of_the_same_mesh():
 
 
 @serial
-def test_contact_point_kinematics_match_the_quasi_static_patch():
+def test_contact_point_kinematics_match_the_quasi_static_patch(improved_default):
     """The contact point's velocity and acceleration (issue 18): the FE methods report the motion of
     the centre of mass of the half-ball of radius a_max under the contact point, band-limited to
     4 / t_c (results.band_limit). Independent reference: the Boussinesq field of the Hertz pressure
@@ -472,12 +481,10 @@ def test_contact_point_kinematics_match_the_quasi_static_patch():
     change under dt/4 and h/2). On this coarse mesh (a_max / h = 1.45) measured +2.9 % and -5.8 %;
     8 % and 12 % allowed. The surface node's own velocity jumped 0 -> 1.45 m/s in one step (a
     step change of ~1 peak); the patch's largest step change is measured 0.064 of its peak."""
-    from millimpact.methods import reduced as reduced_methods
     from millimpact.results.band_limit import gaussian_low_pass
     from millimpact.theory.hertz import hertz_history, patch_mean_displacement
 
-    scene, plan = small_scene()
-    out = reduced_methods.run_reduced(scene, plan, {"t_end": first_contact_end(scene, plan)}, False, "improved")
+    scene, plan, out = improved_default
     h, m = plan.hertz, plan.target
     hist = hertz_history(h, n=4001)
     w = patch_mean_displacement(hist.force, hist.contact_radius, h.a_max, 2 * m.shear_modulus * (1 + m.poisson),
