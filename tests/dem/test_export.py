@@ -185,19 +185,21 @@ def test_check_without_yade_says_how_to_install(table, tmp_path, monkeypatch):
 
 
 # --- the output policy (docs/outputs.md, issue 35) -------------------------------------------------
-def test_export_rerun_keeps_the_users_file_and_a_second_writer_is_refused(table, tmp_path):
+def test_export_rerun_keeps_the_users_file_and_a_second_writer_is_refused(table, tmp_path, capsys):
     """A rerun into its own folder replaces the export and keeps notes.txt (said in the results
     line); while another millimpact holds the folder, export is refused in one line before fitting
-    (before the policy: no lock, both wrote)."""
-    from output_lock import another_writer, assert_notes_kept, assert_refused_by_the_lock
+    (before the policy: no lock, both wrote). The command in this process (output_lock.py), as the
+    other commands' policy tests: the lock is another process's either way."""
+    from output_lock import another_writer, assert_notes_kept, assert_refused_by_the_lock, main_in_process
 
     out = tmp_path / "lammps"
-    r = run_cli("export", str(table), "--to", "lammps", "--out", str(out))
-    assert r.returncode == 0, r.stderr[-3000:]
+    argv = ["export", str(table), "--to", "lammps", "--out", str(out)]
+    code, stdout, stderr = main_in_process(capsys, argv)
+    assert code == 0, stderr[-3000:]
     (out / "notes.txt").write_text("my notes\n")
-    r = run_cli("export", str(table), "--to", "lammps", "--out", str(out))
-    assert r.returncode == 0 and (out / "contact_law_lammps.in").is_file(), r.stderr[-3000:]
-    assert_notes_kept(out, r.stdout + r.stderr)
+    code, stdout, stderr = main_in_process(capsys, argv)
+    assert code == 0 and (out / "contact_law_lammps.in").is_file(), stderr[-3000:]
+    assert_notes_kept(out, stdout + stderr)
     with another_writer(out, "export") as pid:
-        r = run_cli("export", str(table), "--to", "lammps", "--out", str(out))
-    assert_refused_by_the_lock(r.returncode, r.stderr, out, pid)
+        code, stdout, stderr = main_in_process(capsys, argv)
+    assert_refused_by_the_lock(code, stderr, out, pid)
