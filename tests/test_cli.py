@@ -1,11 +1,20 @@
 """The command line: output contract, one-line errors with exit status 2, PETSc options."""
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from conftest import SMALL_RIG, run_cli
 from millimpact.results.timeseries import TimeSeries
+from output_lock import main_in_process
+
+
+def scene_cli(capsys, *argv):
+    """``millimpact scene ARGV`` in this process (it reads a scene and prints; as a subprocess each
+    call paid ~2 s of imports): the fields of run_cli's answer that the tests read."""
+    code, out, err = main_in_process(capsys, ["scene", *argv])
+    return SimpleNamespace(returncode=code, stdout=out, stderr=err)
 
 
 def test_hertz_command_prints_the_default_values():
@@ -64,12 +73,12 @@ def test_unknown_key_in_scene_file(tmp_path):
     assert r.returncode == 2 and "ball.colour" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
-def test_scene_export_and_show(tmp_path):
-    r = run_cli("scene", "export", "paper-rig")
+def test_scene_export_and_show(tmp_path, capsys):
+    r = scene_cli(capsys, "export", "paper-rig")
     assert r.returncode == 0
     p = tmp_path / "my.toml"
     p.write_text(r.stdout.replace("radius = 0.015", "radius = 0.02"))
-    r = run_cli("scene", "show", str(p))
+    r = scene_cli(capsys, "show", str(p))
     assert r.returncode == 0 and "radius 20 mm" in r.stdout and "h_contact" in r.stdout
 
 
@@ -192,21 +201,21 @@ def test_bad_petsc_option_of_a_study_is_one_line(command, tmp_path):
     assert "reduction_block_substructures -2: " in r.stderr and not (tmp_path / "never").exists()
 
 
-def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path):
+def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path, capsys):
     """`scene show` printed the full P1 plan (zone 4.64 mm) while the default improved run uses P2
     and 2.90 mm: it now shows the plan of --method (default the run's default), as the run notes."""
-    r = run_cli("scene", "show")
+    r = scene_cli(capsys, "show")
     assert r.returncode == 0 and "plan of --method improved" in r.stdout
     zone = [l for l in r.stdout.splitlines() if l.strip().startswith("zone_radius")][0]
     assert "2.898 mm" in zone and "P2" in [l for l in r.stdout.splitlines() if l.strip().startswith("degree")][0]
-    r = run_cli("scene", "show", "--method", "full")
+    r = scene_cli(capsys, "show", "--method", "full")
     assert "4.637 mm" in [l for l in r.stdout.splitlines() if l.strip().startswith("zone_radius")][0]
     # the run's notes say the zone `scene show` printed: on the rig's mesh coarsened (h_contact
     # 0.8 mm, h_far 8 mm: ~10.6k P2 dofs against 67k), where the reduced zone is another size
     p = tmp_path / "coarse.toml"
-    p.write_text(run_cli("scene", "export", "paper-rig").stdout.replace("[model]\n", "[model]\nh_contact = 0.0008\n"
-                                                                         "h_far = 0.008\n"))
-    shown = run_cli("scene", "show", str(p))
+    p.write_text(scene_cli(capsys, "export", "paper-rig").stdout.replace("[model]\n", "[model]\nh_contact = 0.0008\n"
+                                                                                 "h_far = 0.008\n"))
+    shown = scene_cli(capsys, "show", str(p))
     zone = [l for l in shown.stdout.splitlines() if l.strip().startswith("zone_radius")][0].split()[1]
     assert zone != "2.898", shown.stdout
     run = run_cli("run", str(p), "--set", "time.end=1e-5", "-q", "--out", str(tmp_path / "r"))
