@@ -48,6 +48,15 @@ def run_mpi_script(code: str, np: int = 2, timeout: float = 600) -> subprocess.C
                           text=True, env=mpi_env(), cwd=ROOT, timeout=timeout)
 
 
+def run_script_here(code: str, capsys) -> str:
+    """The serial side of a :func:`run_mpi_script` comparison, in this process (one rank, as the
+    suite's other serial runs): the snippet's standard output. Under ``mpirun -n 1`` it paid a
+    process start (mpirun, the imports: ~3 s) for the same numbers."""
+    capsys.readouterr()
+    exec(compile(code, "<serial snippet>", "exec"), {"__name__": "__serial__"})
+    return capsys.readouterr().out
+
+
 def shared_out(tmp_path_factory, name):
     """One folder per study for the whole session: tests/test_demos.py runs the demos' reduced studies
     (the first and last of these cases) into the same folders, so the case cache serves both."""
