@@ -48,6 +48,15 @@ def run_mpi_script(code: str, np: int = 2, timeout: float = 600) -> subprocess.C
                           text=True, env=mpi_env(), cwd=ROOT, timeout=timeout)
 
 
+def run_script_here(code: str, capsys) -> str:
+    """The serial side of a :func:`run_mpi_script` comparison, in this process (one rank, as the
+    suite's other serial runs): the snippet's standard output. Under ``mpirun -n 1`` it paid a
+    process start (mpirun, the imports: ~3 s) for the same numbers."""
+    capsys.readouterr()
+    exec(compile(code, "<serial snippet>", "exec"), {"__name__": "__serial__"})
+    return capsys.readouterr().out
+
+
 def shared_out(tmp_path_factory, name):
     """One folder per study for the whole session: tests/test_demos.py runs the demos' reduced studies
     (the first and last of these cases) into the same folders, so the case cache serves both."""
@@ -57,6 +66,37 @@ def shared_out(tmp_path_factory, name):
 #: the small paper-rig mesh of the reduction tests (h_contact 0.8 mm, h_far 8 mm, zone radius 5 mm;
 #: half model): ~1.8k P1 and ~10.6k P2 dofs, its contact candidates (2.9 mm) inside the zone
 SMALL_RIG = {"model.h_contact": 0.8e-3, "model.h_far": 8e-3, "model.zone_radius": 5e-3}
+
+
+@pytest.fixture(scope="session")
+def rig_contact_table(tmp_path_factory):
+    """The contact table of tests/dem (test_export.py, test_mill_law.py, which built it each):
+    paper-rig on :data:`SMALL_RIG`, improved, Coulomb mu = 0.2, speeds 1 and 3 m/s x angles 0 and
+    40 deg. Its folder: read it, do not write in it."""
+    out = tmp_path_factory.mktemp("rig-table") / "table"
+    small = [a for k, v in SMALL_RIG.items() for a in ("--set", f"{k}={v!r}")]
+    r = run_cli("table", "paper-rig", "--velocity", "1,3", "--angle", "0,40", *small, "--set", "contact.friction=0.2",
+                "--out", str(out), "-q")
+    assert r.returncode == 0, r.stderr[-3000:]
+    return out
+
+
+#: the coarse plastic half-space of tests/methods/test_plastic.py and
+#: tests/integration/test_plastic_linearisation.py: full P1, h_contact 0.58 mm = a_max / 2, h_far
+#: 12 mm, 0.2 ms (contact, ~88 us, and a little rebound), the block's yield stress 1 GPa
+PLASTIC_HALFSPACE = ["hertz-halfspace", "--method", "full", "-q", "--set", "model.h_contact=5.8e-4",
+                     "--set", "model.h_far=0.012", "--set", "time.end=2.0e-4",
+                     "--set", "block.material.yield_stress=1e9"]
+
+
+@pytest.fixture(scope="session")
+def plastic_halfspace_run(tmp_path_factory):
+    """The run of :data:`PLASTIC_HALFSPACE` with the default options (plastic linearisation
+    "elastic"): its folder. Both modules checked this very run (one with figures, one without)."""
+    out = tmp_path_factory.mktemp("plastic-halfspace") / "y1"
+    r = run_cli("run", *PLASTIC_HALFSPACE, "--out", str(out))
+    assert r.returncode == 0, r.stderr[-3000:]
+    return out
 
 
 def small_rig_scene():

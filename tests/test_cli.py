@@ -1,11 +1,20 @@
 """The command line: output contract, one-line errors with exit status 2, PETSc options."""
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import SMALL_RIG, run_cli
 from millimpact.results.timeseries import TimeSeries
+from output_lock import main_in_process
+
+
+def scene_cli(capsys, *argv):
+    """``millimpact scene ARGV`` in this process (it reads a scene and prints; as a subprocess each
+    call paid ~2 s of imports): the fields of run_cli's answer that the tests read."""
+    code, out, err = main_in_process(capsys, ["scene", *argv])
+    return SimpleNamespace(returncode=code, stdout=out, stderr=err)
 
 
 def test_hertz_command_prints_the_default_values():
@@ -64,12 +73,12 @@ def test_unknown_key_in_scene_file(tmp_path):
     assert r.returncode == 2 and "ball.colour" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
-def test_scene_export_and_show(tmp_path):
-    r = run_cli("scene", "export", "paper-rig")
+def test_scene_export_and_show(tmp_path, capsys):
+    r = scene_cli(capsys, "export", "paper-rig")
     assert r.returncode == 0
     p = tmp_path / "my.toml"
     p.write_text(r.stdout.replace("radius = 0.015", "radius = 0.02"))
-    r = run_cli("scene", "show", str(p))
+    r = scene_cli(capsys, "show", str(p))
     assert r.returncode == 0 and "radius 20 mm" in r.stdout and "h_contact" in r.stdout
 
 
@@ -98,10 +107,12 @@ def test_version_unknown_option_and_verbose_after_the_command():
 def test_verbose_run_logs_the_stages_details(tmp_path):
     """-v logs the package's INFO lines (the reduction's modes and eigensolver); it logged none:
     FFCx configures logging when imported, and the CLI's own configuration was then a no-op."""
-    r = run_cli("run", "--set", "time.end=1e-5", "-v", "--out", str(tmp_path / "r"))
+    # the small rig mesh (~10.6k P2 dofs against 67k): the same stages, the same logging
+    small = [a for k, v in SMALL_RIG.items() for a in ("--set", f"{k}={v!r}")]
+    r = run_cli("run", "--set", "time.end=1e-5", *small, "-v", "--out", str(tmp_path / "r"))
     assert r.returncode == 0, r.stderr
     assert "millimpact.reduction.craig_bampton: reduction block:" in r.stderr, r.stderr[-2000:]
-    r = run_cli("run", "--set", "time.end=1e-5", "--out", str(tmp_path / "q"), "--force")
+    r = run_cli("run", "--set", "time.end=1e-5", *small, "--out", str(tmp_path / "q"), "--force")
     assert r.returncode == 0 and "millimpact.reduction" not in r.stderr
 
 
@@ -190,17 +201,26 @@ def test_bad_petsc_option_of_a_study_is_one_line(command, tmp_path):
     assert "reduction_block_substructures -2: " in r.stderr and not (tmp_path / "never").exists()
 
 
-def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path):
+def test_scene_show_prints_the_plan_of_the_method_that_runs(tmp_path, capsys):
     """`scene show` printed the full P1 plan (zone 4.64 mm) while the default improved run uses P2
     and 2.90 mm: it now shows the plan of --method (default the run's default), as the run notes."""
-    r = run_cli("scene", "show")
+    r = scene_cli(capsys, "show")
     assert r.returncode == 0 and "plan of --method improved" in r.stdout
     zone = [l for l in r.stdout.splitlines() if l.strip().startswith("zone_radius")][0]
     assert "2.898 mm" in zone and "P2" in [l for l in r.stdout.splitlines() if l.strip().startswith("degree")][0]
-    r = run_cli("scene", "show", "--method", "full")
+    r = scene_cli(capsys, "show", "--method", "full")
     assert "4.637 mm" in [l for l in r.stdout.splitlines() if l.strip().startswith("zone_radius")][0]
-    run = run_cli("run", "--set", "time.end=1e-4", "-q", "--out", str(tmp_path / "r"))
-    assert "2.898 mm" in run.stdout                     # the run's notes say the same zone
+    # the run's notes say the zone `scene show` printed: on the rig's mesh coarsened (h_contact
+    # 0.8 mm, h_far 8 mm: ~10.6k P2 dofs against 67k), where the reduced zone is another size
+    p = tmp_path / "coarse.toml"
+    p.write_text(scene_cli(capsys, "export", "paper-rig").stdout.replace("[model]\n", "[model]\nh_contact = 0.0008\n"
+                                                                                 "h_far = 0.008\n"))
+    shown = scene_cli(capsys, "show", str(p))
+    zone = [l for l in shown.stdout.splitlines() if l.strip().startswith("zone_radius")][0].split()[1]
+    assert zone != "2.898", shown.stdout
+    run = run_cli("run", str(p), "--set", "time.end=1e-5", "-q", "--out", str(tmp_path / "r"))
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert f"contact zone radius {zone} mm" in run.stdout, run.stdout
 
 
 @pytest.mark.parametrize("args, words", [
@@ -230,12 +250,14 @@ def test_options_nothing_used_are_warned(tmp_path):
     used = ["-impact_fieldsplit_u_pc_factor_mat_solver_type", "mumps",   # the effective-matrix solver
             "-impact_gap_rtol", "1e-9",                                  # read by the integrator
             "-candidate_radius", "0.002"]                                # a setting of method full
-    r = run_cli("run", "hertz-halfspace", "--method", "full", "--set", "time.end=2e-5", "--out", str(tmp_path / "r"),
-                "-impact_nonsense", "3", *used)
+    # a coarse mesh (h_contact 0.8 mm, h_far 15 mm): the same solvers read the same options
+    r = run_cli("run", "hertz-halfspace", "--method", "full", "--set", "time.end=2e-5", "--set", "model.h_contact=8e-4",
+                "--set", "model.h_far=0.015", "--out", str(tmp_path / "r"), "-impact_nonsense", "3", *used)
     assert r.returncode == 0, r.stderr[-2000:]
     line = [l for l in r.stdout.splitlines() if "nothing in this run used" in l]
     assert len(line) == 1 and "-impact_nonsense" in line[0], r.stdout
     assert not any(o in line[0] for o in used[::2]), line[0]
-    r = run_cli("study", "velocity", "--method", "hertz", "--option", "nosuch=3", "-q", "--out", str(tmp_path / "s"))
+    r = run_cli("study", "velocity", "--method", "hertz", "--option", "nosuch=3", "-q", "--no-case-figures",
+                "--out", str(tmp_path / "s"))
     assert r.returncode == 0, r.stderr[-2000:]
     assert r.stderr.count("nothing in this run used") == 1 and "-nosuch" in r.stderr, r.stderr

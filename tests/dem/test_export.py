@@ -22,19 +22,15 @@ from millimpact.dem.contact_law import (HERTZ_PEAK, code_restitution, code_resti
 
 needs_yade = pytest.mark.skipif(shutil.which("yade") is None, reason="yade not installed (packages.txt has it)")
 
-RIG = ["--set", "model.h_contact=0.8e-3", "--set", "model.h_far=8e-3", "--set", "model.zone_radius=5e-3",
-       "--set", "contact.friction=0.2"]
 ROUNDTRIP_COLUMNS = ["impact_speed_m_s", "impact_angle_deg", "restitution_normal_table", "restitution_normal_dem",
                      "restitution_tangential_table", "restitution_tangential_dem", "peak_normal_force_N_table",
                      "peak_normal_force_N_dem"]
 
 
 @pytest.fixture(scope="session")
-def table(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dem") / "table"
-    r = run_cli("table", "paper-rig", "--velocity", "1,3", "--angle", "0,40", *RIG, "--out", str(out), "-q")
-    assert r.returncode == 0, r.stderr[-3000:]
-    return out
+def table(rig_contact_table):
+    """The table of the module docstring: conftest's, shared with test_mill_law.py."""
+    return rig_contact_table
 
 
 def _read_roundtrip(path):
@@ -189,19 +185,21 @@ def test_check_without_yade_says_how_to_install(table, tmp_path, monkeypatch):
 
 
 # --- the output policy (docs/outputs.md, issue 35) -------------------------------------------------
-def test_export_rerun_keeps_the_users_file_and_a_second_writer_is_refused(table, tmp_path):
+def test_export_rerun_keeps_the_users_file_and_a_second_writer_is_refused(table, tmp_path, capsys):
     """A rerun into its own folder replaces the export and keeps notes.txt (said in the results
     line); while another millimpact holds the folder, export is refused in one line before fitting
-    (before the policy: no lock, both wrote)."""
-    from output_lock import another_writer, assert_notes_kept, assert_refused_by_the_lock
+    (before the policy: no lock, both wrote). The command in this process (output_lock.py), as the
+    other commands' policy tests: the lock is another process's either way."""
+    from output_lock import another_writer, assert_notes_kept, assert_refused_by_the_lock, main_in_process
 
     out = tmp_path / "lammps"
-    r = run_cli("export", str(table), "--to", "lammps", "--out", str(out))
-    assert r.returncode == 0, r.stderr[-3000:]
+    argv = ["export", str(table), "--to", "lammps", "--out", str(out)]
+    code, stdout, stderr = main_in_process(capsys, argv)
+    assert code == 0, stderr[-3000:]
     (out / "notes.txt").write_text("my notes\n")
-    r = run_cli("export", str(table), "--to", "lammps", "--out", str(out))
-    assert r.returncode == 0 and (out / "contact_law_lammps.in").is_file(), r.stderr[-3000:]
-    assert_notes_kept(out, r.stdout + r.stderr)
+    code, stdout, stderr = main_in_process(capsys, argv)
+    assert code == 0 and (out / "contact_law_lammps.in").is_file(), stderr[-3000:]
+    assert_notes_kept(out, stdout + stderr)
     with another_writer(out, "export") as pid:
-        r = run_cli("export", str(table), "--to", "lammps", "--out", str(out))
-    assert_refused_by_the_lock(r.returncode, r.stderr, out, pid)
+        code, stdout, stderr = main_in_process(capsys, argv)
+    assert_refused_by_the_lock(code, stderr, out, pid)

@@ -22,8 +22,6 @@ from millimpact.dem.table_input import read_table
 
 from mill_scenes import needs_yade, small_mill_scene
 
-RIG = ["--set", "model.h_contact=0.8e-3", "--set", "model.h_far=8e-3", "--set", "model.zone_radius=5e-3",
-       "--set", "contact.friction=0.2"]
 #: the small mill's liner on the command line (mill_scenes.small_mill_scene) with the table's 15 mm balls
 SMALL_MILL = ["--set", "ball.radius=0.015",
               "--set", "liner.width=0.3", "--set", "liner.thickness=0.04", "--set", "liner.lifter_height=0.05",
@@ -32,13 +30,11 @@ SMALL_MILL = ["--set", "ball.radius=0.015",
 
 
 @pytest.fixture(scope="module")
-def exported(tmp_path_factory):
-    """(table folder, Yade export folder): ~20-40 s of finite elements."""
-    root = tmp_path_factory.mktemp("millaw")
-    table = root / "table"
-    r = run_cli("table", "paper-rig", "--velocity", "1,3", "--angle", "0,40", *RIG, "--out", str(table), "-q")
-    assert r.returncode == 0, r.stderr[-3000:]
-    law = root / "law"
+def exported(tmp_path_factory, rig_contact_table):
+    """(table folder, Yade export folder): the table is conftest's (test_export.py's too: its ~20 s
+    of finite elements computed once)."""
+    table = rig_contact_table
+    law = tmp_path_factory.mktemp("millaw") / "law"
     r = run_cli("export", str(table), "--to", "yade", "--out", str(law), "-q")
     assert r.returncode == 0, r.stderr[-3000:]
     return table, law

@@ -24,9 +24,11 @@ def _run(tmp_path, name, *extra, np_=1):
 
 
 @pytest.fixture(scope="module")
-def plastic(tmp_path_factory):
-    """Y = 1 GPa block under a 3 m/s steel ball: V/V_y ~ 17 (Thornton 1997: V_y = 0.18 m/s)."""
-    return _run(tmp_path_factory.mktemp("plastic"), "y1", "--set", "block.material.yield_stress=1e9")
+def plastic(plastic_halfspace_run):
+    """Y = 1 GPa block under a 3 m/s steel ball: V/V_y ~ 17 (Thornton 1997: V_y = 0.18 m/s). The run
+    is conftest's (COARSE with that yield stress), shared with test_plastic_linearisation.py."""
+    out = plastic_halfspace_run
+    return json.loads((out / "summary.json").read_text()), TimeSeries.read_csv(out / "timeseries.csv")
 
 
 @pytest.fixture(scope="module")

@@ -41,6 +41,20 @@ def substructured(rig, slabs: int = 2, density: float = 0.0, f_factor: float = 1
         keep_away=np.array([g.point for g in plan.probes.gauges]))
 
 
+@pytest.fixture(scope="module")
+def reductions(rig):
+    """``get(**settings)``: :func:`substructured` of the rig, computed once per settings for the tests
+    that check the same reduction (they only read it)."""
+    done = {}
+
+    def get(**settings):
+        key = tuple(sorted(settings.items()))
+        if key not in done:
+            done[key] = substructured(rig, **settings)
+        return done[key]
+    return get
+
+
 def _csr(A):
     import scipy.sparse as sp
 
@@ -148,20 +162,20 @@ def test_the_zone_slab_is_cut_across_outside_the_bands():
     assert not whole.across and whole.pieces == len(whole.cuts) + 1
 
 
-def test_inverse_iteration_pass_makes_the_modes_near_f_cut_accurate(rig, one_factor):
+def test_inverse_iteration_pass_makes_the_modes_near_f_cut_accurate(reductions, one_factor):
     """Slab modes only up to f_cut (f_factor 1): the first pass alone leaves the highest modes
     percents high (0.84 % even at 2 f_cut); the inverse-iteration pass brings them within 0.11 %
     (measured, 3 slabs; 0.3 % allowed). A mode just under f_cut may rise above it and drop out
     (Rayleigh), so the lowest n - 1 are compared."""
     ref = one_factor.bodies[1].frequencies_hz
-    sub = substructured(rig, slabs=3, f_factor=1.0).bodies[1].frequencies_hz
+    sub = reductions(slabs=3, f_factor=1.0).bodies[1].frequencies_hz
     assert len(sub) >= len(ref) - 1
     rel = sub[:len(ref) - 1] / ref[:len(sub)][:len(ref) - 1] - 1
     assert rel.min() > -1e-9
     assert rel.max() < 3e-3
 
 
-def test_compressed_second_pass_keeps_the_modes(rig, one_factor):
+def test_compressed_second_pass_keeps_the_modes(rig, reductions, one_factor):
     """The second pass's columns compressed (default: directions under 1e-12 of the Gram's largest
     eigenvalue dropped, each slab's columns M-orthonormal) against all kept, 3 slabs, slab modes to
     f_cut, every interface dof a trace: fewer Ritz columns (2069 -> 1632 measured) and modes as
@@ -170,7 +184,7 @@ def test_compressed_second_pass_keeps_the_modes(rig, one_factor):
     2e-5 worse is allowed) with Psi still exact (6e-10 measured; 1e-6 as above)."""
     ref = one_factor.bodies[1]
     full = substructured(rig, slabs=3, f_factor=1.0, compress=0.0).bodies[1]
-    comp = substructured(rig, slabs=3, f_factor=1.0, compress=1e-12).bodies[1]
+    comp = reductions(slabs=3, f_factor=1.0).bodies[1]         # compress 1e-12, the default
     assert comp.substructures["ritz_columns"] < 0.9 * full.substructures["ritz_columns"]
     # the 7th mode sits just under f_cut and rises above it in both (Rayleigh): the lowest 6 compared
     assert comp.n_modes == full.n_modes >= ref.n_modes - 1
@@ -291,7 +305,7 @@ def test_substructured_reduction_from_the_cache_and_its_gauge_rows(rig, tmp_path
         assert np.abs(Da).max() > 0 and np.allclose(Da, Db, rtol=1e-9, atol=1e-12 * np.abs(Da).max())
 
 
-def test_zone_patterns_converge_from_the_stiff_side_to_the_exact_statics(rig, block_static):
+def test_zone_patterns_converge_from_the_stiff_side_to_the_exact_statics(reductions, block_static):
     """Zone-interface patterns instead of constraint modes (substructure_zone_degree d): the
     reduced model is a Ritz approximation, so the block's static compliance under a zone load is
     a lower bound of the exact one (-1e-10 allowed for rounding) and grows with d (nested
@@ -303,7 +317,7 @@ def test_zone_patterns_converge_from_the_stiff_side_to_the_exact_statics(rig, bl
     exact = f @ u
     errors = []
     for degree in (1, 2, 4, 8):
-        red = substructured(rig, slabs=2, zone_degree=degree)
+        red = reductions(slabs=2, zone_degree=degree)
         b = red.bodies[1]
         assert b.Psi is None and b.n_patterns > 0 and b.substructures["zone_patterns"] >= b.n_patterns
         _, Tq = reduced_static(red, f)
@@ -331,7 +345,7 @@ def test_zone_patterns_hold_the_rigid_motions():
         assert np.linalg.norm(v - W @ (W.T @ v)) < 1e-10 * np.linalg.norm(v)
 
 
-def test_zone_pattern_recovery_of_a_harmonic_state(rig, block_static):
+def test_zone_pattern_recovery_of_a_harmonic_state(rig, reductions, block_static):
     """The Ritz-space recovery of the gauge rows (values and gradients) for a body reduced with
     zone-interface patterns (ReducedModel.displacement_recovery_rows and mode_acceleration_rows).
     The zone held in a harmonic motion at f_cut / 2 (its static shape under the zone load), the
@@ -366,7 +380,7 @@ def test_zone_pattern_recovery_of_a_harmonic_state(rig, block_static):
     u_i[I] = -sla.spsolve(A[I][:, I].tocsc(), A[I] @ u_z)
     exact = P @ (u_z + u_i)
     for degree in (2, 8):
-        red = substructured(rig, slabs=2, zone_degree=degree)
+        red = reductions(slabs=2, zone_degree=degree)
         m = red.bodies[1].modes
         K_r, M_r = _csr(red.K).toarray(), _csr(red.M).toarray()
         x = _csr(red.Gr).T @ u_z            # the nodal zone: its coordinates are the zone's dofs
