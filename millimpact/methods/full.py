@@ -38,7 +38,10 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
 
     ``options["candidate_radius"]`` (m, default the contact module's 2.5 a_max): contact candidates
     within this distance of the contact axis; a reduced run's (``candidate_radius_m`` of its model
-    info) makes this run the very model that run reduces (same massless contact nodes)."""
+    info) makes this run the very model that run reduces (same massless contact nodes).
+
+    The method's own settings are popped from ``options`` (:func:`millimpact.methods.run.compute`
+    reports what is left and unused): a caller that reuses a dict passes a copy."""
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
     degree = int(take(options, "degree") or plan.degree)
