@@ -32,7 +32,6 @@ the exact small LCP of a contact step (:mod:`.lcp`).
 """
 from __future__ import annotations
 
-import hashlib
 import logging
 import math
 from contextlib import contextmanager
@@ -474,7 +473,7 @@ def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
     that keeps the solver that solved, with its matrix, for the next solve with the same M and
     unit rows (the impacts of a repeated-impact sequence each start from a residual state)."""
     rows = np.asarray(unit_rows, dtype=np.int64)
-    key = ("initial_mass", M.handle, hashlib.sha1(rows.tobytes()).hexdigest())
+    key = ("initial_mass", M.handle, rows.tobytes())
     rhs = b.copy()
     rhs.array[rows] = 0.0
     if cache is not None and key in cache:

@@ -17,6 +17,8 @@ from petsc4py import PETSc
 
 from ..fem.model import FEModel
 from ..integration.solvers import create_factored_solver, solve_or_factorize
+from .partition import DofPartition, ZoneBasis
+from .distributed import aij_from_local_csr, dense_columns, gather_rows, positions_in
 
 log = logging.getLogger(__name__)
 
@@ -26,9 +28,6 @@ log = logging.getLogger(__name__)
 #: of CG to rounding; on paper-rig-plastic's repeated-impact model (14,833 coordinates) the
 #: initial-acceleration solve took 11 s of CG against 0.04 s a solve with the factorization
 MASS_FACTORIZATION = {"ksp_type": "preonly", "pc_type": "cholesky", "pc_factor_mat_solver_type": "mumps"}
-
-from .partition import DofPartition, ZoneBasis
-from .distributed import aij_from_local_csr, dense_columns, gather_rows, positions_in
 
 
 # --- the reduced model ---------------------------------------------------------------------------
