@@ -238,15 +238,21 @@ class PlasticZone:
         + 1/2 eps_p : C : eps_p) dV (global sum). The first integral is linear in u,
         u . f_frozen with f_frozen = -int B^T C eps_p (:meth:`frozen_force`): both terms are kept per
         plastic state, so a row costs a dot product while the state does not change."""
+        frozen = self.frozen_force()
+        value = u_vec.dot(frozen) + self.plastic_energy_constant()
+        frozen.destroy()
+        return value
+
+    def plastic_energy_constant(self) -> float:
+        """1/2 int_zone eps_p : C : eps_p dV (J, global) of the committed state: the part of
+        :meth:`strain_energy_correction` that does not depend on u (kept per plastic state)."""
         key = ("energy", self.version)
         if key not in self._cache:
-            frozen = self.frozen_force()
             const = self.integrate([0.5 * np.einsum("pi,pi->p", ep, ep @ C)
                                     for ep, C in zip(self.plastic_strain, self._elastic)])
             self._cache = {k: v for k, v in self._cache.items() if k[1] == self.version}
-            self._cache[key] = (frozen, const)
-        frozen, const = self._cache[key]
-        return u_vec.dot(frozen) + const
+            self._cache[key] = const
+        return self._cache[key]
 
     def step_plastic_work(self) -> float:
         """The plastic work of the evaluated (trial) state over the step, int_zone sigma : d eps_p dV

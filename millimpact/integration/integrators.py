@@ -56,7 +56,7 @@ from petsc4py import PETSc
 from ..errors import InputError
 from .central_penalty import CRITICAL_STEP_SAFETY, CentralPenaltyScheme
 from .dynamics import (IntegrationStats, LinearDynamics, SeparationStop, StepState, TimeSchedule, kinetic_energy,
-                       strain_energy)
+                       product_matrix, strain_energy)
 from .mass import lumped_mass, lumped_mass_matrix, redistribute_mass
 from .newmark import NewmarkScheme
 from .plastic_newmark import PlasticNewmarkScheme
@@ -66,7 +66,7 @@ log = logging.getLogger(__name__)
 
 #: what callers take from this module: the driver and the values it works on
 __all__ = ["integrate", "METHODS", "LinearDynamics", "StepState", "IntegrationStats", "TimeSchedule", "kinetic_energy",
-           "strain_energy", "SeparationStop", "redistribute_mass", "lumped_mass", "lumped_mass_matrix",
+           "product_matrix", "strain_energy", "SeparationStop", "redistribute_mass", "lumped_mass", "lumped_mass_matrix",
            "CRITICAL_STEP_SAFETY"]
 
 #: Integrator names accepted by :func:`integrate`.

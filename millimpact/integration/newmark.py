@@ -23,7 +23,7 @@ from .lcp import LCPResult, solve_lcp
 from .saddle_point import SaddlePointSolver
 from ..errors import InputError, SolverError
 from .contact_rows import ContactRows, broadcast
-from .dynamics import IntegrationStats, LinearDynamics
+from .dynamics import IntegrationStats, LinearDynamics, product_matrix
 from .mass import redistribute_mass
 
 log = logging.getLogger(__name__)
@@ -227,7 +227,7 @@ class NewmarkScheme:
         b = self.beta
         c0, c1, c2 = 1.0 / (b * dt * dt), 1.0 / (b * dt), 0.5 / b - 1.0
         self.tmp.array[:] = c0 * self.u.array_r + c1 * self.v.array_r + c2 * self.a.array_r
-        self.M.mult(self.tmp, self.r)
+        product_matrix(self.M).mult(self.tmp, self.r)
         if self.sys.f_ext is not None:
             self.r.axpy(1.0, self.sys.f_ext)
         self.r.array[self.fixed] = 0.0

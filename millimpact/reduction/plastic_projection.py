@@ -36,6 +36,7 @@ class ProjectedPlasticZone:
         self.zone, self.red = zone, red
         self._u = red.model.K.createVecRight()
         self._residual_solver = None     # (K, M, the factorized K_r + s M_r): kept for the next impact
+        self._frozen = None              # (plastic state version, G^T f_frozen)
 
     def _expand(self, q: PETSc.Vec) -> PETSc.Vec:
         """u = G q: exact on the zone's dofs (all the zone's cells read); zero in the interior."""
@@ -58,10 +59,18 @@ class ProjectedPlasticZone:
         return r
 
     def frozen_force(self) -> PETSc.Vec:
-        f = self.zone.frozen_force()
-        r = self._restrict(f)
-        f.destroy()
-        return r
+        """G^T f_frozen of the committed state (a new Vec; the projection is kept per plastic state:
+        a step where nothing yields and every energy row read it)."""
+        return self._frozen_force().copy()
+
+    def _frozen_force(self) -> PETSc.Vec:
+        if self._frozen is None or self._frozen[0] != self.zone.version:
+            if self._frozen is not None:
+                self._frozen[1].destroy()
+            f = self.zone.frozen_force()
+            self._frozen = (self.zone.version, self._restrict(f))
+            f.destroy()
+        return self._frozen[1]
 
     @property
     def version(self) -> int:
@@ -116,7 +125,9 @@ class ProjectedPlasticZone:
         self.zone.commit()
 
     def strain_energy_correction(self, q: PETSc.Vec) -> float:
-        return self.zone.strain_energy_correction(self._expand(q))
+        """The zone's (:meth:`PlasticZone.strain_energy_correction`) in reduced coordinates:
+        (G q) . f_frozen = q . G^T f_frozen, no expansion of q (4 ms a row on the sequence model)."""
+        return q.dot(self._frozen_force()) + self.zone.plastic_energy_constant()
 
     def plastic_strain_near(self, points: np.ndarray) -> np.ndarray:
         return self.zone.plastic_strain_near(points)

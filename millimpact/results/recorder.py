@@ -23,7 +23,7 @@ from ..fem.contact import ContactSet
 from ..fem.model import FEModel
 from ..fem.plasticity import from_mandel
 from ..fem.probes import create_probe, patch_indicator, patch_momentum_row, stress_from_gradient, von_mises
-from ..integration.integrators import strain_energy
+from ..integration.integrators import product_matrix, strain_energy
 from ..scene.plan import ProbeSpec
 from .band_limit import gaussian_low_pass
 from .timeseries import TimeSeries
@@ -230,13 +230,13 @@ class Recorder:
         """[ball kinetic, kinetic, strain, total] energy (J, full body): kinetic with the mass the
         scheme integrates (redistributed for newmark-mr, whose massless contact dofs carry no
         momentum), strain 1/2 u.K u (with the plastic strain: 1/2 (eps - eps_p) : C : (eps - eps_p))."""
-        mass.mult(v, self.tmp)
+        product_matrix(mass).mult(v, self.tmp)
         ke = 0.5 * self.tmp.dot(v)
         # the ball's part: M is block diagonal by body (the bodies share no node, and each body's
         # reduced coordinates are its own), so (mask v).M v = (mask v).M (mask v): no second product
         self.tmp2.pointwiseMult(v, self.ball_mask)
         ke_ball = 0.5 * self.tmp.dot(self.tmp2)
-        se = strain_energy(self.model.K, u, self.model.fixed_dofs)
+        se = strain_energy(product_matrix(self.model.K), u, self.model.fixed_dofs)
         if self.plastic is not None:
             se += self.plastic.strain_energy_correction(u)
         return [self.sym * ke_ball, self.sym * ke, self.sym * se, self.sym * (ke + se)]
