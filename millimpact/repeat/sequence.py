@@ -189,12 +189,19 @@ def sequence_scene(scene, impacts: Sequence[ImpactSpec], method: str):
             from ..methods.reduced import reduced_plan
 
             zone = reduced_plan(design, plan)[1].zone_radius
+        single = zone
         if len(impacts) > 1:
             from ..scene.plan import PLASTIC_ZONE_CAP, zone_radius_limit
 
             zone = max(zone, min(REPEAT_ZONE_FACTOR * zone, PLASTIC_ZONE_CAP * zone_radius_limit(design)))
         zone += max(math.hypot(*i.offset_m) for i in impacts)
         design = design.with_value("model.zone_radius", zone)
+        if zone > single and scene.model.ball_zone_radius is None:
+            # the ball keeps a single impact's zone: it is struck at the same point of its own
+            # (offsets move the face point, not the ball), and its plastic region grows less
+            # than the liner's (paper-rig-plastic, 10 impacts: BALL_ZONE_NOTE)
+            ball = make_plan(design.with_value("model.zone_radius", single)).ball_zone
+            design = design.with_value("model.ball_zone_radius", ball)
     return design
 
 

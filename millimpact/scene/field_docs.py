@@ -50,6 +50,8 @@ FIELD_DOCS: dict[str, tuple[str, str, str]] = {
                           "contact-zone radius (full: 4 a_max; reduced: 2.5 a_max; plastic: 1.75 x the plastic radius)"),
     "model.fine_radius": ("m", "> 0, <= zone_radius; (plan)",
                           "radius about the contact point within which the size is h_contact (1.5 a_max)"),
+    "model.ball_zone_radius": ("m", "> 0, <= the zone radius; (plan)",
+                               "the ball's contact-zone radius (the zone radius; a small ball's: 0.9 x 0.45 its radius)"),
     "model.symmetry": ("", "auto | full | half | quarter", "symmetry planes used (auto: all the scene allows)"),
     "model.degree": ("", "1 | 2", "Lagrange degree of the full FE model (reduced methods use their own)"),
     "model.f_cut": ("Hz", "> 0; (plan)", "modal cutoff of the reduction (4 / t_c)"),

@@ -416,6 +416,16 @@ def make_plan(scene: Scene) -> Plan:
         ball_zone = ball_limit
         reasons["ball_zone_radius"] = (f"{PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} ball radius: a small ball's zone "
                                        "in the ball (the block's is larger)")
+    if m.ball_zone_radius is not None:
+        # the ball's own zone (a repeated-impact sequence: the liner's plastic region grows, the
+        # ball's stays small), no larger than the zone and than the ball allows
+        top = min(zone, ball_limit) if is_small_ball(scene) else zone
+        if m.ball_zone_radius > top:
+            raise SceneError("model.ball_zone_radius", m.ball_zone_radius,
+                             f"must be at most {top:g} m (the contact zone's radius"
+                             + (f", and {PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} the ball radius)" if top < zone else ")"))
+        ball_zone = m.ball_zone_radius if m.ball_zone_radius < zone else 0.0
+        reasons["ball_zone_radius"] = "user"
     fine = min(1.5 * h.a_max, ball_zone or zone)
     reasons["fine_radius"] = "1.5 a_max: h_contact over the whole contact patch"
     if m.fine_radius is not None:

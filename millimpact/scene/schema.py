@@ -322,7 +322,9 @@ class ModelOptions:
     ``zone_radius`` contact-zone radius (m), ``fine_radius`` radius within which the size is
     ``h_contact`` (m, at most ``zone_radius``), ``symmetry`` one of auto/full/half/quarter,
     ``degree`` Lagrange degree of the full model, ``f_cut`` modal cutoff (Hz), ``modes`` a fixed
-    mode count per body.
+    mode count per body, ``ball_zone_radius`` the ball's own contact-zone radius (m, at most
+    ``zone_radius``; a repeated-impact sequence's ball, whose plastic region grows less than the
+    liner's).
     """
 
     h_contact: Optional[float] = None
@@ -333,6 +335,7 @@ class ModelOptions:
     f_cut: Optional[float] = None
     modes: Optional[int] = None
     fine_radius: Optional[float] = None
+    ball_zone_radius: Optional[float] = None
 
 
 @dataclass(frozen=True)
@@ -475,7 +478,7 @@ class Scene:
         if t.dt_free is not None:
             _positive("time.dt_free", t.dt_free, "s")
         m = self.model
-        for name in ("h_contact", "h_far", "zone_radius", "fine_radius", "f_cut"):
+        for name in ("h_contact", "h_far", "zone_radius", "fine_radius", "ball_zone_radius", "f_cut"):
             v = getattr(m, name)
             if v is not None:
                 _positive(f"model.{name}", v, "Hz" if name == "f_cut" else "m")

@@ -149,3 +149,22 @@ def test_repeat_rerun_keeps_the_users_file_and_a_second_writer_is_refused(tmp_pa
     with another_writer(out, "repeat") as pid:
         code, stdout, stderr = _repeat_in_process(monkeypatch, capsys, out)
     assert_refused_by_the_lock(code, stderr, out, pid)
+
+
+def test_a_sequence_grows_the_liner_zone_and_keeps_the_balls():
+    """More than one impact: the struck body's zone is REPEAT_ZONE_FACTOR a single impact's (plus
+    the largest offset), the ball keeps a single impact's (model.ball_zone_radius; it is struck at
+    the same point of its own); one impact is a single impact's model."""
+    from millimpact.repeat.sequence import REPEAT_ZONE_FACTOR, ImpactSpec, sequence_scene
+    from millimpact.scene.builtin import resolve_scene
+
+    scene = resolve_scene("paper-rig-plastic")
+    one = sequence_scene(scene, [ImpactSpec(3.0)], "improved").model
+    assert one.ball_zone_radius is None
+    two = sequence_scene(scene, [ImpactSpec(3.0)] * 2, "improved").model
+    assert two.zone_radius == pytest.approx(REPEAT_ZONE_FACTOR * one.zone_radius, rel=1e-12)
+    assert two.ball_zone_radius == pytest.approx(one.zone_radius, rel=1e-12)
+    dz = 5e-4
+    off = sequence_scene(scene, [ImpactSpec(3.0), ImpactSpec(3.0, 0.0, (0.0, dz))], "improved").model
+    assert off.zone_radius == pytest.approx(REPEAT_ZONE_FACTOR * one.zone_radius + dz, rel=1e-12)
+    assert off.ball_zone_radius == pytest.approx(one.zone_radius, rel=1e-12)

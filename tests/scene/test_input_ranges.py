@@ -89,6 +89,28 @@ def test_a_user_fine_radius_is_meshed_up_to_the_zone():
     assert exc.value.field == "model.fine_radius"
 
 
+def test_a_user_ball_zone_is_the_balls_own_up_to_the_zone():
+    """model.ball_zone_radius gives the ball a smaller contact zone than the struck body's (a
+    repeated-impact sequence, millimpact/repeat/sequence.py); the mesh the plan asks for changes
+    with it, and beyond the zone one line names the field and the zone's radius."""
+    from millimpact.geometry.mesh import mesh_parameters
+
+    rig = builtin_scene("paper-rig")
+    plan = make_plan(rig)
+    assert plan.ball_zone == plan.zone_radius
+    own = rig.with_value("model.ball_zone_radius", 0.8 * plan.zone_radius)
+    smaller = make_plan(own)
+    assert smaller.ball_zone == pytest.approx(0.8 * plan.zone_radius) and smaller.zone_radius == plan.zone_radius
+    assert dict(smaller.reasons)["ball_zone_radius"] == "user"
+    assert mesh_parameters(own, smaller) != mesh_parameters(rig, plan)
+    with pytest.raises(SceneError) as exc:
+        make_plan(rig.with_value("model.ball_zone_radius", 1.01 * plan.zone_radius))
+    assert exc.value.field == "model.ball_zone_radius" and "contact zone" in str(exc.value)
+    with pytest.raises(SceneError) as exc:
+        rig.with_value("model.ball_zone_radius", 0.0)
+    assert exc.value.field == "model.ball_zone_radius"
+
+
 # --- row 17: settings that would be silently ignored ---------------------------------------------
 def test_block_fields_on_a_liner_scene_are_refused(tmp_path):
     line = one_error_line("run", "liner-segment", "--method", "hertz", "--set", "block.thickness=0.02",
