@@ -193,10 +193,14 @@ class PlasticZone:
         """f_c of the committed plastic strain alone, -int_zone B^T C eps_p dV (N): the load that
         the residual (unloaded, elastic) state balances, and f_c(u) at any u where no point yields;
         a new PETSc Vec of V (assembled once per plastic state)."""
+        return self._frozen_force().copy()
+
+    def _frozen_force(self):
+        """The kept f_frozen of the committed state (not a copy: read only)."""
         key = ("frozen", self.version)
         if key not in self._cache:
             self._cache[key] = self._assemble_frozen_force()
-        return self._cache[key].copy()
+        return self._cache[key]
 
     def _assemble_frozen_force(self):
         sc = self.stress_correction.x.array.reshape(-1, 6)
@@ -238,10 +242,7 @@ class PlasticZone:
         + 1/2 eps_p : C : eps_p) dV (global sum). The first integral is linear in u,
         u . f_frozen with f_frozen = -int B^T C eps_p (:meth:`frozen_force`): both terms are kept per
         plastic state, so a row costs a dot product while the state does not change."""
-        frozen = self.frozen_force()
-        value = u_vec.dot(frozen) + self.plastic_energy_constant()
-        frozen.destroy()
-        return value
+        return u_vec.dot(self._frozen_force()) + self.plastic_energy_constant()
 
     def plastic_energy_constant(self) -> float:
         """1/2 int_zone eps_p : C : eps_p dV (J, global) of the committed state: the part of

@@ -204,8 +204,8 @@ class TimeSchedule:
 
 
 #: the largest matrix (stored values) given a symmetric twin for products (:func:`product_matrix`):
-#: a reduced model's K_r and M_r (2.3 million each on paper-rig-plastic's sequence model), not a
-#: full one, whose twin would cost memory that issue 31's liner panel does not have
+#: a reduced model's K_r and M_r (2.3 million each on paper-rig-plastic's sequence model) and small
+#: full models; not the large full ones, whose twin would cost memory the liner panel does not have
 PRODUCT_TWIN_MAX_NNZ = 5_000_000
 #: |A - A^T|_F <= this times |A|_F: symmetric for the twin (products then agree to rounding)
 PRODUCT_TWIN_SYMMETRY_RTOL = 1e-12
