@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import Optional
 
 from .console import enable_stages, say, world_rank
-from .errors import InputError, MillimpactError, OutputError
+from .errors import (InputError, MillimpactError, OutputError, Terminated, clear_interrupts,
+                     on_interrupt_signal)
 from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
 from .scene.schema import parse_value
@@ -402,14 +403,6 @@ class _CompilerChatter(logging.Filter):
         return False
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the program stands so staged outputs are discarded as for Ctrl-C."""
-
-
-def _on_sigterm(signum, frame):
-    raise Terminated()
-
-
 class _VersionAction(argparse.Action):
     """``--version``: computed when asked, not for every command."""
 
@@ -505,6 +498,8 @@ class _CheckedStdout:
 def main(argv: Optional[list[str]] = None) -> int:
     stdout = sys.stdout
     sys.stdout = _CheckedStdout(stdout)
+    handlers = ({s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+                if threading.current_thread() is threading.main_thread() else {})
     try:
         code = _main(argv)
         sys.stdout.flush()
@@ -515,6 +510,9 @@ def main(argv: Optional[list[str]] = None) -> int:
         return EXIT_FAILURE
     finally:
         sys.stdout = stdout
+        for signum, handler in handlers.items():   # main() called in a program: its handlers back
+            if handler is not None:
+                signal.signal(signum, handler)
 
 
 def _main(argv: Optional[list[str]] = None) -> int:
@@ -525,8 +523,13 @@ def _main(argv: Optional[list[str]] = None) -> int:
         faulthandler.enable()
     except (AttributeError, OSError, ValueError):     # stderr without a file descriptor (main() called in-process)
         pass
+    clear_interrupts()
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _on_sigterm)
+        signal.signal(signal.SIGTERM, on_interrupt_signal)
+        # Ctrl-C too (not where it is ignored: a background job), so a KeyboardInterrupt that a
+        # library swallows is still seen before publishing (errors.raise_if_interrupted)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, on_interrupt_signal)
     try:
         parser = build_parser()
         argv, petsc = split_petsc_options(argv)
@@ -570,6 +573,7 @@ def _main(argv: Optional[list[str]] = None) -> int:
             print(f"millimpact: failed on rank {world_rank()}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     except KeyboardInterrupt as exc:
+        clear_interrupts()
         code = getattr(exc, "exit_code", 143 if isinstance(exc, Terminated) else 130)
         if world_rank() == 0:
             print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {str(exc) or interrupt_note()}",

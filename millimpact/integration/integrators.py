@@ -53,7 +53,7 @@ from typing import Callable, Mapping, Optional
 import numpy as np
 from petsc4py import PETSc
 
-from ..errors import InputError
+from ..errors import InputError, raise_if_interrupted
 from .central_penalty import CRITICAL_STEP_SAFETY, CentralPenaltyScheme
 from .dynamics import (IntegrationStats, LinearDynamics, SeparationStop, StepState, TimeSchedule, kinetic_energy,
                        product_matrix, strain_energy)
@@ -156,6 +156,7 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
     force_contact = False
     try:
         while k < n_grid:
+            raise_if_interrupted()   # a Ctrl-C / SIGTERM whose exception a library swallowed
             n_act = int(np.count_nonzero(prev_active)) + int(getattr(integ, "touched", False))
             use_free = (not force_contact and n_grid - k >= m_free
                         and schedule.free_step_allowed(integ.gap, integ.rate(), n_act))

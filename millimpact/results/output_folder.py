@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Iterator, Optional
 
-from ..errors import InputError, OutputError
+from ..errors import InputError, OutputError, raise_if_interrupted
 
 #: the manifest that marks a folder as a millimpact output: {"kind", "millimpact_version", "files"}
 MARKER = ".millimpact-output"
@@ -349,6 +349,7 @@ def staged_output(out: Path, comm=None, kind: str = "run", force: bool = False, 
         error = None
         try:
             yield stage
+            raise_if_interrupted()   # a Ctrl-C / SIGTERM whose exception a library swallowed
         except Exception as exc:   # agreed on by all ranks below: none waits for one that failed
             error = exc
         if comm is not None and comm.size > 1 and comm.allreduce(error is not None) and error is None:

@@ -67,14 +67,41 @@ def test_interrupted_run_leaves_nothing(tmp_path, sig, code):
     """A run stopped mid-way (during meshing, reduction or the time loop) exits 130/143 with one
     line, and leaves no folder that could be taken for a result."""
     out = tmp_path / "run"
-    p = subprocess.Popen([sys.executable, "-m", "millimpact.cli", "run", "-q", "--out", str(out)], cwd=ROOT,
+    # not -q: the stage lines on stderr say where the run stood if the signal is not answered
+    p = subprocess.Popen([sys.executable, "-m", "millimpact.cli", "run", "--out", str(out)], cwd=ROOT,
                          env=mpi_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          preexec_fn=default_sigint)
     time.sleep(6.0)   # past the imports (~2 s), inside meshing, reduction or the time loop (~15 s in all)
+    t_sent = time.perf_counter()
     p.send_signal(sig)
     _, err = p.communicate(timeout=120)
-    assert p.returncode == code, err
+    assert p.returncode == code, f"exit {p.returncode} {time.perf_counter() - t_sent:.1f} s after the signal:\n{err}"
     lines = [l for l in err.splitlines() if l.strip()]
     assert lines[-1].startswith("millimpact: interrupted") and f"nothing written to {out}" in lines[-1]
     assert "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_swallowed_interrupt_still_publishes_nothing(tmp_path):
+    """A library can swallow the exception a signal handler raises (a bare ``except:`` between two
+    bytecodes); the handler also records the signal, so the staged result is still discarded and
+    the command still ends as interrupted (errors.raise_if_interrupted)."""
+    from millimpact.errors import Terminated, clear_interrupts, on_interrupt_signal
+
+    clear_interrupts()
+    try:
+        try:
+            on_interrupt_signal(signal.SIGTERM, None)
+        except:  # noqa: E722  - the library's bare except
+            pass
+        out = tmp_path / "run"
+        with pytest.raises(Terminated):
+            with staged_output(out) as stage:
+                (stage / "summary.json").write_text("{}")
+        assert list(tmp_path.iterdir()) == []                                     # neither folder nor stage
+        clear_interrupts()                                                       # a new command's start
+        with staged_output(out) as stage:
+            (stage / "summary.json").write_text("{}")
+        assert (out / "summary.json").is_file()
+    finally:
+        clear_interrupts()
