@@ -495,6 +495,25 @@ class _CheckedStdout:
         return getattr(self._stream, name)
 
 
+def _release_jit_claims(exc: BaseException) -> None:
+    """After an interrupt: the JIT module this process was compiling, released as FFCx releases a
+    failed one (:mod:`millimpact.fem.jit_cache`), looking through the exceptions it replaced."""
+    from .fem.jit_cache import release_interrupted_compile
+
+    seen = 0
+    while exc is not None and seen < 8:
+        if release_interrupted_compile(exc.__traceback__) is not None:
+            return
+        exc, seen = exc.__cause__ or exc.__context__, seen + 1
+
+
+def stale_jit_claim(exc: BaseException) -> Optional[str]:
+    """The ``.c`` file FFCx names when it gives up waiting for a module (its ``TimeoutError``), or
+    None for any other error."""
+    found = re.search(r"remove (\S+\.c)\)", str(exc))
+    return found.group(1) if found and "JIT compilation timed out" in str(exc) else None
+
+
 def main(argv: Optional[list[str]] = None) -> int:
     stdout = sys.stdout
     sys.stdout = _CheckedStdout(stdout)
@@ -574,11 +593,21 @@ def _main(argv: Optional[list[str]] = None) -> int:
         return EXIT_FAILURE
     except KeyboardInterrupt as exc:
         clear_interrupts()
+        _release_jit_claims(exc)
         code = getattr(exc, "exit_code", 143 if isinstance(exc, Terminated) else 130)
         if world_rank() == 0:
             print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {str(exc) or interrupt_note()}",
                   file=sys.stderr)
         return code
+    except TimeoutError as exc:
+        stale = stale_jit_claim(exc)
+        if stale is None:
+            raise
+        if world_rank() == 0:   # FFCx's claim of a module whose compile never finished
+            print(f"millimpact: failed: JIT compilation timed out waiting for {stale}, left by a compile that "
+                  f"did not finish (a run killed while compiling forms); remove that file and run again",
+                  file=sys.stderr)
+        return EXIT_FAILURE
     except BrokenPipeError:
         # the reader went away (``millimpact ... | head``): not an error of ours, and no traceback
         try:
