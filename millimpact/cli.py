@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import argparse
 import faulthandler
-import signal
-import threading
 import re
 import logging
 import os
@@ -17,8 +15,8 @@ from pathlib import Path
 from typing import Optional
 
 from .console import enable_stages, say, world_rank
-from .errors import (InputError, MillimpactError, OutputError, Terminated, clear_interrupts,
-                     on_interrupt_signal)
+from .errors import InputError, MillimpactError, OutputError, Terminated
+from .interrupts import clear_interrupts, command_signals
 from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
 from .scene.schema import parse_value
@@ -517,10 +515,9 @@ def stale_jit_claim(exc: BaseException) -> Optional[str]:
 def main(argv: Optional[list[str]] = None) -> int:
     stdout = sys.stdout
     sys.stdout = _CheckedStdout(stdout)
-    handlers = ({s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-                if threading.current_thread() is threading.main_thread() else {})
     try:
-        code = _main(argv)
+        with command_signals():   # Ctrl-C and SIGTERM seen whatever a library does (interrupts.py)
+            code = _main(argv)
         sys.stdout.flush()
         return code
     except OutputError as exc:   # the last flush of standard output
@@ -529,9 +526,6 @@ def main(argv: Optional[list[str]] = None) -> int:
         return EXIT_FAILURE
     finally:
         sys.stdout = stdout
-        for signum, handler in handlers.items():   # main() called in a program: its handlers back
-            if handler is not None:
-                signal.signal(signum, handler)
 
 
 def _main(argv: Optional[list[str]] = None) -> int:
@@ -542,13 +536,6 @@ def _main(argv: Optional[list[str]] = None) -> int:
         faulthandler.enable()
     except (AttributeError, OSError, ValueError):     # stderr without a file descriptor (main() called in-process)
         pass
-    clear_interrupts()
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, on_interrupt_signal)
-        # Ctrl-C too (not where it is ignored: a background job), so a KeyboardInterrupt that a
-        # library swallows is still seen before publishing (errors.raise_if_interrupted)
-        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            signal.signal(signal.SIGINT, on_interrupt_signal)
     try:
         parser = build_parser()
         argv, petsc = split_petsc_options(argv)

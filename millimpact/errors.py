@@ -34,29 +34,3 @@ class OutputError(MillimpactError):
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM, raised where the program stands so staged outputs are discarded as for Ctrl-C."""
-
-
-#: the signals (SIGINT 2, SIGTERM 15) whose handler ran during the command and whose exception has
-#: not been seen by the command's own handler: a library can swallow the exception a handler raises
-#: (a bare ``except:`` anywhere between two bytecodes), after which the run would go on and publish
-#: as if never stopped. Checked where a result is published (:func:`raise_if_interrupted`).
-_PENDING_SIGNALS: list[int] = []
-
-
-def on_interrupt_signal(signum: int, frame) -> None:
-    """The CLI's SIGINT and SIGTERM handler: records the signal, then raises ``KeyboardInterrupt``
-    (SIGINT) or :class:`Terminated` (SIGTERM) where the program stands."""
-    _PENDING_SIGNALS.append(signum)
-    raise Terminated() if signum == 15 else KeyboardInterrupt()
-
-
-def raise_if_interrupted() -> None:
-    """Raise the recorded signal's exception again if its first one was lost (no-op otherwise):
-    called before a result is published and between time steps."""
-    if _PENDING_SIGNALS:
-        raise Terminated() if _PENDING_SIGNALS[-1] == 15 else KeyboardInterrupt()
-
-
-def clear_interrupts() -> None:
-    """Forget recorded signals (a command's start; its own handler has seen them)."""
-    _PENDING_SIGNALS.clear()

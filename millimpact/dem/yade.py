@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Callable, Optional, Sequence
 
 from ..errors import InputError, MillimpactError
+from ..interrupts import children_signals
 
 #: how a user gets Yade on this project's machines (Debian 12)
 INSTALL_HINT = "apt-get install yade (Debian 12: Yade 2023.02a)"
@@ -47,8 +48,10 @@ def run_yade(script: Path, workdir: Path, args: Sequence[str] = (), timeout: Opt
     cmd = [exe, "-n", "-j", threads, "-x", str(script), *map(str, args)]
     env = {**os.environ, "OMP_NUM_THREADS": threads}
     lines: list[str] = []
-    with subprocess.Popen(cmd, cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                          stdin=subprocess.DEVNULL, text=True, env=env) as proc:
+    with children_signals():   # Ctrl-C reaches Yade as well (millimpact.interrupts)
+        proc = subprocess.Popen(cmd, cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, text=True, env=env)
+    with proc:
         try:
             assert proc.stdout is not None
             for line in proc.stdout:

@@ -53,7 +53,8 @@ from typing import Callable, Mapping, Optional
 import numpy as np
 from petsc4py import PETSc
 
-from ..errors import InputError, raise_if_interrupted
+from ..errors import InputError
+from ..interrupts import raise_if_interrupted
 from .central_penalty import CRITICAL_STEP_SAFETY, CentralPenaltyScheme
 from .dynamics import (IntegrationStats, LinearDynamics, SeparationStop, StepState, TimeSchedule, kinetic_energy,
                        product_matrix, strain_energy)

@@ -40,7 +40,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Iterator, Optional
 
-from ..errors import InputError, OutputError, raise_if_interrupted
+from ..errors import InputError, OutputError
+from ..interrupts import raise_if_interrupted
 
 #: the manifest that marks a folder as a millimpact output: {"kind", "millimpact_version", "files"}
 MARKER = ".millimpact-output"

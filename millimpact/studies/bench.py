@@ -55,6 +55,7 @@ if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact 
     import numpy as np
 
 from ..errors import InputError
+from ..interrupts import children_signals
 from ..results.output_folder import FORCE_HELP, OUT_HELP
 
 log = logging.getLogger(__name__)
@@ -181,7 +182,7 @@ def run_spec(spec: RunSpec, folder: Path, timeout: float = 7200) -> RunResult:
     folder.mkdir(parents=True, exist_ok=True)
     payload = json.dumps(spec.__dict__, default=float)
     env = dict(os.environ, MPLBACKEND="Agg")
-    with open(folder / "worker.log", "w") as log_fh:
+    with open(folder / "worker.log", "w") as log_fh, children_signals():
         proc = subprocess.run([sys.executable, "-m", "millimpact.studies.bench", "--worker", payload, str(folder)],
                               stdout=log_fh, stderr=subprocess.STDOUT, env=env, timeout=timeout)
     if proc.returncode != 0 or not (folder / "result.json").exists():

@@ -86,7 +86,8 @@ def test_a_swallowed_interrupt_still_publishes_nothing(tmp_path):
     """A library can swallow the exception a signal handler raises (a bare ``except:`` between two
     bytecodes); the handler also records the signal, so the staged result is still discarded and
     the command still ends as interrupted (errors.raise_if_interrupted)."""
-    from millimpact.errors import Terminated, clear_interrupts, on_interrupt_signal
+    from millimpact.errors import Terminated
+    from millimpact.interrupts import clear_interrupts, on_interrupt_signal
 
     clear_interrupts()
     try:
@@ -105,3 +106,41 @@ def test_a_swallowed_interrupt_still_publishes_nothing(tmp_path):
         assert (out / "summary.json").is_file()
     finally:
         clear_interrupts()
+
+
+#: a command whose library takes SIGTERM for itself for a while, as METIS does in every ordering
+#: (GKlib's gk_sigtrap sets its own handler, whose longjmp makes METIS return an error and CHOLMOD
+#: order with AMD instead: the signal is gone). Here the library's handler is SIG_IGN, set with
+#: libc's signal() as METIS does, during which the process gets SIGTERM; then the library puts the
+#: handler back. Prints what the command saw.
+LIBRARY_TAKES_SIGTERM = """
+import ctypes, os, signal, sys, time
+from millimpact.interrupts import children_signals, command_signals
+libc = ctypes.CDLL(None)
+libc.signal.restype = ctypes.c_void_p
+libc.signal.argtypes = [ctypes.c_int, ctypes.c_void_p]
+try:
+    with command_signals():
+        with children_signals():
+            import subprocess
+            child = subprocess.run(["grep", "SigBlk", "/proc/self/status"], capture_output=True, text=True).stdout
+        print("child", int(child.split()[1], 16) & (1 << 14), flush=True)      # SIGTERM's bit
+        old = libc.signal(signal.SIGTERM, ctypes.c_void_p(1))                  # SIG_IGN, as a library
+        os.kill(os.getpid(), signal.SIGTERM)
+        libc.signal(signal.SIGTERM, ctypes.c_void_p(old))                      # the library's exit
+        for _ in range(500):                                                   # 5 s of Python
+            time.sleep(0.01)
+        print("not interrupted", flush=True)
+except KeyboardInterrupt as exc:
+    print("interrupted", type(exc).__name__, flush=True)
+"""
+
+
+def test_sigterm_reaches_the_command_while_a_library_holds_the_handler():
+    """millimpact.interrupts: the command blocks SIGTERM and a thread of its own waits for it, so a
+    library's handler never sees it. Without that, this program printed 'not interrupted'. A child
+    process starts with the signal unblocked (Ctrl-C still reaches Yade and bench workers)."""
+    r = subprocess.run([sys.executable, "-c", LIBRARY_TAKES_SIGTERM], cwd=ROOT, env=mpi_env(), capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split("\n")[:2] == ["child 0", "interrupted Terminated"], (r.stdout, r.stderr)

@@ -1,0 +1,117 @@
+"""Ctrl-C and SIGTERM during a command: always seen, whatever a library does with the signal.
+
+Why a command does not simply install a handler: libraries install their own for the length of a
+call. METIS (GKlib's ``gk_sigtrap``, on every ``METIS_NodeND`` that CHOLMOD's and MUMPS's
+orderings make) sets SIGTERM (and SIGABRT) to a handler that ``longjmp``s out of METIS, which then
+returns an error; CHOLMOD orders with AMD instead and the run goes on. Measured 2026-11-28 (gdb:
+``sigaction(15, ...)`` from ``gk_sigtrap`` under ``cholmod_analyze_p2`` in the reduction's
+factorizations): a default ``millimpact run`` sent SIGTERM 7 s in, on a cold mesh cache, finished
+and published its results with exit 0 in 2 of 22 probes, and the CI's interrupt test failed so in
+one run of three. gmsh sets SIGINT to SIG_DFL when it is imported.
+
+So a command (:func:`command_signals`) blocks SIGINT and SIGTERM before any other thread starts;
+every thread it starts (MPI's progress thread, OpenMP's workers) inherits the mask, so the kernel
+keeps such a signal pending for the process. One thread waits for it (``sigwait``) and interrupts
+the main thread with it (``_thread.interrupt_main``): the Python handler
+:func:`on_interrupt_signal` runs in the main thread at its next bytecode, as for a delivered
+signal, and no library's handler ever sees one. Child processes are started with the signals
+unblocked (:func:`children_signals`), so Ctrl-C still reaches them.
+
+The handler also records the signal, and :func:`raise_if_interrupted` raises it again where a
+result is published and before each time step: an exception a library swallows (a bare
+``except:`` between two bytecodes) cannot turn an interrupted run into a published one.
+"""
+from __future__ import annotations
+
+import _thread
+import signal
+import threading
+from contextlib import contextmanager
+from typing import Iterator
+
+from .errors import Terminated
+
+#: the signals (SIGINT 2, SIGTERM 15) whose handler ran during the command and whose exception the
+#: command's own handler has not seen yet
+_PENDING_SIGNALS: list[int] = []
+#: the signals the current command waits for (empty outside a command)
+_WAITED: set[int] = set()
+
+
+def on_interrupt_signal(signum: int, frame) -> None:
+    """The command's SIGINT and SIGTERM handler: records the signal, then raises
+    ``KeyboardInterrupt`` (SIGINT) or :class:`~millimpact.errors.Terminated` (SIGTERM) where the
+    main thread stands."""
+    _PENDING_SIGNALS.append(signum)
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def raise_if_interrupted() -> None:
+    """Raise the recorded signal's exception again if its first one was lost (no-op otherwise):
+    called before a result is published and between time steps."""
+    if _PENDING_SIGNALS:
+        raise Terminated() if _PENDING_SIGNALS[-1] == signal.SIGTERM else KeyboardInterrupt()
+
+
+def clear_interrupts() -> None:
+    """Forget recorded signals (a command's start; its own handler has seen them)."""
+    _PENDING_SIGNALS.clear()
+
+
+def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
+    while True:
+        signum = signal.sigwait(waited)
+        if stop.is_set():
+            return
+        _thread.interrupt_main(signum)   # runs on_interrupt_signal in the main thread
+
+
+@contextmanager
+def command_signals() -> Iterator[None]:
+    """The command's signal handling (module docstring): SIGTERM, and SIGINT unless it is ignored
+    (a background job), blocked in every thread and turned into the handler's exception in the
+    main thread. On exit the caller's handlers and mask are back. Outside the main thread: no-op."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    clear_interrupts()
+    waited = {signal.SIGTERM}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        waited.add(signal.SIGINT)
+    handlers = {s: signal.getsignal(s) for s in waited}
+    for s in waited:
+        signal.signal(s, on_interrupt_signal)
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, waited)
+    stop = threading.Event()
+    waiter = threading.Thread(target=_wait_and_interrupt, args=(waited, stop), name="millimpact-signals",
+                              daemon=True)
+    waiter.start()
+    _WAITED.update(waited)
+    try:
+        yield
+    finally:
+        _WAITED.clear()
+        stop.set()
+        signal.pthread_kill(waiter.ident, signal.SIGTERM)   # wakes its sigwait; it ends on `stop`
+        waiter.join(timeout=5.0)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        for s, handler in handlers.items():
+            if handler is not None:
+                signal.signal(s, handler)
+
+
+@contextmanager
+def children_signals() -> Iterator[None]:
+    """Start child processes inside this block: the main thread has SIGINT and SIGTERM unblocked
+    while it is open, and a child inherits its mask, so Ctrl-C and SIGTERM reach the child as
+    usual. (The block only runs Python and waits on the child: no library call that takes the
+    signals for itself runs meanwhile; a signal to this process lands on its Python handler.)"""
+    if not _WAITED or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    blocked = set(_WAITED)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, blocked)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_BLOCK, blocked)
