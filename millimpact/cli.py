@@ -16,7 +16,8 @@ from typing import Optional
 
 from .console import enable_stages, say, world_rank
 from .errors import InputError, MillimpactError, OutputError, Terminated
-from .interrupts import clear_interrupts, command_signals
+from .fem.jit_cache import release_interrupted_compile, stale_jit_claim
+from .interrupts import command_signals
 from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
 from .scene.schema import parse_value
@@ -493,25 +494,6 @@ class _CheckedStdout:
         return getattr(self._stream, name)
 
 
-def _release_jit_claims(exc: BaseException) -> None:
-    """After an interrupt: the JIT module this process was compiling, released as FFCx releases a
-    failed one (:mod:`millimpact.fem.jit_cache`), looking through the exceptions it replaced."""
-    from .fem.jit_cache import release_interrupted_compile
-
-    seen = 0
-    while exc is not None and seen < 8:
-        if release_interrupted_compile(exc.__traceback__) is not None:
-            return
-        exc, seen = exc.__cause__ or exc.__context__, seen + 1
-
-
-def stale_jit_claim(exc: BaseException) -> Optional[str]:
-    """The ``.c`` file FFCx names when it gives up waiting for a module (its ``TimeoutError``), or
-    None for any other error."""
-    found = re.search(r"remove (\S+\.c)\)", str(exc))
-    return found.group(1) if found and "JIT compilation timed out" in str(exc) else None
-
-
 def main(argv: Optional[list[str]] = None) -> int:
     stdout = sys.stdout
     sys.stdout = _CheckedStdout(stdout)
@@ -579,8 +561,7 @@ def _main(argv: Optional[list[str]] = None) -> int:
             print(f"millimpact: failed on rank {world_rank()}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     except KeyboardInterrupt as exc:
-        clear_interrupts()
-        _release_jit_claims(exc)
+        release_interrupted_compile(exc)
         code = getattr(exc, "exit_code", 143 if isinstance(exc, Terminated) else 130)
         if world_rank() == 0:
             print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {str(exc) or interrupt_note()}",

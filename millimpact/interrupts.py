@@ -54,7 +54,7 @@ def raise_if_interrupted() -> None:
 
 
 def clear_interrupts() -> None:
-    """Forget recorded signals (a command's start; its own handler has seen them)."""
+    """Forget recorded signals (a command's start and end)."""
     _PENDING_SIGNALS.clear()
 
 
@@ -91,6 +91,7 @@ def command_signals() -> Iterator[None]:
         yield
     finally:
         _WAITED.clear()
+        clear_interrupts()   # the record lives as long as the command
         stop.set()
         signal.pthread_kill(waiter.ident, signal.SIGTERM)   # wakes its sigwait; it ends on `stop`
         waiter.join(timeout=5.0)

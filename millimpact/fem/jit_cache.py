@@ -13,11 +13,13 @@ exit 1 after 12.8 s).
 
 :func:`release_interrupted_compile` does for an interrupt what FFCx does for a failure, for the
 module this process was compiling only (read from the interrupted frames); a module another
-process is compiling, which this one was waiting for, is left alone.
+process is compiling, which this one was waiting for, is left alone. A claim left by a killed run
+is named by :func:`stale_jit_claim`, for the CLI's one line.
 """
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 from types import TracebackType
 from typing import Optional
@@ -26,7 +28,27 @@ from typing import Optional
 _COMPILERS = ("compile_elements", "compile_forms", "compile_expressions")
 
 
-def release_interrupted_compile(tb: Optional[TracebackType]) -> Optional[Path]:
+def release_interrupted_compile(exc: BaseException) -> Optional[Path]:
+    """After the interrupt ``exc``: the module this process was compiling, released as FFCx
+    releases a failed one (:func:`_release_claim`), looking through the exceptions ``exc``
+    replaced (a study re-raises the interrupt as its own); returns the renamed claim, or None."""
+    seen = 0
+    while exc is not None and seen < 8:
+        claim = _release_claim(exc.__traceback__)
+        if claim is not None:
+            return claim
+        exc, seen = exc.__cause__ or exc.__context__, seen + 1
+    return None
+
+
+def stale_jit_claim(exc: BaseException) -> Optional[str]:
+    """The ``.c`` file FFCx names when it gives up waiting for a module (its ``TimeoutError``), or
+    None for any other error."""
+    found = re.search(r"remove (\S+\.c)\)", str(exc))
+    return found.group(1) if found and "JIT compilation timed out" in str(exc) else None
+
+
+def _release_claim(tb: Optional[TracebackType]) -> Optional[Path]:
     """If the traceback ``tb`` of an interrupt passes through an FFCx compile this process
     claimed (not its wait for another process), rename the claim ``MODULE.c`` to
     ``MODULE.c.failed`` as FFCx does for a failed compile; returns the renamed file, or None."""

@@ -9,8 +9,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 
 import ffcx.codegeneration.jit as ffcx_jit
-from millimpact.cli import _release_jit_claims, stale_jit_claim
-from millimpact.fem.jit_cache import release_interrupted_compile
+from millimpact.fem.jit_cache import _release_claim, release_interrupted_compile, stale_jit_claim
 
 
 def _form():
@@ -47,7 +46,7 @@ def test_an_interrupted_compile_is_released_and_the_next_compiles(tmp_path, monk
         except KeyboardInterrupt:
             raise KeyboardInterrupt("study interrupted") from None
     except KeyboardInterrupt as outer:
-        _release_jit_claims(outer)
+        release_interrupted_compile(outer)
     assert not claims[0].exists() and claims[0].with_suffix(".c.failed").is_file()
     assert fem.form(a, jit_params=params) is not None                               # compiles again
     assert claims[0].with_suffix(".c.cached").is_file()
@@ -65,7 +64,7 @@ def test_a_wait_for_another_process_is_not_released(tmp_path):
     try:
         fem.form(a, jit_params=params)
     except TimeoutError as exc:        # the wait ended (an interrupt in the wait has the same frames)
-        assert release_interrupted_compile(exc.__traceback__) is None
+        assert _release_claim(exc.__traceback__) is None
     else:
         pytest.fail("the claim was not waited for")
     assert claim.is_file()

@@ -85,7 +85,7 @@ def test_interrupted_run_leaves_nothing(tmp_path, sig, code):
 def test_a_swallowed_interrupt_still_publishes_nothing(tmp_path):
     """A library can swallow the exception a signal handler raises (a bare ``except:`` between two
     bytecodes); the handler also records the signal, so the staged result is still discarded and
-    the command still ends as interrupted (errors.raise_if_interrupted)."""
+    the command still ends as interrupted (interrupts.raise_if_interrupted)."""
     from millimpact.errors import Terminated
     from millimpact.interrupts import clear_interrupts, on_interrupt_signal
 
