@@ -87,6 +87,9 @@ class PlasticZone:
         dxz = dx(tuple(z.cell_tag for z in self.zones))
         v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
         self._f_form = fem.form(ufl.inner(self.stress_correction, mandel_strain(v)) * dxz)
+        self._v = v
+        self._candidates = self._candidate_form = None     # select_candidates()
+        self._restricted = False
         self._k_integrand = ufl.inner(ufl.dot(self.tangent_correction, mandel_strain(du)), mandel_strain(v))
         self._quad = quad
         self._int_form = fem.form(self.density * dxz)
@@ -108,10 +111,17 @@ class PlasticZone:
         """Indices (cell-major, point-minor) of zone k's quadrature points in the Quadrature spaces."""
         return (self.cells[k][:, None] * self.n_q + np.arange(self.n_q)[None, :]).ravel()
 
-    def evaluate(self, u_vec, tangent: bool = True) -> int:
+    def evaluate(self, u_vec, tangent: bool = True, candidates_only: bool = False) -> int:
         """Return-map the strains of displacement ``u_vec`` (PETSc Vec of V) from the committed
         state: fills the stress and (with ``tangent``) the tangent corrections and keeps the trial
-        state. Returns the number of yielding quadrature points (this rank)."""
+        state. Returns the number of yielding quadrature points (this rank).
+
+        ``candidates_only``: only the cells of :meth:`select_candidates` (the others are taken to
+        stay elastic: their f_c is the frozen plastic strain's). Such an evaluation gives
+        :meth:`force_correction` but no trial state to commit: a full evaluation confirms it."""
+        restricted = candidates_only and self._candidates is not None
+        if restricted:
+            self._frozen_force()      # kept before the stress correction is written below
         self._set_displacement(u_vec)
         sc = self.stress_correction.x.array.reshape(-1, 6)
         tc = self.tangent_correction.x.array.reshape(-1, 6, 6)
@@ -119,30 +129,76 @@ class PlasticZone:
         # all of C_t - C was 8 ms of a 19 ms evaluation on the plastic rig)
         trial, n_yield, yielding_cells = [], 0, []
         for k, zone in enumerate(self.zones):
-            if not len(self.cells[k]):
+            pos = self._candidates[k] if restricted else None
+            cells = self.cells[k] if pos is None else self.cells[k][pos]
+            if not len(cells):
                 trial.append(None)
                 continue
-            eps = self._strain.eval(self.cells[k]).reshape(-1, 6)
-            res = return_map(zone.material, eps, self.plastic_strain[k], self.alpha[k], tangent)
-            slots = self.quadrature_slots(k)
-            sc[slots] = res.stress - eps @ self._elastic[k]
+            eps = self._strain.eval(cells).reshape(-1, 6)
+            if pos is None:
+                eps_p, alpha = self.plastic_strain[k], self.alpha[k]
+            else:
+                points = (pos[:, None] * self.n_q + np.arange(self.n_q)[None, :]).ravel()
+                eps_p, alpha = self.plastic_strain[k][points], self.alpha[k][points]
+            res = return_map(zone.material, eps, eps_p, alpha, tangent)
+            slots = (cells[:, None] * self.n_q + np.arange(self.n_q)[None, :]).ravel()
+            # restricted: the correction beyond the frozen one, sigma - C (eps - eps_p,n), zero
+            # where the point stays elastic
+            sc[slots] = res.stress - (eps if pos is None else eps - eps_p) @ self._elastic[k]
             if tangent:
                 tc[slots] = res.tangent - self._elastic[k][None, :, :]
             trial.append(res)
             n_yield += int(np.count_nonzero(res.yielding))
             if tangent:
-                yielding_cells.append(self.cells[k][res.yielding.reshape(len(self.cells[k]), self.n_q).any(axis=1)])
+                yielding_cells.append(cells[res.yielding.reshape(len(cells), self.n_q).any(axis=1)])
         self.stress_correction.x.scatter_forward()
         if tangent:
             self.tangent_correction.x.scatter_forward()
-        self._trial = trial
+        self._trial = None if restricted else trial
+        self._restricted = restricted
         # without the tangent, stiffness_correction() is zero (no stale C_t - C is assembled)
         self._yielding_cells = (np.unique(np.concatenate(yielding_cells)) if yielding_cells
                                 else np.zeros(0, np.int32))
         return n_yield
 
+    def select_candidates(self, stress_fraction: float) -> int:
+        """Make the cells of the last full evaluation with a point at or above ``stress_fraction``
+        of its flow stress (von Mises of the trial state against sigma_y(alpha)), or yielding, the
+        candidates of ``evaluate(candidates_only=True)``; returns their number (this rank).
+
+        Outside them f_c(u) is the frozen f_c of the committed plastic strain, so only these cells
+        are return-mapped and assembled: f_c = f_frozen + int_cand B^T (sigma - C (eps - eps_p,n)) dV."""
+        if self._trial is None:
+            raise RuntimeError("select_candidates needs a full evaluation first")
+        from .plasticity import von_mises
+
+        picked, mesh_cells = [], []
+        for k, res in enumerate(self._trial):
+            if res is None:
+                picked.append(np.zeros(0, np.int64))
+                continue
+            hot = res.yielding | (von_mises(res.stress) >= stress_fraction
+                                  * self.zones[k].material.flow.flow_stress(res.alpha))
+            pos = np.flatnonzero(hot.reshape(len(self.cells[k]), self.n_q).any(axis=1))
+            picked.append(pos)
+            mesh_cells.append(self.cells[k][pos])
+        self._candidates = picked
+        mesh = self.V.mesh
+        cells = np.unique(np.concatenate(mesh_cells)).astype(np.int32) if mesh_cells else np.zeros(0, np.int32)
+        tags = dmesh.meshtags(mesh, mesh.topology.dim, cells, np.ones(len(cells), dtype=np.int32))
+        dxc = ufl.Measure("dx", domain=mesh, subdomain_data=tags, metadata=self._quad)(1)
+        self._candidate_form = fem.form(ufl.inner(self.stress_correction, mandel_strain(self._v)) * dxc)
+        return len(cells)
+
+    def forget_candidates(self) -> None:
+        """Every later evaluation is a full one until :meth:`select_candidates` again."""
+        self._candidates = None
+        self._candidate_form = None
+
     def commit(self) -> None:
         """Accept the last evaluated state (end of a converged step)."""
+        if self._restricted:
+            raise RuntimeError("a candidates-only evaluation cannot be committed: evaluate fully first")
         if self._trial is None:
             return
         changed = False
@@ -177,16 +233,21 @@ class PlasticZone:
                                  f"{self.plastic_strain[k].shape}, {self.alpha[k].shape} (another mesh or rank count)")
             self.plastic_strain[k], self.alpha[k] = ep.copy(), a.copy()
         self._trial = None
+        self._restricted = False
+        self.forget_candidates()
         self._stress = [None] * len(self.zones)
         self._cache = {}
         self.version += 1
 
     # --- operators ----------------------------------------------------------------------------
     def force_correction(self):
-        """f_c = int_zone B^T (sigma - C eps) dV (N, a PETSc Vec of V; zero on Dirichlet rows)."""
-        b = fem_petsc.assemble_vector(self._f_form)
+        """f_c = int_zone B^T (sigma - C eps) dV (N, a PETSc Vec of V; zero on Dirichlet rows); after a
+        candidates-only evaluation f_frozen plus the candidate cells' part (:meth:`select_candidates`)."""
+        b = fem_petsc.assemble_vector(self._candidate_form if self._restricted else self._f_form)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem_petsc.set_bc(b, self.bcs, scale=0.0)
+        if self._restricted:
+            b.axpy(1.0, self._frozen_force())
         return b
 
     def frozen_force(self):

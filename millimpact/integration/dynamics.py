@@ -59,9 +59,16 @@ class NonlinearZone(Protocol):
     points are nonlinear (yielding) on this rank; then ``force_correction()`` gives f_c (N, a Vec
     like u) and ``stiffness_correction()`` dK = d f_c / du (a Mat); ``frozen_force()`` is f_c of the
     committed state where no point yields (a new Vec); ``step_plastic_work()`` the
-    plastic work of the trial state over the step (J, global); ``commit()`` accepts the trial state."""
+    plastic work of the trial state over the step (J, global); ``commit()`` accepts the trial state.
+    ``select_candidates(fraction)`` picks the cells near yielding at the last full evaluation, and
+    ``evaluate(u, candidates_only=True)`` then return-maps those alone (f_c elsewhere the frozen
+    one); such a state is confirmed by a full evaluation before it is committed."""
 
-    def evaluate(self, u: PETSc.Vec, tangent: bool = True) -> int: ...
+    def evaluate(self, u: PETSc.Vec, tangent: bool = True, candidates_only: bool = False) -> int: ...
+
+    def select_candidates(self, stress_fraction: float) -> int: ...
+
+    def forget_candidates(self) -> None: ...
 
     def force_correction(self) -> PETSc.Vec: ...
 
@@ -135,6 +142,8 @@ class IntegrationStats:
     n_plastic_steps: int = 0         #: steps with yielding points
     n_plastic_iterations: int = 0    #: Newton iterations of the plastic steps, summed
     max_plastic_iterations: int = 0
+    #: converged iterates whose full return map found a yielding point outside the candidate cells
+    n_plastic_candidate_misses: int = 0
     n_tangent_factorizations: int = 0
     dt_contact: float = 0.0
     dt_free: float = 0.0

@@ -52,6 +52,18 @@ A G(u_k) = r - f_c(u_k) + C^T x_k, and Anderson's iterate is a combination of th
 A u_{k+1} is the same combination of those right-hand sides; the product itself confirms the
 iterate that passes the test (plastic rig: 1023 products of 5.7 ms became one per step).
 
+Candidate cells (option ``plastic_candidate_fraction``, default 0.5; 0 = every cell in every
+iteration; not on the ``tangent`` path): outside the cells near yield the zone's force is that of
+the frozen plastic strain, f_c(u) = f_frozen + int_cand B^T (sigma - C (eps - eps_p,n)) dV, so after
+the step's first full return map that yields, the iterations return-map and assemble only the
+cells with a point at or above that fraction of its flow stress (:meth:`PlasticZone.select_candidates`).
+The iterate that passes the residual test is return-mapped in full: the same number of yielding
+points confirms it (none outside the candidates, so its f_c is the one tested); otherwise the
+candidates are chosen again, the Anderson pairs forgotten and the iteration goes on. The step is
+the same (coarse half-space: 1e-13 against every cell; with candidates at 0.99, 11 misses caught,
+1e-10). On the plastic rig the zone's 4,767 cells give up to 3,342 candidates at 0.5 (the zone is
+sized to the plastic region), so it saves ~8 % of the time loop.
+
 A step whose Newton does not converge in ``plastic_max_iterations`` (default 40 with
 ``tangent``, 80 with the accelerated fixed point) raises
 :class:`SolverError` naming the step, the time and the residual.
@@ -108,6 +120,10 @@ class PlasticNewmarkScheme(NewmarkScheme):
             raise InputError(f"-impact_plastic_anderson_depth {self.depth}: must be >= 0 (0 = plain fixed point)")
         self._res, self._rhs, self._force = self.u.duplicate(), self.u.duplicate(), self.u.duplicate()
         self._yielded_last = True     # the first step evaluates the zone at u_0
+        self.candidate_fraction = float(solvers.get_option("plastic_candidate_fraction", options, 0.5))
+        if not 0.0 <= self.candidate_fraction < 1.0:
+            raise InputError(f"-impact_plastic_candidate_fraction {self.candidate_fraction}: must be in [0, 1) "
+                             "(0 = every zone cell in every iteration)")
         self._held = None             # a factorized tangent kept for reuse: (dt, dK, A_t, ksp, W)
 
     def initialize(self, u0: PETSc.Vec, v0: PETSc.Vec) -> None:
@@ -153,22 +169,32 @@ class PlasticNewmarkScheme(NewmarkScheme):
         carry = elastic and self._direct_elastic(op)
         Au = None
         solved_frozen = False     # u_k is the exact elastic solve with the committed state's f_c
+        # after the first full evaluation that yields, the iterations return-map the candidate
+        # cells alone (near or at yield); a full evaluation confirms the converged iterate
+        candidates = self.candidate_fraction > 0.0 and self.linearisation != "tangent"
+        restricted = False
         for it in range(self.max_iterations + 1):
+            restricted_now = False
             if it == 0 and not self._yielded_last:
                 # u_n is the committed state and did not yield: f_c(u_n) is the frozen plastic
                 # strain's (cached), no return map needed before the first solve
                 n_yield, f_c = 0, self.zone.frozen_force()
             else:
-                # the tangent path needs C_t at every iteration, the others only for a new tangent
-                n_yield = self.comm.allreduce(self.zone.evaluate(u_k, tangent=self.linearisation == "tangent"),
-                                              op=MPI.SUM)
+                n_yield = self._evaluate(u_k, restricted)
+                restricted_now = restricted
+                if restricted and n_yield == 0:
+                    # the candidates stay elastic: whether any other point yields, a full one tells
+                    n_yield, restricted_now = self._evaluate(u_k, False), False
                 if n_yield == 0 and solved_frozen:
                     # no point yields at u_k, so f_c(u_k) is the committed state's frozen force, the
                     # one u_k was solved with exactly (a factorization): the residual is round-off,
                     # as an elastic step's (on the rig's repeated impacts, 70 of an impact's 90
                     # steps; the return map above is the test)
                     break
+                if candidates and n_yield > 0 and not restricted_now:
+                    self.zone.select_candidates(self.candidate_fraction)
                 f_c = self.zone.force_correction()
+                restricted = candidates and n_yield > 0
             yielding_seen |= n_yield > 0
             if it == 0 and carry:
                 res = f_scale = tol = np.inf      # never tested (only later iterates converge)
@@ -177,6 +203,21 @@ class PlasticNewmarkScheme(NewmarkScheme):
                 tol = max(self.rtol * f_scale, ROUNDOFF_RTOL * r_norm)
             if it > 0 and res <= tol and Au is not None:
                 res, f_scale = self._residual(op, u_k, f_c, x)     # the test on the true product
+                tol = max(self.rtol * f_scale, ROUNDOFF_RTOL * r_norm)
+            if it > 0 and res <= tol and restricted_now:
+                # the confirmation: a full evaluation at u_k; the same number of yielding points
+                # means no point outside the candidates yields, so f_c(u_k) is the one tested
+                n_candidates = n_yield
+                n_yield = self._evaluate(u_k, False)
+                if n_yield == n_candidates:
+                    break
+                self.stats.n_plastic_candidate_misses += 1
+                if mixing is not None:
+                    mixing.forget()        # G changed with its candidates: the pairs were another map's
+                f_c.destroy()
+                self.zone.select_candidates(self.candidate_fraction)
+                f_c = self.zone.force_correction()
+                res, f_scale = self._residual(op, u_k, f_c, x)
                 tol = max(self.rtol * f_scale, ROUNDOFF_RTOL * r_norm)
             if it > 0 and res <= tol:
                 break
@@ -228,6 +269,11 @@ class PlasticNewmarkScheme(NewmarkScheme):
         return True
 
     # --- pieces ---------------------------------------------------------------------------------
+    def _evaluate(self, u: PETSc.Vec, candidates_only: bool) -> int:
+        """The zone's return map at u (all cells, or the candidates'): the yielding points (global)."""
+        n = self.zone.evaluate(u, tangent=self.linearisation == "tangent", candidates_only=candidates_only)
+        return self.comm.allreduce(n, op=MPI.SUM)
+
     def _residual(self, op, u: PETSc.Vec, f_c: PETSc.Vec, x: np.ndarray,
                   Au: np.ndarray | None = None) -> tuple[float, float]:
         """(|A u + f_c(u) - r - C^T x|, the force scale max(|f_c|, |C^T x|)) over the free dofs (N);
@@ -367,8 +413,12 @@ class AndersonMixing:
         secant pairs are not the last's: they are forgotten."""
         if operator is not self.operator:
             self.operator = operator
-            self.f_prev = self.g_prev = self.b_prev = None
-            self.dF, self.dG, self.dB = [], [], []
+            self.forget()
+
+    def forget(self) -> None:
+        """Drop the secant pairs (the map G changed)."""
+        self.f_prev = self.g_prev = self.b_prev = None
+        self.dF, self.dG, self.dB = [], [], []
 
     def next_iterate(self, u: PETSc.Vec, g_vec: PETSc.Vec, companion: np.ndarray | None = None):
         """Given u = u_k and g_vec = G(u_k), overwrite u with u_{k+1}. ``companion``, a linear image

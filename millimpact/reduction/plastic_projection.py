@@ -49,8 +49,14 @@ class ProjectedPlasticZone:
         self.red.Gr.multTranspose(f, r)
         return r
 
-    def evaluate(self, q: PETSc.Vec, tangent: bool = True) -> int:
-        return self.zone.evaluate(self._expand(q), tangent)
+    def evaluate(self, q: PETSc.Vec, tangent: bool = True, candidates_only: bool = False) -> int:
+        return self.zone.evaluate(self._expand(q), tangent, candidates_only)
+
+    def select_candidates(self, stress_fraction: float) -> int:
+        return self.zone.select_candidates(stress_fraction)
+
+    def forget_candidates(self) -> None:
+        self.zone.forget_candidates()
 
     def force_correction(self) -> PETSc.Vec:
         f = self.zone.force_correction()
