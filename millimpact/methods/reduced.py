@@ -91,6 +91,12 @@ IMPACT_QUIET_CONTACTS = 0.1
 #: table reads none of them; they stay for the energy-drift check of the results
 ENERGY_EVERY_IMPACT_ONLY = 10
 
+
+def impact_only_stop(plan) -> SeparationStop:
+    """The stop of an impact-only run (a contact table's case, a repeated impact): IMPACT_QUIET_CONTACTS
+    Hertz contact times after the bodies separate, counted in contact steps."""
+    return SeparationStop(math.ceil(IMPACT_QUIET_CONTACTS * plan.hertz.contact_time / plan.dt_contact))
+
 #: method name -> (Lagrange degree, contact-zone basis: nodal unknowns or NMM covers); the
 #: one-line descriptions are in :mod:`millimpact.methods.registry`
 REDUCED_METHODS = {
@@ -363,7 +369,7 @@ def _run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: di
     stop = None
     if impact_only:
         rec.energy_every = ENERGY_EVERY_IMPACT_ONLY
-        stop = SeparationStop(math.ceil(IMPACT_QUIET_CONTACTS * plan.hertz.contact_time / plan.dt_contact))
+        stop = impact_only_stop(plan)
     t_rows = time.perf_counter() - t1
     t1 = time.perf_counter()
     with stage(f"time loop to {t_end * 1e3:.3g} ms ({opt.integrator}, free phase {free_phase})"):

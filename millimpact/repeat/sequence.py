@@ -19,8 +19,8 @@ One model for the sequence: one mesh, one reduction (``improved``, ``traditional
 kept between impacts (``operator_cache``). The sequence's mesh is fixed by its slowest impact
 (h_contact = a_max / 4) and its zone, modal cutoff and contact step by its fastest, as a contact
 table's band (:mod:`millimpact.studies.table`), with the least symmetric model any impact needs.
-Each impact runs to separation plus IMPACT_QUIET_CONTACTS t_c
-(:class:`millimpact.integration.integrators.SeparationStop`), not the scene's 40 ms of ringing,
+Each impact runs to separation plus 0.1 t_c (:func:`millimpact.methods.reduced.impact_only_stop`,
+a :class:`millimpact.integration.integrators.SeparationStop`), not the scene's 40 ms of ringing,
 and records its energies as a contact table's impact-only case does: every
 ENERGY_EVERY_IMPACT_ONLY-th row and the first and last (:mod:`millimpact.methods.reduced`; the
 two products with M and K are ~7 ms of a ~45 ms reduced step on paper-rig-plastic). Each
@@ -60,9 +60,6 @@ log = logging.getLogger(__name__)
 __all__ = ["ImpactSpec", "ImpactOutcome", "ImpactRecord", "Verdict", "classify", "run_sequence",
            "impact_velocity", "sequence_scene", "check_impacts", "OUTCOME_COLUMNS"]
 
-#: each impact ends this many Hertz contact times after the bodies separate (as a contact table's
-#: cases: restitution is read two rows after the last contact row)
-IMPACT_QUIET_CONTACTS = 0.1
 #: each impact's time span: the flight over the gap plus this many Hertz contact times (the
 #: separation stop ends it ~1.1 t_c after contact for a plastic impact)
 IMPACT_SPAN_CONTACTS = 3.0
@@ -465,9 +462,8 @@ class _ReducedEngine(_Engine):
         return self.systems[key], contact
 
     def impact(self, k: int, spec: ImpactSpec, scene) -> ImpactRecord:
-        from ..integration.integrators import SeparationStop
         from ..methods.free_phase import integrate_reduced
-        from ..methods.reduced import ENERGY_EVERY_IMPACT_ONLY
+        from ..methods.reduced import ENERGY_EVERY_IMPACT_ONLY, impact_only_stop
         from ..results.recorder import impact_results
 
         scene_k, plan = self.impact_scene(scene, spec)
@@ -484,7 +480,7 @@ class _ReducedEngine(_Engine):
         rec = _peak_recorder(self.red, contact, plan, opt.recovery, self.plastic)
         rec.energy_every = ENERGY_EVERY_IMPACT_ONLY
         t_end = impact_t_end(plan)
-        stop = SeparationStop(math.ceil(IMPACT_QUIET_CONTACTS * plan.hertz.contact_time / plan.dt_contact))
+        stop = impact_only_stop(plan)
         run = integrate_reduced(self.red, system, q0, qd0, contact, plan, t_end, rec, integrator=opt.integrator,
                                 options=dict(self.options), progress=False, free_phase=opt.free_phase,
                                 f_free=opt.free_factor * plan.f_cut, min_span=opt.min_span, stop=stop)
@@ -570,7 +566,7 @@ class _FullEngine(_Engine):
 
     def impact(self, k: int, spec: ImpactSpec, scene) -> ImpactRecord:
         from ..integration import integrators
-        from ..methods.reduced import ENERGY_EVERY_IMPACT_ONLY
+        from ..methods.reduced import ENERGY_EVERY_IMPACT_ONLY, impact_only_stop
         from ..results.recorder import Recorder, impact_results
 
         scene_k, plan = self.impact_scene(scene, spec)
@@ -589,7 +585,7 @@ class _FullEngine(_Engine):
         rec = _PeakMixin.wrap(Recorder)(self.model, contact, plan.probes, (), self.zone)
         rec.energy_every = ENERGY_EVERY_IMPACT_ONLY
         t_end = impact_t_end(plan)
-        stop = integrators.SeparationStop(math.ceil(IMPACT_QUIET_CONTACTS * plan.hertz.contact_time / plan.dt_contact))
+        stop = impact_only_stop(plan)
         sched = integrators.TimeSchedule(t_end, plan.dt_contact, plan.dt_contact)
         stats = integrators.integrate(system, u0, v0, sched, method=self.integrator, observer=rec,
                                       options=dict(self.options), progress=False, stop=stop)
