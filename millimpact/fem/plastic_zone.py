@@ -109,7 +109,12 @@ class PlasticZone:
 
     def quadrature_slots(self, k: int) -> np.ndarray:
         """Indices (cell-major, point-minor) of zone k's quadrature points in the Quadrature spaces."""
-        return (self.cells[k][:, None] * self.n_q + np.arange(self.n_q)[None, :]).ravel()
+        return self._points_of(self.cells[k])
+
+    def _points_of(self, cells: np.ndarray) -> np.ndarray:
+        """The point indices (cell-major, point-minor) of ``cells``: mesh cells give the slots in the
+        Quadrature spaces, positions in a zone's cell list give its rows of the plastic state."""
+        return (np.asarray(cells)[:, None] * self.n_q + np.arange(self.n_q)[None, :]).ravel()
 
     def evaluate(self, u_vec, tangent: bool = True, candidates_only: bool = False) -> int:
         """Return-map the strains of displacement ``u_vec`` (PETSc Vec of V) from the committed
@@ -138,10 +143,10 @@ class PlasticZone:
             if pos is None:
                 eps_p, alpha = self.plastic_strain[k], self.alpha[k]
             else:
-                points = (pos[:, None] * self.n_q + np.arange(self.n_q)[None, :]).ravel()
+                points = self._points_of(pos)
                 eps_p, alpha = self.plastic_strain[k][points], self.alpha[k][points]
             res = return_map(zone.material, eps, eps_p, alpha, tangent)
-            slots = (cells[:, None] * self.n_q + np.arange(self.n_q)[None, :]).ravel()
+            slots = self._points_of(cells)
             # restricted: the correction beyond the frozen one, sigma - C (eps - eps_p,n), zero
             # where the point stays elastic
             sc[slots] = res.stress - (eps if pos is None else eps - eps_p) @ self._elastic[k]
@@ -190,11 +195,6 @@ class PlasticZone:
         self._candidate_form = fem.form(ufl.inner(self.stress_correction, mandel_strain(self._v)) * dxc)
         return len(cells)
 
-    def forget_candidates(self) -> None:
-        """Every later evaluation is a full one until :meth:`select_candidates` again."""
-        self._candidates = None
-        self._candidate_form = None
-
     def commit(self) -> None:
         """Accept the last evaluated state (end of a converged step)."""
         if self._restricted:
@@ -234,7 +234,7 @@ class PlasticZone:
             self.plastic_strain[k], self.alpha[k] = ep.copy(), a.copy()
         self._trial = None
         self._restricted = False
-        self.forget_candidates()
+        self._candidates = self._candidate_form = None     # another state: chosen again
         self._stress = [None] * len(self.zones)
         self._cache = {}
         self.version += 1

@@ -97,6 +97,7 @@ def impact_only_stop(plan) -> SeparationStop:
     Hertz contact times after the bodies separate, counted in contact steps."""
     return SeparationStop(math.ceil(IMPACT_QUIET_CONTACTS * plan.hertz.contact_time / plan.dt_contact))
 
+
 #: method name -> (Lagrange degree, contact-zone basis: nodal unknowns or NMM covers); the
 #: one-line descriptions are in :mod:`millimpact.methods.registry`
 REDUCED_METHODS = {

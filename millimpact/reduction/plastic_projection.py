@@ -55,9 +55,6 @@ class ProjectedPlasticZone:
     def select_candidates(self, stress_fraction: float) -> int:
         return self.zone.select_candidates(stress_fraction)
 
-    def forget_candidates(self) -> None:
-        self.zone.forget_candidates()
-
     def force_correction(self) -> PETSc.Vec:
         f = self.zone.force_correction()
         r = self._restrict(f)
