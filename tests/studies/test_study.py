@@ -149,6 +149,22 @@ def test_only_changed_cases_are_computed(tmp_path):
     assert "2 computed, 0 cached" in r3.stdout     # the resolved scene changed in both
 
 
+def test_lost_worker_codes_keep_a_worker_misread_as_alive():
+    """studies.sweep.lost_worker_codes: the pool's SIGTERMed workers (-15) and those stop_workers
+    SIGKILLed (-9) are not the lost worker's codes; a worker that stop_workers listed as killed
+    but that ended with its own code (its poll lost the reaping race with the pool's thread, so
+    it read as alive) is (the CI failure of 2026-11-28: [1] was dropped and [-15] said alone)."""
+    from types import SimpleNamespace
+
+    from millimpact.studies.sweep import lost_worker_codes
+
+    lost, stopped, killed = (SimpleNamespace(exitcode=c) for c in (1, -15, -9))
+    assert lost_worker_codes([lost, stopped, killed], [killed]) == [1]
+    assert lost_worker_codes([lost, stopped], [lost]) == [1]                 # misread as alive
+    assert lost_worker_codes([stopped, killed], [killed]) == [-15]           # SIGTERM from outside
+    assert lost_worker_codes([SimpleNamespace(exitcode=-9), stopped], []) == [-9]   # the OOM killer
+
+
 def test_a_worker_that_ends_without_a_word_is_replaced(tmp_path):
     """A study worker that exits without an exception or a message (seen in CI runs; simulated
     here by MILLIMPACT_TEST_WORKER_EXIT=<case folder>, os._exit(1) in the worker): the study says
