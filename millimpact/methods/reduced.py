@@ -20,7 +20,7 @@ Options (``options`` keys, also ``-modes 20`` etc. on the command line; :func:`r
 ``f_cut = 4 / t_c`` or ``scene.model.f_cut``), ``nmm_remedy`` (improved: interface | anchors),
 ``augment`` (none | boussinesq | translation, comma-separated: modal truncation augmentation
 vectors of each body's region, :mod:`millimpact.reduction`; default none), ``free_phase``
-(modal | step: :mod:`.free_phase`), ``modal_min_span`` (s: a modal phase is taken only if no gap
+(auto | modal | step: :mod:`.free_phase`; default auto, the cheaper of the two), ``modal_min_span`` (s: a modal phase is taken only if no gap
 closes within this span, default the stepping chunk max(2 t_c, 20 dt_contact)),
 ``free_modes_factor`` (the free phase keeps the free-vibration modes up to this many times the
 plan's f_cut, whose dt_free = 1 / (10 f_cut) is its output grid; default 4), ``integrator``
@@ -68,7 +68,7 @@ from ..results.recorder import impact_results
 from ..results.reduced_recorder import ReducedRecorder
 from ..scene.plan import PLASTIC_ZONE_CAP, PLASTIC_ZONE_MARGIN, Plan, make_plan, size_growth_distance, zone_radius_limit
 from ..scene.schema import Scene
-from .free_phase import FREE_MODES_FACTOR, integrate_reduced
+from .free_phase import FREE_MODES_FACTOR, FREE_PHASES, integrate_reduced
 from .options import float_option, int_option, take
 
 log = logging.getLogger(__name__)
@@ -119,7 +119,7 @@ class ReducedOptions(NamedTuple):
     remedy: str                  #: NMM null-space remedy
     recovery: str                #: mode-acceleration | modal
     augment: tuple[str, ...]     #: modal truncation augmentation patterns
-    free_phase: str              #: modal | step
+    free_phase: str              #: auto | modal | step
     free_factor: float           #: free modes up to this many times the plan's f_cut
     min_span: Optional[float]    #: s
     candidate_radius: Optional[float] = None   #: m; None: the reduced plan's (REDUCED_CANDIDATE_FACTOR a_max)
@@ -144,9 +144,9 @@ def read_reduced_options(method: str, scene: Scene, plan: Plan, options: dict[st
     augment = tuple(a for a in augment.split(",") if a and a != "none")
     if any(a not in AUGMENTATION_PATTERNS for a in augment):
         raise InputError(f"option augment = {','.join(augment)}: choose from none, {', '.join(AUGMENTATION_PATTERNS)}")
-    free_phase = str(take(options, "free_phase") or "modal")
-    if free_phase not in ("modal", "step"):
-        raise InputError(f"option free_phase = {free_phase!r}: choose modal or step")
+    free_phase = str(take(options, "free_phase") or "auto")
+    if free_phase not in FREE_PHASES:
+        raise InputError(f"option free_phase = {free_phase!r}: choose {', '.join(FREE_PHASES)}")
     free_factor = float_option(options, "free_modes_factor", FREE_MODES_FACTOR)
     min_span = float_option(options, "modal_min_span", None)
     cand = float_option(options, "candidate_radius", None)

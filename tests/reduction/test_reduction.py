@@ -413,6 +413,27 @@ def test_modal_free_phase_continues_the_stepping(setup):
     assert integ["n_steps"] < 0.35 * runs["step"].results["integration"]["n_steps"]
 
 
+def test_auto_free_phase_takes_the_cheaper_phase():
+    """free_phase = auto steps a free span of at most STEPS_PER_MODAL_COORDINATE free steps per
+    modal coordinate (the free modes' measured cost: 15 steps a coordinate on the rig) and takes
+    the modal phase beyond; an asked phase is kept. The plan's numbers: t_c 80 us, dt_free 2 us."""
+    from types import SimpleNamespace
+
+    from millimpact.methods.free_phase import FIRST_SPAN_CONTACTS, STEPS_PER_MODAL_COORDINATE, resolve_free_phase
+
+    t_c, dt_free = 80e-6, 2e-6
+    plan = SimpleNamespace(gap=1e-5, hertz=SimpleNamespace(speed=1.0, contact_time=t_c), dt_free=dt_free)
+    red = SimpleNamespace(n_global=1010, n_zone=1000)        # 10 modal coordinates
+    t_first = plan.gap / plan.hertz.speed + FIRST_SPAN_CONTACTS * t_c
+    border = t_first + STEPS_PER_MODAL_COORDINATE * 10 * dt_free
+    assert resolve_free_phase("auto", red, plan, border * (1 - 1e-9))[0] == "step"
+    assert resolve_free_phase("auto", red, plan, border * (1 + 1e-3))[0] == "modal"
+    assert resolve_free_phase("auto", red, plan, 40e-3)[0] == "modal"        # the rig's 40 ms
+    assert resolve_free_phase("auto", red, plan, t_first / 2)[0] == "step"   # no free span
+    for asked in ("modal", "step"):
+        assert resolve_free_phase(asked, red, plan, 40e-3 if asked == "step" else t_first) == (asked, "asked")
+
+
 def free_rows_mismatch(n_times: int = 40) -> tuple[float, float]:
     """The closed-form free phase's vectorised rows (ReducedRecorder.record_free) against the
     per-state recorder (Recorder.__call__) on the same modal states, on the SMALL traditional
