@@ -79,6 +79,7 @@ def edge_room(scene: Scene) -> tuple[float, str]:
 def contact_margin(bc: BinCase, method: str, options: dict) -> float:
     """The bin's contact margin m (m, module docstring): the room its contact needs from an edge."""
     from ..fem.contact import CANDIDATE_RADIUS_FACTOR
+    from ..methods.options import peek
     from ..methods.reduced import REDUCED_METHODS, reduced_plan
     from ..scene.plan import make_plan
 
@@ -89,7 +90,7 @@ def contact_margin(bc: BinCase, method: str, options: dict) -> float:
         _, plan, r_c, _ = reduced_plan(band, plan)
     else:
         plan = make_plan(case.scene)
-        given = options.get("candidate_radius")
+        given = peek(options, "candidate_radius")
         r_c = float(given) if given not in (None, "") else min(CANDIDATE_RADIUS_FACTOR * plan.hertz.a_max,
                                                                0.95 * plan.zone_radius)
     # the band's fastest case (a_p grows with the speed): every bin of a band gets one margin, so a

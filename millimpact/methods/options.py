@@ -5,14 +5,29 @@ from __future__ import annotations
 from typing import Optional
 
 from ..errors import InputError
-from ..integration.solvers import note_option_read
+from ..integration.solvers import note_option_read, option_key
+
+
+def peek(options: dict, key: str):
+    """The method setting ``key`` however it was spelled (``free_phase``, ``-free_phase``,
+    ``impact_free_phase``: :func:`~millimpact.integration.solvers.option_key`; the last one given
+    wins), or None."""
+    value = None
+    for k, v in options.items():
+        if option_key(k) == key:
+            value = v
+    return value
 
 
 def take(options: dict, key: str):
-    """Pop the method setting ``key`` (None if absent) and record it as read (so it is not
-    reported as an option nothing used)."""
+    """Pop the method setting ``key`` (None if absent), every spelling of it (:func:`peek`), and
+    record it as read (so it is not reported as an option nothing used). Popping the raw key alone
+    let ``-impact_free_phase step`` pass as read while the run took the default."""
     note_option_read(key)
-    return options.pop(key, None)
+    value = peek(options, key)
+    for k in [k for k in options if option_key(k) == key]:
+        del options[k]
+    return value
 
 
 def _typed_option(options: dict, key: str, default, kind: type, what: str):
