@@ -412,13 +412,18 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         n_cols += own
     for sl in mine:
         sl.cols = cols_of[sl.index]
-    KV, MV, CV = np.zeros((n_cols, n_cols)), np.zeros((n_cols, n_cols)), np.zeros((n_cols, 2 * n_b))
-    KV[np.ix_(t_idx, t_idx)], MV[np.ix_(t_idx, t_idx)] = KT_gg, MT_gg
-    CV[t_idx] = (CD_full[gamma_glob].T @ T_full).T.toarray()      # replicated data: no sum
-    KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm)
+    # the dense Ritz matrices live on rank 0 alone, which solves the Rayleigh-Ritz and broadcasts
+    # its results: the same numbers as every rank solving it (the sums are one reduction), without
+    # the other ranks' copies and workspaces (~1 GB a rank at the plan's 1.2M DOFs, 4,368 columns)
+    KV = MV = CV = None
+    if rank == 0:
+        KV, MV, CV = np.zeros((n_cols, n_cols)), np.zeros((n_cols, n_cols)), np.zeros((n_cols, 2 * n_b))
+        KV[np.ix_(t_idx, t_idx)], MV[np.ix_(t_idx, t_idx)] = KT_gg, MT_gg
+        CV[t_idx] = (CD_full[gamma_glob].T @ T_full).T.toarray()      # replicated data: no sum
+    KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm, n_cols=n_cols, n_rhs=2 * n_b)
     phase["project_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
+    ritz = _ritz_on_root(KV, MV, CV, n_b, f_cut, comm)
     phase["ritz_s"] = time.perf_counter() - t0
     # pass 2: each slab's static response (Gamma held) to the inertia of the first pass's modes and
     # constraint modes, M_ii Phi and A_b = M_ii Psi + M_ib: one step of inverse iteration on them.
@@ -453,10 +458,10 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         phase["pass2_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         n_cols += int(offsets[-1])
-        KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm, grow_to=n_cols)
+        KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm, n_cols=n_cols, n_rhs=2 * n_b)
         phase["project_s"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
+        ritz = _ritz_on_root(KV, MV, CV, n_b, f_cut, comm)
         phase["ritz_s"] += time.perf_counter() - t0
     return_freed_memory()          # the second pass's factors and solves, before the expansion
     t0 = time.perf_counter()
@@ -465,9 +470,8 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     # the results straight into their final storage; each slab's rows sent to the ranks owning them
     recovery = grams = None
     if patterns:
-        f_pat, c_pat = pattern_vectors(KV, MV, ritz)
+        f_pat, c_pat, grams = comm.bcast(_patterns_and_grams(KV, MV, ritz) if rank == 0 else None, root=0)
         A = np.hstack([ritz["phi"], c_pat])
-        grams = (A.T @ MV @ A, A.T @ KV @ A)
         if zone_couplings is not None:
             recovery = ritz_recovery(mine, T_full, t_idx, gamma_glob, ritz, MV, A,
                                      _global_rows(sp.hstack(zone_couplings).tocsr(), r0, n_i, comm),
@@ -553,13 +557,17 @@ def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, 
         CV[sl.cols] += np.asarray((CDz[sl.rows].T @ sl.B).T)
         pos, hit = positions_in(sl.rows, rows)
         keep[np.ix_(np.nonzero(hit)[0], sl.cols)] = sl.B[pos[hit]]
-    CV, keep = reduce_array(CV, MPI.SUM, comm), reduce_array(keep, MPI.SUM, comm)
-    CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()         # replicated data: no sum
+    CV, keep = _sum_on_root(CV, comm), reduce_array(keep, MPI.SUM, comm)
     pos, on_g = positions_in(gamma_glob, rows)          # gamma_glob: the ranks' sorted rows in rank order
     keep[np.ix_(np.nonzero(on_g)[0], t_idx)] = T_full[pos[on_g]].toarray()
-    WY, lam = ritz["WY"], ritz["lam"]                     # the final Rayleigh-Ritz's, not solved again
-    H = lambda X: WY @ ((WY.T @ X) / lam[:, None])        # noqa: E731  (K_V^+ X)
-    return {"rows": rows, "V": keep, "H_C": -H(CV[:, :n_b]), "H_D": -H(CV[:, n_b:]), "H_M": -H(MV @ A)}
+    H_all = None
+    if comm.rank == 0:                                    # K_V, M_V and the eigenpairs are rank 0's
+        CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()     # replicated data: no sum
+        WY, lam = ritz["WY"], ritz["lam"]                 # the final Rayleigh-Ritz's, not solved again
+        H = lambda X: WY @ ((WY.T @ X) / lam[:, None])    # noqa: E731  (K_V^+ X)
+        H_all = (-H(CV[:, :n_b]), -H(CV[:, n_b:]), -H(MV @ A))
+    H_C, H_D, H_M = comm.bcast(H_all, root=0)
+    return {"rows": rows, "V": keep, "H_C": H_C, "H_D": H_D, "H_M": H_M}
 
 
 def pattern_vectors(KV: np.ndarray, MV: np.ndarray, ritz: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -588,14 +596,13 @@ def constraint_residual(K_ii: PETSc.Mat, Psi: PETSc.Mat, C: sp.csr_matrix, comm:
 
 
 def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_full: sp.csr_matrix,
-             current: tuple[np.ndarray, np.ndarray, np.ndarray], comm: MPI.Comm,
-             grow_to: Optional[int] = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """K_V = V^T K_ii V, M_V = V^T M_ii V and [V^T C | V^T D] with the columns of each rank's slabs
-    not yet projected (``projected`` onward) added to ``current`` (grown to ``grow_to`` columns):
-    a slab's own block and its coupling to Gamma (the slabs are uncoupled), summed over ranks."""
-    n = grow_to or current[0].shape[0]
-    k = current[0].shape[0]
-    KV, MV, CV = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, current[2].shape[1]))
+             current: tuple, comm: MPI.Comm, n_cols: int, n_rhs: int) -> tuple:
+    """K_V = V^T K_ii V, M_V = V^T M_ii V and [V^T C | V^T D] (n_cols Ritz columns, n_rhs columns
+    of [C | D]) with the columns of each rank's slabs not yet projected (``projected`` onward)
+    added to ``current`` (rank 0's matrices, grown to n_cols): a slab's own block and its coupling
+    to Gamma (the slabs are uncoupled), summed on rank 0 (the other ranks get None)."""
+    n = n_cols
+    KV, MV, CV = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n_rhs))
     for sl in slabs:
         new = slice(sl.projected, None)
         B, Bn, cols, cn = sl.B, sl.B[:, new], sl.cols, sl.cols[new]
@@ -609,11 +616,46 @@ def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_fu
             V_[np.ix_(t_idx, cn)] += G.T
         CV[cn] += np.asarray((CD_full[sl.rows].T @ Bn).T)
         sl.projected = B.shape[1]
-    KV, MV, CV = (reduce_array(x, MPI.SUM, comm) for x in (KV, MV, CV))
+    KV, MV, CV = (_sum_on_root(x, comm) for x in (KV, MV, CV))
+    if comm.rank != 0:
+        return None, None, None
+    k = current[0].shape[0]
     KV[:k, :k] += current[0]
     MV[:k, :k] += current[1]
     CV[:k] += current[2]
-    return 0.5 * (KV + KV.T), 0.5 * (MV + MV.T), CV
+    for A in (KV, MV):                 # symmetrized in place: no second n x n array
+        A += A.T
+        A *= 0.5
+    return KV, MV, CV
+
+
+def _sum_on_root(a: np.ndarray, comm: MPI.Comm) -> Optional[np.ndarray]:
+    """The element-wise sum of every rank's ``a`` on rank 0 (None on the others)."""
+    a = np.ascontiguousarray(a, dtype=float)
+    if comm.size == 1:
+        return a
+    out = np.empty_like(a) if comm.rank == 0 else None
+    comm.Reduce(a, out, op=MPI.SUM, root=0)
+    return out
+
+
+def _ritz_on_root(KV, MV, CV, n_b: int, f_cut: float, comm: MPI.Comm) -> dict:
+    """:func:`_rayleigh_ritz` on rank 0 (which holds K_V, M_V, C_V), its results broadcast; the
+    eigenvectors ``WY`` and eigenvalues ``lam`` (for :func:`ritz_recovery`) stay on rank 0."""
+    ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut) if comm.rank == 0 else None
+    shared = comm.bcast({k: v for k, v in ritz.items() if k not in ("WY", "lam")} if comm.rank == 0 else None,
+                        root=0)
+    if comm.rank == 0:
+        return ritz
+    return shared
+
+
+def _patterns_and_grams(KV: np.ndarray, MV: np.ndarray, ritz: dict):
+    """(frequencies, coefficients) of the pattern vectors (:func:`pattern_vectors`) and the Ritz
+    space's Grams (A^T M_V A, A^T K_V A) of A = [phi | pattern coefficients] (rank 0's)."""
+    f_pat, c_pat = pattern_vectors(KV, MV, ritz)
+    A = np.hstack([ritz["phi"], c_pat])
+    return f_pat, c_pat, (A.T @ MV @ A, A.T @ KV @ A)
 
 
 def _rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_cut: float) -> dict:
