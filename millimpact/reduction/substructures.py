@@ -69,7 +69,8 @@ the coarse panel's bolt gauge was off by 3x with a cut next to it), ``substructu
 
 Under MPI each rank takes whole slabs, the costliest first to the least loaded rank
 (:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
-until the Ritz matrices are summed. 157k-DOF panel, 4 slabs (``benchmarks/panel_scaling.py
+until the Ritz matrices are summed on rank 0, which solves the dense Rayleigh-Ritz and broadcasts
+its results (the other ranks hold no copy of K_V, M_V: ~1 GB a rank at 4,368 columns). 157k-DOF panel, 4 slabs (``benchmarks/panel_scaling.py
 --h-far 0.025 --slabs 4``): 97.8 s at 1 rank, 62.9 s at 2 (1.55x; one factorization beside it
 90.6 -> 69.4 s, 1.30x); with the slabs dealt in turn and gathered round by round it was 1.41x.
 The slabs' factorizations and eigensolvers read the body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
@@ -247,11 +248,27 @@ class _Slab:
     projected: int = 0             #: columns of B already in K_V, M_V (see _project_slab)
     n_new: int = 0                 #: columns the second pass added
 
+    def release_matrices(self) -> None:
+        """Free the slab's matrices (after the last projection: the Rayleigh-Ritz, the recovery
+        and the expansion read only the basis rows B)."""
+        if self.K_ss is not None:
+            self.K_ss.destroy()
+            self.M_ss.destroy()
+        self.K_ss = self.M_ss = self.K_sg = self.M_sg = None
+
     def release(self) -> None:
         """Free the slab's matrices and basis rows (after the expansion)."""
-        self.K_ss.destroy()
-        self.M_ss.destroy()
-        self.K_sg = self.M_sg = self.B = None
+        self.release_matrices()
+        self.B = None
+
+
+def _release_slab_matrices(slabs: list[_Slab]) -> None:
+    """Free every slab's matrices once the last projection has read them: the liner panel's
+    reduction peaked as its expansion began, with the ~8 slabs' K_ss and M_ss of each rank still
+    held beside Phi (1 GB a rank); the Rayleigh-Ritz and the expansion need the basis rows alone."""
+    for sl in slabs:
+        sl.release_matrices()
+    return_freed_memory()
 
 
 def _solve(ksp: PETSc.KSP, rhs: np.ndarray, chunk: int = 128) -> np.ndarray:
@@ -325,7 +342,8 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     Two passes over the slabs (steps 1-3 and step 4 of the module docstring). Under MPI the slabs
     are shared out by size (:func:`slab_owners`): each rank gathers its slabs' rows
     (MatCreateSubMatrices), factors and solves it alone (CHOLMOD), and only the Ritz matrices
-    (summed over ranks) and the final rows travel; a rank holds one slab's factor at a time. No
+    (summed on rank 0, which solves the Rayleigh-Ritz and broadcasts its results) and the final
+    rows travel; a rank holds one slab's factor at a time. No
     dense n_i x n_b array but the two results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
     comm = K_ii.getComm().tompi4py()
     size, rank = comm.size, comm.rank
@@ -459,10 +477,12 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         t0 = time.perf_counter()
         n_cols += int(offsets[-1])
         KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm, n_cols=n_cols, n_rhs=2 * n_b)
+        _release_slab_matrices(mine)
         phase["project_s"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         ritz = _ritz_on_root(KV, MV, CV, n_b, f_cut, comm)
         phase["ritz_s"] += time.perf_counter() - t0
+    _release_slab_matrices(mine)   # (without a second pass: not released above)
     return_freed_memory()          # the second pass's factors and solves, before the expansion
     t0 = time.perf_counter()
     m = ritz["m"]
