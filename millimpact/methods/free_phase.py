@@ -67,15 +67,19 @@ STEPS_PER_MODAL_COORDINATE = 10.0
 FREE_PHASES = ("auto", "modal", "step")
 
 
+def first_span_end(plan: Plan) -> float:
+    """The end of the modal phase's first integrator segment (s): gap / v + FIRST_SPAN_CONTACTS t_c."""
+    return plan.gap / plan.hertz.speed + FIRST_SPAN_CONTACTS * plan.hertz.contact_time
+
+
 def resolve_free_phase(free_phase: str, red: ReducedModel, plan: Plan, t_end: float) -> tuple[str, str]:
     """("modal" | "step", why) for the asked ``free_phase``. ``auto``: step when the free span after
-    the first segment, (t_end - t_first) / dt_free free steps with t_first = gap / v + 1.5 t_c, is at
+    the first segment, (t_end - t_first) / dt_free free steps (t_first: :func:`first_span_end`), is at
     most ``STEPS_PER_MODAL_COORDINATE`` times the reduced model's modal coordinates (an estimate of the
     free modes below the cutoff: 10 against 14 on the rig, 220 against 169 on the liner panel)."""
     if free_phase != "auto":
         return free_phase, "asked"
-    t_first = plan.gap / plan.hertz.speed + FIRST_SPAN_CONTACTS * plan.hertz.contact_time
-    n_free = max(0.0, t_end - t_first) / plan.dt_free
+    n_free = max(0.0, t_end - first_span_end(plan)) / plan.dt_free
     n_modal = max(1, red.n_global - red.n_zone)
     if n_free <= STEPS_PER_MODAL_COORDINATE * n_modal:
         return "step", f"{n_free:.0f} free steps <= {STEPS_PER_MODAL_COORDINATE:g} x {n_modal} modal coordinates"
@@ -106,7 +110,7 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
     free_phase, why = resolve_free_phase(free_phase, red, plan, t_end)
     t_c = plan.hertz.contact_time
     chunk = max(2.0 * t_c, 20.0 * plan.dt_contact)
-    t_first = min(t_end, plan.gap / plan.hertz.speed + FIRST_SPAN_CONTACTS * t_c)
+    t_first = min(t_end, first_span_end(plan))
     q, qd = q0, qd0
     t = 0.0
     stats_sum: dict[str, Any] = {}

@@ -24,9 +24,9 @@ def take(options: dict, key: str):
     record it as read (so it is not reported as an option nothing used). Popping the raw key alone
     let ``-impact_free_phase step`` pass as read while the run took the default."""
     note_option_read(key)
-    value = peek(options, key)
+    value = None
     for k in [k for k in options if option_key(k) == key]:
-        del options[k]
+        value = options.pop(k)
     return value
 
 

@@ -70,8 +70,8 @@ the coarse panel's bolt gauge was off by 3x with a cut next to it), ``substructu
 Under MPI each rank takes whole slabs, the costliest first to the least loaded rank
 (:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
 until the Ritz matrices are summed on rank 0, which solves the dense Rayleigh-Ritz and broadcasts
-its results (the other ranks hold no copy of K_V, M_V: ~1 GB a rank at 4,368 columns). 157k-DOF panel, 4 slabs (``benchmarks/panel_scaling.py
---h-far 0.025 --slabs 4``): 97.8 s at 1 rank, 62.9 s at 2 (1.55x; one factorization beside it
+its results (the other ranks hold no copy of K_V, M_V: ~1 GB a rank at 4,368 columns). 157k-DOF
+panel, 4 slabs (``benchmarks/panel_scaling.py --h-far 0.025 --slabs 4``): 97.8 s at 1 rank, 62.9 s at 2 (1.55x; one factorization beside it
 90.6 -> 69.4 s, 1.30x); with the slabs dealt in turn and gathered round by round it was 1.41x.
 The slabs' factorizations and eigensolvers read the body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
 (:class:`~.reduced_model.BodyReduction` ``residual_b``) instead of K_ii's factorization.
@@ -343,8 +343,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     are shared out by size (:func:`slab_owners`): each rank gathers its slabs' rows
     (MatCreateSubMatrices), factors and solves it alone (CHOLMOD), and only the Ritz matrices
     (summed on rank 0, which solves the Rayleigh-Ritz and broadcasts its results) and the final
-    rows travel; a rank holds one slab's factor at a time. No
-    dense n_i x n_b array but the two results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
+    rows travel; a rank holds one slab's factor at a time. No dense n_i x n_b array but the two results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
     comm = K_ii.getComm().tompi4py()
     size, rank = comm.size, comm.rank
     t_start = time.perf_counter()
@@ -482,7 +481,8 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         t0 = time.perf_counter()
         ritz = _ritz_on_root(KV, MV, CV, n_b, f_cut, comm)
         phase["ritz_s"] += time.perf_counter() - t0
-    _release_slab_matrices(mine)   # (without a second pass: not released above)
+    else:
+        _release_slab_matrices(mine)   # the first projection was the last
     return_freed_memory()          # the second pass's factors and solves, before the expansion
     t0 = time.perf_counter()
     m = ritz["m"]
@@ -621,8 +621,7 @@ def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_fu
     of [C | D]) with the columns of each rank's slabs not yet projected (``projected`` onward)
     added to ``current`` (rank 0's matrices, grown to n_cols): a slab's own block and its coupling
     to Gamma (the slabs are uncoupled), summed on rank 0 (the other ranks get None)."""
-    n = n_cols
-    KV, MV, CV = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n_rhs))
+    KV, MV, CV = np.zeros((n_cols, n_cols)), np.zeros((n_cols, n_cols)), np.zeros((n_cols, n_rhs))
     for sl in slabs:
         new = slice(sl.projected, None)
         B, Bn, cols, cn = sl.B, sl.B[:, new], sl.cols, sl.cols[new]
@@ -662,12 +661,11 @@ def _sum_on_root(a: np.ndarray, comm: MPI.Comm) -> Optional[np.ndarray]:
 def _ritz_on_root(KV, MV, CV, n_b: int, f_cut: float, comm: MPI.Comm) -> dict:
     """:func:`_rayleigh_ritz` on rank 0 (which holds K_V, M_V, C_V), its results broadcast; the
     eigenvectors ``WY`` and eigenvalues ``lam`` (for :func:`ritz_recovery`) stay on rank 0."""
-    ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut) if comm.rank == 0 else None
-    shared = comm.bcast({k: v for k, v in ritz.items() if k not in ("WY", "lam")} if comm.rank == 0 else None,
-                        root=0)
-    if comm.rank == 0:
-        return ritz
-    return shared
+    if comm.rank != 0:
+        return comm.bcast(None, root=0)
+    ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
+    comm.bcast({k: v for k, v in ritz.items() if k not in ("WY", "lam")}, root=0)
+    return ritz
 
 
 def _patterns_and_grams(KV: np.ndarray, MV: np.ndarray, ritz: dict):
