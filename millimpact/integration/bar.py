@@ -159,9 +159,11 @@ class BarResult:
 
 def run_bar(case: BarCase, method: str = "newmark-mr", dt_contact: float | None = None,
             dt_free: float | None = None, t_end: float | None = None, options: dict | None = None,
-            comm: MPI.Comm = MPI.COMM_WORLD) -> BarResult:
-    """Run one bar case; default steps: dt_contact = h / c (Courant 1), dt_free = 4 h / c."""
+            comm: MPI.Comm = MPI.COMM_WORLD, operator_cache: dict | None = None) -> BarResult:
+    """Run one bar case; default steps: dt_contact = h / c (Courant 1), dt_free = 4 h / c.
+    ``operator_cache``: a dict the implicit schemes keep their step operators in (a table's)."""
     system, u0, v0 = build_bar(case, comm)
+    system.operator_cache = operator_cache
     hc = case.h / case.c
     dt_contact = hc if dt_contact is None else dt_contact
     dt_free = 4.0 * hc if dt_free is None else dt_free

@@ -126,7 +126,8 @@ class IntegrationStats:
     n_solves: int = 0                #: effective-matrix solves (predictors)
     n_saddle_solves: int = 0
     n_w_columns: int = 0             #: right-hand sides of W = A^-1 B^T
-    n_factorizations: int = 0
+    n_factorizations: int = 0        #: of the step operators, those released after the impact included
+    n_step_operators_released: int = 0   #: step sizes' operators freed after separation (newmark.py)
     max_schur_iterations: int = 0    #: fieldsplit: inner iterations of the Schur block (1 expected)
     n_newton: int = 0                #: LCP active-set iterations, summed
     max_newton: int = 0

@@ -204,12 +204,12 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
         if bar is not None:
             bar.close()
         if isinstance(integ, NewmarkScheme):
-            stats.n_factorizations = sum(
-                (op.saddle.n_factorizations if op.saddle is not None else 1) for op in integ.ops.values())
-            stats.n_saddle_solves = sum(op.saddle.n_solves for op in integ.ops.values() if op.saddle is not None)
-            stats.max_schur_iterations = max(
-                [op.saddle.max_schur_iterations for op in integ.ops.values() if op.saddle is not None], default=0)
-            if any(op.saddle is not None and not op.saddle.fieldsplit for op in integ.ops.values()):
+            totals = integ.operator_totals()
+            stats.n_step_operators_released = integ.released_operators
+            stats.n_factorizations = totals.n_factorizations
+            stats.n_saddle_solves = totals.n_saddle_solves
+            stats.max_schur_iterations = totals.max_schur_iterations
+            if totals.monolithic:
                 stats.contact_solve = "lu"
         stats.wall_time = time.perf_counter() - wall0
     if comm.rank == 0:

@@ -2,9 +2,10 @@
 u_{n+1}, on the redistributed mass (``newmark-mr``) or the consistent one (``newmark``).
 
 Each step: one predictor solve with lambda = 0 using the factorization of ``A = K + M/(beta dt^2)``
-(cached per step size), the exact small LCP ``g = q + S lambda`` on ``S = B A^-1 B^T`` (or the
-frictional problem on ``C = [B; T]``), then the final state from the saddle-point solve on the
-active set or ``u = u_pred + W lambda``; see :mod:`millimpact.integration.integrators`.
+(cached per step size; after the impact, one step size's at a time), the exact small LCP
+``g = q + S lambda`` on ``S = B A^-1 B^T`` (or the frictional problem on ``C = [B; T]``), then
+the final state from the saddle-point solve on the active set or ``u = u_pred + W lambda``; see
+:mod:`millimpact.integration.integrators`.
 """
 from __future__ import annotations
 
@@ -27,6 +28,9 @@ from .dynamics import IntegrationStats, LinearDynamics, product_matrix
 from .mass import redistribute_mass
 
 log = logging.getLogger(__name__)
+
+#: how often a run may free its step operators after separation (NewmarkScheme._release_step_operators)
+MAX_RELEASES = 2
 
 
 @dataclass
@@ -88,6 +92,10 @@ class NewmarkScheme:
         self._shared_ops = system.operator_cache is not None
         self.ops: dict[float, StepOperators] = (system.operator_cache.setdefault((cs, redistribute), {})
                                                 if self._shared_ops else {})
+        self.contact_seen = False            #: a contact was active at some accepted step
+        self.n_releases = 0                  #: times the step operators were released (<= MAX_RELEASES)
+        self.released_operators = 0          #: step sizes' operators released after the impact
+        self._released = _OperatorTotals()   #: what the released operators did
         self.u = system.M.createVecRight()
         self.v, self.a = self.u.duplicate(), self.u.duplicate()
         self.u_new, self.u_pred = self.u.duplicate(), self.u.duplicate()
@@ -131,6 +139,9 @@ class NewmarkScheme:
         for known in self.ops:      # the same step from another schedule's grid, to round-off
             if abs(known - dt) <= 1e-12 * dt:
                 return self.ops[known]
+        if (self.ops and not self._shared_ops and self.contact_seen and not self.active.any()
+                and self.n_releases < MAX_RELEASES):
+            self._release_step_operators()
         c0 = 1.0 / (self.beta * dt * dt)
         A = self.sys.K.copy()
         try:
@@ -153,6 +164,26 @@ class NewmarkScheme:
         op = StepOperators(dt, A, ksp_u, saddle)
         self.ops[dt] = op
         return op
+
+    def _release_step_operators(self) -> None:
+        """Free the cached step operators (factorizations and contact operators W) before another
+        step size's are built, once the bodies have separated after an impact: the free steps'
+        operators then do not sit beside the contact step's (the plastic liner panel: +1.2 GB at
+        the time loop's end, its machine peak). A step size needed again later (the contact step
+        that lands on t_end, or between free steps while a gap closes) is factorized again; at
+        most MAX_RELEASES times a run, after which both are kept, so a vibrating gap costs at
+        most that many factorizations more (the count of factorizations includes them)."""
+        self.n_releases += 1
+        self.released_operators += len(self.ops)
+        self._released = self._released.plus(self.ops.values())
+        for op in self.ops.values():
+            _destroy_step_operators(op)
+        self.ops.clear()
+        solvers.return_freed_memory()
+
+    def operator_totals(self) -> "_OperatorTotals":
+        """Factorizations and saddle-point solves of this run's step operators, released ones included."""
+        return self._released.plus(self.ops.values())
 
     def _contact_operator(self, op: StepOperators) -> ContactOperator:
         """The step size's contact operator (its columns are computed as steps need them)."""
@@ -265,6 +296,7 @@ class NewmarkScheme:
         if not (np.isfinite(lam).all() and self.comm.allreduce(bool(np.isfinite(u).all()), op=MPI.LAND)):
             raise SolverError(f"non-finite state at step {step}, t = {t_new:.9g} s")
         self.lam, self.gap, self.active = lam, gap, lam > 0
+        self.contact_seen = self.contact_seen or bool(self.active.any())
 
     def _friction_step(self, C: ContactOperator, q: np.ndarray, gap_tol: float, step: int) -> np.ndarray:
         """Coulomb friction (:mod:`millimpact.integration.friction`): lambda, tau from the dense problem on
@@ -307,10 +339,36 @@ class NewmarkScheme:
         if self._shared_ops:     # the system's cache keeps them for the next call
             return
         for op in self.ops.values():
-            if op.saddle is not None:
-                op.saddle.destroy()
-            else:
-                op.ksp_u.destroy()
-            if op.contact is not None:
-                op.contact.W.destroy()
-            op.A.destroy()
+            _destroy_step_operators(op)
+
+
+@dataclass(frozen=True)
+class _OperatorTotals:
+    """What step operators did: factorizations, saddle-point solves, the largest Schur-block
+    iteration count and whether a saddle point was solved monolithically (not fieldsplit)."""
+
+    n_factorizations: int = 0
+    n_saddle_solves: int = 0
+    max_schur_iterations: int = 0
+    monolithic: bool = False
+
+    def plus(self, ops) -> "_OperatorTotals":
+        out = self
+        for op in ops:
+            sd = op.saddle
+            out = _OperatorTotals(
+                out.n_factorizations + (sd.n_factorizations if sd is not None else 1),
+                out.n_saddle_solves + (sd.n_solves if sd is not None else 0),
+                max(out.max_schur_iterations, sd.max_schur_iterations if sd is not None else 0),
+                out.monolithic or (sd is not None and not sd.fieldsplit))
+        return out
+
+
+def _destroy_step_operators(op: StepOperators) -> None:
+    if op.saddle is not None:
+        op.saddle.destroy()
+    else:
+        op.ksp_u.destroy()
+    if op.contact is not None:
+        op.contact.W.destroy()
+    op.A.destroy()

@@ -340,6 +340,11 @@ class PlasticNewmarkScheme(NewmarkScheme):
         rhs.array[self.fixed] = 0.0
         return held[3], held[4], None
 
+    def _release_step_operators(self) -> None:
+        """The elastic step operators (NewmarkScheme) and a held tangent with them."""
+        self._release_held()
+        super()._release_step_operators()
+
     def _release_held(self) -> None:
         if self._held is not None:
             _, dK, A_t, ksp, W = self._held

@@ -91,8 +91,9 @@ def test_central_penalty_stable_step(runs):
 def test_contact_solve_choices_agree():
     """fieldsplit (default), schur and monolithic lu give the same steps; no refactorization."""
     ref = run_bar(CASE, "newmark-mr", options={"contact_solve": "fieldsplit"})
-    # one Cholesky per step size (dt_contact and dt_free), none inside the steps
-    assert ref.stats.n_factorizations == 2
+    # one Cholesky per step size, none inside the steps: dt_contact, dt_free once the bar has left
+    # the wall (the contact step's operators freed first), dt_contact again for the step onto t_end
+    assert ref.stats.n_factorizations == 3
     assert ref.stats.n_saddle_solves > 150
     # the explicit Schur preconditioner is exact: one inner iteration even with a Krylov inner solver
     gm = run_bar(CASE, "newmark-mr", options={"fieldsplit_lam_ksp_type": "gmres", "fieldsplit_lam_ksp_rtol": 1e-12})
@@ -104,6 +105,26 @@ def test_contact_solve_choices_agree():
         assert np.max(np.abs(res.force - ref.force)) <= 1e-8 * CASE.force, opts
         assert np.max(np.abs(res.energy - ref.energy)) <= 1e-8 * ref.energy[0], opts
     assert run_bar(CASE, "newmark-mr", options={"contact_solve": "schur"}).stats.n_saddle_solves == 0
+
+
+def test_step_operators_are_freed_after_separation_unless_shared():
+    """After the impact the contact step's operators are freed before the free step's are built
+    (NewmarkScheme._release_step_operators: two factorizations never sit side by side, the liner
+    panel's peak memory), at most MAX_RELEASES times a run; a shared cache (a contact table's
+    cases) keeps them all. The steps are the same either way."""
+    from millimpact.integration.newmark import MAX_RELEASES
+
+    own = run_bar(CASE, "newmark-mr")
+    cache: dict = {}
+    shared = run_bar(CASE, "newmark-mr", operator_cache=cache)
+    # the bar: contact steps, free steps after it leaves the wall, one contact step onto t_end
+    assert own.stats.n_step_operators_released == 2 <= MAX_RELEASES
+    assert own.stats.n_factorizations == 3
+    assert shared.stats.n_step_operators_released == 0 and shared.stats.n_factorizations == 2
+    assert len(next(v for k, v in cache.items() if isinstance(k, tuple))) == 2
+    # the same matrices factorized again: the same steps to round-off
+    assert np.array_equal(own.t, shared.t)
+    assert np.max(np.abs(own.force - shared.force)) <= 1e-10 * CASE.force
 
 
 def test_central_penalty_above_critical_step_blows_up(runs):
