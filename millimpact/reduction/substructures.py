@@ -96,7 +96,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..integration.solvers import check_type_options, create_factored_solver, petsc_options, return_freed_memory
-from .distributed import DEPENDENT_TOL, deliver_rows, dense_from_rows, gram_basis, positions_in, reduce_array
+from .distributed import (DEPENDENT_TOL, deliver_rows, dense_from_rows, gram_basis, positions_in, reduce_array,
+                          root_on_idle_cores)
 from .eigen import compute_modes
 from .slab_cuts import ACROSS_RATIO, cut_slabs, interface_faces, interface_next, polynomial_traces
 
@@ -490,7 +491,11 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     # the results straight into their final storage; each slab's rows sent to the ranks owning them
     recovery = grams = None
     if patterns:
-        f_pat, c_pat, grams = comm.bcast(_patterns_and_grams(KV, MV, ritz) if rank == 0 else None, root=0)
+        pat = None
+        with root_on_idle_cores(comm):
+            if rank == 0:
+                pat = _patterns_and_grams(KV, MV, ritz)
+        f_pat, c_pat, grams = comm.bcast(pat, root=0)
         A = np.hstack([ritz["phi"], c_pat])
         if zone_couplings is not None:
             recovery = ritz_recovery(mine, T_full, t_idx, gamma_glob, ritz, MV, A,
@@ -581,11 +586,12 @@ def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, 
     pos, on_g = positions_in(gamma_glob, rows)          # gamma_glob: the ranks' sorted rows in rank order
     keep[np.ix_(np.nonzero(on_g)[0], t_idx)] = T_full[pos[on_g]].toarray()
     H_all = None
-    if comm.rank == 0:                                    # K_V, M_V and the eigenpairs are rank 0's
-        CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()     # replicated data: no sum
-        WY, lam = ritz["WY"], ritz["lam"]                 # the final Rayleigh-Ritz's, not solved again
-        H = lambda X: WY @ ((WY.T @ X) / lam[:, None])    # noqa: E731  (K_V^+ X)
-        H_all = (-H(CV[:, :n_b]), -H(CV[:, n_b:]), -H(MV @ A))
+    with root_on_idle_cores(comm):
+        if comm.rank == 0:                                # K_V, M_V and the eigenpairs are rank 0's
+            CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()     # replicated data: no sum
+            WY, lam = ritz["WY"], ritz["lam"]             # the final Rayleigh-Ritz's, not solved again
+            H = lambda X: WY @ ((WY.T @ X) / lam[:, None])    # noqa: E731  (K_V^+ X)
+            H_all = (-H(CV[:, :n_b]), -H(CV[:, n_b:]), -H(MV @ A))
     H_C, H_D, H_M = comm.bcast(H_all, root=0)
     return {"rows": rows, "V": keep, "H_C": H_C, "H_D": H_D, "H_M": H_M}
 
@@ -659,11 +665,15 @@ def _sum_on_root(a: np.ndarray, comm: MPI.Comm) -> Optional[np.ndarray]:
 
 
 def _ritz_on_root(KV, MV, CV, n_b: int, f_cut: float, comm: MPI.Comm) -> dict:
-    """:func:`_rayleigh_ritz` on rank 0 (which holds K_V, M_V, C_V), its results broadcast; the
-    eigenvectors ``WY`` and eigenvalues ``lam`` (for :func:`ritz_recovery`) stay on rank 0."""
+    """:func:`_rayleigh_ritz` on rank 0 (which holds K_V, M_V, C_V) with the waiting ranks' cores,
+    its results broadcast; the eigenvectors ``WY`` and eigenvalues ``lam`` (for
+    :func:`ritz_recovery`) stay on rank 0."""
+    ritz = None
+    with root_on_idle_cores(comm):
+        if comm.rank == 0:
+            ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
     if comm.rank != 0:
         return comm.bcast(None, root=0)
-    ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
     comm.bcast({k: v for k, v in ritz.items() if k not in ("WY", "lam")}, root=0)
     return ritz
 

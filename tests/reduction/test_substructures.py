@@ -408,3 +408,38 @@ def test_a_large_body_is_cut_into_slabs_by_itself():
     assert substructure_settings(pre, {"substructures": "1"}, 16 * AUTO_SLAB_DOFS) is None
     s = substructure_settings(pre, {"substructure_margin": "0.5", "substructure_zone_degree": "2"}, 16 * AUTO_SLAB_DOFS)
     assert (s.slabs, s.margin, s.zone_degree) == (16, 0.5, 2)
+
+
+def test_root_work_takes_the_waiting_ranks_cores_and_gives_them_back():
+    """root_on_idle_cores (the dense Rayleigh-Ritz on rank 0): inside the block rank 0 may run on
+    every core of its node's ranks, with as many BLAS threads; after it, its own core mask and
+    thread count again. The result is the one a single thread gives, to rounding (1e-12: the
+    same eigenvalues of a well-conditioned matrix, summed in another order)."""
+    if MPI.COMM_WORLD.size > 1:
+        pytest.skip("runs its own mpirun")
+    code = """
+import os
+import numpy as np
+from mpi4py import MPI
+from millimpact.reduction.distributed import _openblas, root_on_idle_cores
+comm = MPI.COMM_WORLD
+blas = _openblas()
+rng = np.random.default_rng(1)
+X = rng.standard_normal((400, 400))
+A = X @ X.T + 400 * np.eye(400)
+before = (os.sched_getaffinity(0), blas.openblas_get_num_threads() if blas else 1)
+ref = np.linalg.eigvalsh(A)
+union = set().union(*comm.allgather(os.sched_getaffinity(0)))
+inside = None
+with root_on_idle_cores(comm):
+    if comm.rank == 0:
+        inside = (os.sched_getaffinity(0), blas.openblas_get_num_threads() if blas else 2)
+        lam = np.linalg.eigvalsh(A)
+after = (os.sched_getaffinity(0), blas.openblas_get_num_threads() if blas else 1)
+if comm.rank == 0:
+    print("OK" if inside[0] == union and inside[1] == 2 * before[1] and after == before
+          and np.max(np.abs(lam - ref)) <= 1e-12 * ref.max() else f"BAD {before} {inside} {after}")
+"""
+    out = run_mpi_script(code)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "OK", out.stdout
