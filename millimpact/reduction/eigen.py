@@ -6,7 +6,10 @@ With a cutoff, a first small round of Krylov-Schur (FIRST_NEV modes) serves the 
 modes; a body with more under the cutoff has them counted by the inertia of K_ii - lambda_cut M_ii
 (Sylvester's law, :func:`count_below`) and found, with the next one, by the block Krylov solver of
 :mod:`.block_krylov` (multi-right-hand-side solves: the liner panel's 164-170 modes; option
-``block_krylov_size``, 0 for one more round of Krylov-Schur, the fallback).
+``block_krylov_size``, 0 for one more round of Krylov-Schur, the fallback). The substructured
+reduction's slabs count first (``count_first``): most have no mode under the cutoff or more than
+the first round's, and the count alone settles the first (liner panel: the first pass's slabs
+146 -> 125 s on the busier rank).
 """
 from __future__ import annotations
 
@@ -122,12 +125,16 @@ def count_below(K: PETSc.Mat, M: PETSc.Mat, lam: float, prefix: str,
 
 def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optional[float],
                   n_modes: Optional[int], prefix: str,
-                  options: Optional[dict[str, str]] = None) -> tuple[np.ndarray, list[PETSc.Vec], float]:
+                  options: Optional[dict[str, str]] = None,
+                  count_first: bool = False) -> tuple[np.ndarray, list[PETSc.Vec], float]:
     """Lowest modes of K_ii phi = omega^2 M_ii phi (GHEP): all up to ``f_cut`` (Hz), or the
     lowest ``n_modes``. Shift-and-invert at 0 with the already factored ``ksp`` (K_ii).
 
     Returns (frequencies in Hz ascending, M-orthonormal eigenvectors, the next frequency not kept
     or nan). A dense LAPACK solver takes over when most of the spectrum is requested.
+    ``count_first`` (with a cutoff, above INERTIA_MIN_DOFS): the inertia count before any
+    Krylov-Schur round, for bodies that mostly have none or many modes under the cutoff (the
+    substructured reduction's slabs); no mode under it returns at once, the next frequency nan.
     """
     n = K_ii.getSize()[0]
     if n == 0 or n_modes == 0:
@@ -136,6 +143,18 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
     nev = min(n_modes, n) if n_modes is not None else min(FIRST_NEV, n)
     counted = False
     prev: list[PETSc.Vec] = []
+    if count_first and n_modes is None and f_cut is not None and n > INERTIA_MIN_DOFS:
+        below = count_below(K_ii, M_ii, lam_cut, prefix, options)
+        counted = True
+        if below == 0:
+            return np.zeros(0), [], math.nan
+        if below is not None and below < FIRST_NEV:
+            nev = min(below + 1, n)      # one Krylov-Schur round (the liner panel's 6-mode slab: block
+        elif below is not None:          # Krylov 16.5 s against 8.8 s for the round of 8)
+            found = block_modes_under_cutoff(K_ii, M_ii, ksp, lam_cut, below, prefix, options)
+            if found is not None:
+                return found
+            nev = min(max(below + 1 + max(2, below // 50), nev), n)
     while True:
         eps = SLEPc.EPS().create(K_ii.getComm())
         eps.setOptionsPrefix(prefix)

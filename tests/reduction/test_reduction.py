@@ -653,6 +653,44 @@ def test_inertia_count_and_single_round_match_scipy(p1, monkeypatch, caplog):
 
 
 @serial
+def test_count_first_keeps_the_modes(p1, monkeypatch):
+    """``count_first`` (the slabs of the substructured reduction): the inertia count before any
+    Krylov-Schur round gives the same modes as the default path, to solver tolerance, with many
+    modes under the cutoff (block Krylov), with fewer than a first round's (one round of count + 1)
+    and none (nothing returned, the next frequency not computed)."""
+    from petsc4py import PETSc
+
+    from millimpact.integration.solvers import create_factored_solver
+    from millimpact.reduction import eigen
+
+    n = p1.K.getSize()[0]
+    sel = np.zeros(n, dtype=bool)
+    sel[p1.block_dofs] = True
+    sel[p1.fixed_dofs] = False
+    K, M = csr(p1.K)[sel][:, sel].tocsr(), csr(p1.M)[sel][:, sel].tocsr()
+    f_ref = lowest_hz(K, M, 30)
+    K_p, M_p = (PETSc.Mat().createAIJ(A.shape, csr=(A.indptr, A.indices, A.data), comm=MPI.COMM_SELF)
+                for A in (K, M))
+    monkeypatch.setattr(eigen, "INERTIA_MIN_DOFS", 0)
+    prefix = "test_count_first_"
+    opts = eigen.default_solver_options(1)
+    for k in (25, 5):                 # more modes than FIRST_NEV (8) under the cutoff, and fewer
+        assert f_ref[k] / f_ref[k - 1] - 1 > 1e-6
+        f_cut = 0.5 * (f_ref[k - 1] + f_ref[k])
+        ksp = create_factored_solver(K_p, prefix, opts)
+        freq, vecs, nxt = eigen.compute_modes(K_p, M_p, ksp, f_cut, None, prefix, opts, count_first=True)
+        ksp.destroy()
+        assert len(freq) == len(vecs) == k
+        # shift-and-invert or block Krylov at eps_tol 1e-10 against ARPACK's default: 1e-8 relative
+        np.testing.assert_allclose(freq, f_ref[:k], rtol=1e-8, err_msg=str(k))
+        assert nxt == pytest.approx(f_ref[k], rel=1e-8)
+    ksp = create_factored_solver(K_p, prefix, opts)
+    freq, vecs, nxt = eigen.compute_modes(K_p, M_p, ksp, 0.5 * f_ref[0], None, prefix, opts, count_first=True)
+    ksp.destroy()
+    assert len(freq) == 0 and vecs == [] and math.isnan(nxt)
+
+
+@serial
 def test_block_krylov_modes_match_scipy(p1):
     """The block Krylov solver's lowest modes of the clamped block against scipy's: frequencies to
     1e-8 relative (its residual tolerance 1e-10 on the transformed problem, as SLEPc's eps_tol),
