@@ -64,14 +64,17 @@ def lowest_hz(K: sp.spmatrix, M: sp.spmatrix, k: int) -> np.ndarray:
     return np.sqrt(np.sort(lam)) / (2 * math.pi)
 
 
-def block_hz(model, k: int = 6) -> np.ndarray:
-    """Lowest frequencies of the clamped block of a full model (the ball is a separate body)."""
-    n = model.K.getSize()[0]
-    sel = np.zeros(n, dtype=bool)
+def clamped_block(model) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """K and M of the clamped block of a full model (the ball is a separate body)."""
+    sel = np.zeros(model.K.getSize()[0], dtype=bool)
     sel[model.block_dofs] = True
     sel[model.fixed_dofs] = False
-    K, M = csr(model.K)[sel][:, sel], csr(model.M)[sel][:, sel]
-    return lowest_hz(K, M, k)
+    return csr(model.K)[sel][:, sel].tocsr(), csr(model.M)[sel][:, sel].tocsr()
+
+
+def block_hz(model, k: int = 6) -> np.ndarray:
+    """Lowest frequencies of the clamped block of a full model."""
+    return lowest_hz(*clamped_block(model), k)
 
 
 def block_hz_reduced(red, k: int = 6) -> np.ndarray:
@@ -615,11 +618,7 @@ def test_inertia_count_and_single_round_match_scipy(p1, monkeypatch, caplog):
     from millimpact.integration.solvers import create_factored_solver
     from millimpact.reduction import eigen
 
-    n = p1.K.getSize()[0]
-    sel = np.zeros(n, dtype=bool)
-    sel[p1.block_dofs] = True
-    sel[p1.fixed_dofs] = False
-    K, M = csr(p1.K)[sel][:, sel].tocsr(), csr(p1.M)[sel][:, sel].tocsr()
+    K, M = clamped_block(p1)
     f_ref = lowest_hz(K, M, 40)
     k = 25                                         # a cutoff between the 25th and 26th modes
     f_cut = 0.5 * (f_ref[k - 1] + f_ref[k])
@@ -663,11 +662,7 @@ def test_count_first_keeps_the_modes(p1, monkeypatch):
     from millimpact.integration.solvers import create_factored_solver
     from millimpact.reduction import eigen
 
-    n = p1.K.getSize()[0]
-    sel = np.zeros(n, dtype=bool)
-    sel[p1.block_dofs] = True
-    sel[p1.fixed_dofs] = False
-    K, M = csr(p1.K)[sel][:, sel].tocsr(), csr(p1.M)[sel][:, sel].tocsr()
+    K, M = clamped_block(p1)
     f_ref = lowest_hz(K, M, 30)
     K_p, M_p = (PETSc.Mat().createAIJ(A.shape, csr=(A.indptr, A.indices, A.data), comm=MPI.COMM_SELF)
                 for A in (K, M))
@@ -703,11 +698,7 @@ def test_block_krylov_modes_match_scipy(p1):
     from millimpact.reduction import eigen
     from millimpact.reduction.block_krylov import block_krylov_modes
 
-    n = p1.K.getSize()[0]
-    sel = np.zeros(n, dtype=bool)
-    sel[p1.block_dofs] = True
-    sel[p1.fixed_dofs] = False
-    K, M = csr(p1.K)[sel][:, sel].tocsr(), csr(p1.M)[sel][:, sel].tocsr()
+    K, M = clamped_block(p1)
     k = 30
     f_ref = lowest_hz(K, M, k)
 
