@@ -21,7 +21,8 @@ Options (``options`` keys, also ``-modes 20`` etc. on the command line; :func:`r
 ``augment`` (none | boussinesq | translation, comma-separated: modal truncation augmentation
 vectors of each body's region, :mod:`millimpact.reduction`; default none), ``free_phase``
 (auto | modal | step: :mod:`.free_phase`; default auto, the cheaper of the two),
-``modal_min_span`` (s: a modal phase is taken only if no gap closes within this span, default the stepping chunk max(2 t_c, 20 dt_contact)),
+``modal_min_span`` (s: a modal phase is taken only if no gap closes within this span, default the
+stepping chunk max(2 t_c, 20 dt_contact)),
 ``free_modes_factor`` (the free phase keeps the free-vibration modes up to this many times the
 plan's f_cut, whose dt_free = 1 / (10 f_cut) is its output grid; default 4), ``integrator``
 (default newmark-mr), ``recovery`` (mode-acceleration | modal:

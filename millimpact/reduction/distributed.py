@@ -96,6 +96,18 @@ def root_on_idle_cores(comm: MPI.Comm):
         comm.Ibarrier().Wait()
 
 
+def computed_on_root(comm: MPI.Comm, compute, shared=None):
+    """``compute()`` on rank 0 alone, on the waiting ranks' cores (:func:`root_on_idle_cores`), then
+    broadcast: rank 0 returns the result, the others ``shared(result)`` (default the result).
+    Collective."""
+    result = None
+    with root_on_idle_cores(comm):
+        if comm.rank == 0:
+            result = compute()
+    sent = comm.bcast(result if shared is None or comm.rank != 0 else shared(result), root=0)
+    return result if comm.rank == 0 else sent
+
+
 def _affinity() -> Optional[set[int]]:
     """The cores this process may run on, or None where the system does not say."""
     try:

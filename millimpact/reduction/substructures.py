@@ -71,8 +71,8 @@ Under MPI each rank takes whole slabs, the costliest first to the least loaded r
 (:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
 until the Ritz matrices are summed on rank 0, which solves the dense Rayleigh-Ritz and broadcasts
 its results (the other ranks hold no copy of K_V, M_V: ~1 GB a rank at 4,368 columns). 157k-DOF
-panel, 4 slabs (``benchmarks/panel_scaling.py --h-far 0.025 --slabs 4``): 97.8 s at 1 rank, 62.9 s at 2 (1.55x; one factorization beside it
-90.6 -> 69.4 s, 1.30x); with the slabs dealt in turn and gathered round by round it was 1.41x.
+panel, 4 slabs (``benchmarks/panel_scaling.py --h-far 0.025 --slabs 4``): 97.8 s at 1 rank,
+62.9 s at 2 (1.55x; one factorization beside it 90.6 -> 69.4 s, 1.30x); with the slabs dealt in turn and gathered round by round it was 1.41x.
 The slabs' factorizations and eigensolvers read the body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
 (:class:`~.reduced_model.BodyReduction` ``residual_b``) instead of K_ii's factorization.
 
@@ -96,8 +96,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..integration.solvers import check_type_options, create_factored_solver, petsc_options, return_freed_memory
-from .distributed import (DEPENDENT_TOL, deliver_rows, dense_from_rows, gram_basis, positions_in, reduce_array,
-                          root_on_idle_cores)
+from .distributed import (DEPENDENT_TOL, computed_on_root, deliver_rows, dense_from_rows, gram_basis, positions_in,
+                          reduce_array)
 from .eigen import compute_modes
 from .slab_cuts import ACROSS_RATIO, cut_slabs, interface_faces, interface_next, polynomial_traces
 
@@ -344,7 +344,8 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     are shared out by size (:func:`slab_owners`): each rank gathers its slabs' rows
     (MatCreateSubMatrices), factors and solves it alone (CHOLMOD), and only the Ritz matrices
     (summed on rank 0, which solves the Rayleigh-Ritz and broadcasts its results) and the final
-    rows travel; a rank holds one slab's factor at a time. No dense n_i x n_b array but the two results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
+    rows travel; a rank holds one slab's factor at a time. No dense n_i x n_b array but the two
+    results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
     comm = K_ii.getComm().tompi4py()
     size, rank = comm.size, comm.rank
     t_start = time.perf_counter()
@@ -495,11 +496,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     # the results straight into their final storage; each slab's rows sent to the ranks owning them
     recovery = grams = None
     if patterns:
-        pat = None
-        with root_on_idle_cores(comm):
-            if rank == 0:
-                pat = _patterns_and_grams(KV, MV, ritz)
-        f_pat, c_pat, grams = comm.bcast(pat, root=0)
+        f_pat, c_pat, grams = computed_on_root(comm, lambda: _patterns_and_grams(KV, MV, ritz))
         A = np.hstack([ritz["phi"], c_pat])
         if zone_couplings is not None:
             recovery = ritz_recovery(mine, T_full, t_idx, gamma_glob, ritz, MV, A,
@@ -589,14 +586,13 @@ def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, 
     CV, keep = _sum_on_root(CV, comm), reduce_array(keep, MPI.SUM, comm)
     pos, on_g = positions_in(gamma_glob, rows)          # gamma_glob: the ranks' sorted rows in rank order
     keep[np.ix_(np.nonzero(on_g)[0], t_idx)] = T_full[pos[on_g]].toarray()
-    H_all = None
-    with root_on_idle_cores(comm):
-        if comm.rank == 0:                                # K_V, M_V and the eigenpairs are rank 0's
-            CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()     # replicated data: no sum
-            WY, lam = ritz["WY"], ritz["lam"]             # the final Rayleigh-Ritz's, not solved again
-            H = lambda X: WY @ ((WY.T @ X) / lam[:, None])    # noqa: E731  (K_V^+ X)
-            H_all = (-H(CV[:, :n_b]), -H(CV[:, n_b:]), -H(MV @ A))
-    H_C, H_D, H_M = comm.bcast(H_all, root=0)
+
+    def images():                                         # K_V, M_V and the eigenpairs are rank 0's
+        CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()     # replicated data: no sum
+        WY, lam = ritz["WY"], ritz["lam"]                 # the final Rayleigh-Ritz's, not solved again
+        H = lambda X: WY @ ((WY.T @ X) / lam[:, None])    # noqa: E731  (K_V^+ X)
+        return -H(CV[:, :n_b]), -H(CV[:, n_b:]), -H(MV @ A)
+    H_C, H_D, H_M = computed_on_root(comm, images)
     return {"rows": rows, "V": keep, "H_C": H_C, "H_D": H_D, "H_M": H_M}
 
 
@@ -672,14 +668,8 @@ def _ritz_on_root(KV, MV, CV, n_b: int, f_cut: float, comm: MPI.Comm) -> dict:
     """:func:`_rayleigh_ritz` on rank 0 (which holds K_V, M_V, C_V) with the waiting ranks' cores,
     its results broadcast; the eigenvectors ``WY`` and eigenvalues ``lam`` (for
     :func:`ritz_recovery`) stay on rank 0."""
-    ritz = None
-    with root_on_idle_cores(comm):
-        if comm.rank == 0:
-            ritz = _rayleigh_ritz(KV, MV, CV, n_b, f_cut)
-    if comm.rank != 0:
-        return comm.bcast(None, root=0)
-    comm.bcast({k: v for k, v in ritz.items() if k not in ("WY", "lam")}, root=0)
-    return ritz
+    return computed_on_root(comm, lambda: _rayleigh_ritz(KV, MV, CV, n_b, f_cut),
+                            lambda ritz: {k: v for k, v in ritz.items() if k not in ("WY", "lam")})
 
 
 def _patterns_and_grams(KV: np.ndarray, MV: np.ndarray, ritz: dict):
