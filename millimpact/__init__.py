@@ -19,9 +19,39 @@ import os as _os
 
 __version__ = "0.1.0"
 
-# OpenBLAS (packages.txt) would start a thread per core in every MPI rank (oversubscribing 2 cores
-# under mpirun -n 2): one BLAS thread per process unless the user says otherwise
-_os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def _blas_threads(sharers: int = 1) -> int:
+    """OpenBLAS threads for this process: the cores it may run on, shared among the MPI ranks of
+    its node (or the ``sharers`` processes started side by side). OpenBLAS (packages.txt) would
+    otherwise start a thread per core in every rank (oversubscribing 2 cores under ``mpirun -n 2``,
+    where each rank is bound to its own core: 1); a serial run uses its machine's cores, most of
+    all in CHOLMOD's supernodal solves and factorizations (the plastic rig's time loop, 2 cores:
+    26.0 s on one thread, 19.2 s on two)."""
+    local = _os.environ.get("OMPI_COMM_WORLD_LOCAL_SIZE") or _os.environ.get("MPI_LOCALNRANKS") or "1"
+    try:
+        cores = len(_os.sched_getaffinity(0))
+    except AttributeError:     # no affinity call (not Linux)
+        cores = _os.cpu_count() or 1
+    return max(1, cores // max(1, int(local), sharers))
+
+
+#: set when millimpact chose OPENBLAS_NUM_THREADS: a millimpact process it starts (an MPI rank, a
+#: subprocess) chooses again for itself; a value the user set (this marker absent) is kept
+_BLAS_AUTO = "MILLIMPACT_BLAS_THREADS_AUTO"
+
+
+def share_blas_threads(processes: int) -> None:
+    """Before starting ``processes`` serial workers that share this process's cores: each gets
+    its share of BLAS threads (their environment), unless the user set OPENBLAS_NUM_THREADS."""
+    if _os.environ.get(_BLAS_AUTO) == "1":
+        _os.environ["OPENBLAS_NUM_THREADS"] = str(_blas_threads(processes))
+        del _os.environ[_BLAS_AUTO]
+
+
+if "OPENBLAS_NUM_THREADS" not in _os.environ or _os.environ.get(_BLAS_AUTO) == "1":
+    _os.environ["OPENBLAS_NUM_THREADS"] = str(_blas_threads())
+    _os.environ[_BLAS_AUTO] = "1"
 
 # Open MPI starts every process not launched by mpirun (a "singleton": `millimpact run`, a study's
 # worker, the test process) with a helper daemon, `orted --hnp --set-sid`, in its own session. A

@@ -14,6 +14,10 @@ ROOT = Path(__file__).resolve().parents[1]
 # the test process is an MPI singleton too (tests import mpi4py before millimpact): no helper
 # daemon, as millimpact/__init__.py sets for its own processes (the reason is there)
 os.environ.setdefault("OMPI_MCA_ess_singleton_isolated", "1")
+# the suite runs on 2 workers (./dev test) over the machine's cores, and its mpirun tests start 2
+# ranks beside the other worker: one BLAS thread a process (a serial run alone takes its cores,
+# millimpact/__init__.py), set here so that every process the tests start keeps it
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def mpi_env() -> dict[str, str]:

@@ -1,4 +1,7 @@
 """One package list: the README's commands (./dev), CI and the Dockerfile all install packages.txt."""
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -137,3 +140,69 @@ def test_an_mpi_singleton_starts_no_helper_daemon():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]
     assert r.stdout.split()[-1] == "0"
+
+
+def _blas_threads_seen(env_extra: dict, cores=None, drop=("OPENBLAS_NUM_THREADS", "MILLIMPACT_BLAS_THREADS_AUTO")):
+    """(OPENBLAS_NUM_THREADS after ``import millimpact``, the threads OpenBLAS itself runs, the
+    process's cores) in a fresh interpreter, on ``cores`` if given."""
+    code = ("import os, ctypes, millimpact, numpy\n"
+            "n = ctypes.CDLL('libopenblas.so.0').openblas_get_num_threads()\n"
+            "print(os.environ['OPENBLAS_NUM_THREADS'], n, len(os.sched_getaffinity(0)))")
+    env = {k: v for k, v in os.environ.items() if k not in drop}
+    env.update(env_extra)
+    pin = (lambda: os.sched_setaffinity(0, cores)) if cores else None
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                       timeout=120, preexec_fn=pin)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return tuple(int(w) for w in r.stdout.split()[-3:])
+
+
+def test_blas_threads_follow_the_cores_a_process_may_use():
+    """A serial process runs OpenBLAS on the cores it may run on (millimpact/__init__.py), an MPI
+    rank on its share of its node's, a value the user set stays, and a millimpact parent's choice
+    is made again by the child."""
+    env_value, blas, cores = _blas_threads_seen({})
+    assert env_value == blas == cores
+    assert _blas_threads_seen({}, cores={0})[:2] == (1, 1)
+    # OpenBLAS runs at most a thread per core, whatever is asked
+    assert _blas_threads_seen({"OPENBLAS_NUM_THREADS": "3"})[:2] == (3, min(3, cores))
+    # the parent's choice (the marker set) is not the user's: the child takes its own cores
+    assert _blas_threads_seen({"OPENBLAS_NUM_THREADS": "5", "MILLIMPACT_BLAS_THREADS_AUTO": "1"},
+                              cores={0})[:2] == (1, 1)
+    # two ranks of mpirun on this node share its cores
+    shared = max(1, cores // 2)
+    assert _blas_threads_seen({"OMPI_COMM_WORLD_LOCAL_SIZE": "2"})[:2] == (shared, shared)
+
+
+def test_study_workers_share_the_blas_threads():
+    """``share_blas_threads(n)`` before n side-by-side workers gives each its share, once (the
+    marker goes: the workers keep it), and leaves a user's value alone."""
+    code = ("import os, millimpact\nmillimpact.share_blas_threads(2)\n"
+            "print(os.environ['OPENBLAS_NUM_THREADS'], 'MILLIMPACT_BLAS_THREADS_AUTO' in os.environ,"
+            " len(os.sched_getaffinity(0)))")
+    for extra, expect in (({}, None), ({"OPENBLAS_NUM_THREADS": "3"}, "3")):
+        env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MILLIMPACT_BLAS_THREADS_AUTO")}
+        env.update(extra)
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+        assert r.returncode == 0, r.stderr[-2000:]
+        value, marker, cores = r.stdout.split()
+        assert value == (expect or str(max(1, int(cores) // 2))) and marker == "False"
+
+
+def test_mpi_ranks_share_their_nodes_cores():
+    """Under ``mpirun -n 2`` on one node each rank runs OpenBLAS on its share of the cores (bound
+    to one core each by default: 1 thread), not on every core of the machine."""
+    import shutil
+    from conftest import mpi_env
+    if shutil.which("mpirun") is None:
+        import pytest
+        pytest.skip("mpirun not installed")
+    code = ("import os, ctypes, millimpact, numpy\n"
+            "print(ctypes.CDLL('libopenblas.so.0').openblas_get_num_threads(), len(os.sched_getaffinity(0)))")
+    env = {k: v for k, v in mpi_env().items() if k not in ("OPENBLAS_NUM_THREADS", "MILLIMPACT_BLAS_THREADS_AUTO")}
+    r = subprocess.run(["mpirun", "-n", "2", sys.executable, "-c", code], capture_output=True, text=True,
+                       env=env, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rows = [tuple(map(int, line.split())) for line in r.stdout.split("\n") if line.strip()]
+    cores = len(os.sched_getaffinity(0))
+    assert len(rows) == 2 and all(n == max(1, min(c, cores // 2)) for n, c in rows), rows

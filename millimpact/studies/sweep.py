@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, Optional, Sequence
 
 
+from .. import share_blas_threads
 from ..errors import InputError, MillimpactError
 from ..scene.schema import Scene, parse_value
 from ..scene.builtin import BUILTIN_STUDIES, StudySpec, resolve_scene, study_scene
@@ -414,7 +415,8 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
         import multiprocessing as mp
 
         # each case serial: no threaded BLAS fighting over the cores the other cases use
-        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        share_blas_threads(min(jobs, len(todo)))
+        for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(var, "1")
         # spawn, not fork: a forked child would inherit the parent's MPI/PETSc state
         serial = []
