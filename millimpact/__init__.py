@@ -20,7 +20,6 @@ import os as _os
 __version__ = "0.1.0"
 
 
-
 def _blas_threads(sharers: int = 1) -> int:
     """OpenBLAS threads for this process: the cores it may run on, shared among the MPI ranks of
     its node (or the ``sharers`` processes started side by side). OpenBLAS (packages.txt) would

@@ -142,14 +142,22 @@ def test_an_mpi_singleton_starts_no_helper_daemon():
     assert r.stdout.split()[-1] == "0"
 
 
-def _blas_threads_seen(env_extra: dict, cores=None, drop=("OPENBLAS_NUM_THREADS", "MILLIMPACT_BLAS_THREADS_AUTO")):
+#: what decides a process's BLAS threads: the value, and the marker of millimpact's own choice
+BLAS_VARS = ("OPENBLAS_NUM_THREADS", "MILLIMPACT_BLAS_THREADS_AUTO")
+
+
+def _without_blas_choice(env: dict, **extra: str) -> dict:
+    """``env`` with no BLAS thread choice in it (the suite's conftest sets one), plus ``extra``."""
+    return {**{k: v for k, v in env.items() if k not in BLAS_VARS}, **extra}
+
+
+def _blas_threads_seen(env_extra: dict, cores=None):
     """(OPENBLAS_NUM_THREADS after ``import millimpact``, the threads OpenBLAS itself runs, the
     process's cores) in a fresh interpreter, on ``cores`` if given."""
     code = ("import os, ctypes, millimpact, numpy\n"
             "n = ctypes.CDLL('libopenblas.so.0').openblas_get_num_threads()\n"
             "print(os.environ['OPENBLAS_NUM_THREADS'], n, len(os.sched_getaffinity(0)))")
-    env = {k: v for k, v in os.environ.items() if k not in drop}
-    env.update(env_extra)
+    env = _without_blas_choice(dict(os.environ), **env_extra)
     pin = (lambda: os.sched_setaffinity(0, cores)) if cores else None
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
                        timeout=120, preexec_fn=pin)
@@ -181,9 +189,8 @@ def test_study_workers_share_the_blas_threads():
             "print(os.environ['OPENBLAS_NUM_THREADS'], 'MILLIMPACT_BLAS_THREADS_AUTO' in os.environ,"
             " len(os.sched_getaffinity(0)))")
     for extra, expect in (({}, None), ({"OPENBLAS_NUM_THREADS": "3"}, "3")):
-        env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MILLIMPACT_BLAS_THREADS_AUTO")}
-        env.update(extra)
-        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           env=_without_blas_choice(dict(os.environ), **extra), timeout=120)
         assert r.returncode == 0, r.stderr[-2000:]
         value, marker, cores = r.stdout.split()
         assert value == (expect or str(max(1, int(cores) // 2))) and marker == "False"
@@ -193,16 +200,17 @@ def test_mpi_ranks_share_their_nodes_cores():
     """Under ``mpirun -n 2`` on one node each rank runs OpenBLAS on its share of the cores (bound
     to one core each by default: 1 thread), not on every core of the machine."""
     import shutil
+
+    import pytest
     from conftest import mpi_env
     if shutil.which("mpirun") is None:
-        import pytest
         pytest.skip("mpirun not installed")
     code = ("import os, ctypes, millimpact, numpy\n"
             "print(ctypes.CDLL('libopenblas.so.0').openblas_get_num_threads(), len(os.sched_getaffinity(0)))")
-    env = {k: v for k, v in mpi_env().items() if k not in ("OPENBLAS_NUM_THREADS", "MILLIMPACT_BLAS_THREADS_AUTO")}
+    env = _without_blas_choice(mpi_env())
     r = subprocess.run(["mpirun", "-n", "2", sys.executable, "-c", code], capture_output=True, text=True,
                        env=env, timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.returncode == 0, (r.returncode, r.stdout[-1000:], r.stderr[-2000:])
     rows = [tuple(map(int, line.split())) for line in r.stdout.split("\n") if line.strip()]
     cores = len(os.sched_getaffinity(0))
-    assert len(rows) == 2 and all(n == max(1, min(c, cores // 2)) for n, c in rows), rows
+    assert len(rows) == 2 and all(n == max(1, min(c, cores // 2)) for n, c in rows), (rows, r.stderr[-2000:])
