@@ -80,26 +80,20 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
     direction), i.e. a stick/slip active set with a consistent update of the slip directions,
     damped by a backtracking line search on |F|. ``r`` per node is 1/trace of its S block.
     """
-    n = bound.size
-    free = np.ones(2 * n, dtype=bool) if free is None else np.asarray(free, dtype=bool)
-    on = bound > 0.0
-    if not (np.concatenate([on, on]) & free).any():
-        return np.zeros(2 * n), np.zeros(n, dtype=bool), True
-    if not on.all():
-        # nodes without normal force carry no friction: solve on the loaded nodes only
-        idx = np.flatnonzero(on)
-        sub = np.concatenate([idx, n + idx])
-        t_s, s_s, ok = solve_tresca(S_tt[np.ix_(sub, sub)], c[sub], bound[idx], None, free[sub],
-                                    None if tau0 is None else tau0[sub])
-        tau = np.zeros(2 * n)
-        tau[sub] = t_s
-        slip = np.zeros(n, dtype=bool)
-        slip[idx] = s_s
-        return tau, slip, ok
-    # node-major ordering: tau_i = x[2i:2i+2]
-    perm = np.ravel(np.column_stack([np.arange(n), n + np.arange(n)]))
+    n_all = bound.size
+    free = np.ones(2 * n_all, dtype=bool) if free is None else np.asarray(free, dtype=bool)
+    on_all = bound > 0.0
+    if not (np.concatenate([on_all, on_all]) & free).any():
+        return np.zeros(2 * n_all), np.zeros(n_all, dtype=bool), True
+    # nodes without normal force carry no friction: the problem on the loaded nodes only, in
+    # node-major order (tau_i = x[2i:2i+2]), taken from S_tt in one copy
+    idx = np.flatnonzero(on_all)
+    n = idx.size
+    perm = np.ravel(np.column_stack([idx, n_all + idx]))
     S = S_tt[np.ix_(perm, perm)]
     cc = c[perm]
+    bound = bound[idx]
+    on = np.ones(n, dtype=bool)
     fr = free[perm].reshape(n, 2)
     fixed = ~(fr & on[:, None])               # components held at zero
     d = np.diag(S).reshape(n, 2)
@@ -148,9 +142,11 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
         tau_nm = _tresca_fista(S, cc, bound, x, ~fixed.ravel())
         F, z, nz, slide = residual(tau_nm)
         x = tau_nm
-    tau = np.zeros(2 * n)
+    tau = np.zeros(2 * n_all)
     tau[perm] = x
-    return tau, slide & on, ok
+    slip = np.zeros(n_all, dtype=bool)
+    slip[idx] = slide
+    return tau, slip, ok
 
 
 def _newton_matrix(S: np.ndarray, r: np.ndarray, z: np.ndarray, nz: np.ndarray, bound: np.ndarray,
@@ -160,14 +156,14 @@ def _newton_matrix(S: np.ndarray, r: np.ndarray, z: np.ndarray, nz: np.ndarray, 
     ``D_P,i`` the identity inside the disc (stick: J_i = r_i S_i) or, on it (slide),
     ``(b_i/|z_i|)(I - z^_i z^_i^T)``, z^ = z/|z|. Rows of components held at zero are unit rows."""
     n = bound.size
-    dz = -r[:, None, None] * S.reshape(n, 2, 2 * n)
-    dz[np.arange(n), :, 2 * np.arange(n)] += np.array([1.0, 0.0])
-    dz[np.arange(n), :, 2 * np.arange(n) + 1] += np.array([0.0, 1.0])
     DP = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
     if slide.any():
         zh = z[slide] / nz[slide, None]
         DP[slide] = (bound[slide] / nz[slide])[:, None, None] * (np.eye(2) - zh[:, :, None] * zh[:, None, :])
-    J = np.eye(2 * n) - np.einsum("nab,nbk->nak", DP, dz).reshape(2 * n, 2 * n)
+    # J = I - D_P (E - r S) = r D_P S + blockdiag(I - D_P): two arrays of (2n)^2, not five
+    J = np.einsum("nab,nbk->nak", r[:, None, None] * DP, S.reshape(n, 2, 2 * n)).reshape(2 * n, 2 * n)
+    blocks = J.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :]      # (n, 2, 2) copies
+    J.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :] = blocks + (np.eye(2) - DP)
     rows = np.flatnonzero(fixed.ravel())
     J[rows, :] = 0.0
     J[rows, rows] = 1.0
