@@ -93,9 +93,7 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
     S = S_tt[np.ix_(perm, perm)]
     cc = c[perm]
     bound = bound[idx]
-    on = np.ones(n, dtype=bool)
-    fr = free[perm].reshape(n, 2)
-    fixed = ~(fr & on[:, None])               # components held at zero
+    fixed = ~free[perm].reshape(n, 2)         # components held at zero
     d = np.diag(S).reshape(n, 2)
     tr = np.where(fixed, 0.0, d).sum(axis=1)
     r = np.where(tr > 0, 1.0 / np.where(tr > 0, tr, 1.0), 0.0)   # N/m
@@ -162,8 +160,7 @@ def _newton_matrix(S: np.ndarray, r: np.ndarray, z: np.ndarray, nz: np.ndarray, 
         DP[slide] = (bound[slide] / nz[slide])[:, None, None] * (np.eye(2) - zh[:, :, None] * zh[:, None, :])
     # J = I - D_P (E - r S) = r D_P S + blockdiag(I - D_P): two arrays of (2n)^2, not five
     J = np.einsum("nab,nbk->nak", r[:, None, None] * DP, S.reshape(n, 2, 2 * n)).reshape(2 * n, 2 * n)
-    blocks = J.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :]      # (n, 2, 2) copies
-    J.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :] = blocks + (np.eye(2) - DP)
+    J.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :] += np.eye(2) - DP     # the diagonal blocks
     rows = np.flatnonzero(fixed.ravel())
     J[rows, :] = 0.0
     J[rows, rows] = 1.0

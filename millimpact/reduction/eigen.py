@@ -9,7 +9,7 @@ modes; a body with more under the cutoff has them counted by the inertia of K_ii
 ``block_krylov_size``, 0 for one more round of Krylov-Schur, the fallback). The substructured
 reduction's slabs count first (``count_first``): most have no mode under the cutoff or more than
 the first round's, and the count alone settles the first (liner panel: the first pass's slabs
-146 -> 125 s on the busier rank).
+146 -> 117 s on the busier rank, docs: plasticity).
 """
 from __future__ import annotations
 

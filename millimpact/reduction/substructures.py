@@ -72,9 +72,11 @@ Under MPI each rank takes whole slabs, the costliest first to the least loaded r
 until the Ritz matrices are summed on rank 0, which solves the dense Rayleigh-Ritz and broadcasts
 its results (the other ranks hold no copy of K_V, M_V: ~1 GB a rank at 4,368 columns). 157k-DOF
 panel, 4 slabs (``benchmarks/panel_scaling.py --h-far 0.025 --slabs 4``): 97.8 s at 1 rank,
-62.9 s at 2 (1.55x; one factorization beside it 90.6 -> 69.4 s, 1.30x); with the slabs dealt in turn and gathered round by round it was 1.41x.
-The slabs' factorizations and eigensolvers read the body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows take R A_b from the Ritz space
-(:class:`~.reduced_model.BodyReduction` ``residual_b``) instead of K_ii's factorization.
+62.9 s at 2 (1.55x; one factorization beside it 90.6 -> 69.4 s, 1.30x); with the slabs dealt in
+turn and gathered round by round it was 1.41x. The slabs' factorizations and eigensolvers read the
+body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows
+take R A_b from the Ritz space (:class:`~.reduced_model.BodyReduction` ``residual_b``) instead of
+K_ii's factorization.
 
 Measured (``benchmarks/panel_substructures.py``, coarse liner panel, 31k P2 DOFs, 4 slabs,
 defaults): F_max -0.04 %, t_c -0.12 %, e +0.2 %, the bolt and root gauges -1.9 % / +2.1 % from
