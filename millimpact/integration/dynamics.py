@@ -138,8 +138,8 @@ class IntegrationStats:
     friction_work_J: float = 0.0     #: friction: energy dissipated by slip (>= 0), J
     max_sliding_nodes: int = 0
     plastic_work_J: float = 0.0      #: plasticity: plastic work (dissipated and stored by hardening), J
-    n_plastic_steps: int = 0         #: steps with yielding points
-    n_plastic_iterations: int = 0    #: Newton iterations of the plastic steps, summed
+    n_plastic_steps: int = 0         #: steps whose converged state yields
+    n_plastic_iterations: int = 0    #: iterations of the steps with a yielding iterate, summed
     max_plastic_iterations: int = 0
     #: converged iterates whose full return map found a yielding point outside the candidate cells
     n_plastic_candidate_misses: int = 0
