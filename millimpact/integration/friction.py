@@ -43,6 +43,8 @@ from ..errors import SolverError
 
 #: relative tolerance of the fixed point and the slip directions
 FRICTION_RTOL = 1e-10
+#: the alternation stops when two passes agree to this fraction of the largest normal force
+PASS_RTOL = 1e2 * FRICTION_RTOL
 #: outer (normal/tangential) passes allowed
 MAX_OUTER = 100
 #: semi-smooth Newton (stick/slip active set) iterations allowed before the projected-gradient fallback
@@ -200,15 +202,18 @@ def _tresca_fista(S: np.ndarray, c: np.ndarray, bound: np.ndarray, x0: np.ndarra
 
 def solve_friction(S: np.ndarray, q_n: np.ndarray, q_t: np.ndarray, mu: float,
                    active0: Optional[np.ndarray] = None, slip0: Optional[np.ndarray] = None,
-                   gap_tol: float = 0.0, tau0: Optional[np.ndarray] = None) -> FrictionResult:
+                   gap_tol: float = 0.0, tau0: Optional[np.ndarray] = None,
+                   rtol: float = PASS_RTOL) -> FrictionResult:
     """The frictional contact problem of one step (module docstring). ``S`` (3 n_c)^2 with rows
     [normal; t1; t2], ``q_n`` predicted gaps (m), ``q_t`` predicted slip increments (m, [t1; t2]),
     ``mu`` >= 0. Warm starts: ``active0`` (normal active set) and ``slip0`` (sliding nodes) of the
     previous step, ``tau0`` its tangential forces (the first pass's LCP and Tresca start from them:
     a Newton iteration of a yielding step solves a problem close to the last one; coarse liner
     panel 8714 -> 4416 Tresca solves, friction 5.1 -> 1.8 s; F_max, e and the plastic work moved
-    by 2e-10, 5e-10, 7e-10: the fixed point's tolerance). Raises :class:`SolverError` if the fixed
-    point does not converge."""
+    by 2e-10, 5e-10, 7e-10: the fixed point's tolerance). ``rtol``: the alternation stops when a
+    pass changes lambda and tau by at most rtol max(lambda) (PASS_RTOL; a plastic step's early
+    iterations take a looser one: :mod:`.plastic_newmark`). Raises :class:`SolverError` if the
+    fixed point does not converge."""
     n = q_n.size
     S_nn, S_nt = S[:n, :n], S[:n, n:]
     S_tn, S_tt = S[n:, :n], S[n:, n:]
@@ -229,8 +234,8 @@ def solve_friction(S: np.ndarray, q_n: np.ndarray, q_t: np.ndarray, mu: float,
         else:
             tau_new, slip = np.zeros(2 * n), np.zeros(n, dtype=bool)
         scale = max(float(np.max(np.abs(lam_new), initial=0.0)), 1e-300)
-        done = (np.max(np.abs(lam_new - lam), initial=0.0) <= FRICTION_RTOL * scale * 1e2
-                and np.max(np.abs(tau_new - tau), initial=0.0) <= FRICTION_RTOL * scale * 1e2)
+        done = (np.max(np.abs(lam_new - lam), initial=0.0) <= rtol * scale
+                and np.max(np.abs(tau_new - tau), initial=0.0) <= rtol * scale)
         lam, tau = lam_new, tau_new
         if done:
             return FrictionResult(lam, tau, slip, it, n_fallback, active)

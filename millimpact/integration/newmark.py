@@ -21,6 +21,7 @@ from petsc4py import PETSc
 from . import solvers
 from .contact_operator import ContactOperator, apply_contact_update, contact_operator, node_columns, solve_on_touching
 from .lcp import LCPResult, solve_lcp
+from .friction import PASS_RTOL
 from .saddle_point import SaddlePointSolver
 from ..errors import InputError, SolverError
 from .contact_rows import ContactRows, broadcast
@@ -105,6 +106,8 @@ class NewmarkScheme:
         self.active = np.zeros(self.contact.n_c, dtype=bool)
         self.n_newton = 0
         self.penalty_energy = 0.0
+        #: the Coulomb alternation's stopping test (friction.solve_friction's rtol)
+        self.friction_rtol = PASS_RTOL
 
     @property
     def mass(self) -> PETSc.Mat:
@@ -312,7 +315,8 @@ class NewmarkScheme:
             # dense and small: solved on rank 0 only (the ranks share cores), the answer broadcast
             pairs = np.concatenate([nodes, n_c + nodes])
             r = (friction.solve_friction(S_sub, q[nodes], q_t[pairs], self.mu, self.active[nodes],
-                                         self.sliding[nodes], gap_tol, None if tau0 is None else tau0[pairs])
+                                         self.sliding[nodes], gap_tol, None if tau0 is None else tau0[pairs],
+                                         self.friction_rtol)
                  if self.comm.rank == 0 else None)
             r = broadcast(self.comm, r)
             return r, np.concatenate([r.lam, r.tau])
