@@ -389,6 +389,7 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
                 dropped = setups.pop(band)
                 release_petsc_garbage(dropped.model.V.mesh.comm)
                 destroy_petsc_tree(dropped)   # its Python handles alone would keep it (see there)
+                del dropped                   # and its mesh, spaces and forms with the name
             # the last case's dropped objects: parked on the communicator they were made on (the
             # mesh's), not the group's; 17.5 MB a case on a coarse hertz-halfspace table until freed
             release_petsc_garbage(group)
