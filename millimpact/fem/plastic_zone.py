@@ -323,7 +323,6 @@ class PlasticZone:
         if key not in self._cache:
             const = self.integrate([0.5 * np.einsum("pi,pi->p", ep, ep @ C)
                                     for ep, C in zip(self.plastic_strain, self._elastic)])
-            self._prune_cache()
             self._cache[key] = const
         return self._cache[key]
 

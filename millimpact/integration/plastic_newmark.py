@@ -161,7 +161,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
         self.predictor = str(solvers.get_option("plastic_predictor", options, "extrapolated")).lower()
         if self.predictor not in PREDICTORS:
             raise InputError(f"-impact_plastic_predictor {self.predictor!r}: choose {', '.join(PREDICTORS)}")
-        self._last_frozen = None      # (dt, f_c,n) of the last committed step: the predictor's increment
+        self._last_frozen = None      # (dt, version, f_c,n) of the last step's start: the predictor's increment
 
     def initialize(self, u0: PETSc.Vec, v0: PETSc.Vec) -> None:
         """Newmark's start with the zone's frozen plastic force: M a0 = -K u0 - f_c(u0). A start
@@ -324,20 +324,23 @@ class PlasticNewmarkScheme(NewmarkScheme):
     # --- pieces ---------------------------------------------------------------------------------
     def _extrapolate(self, f_c: PETSc.Vec, dt: float) -> bool:
         """The predictor's force in place of the committed one, ``f_c`` (= f_c,n, owned here):
-        f_c,n + (dt / dt_prev) (f_c,n - f_c,n-1) when the last step changed the plastic state and
-        the predictor is ``extrapolated``; returns whether ``f_c`` was changed."""
+        f_c,n + (dt / dt_prev) (f_c,n - f_c,n-1) when the last step changed the plastic state (the
+        zone's version moved) and the predictor is ``extrapolated``; returns whether ``f_c`` was
+        changed. A step that did not yield keeps the kept force and only takes its dt."""
         if self.predictor != "extrapolated" or self.linearisation == "tangent":
             return False
-        last, self._last_frozen = self._last_frozen, (dt, f_c.copy())
+        version, last = self.zone.version, self._last_frozen
+        if last is not None and last[1] == version:
+            self._last_frozen = (dt, version, last[2])        # f_c,n = f_c,n-1: no increment
+            return False
+        self._last_frozen = (dt, version, f_c.copy())
         if last is None:
             return False
-        dt_prev, f_prev = last
+        dt_prev, _, f_prev = last
         f_prev.aypx(-1.0, f_c)                  # f_c,n - f_c,n-1
-        changed = f_prev.norm() > 0.0
-        if changed:
-            f_c.axpy(dt / dt_prev, f_prev)
+        f_c.axpy(dt / dt_prev, f_prev)
         f_prev.destroy()
-        return changed
+        return True
 
     def _coulomb_rtol(self, res_rel: float, may_be_last: bool) -> float:
         """The Coulomb alternation's test for the next contact solve (friction.solve_friction's rtol):
@@ -352,7 +355,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
 
     def _forget_frozen(self) -> None:
         if self._last_frozen is not None:
-            self._last_frozen[1].destroy()
+            self._last_frozen[2].destroy()
             self._last_frozen = None
 
     def _evaluate(self, u: PETSc.Vec, candidates_only: bool) -> int:
