@@ -99,6 +99,8 @@ class PlasticZone:
         self.alpha = [np.zeros(k) for k in n]
         self._trial = None
         self._elastic = [z.material.elastic_matrix() for z in self.zones]
+        self._slots = [self._points_of(c) for c in self.cells]     # each zone's quadrature slots
+        self._picked = None       # (version, per zone (eps_p, alpha, slots) of the candidates)
         self.version = 0          #: bumped by commit() when the plastic state changed
         self._cache: dict = {}
 
@@ -109,7 +111,7 @@ class PlasticZone:
 
     def quadrature_slots(self, k: int) -> np.ndarray:
         """Indices (cell-major, point-minor) of zone k's quadrature points in the Quadrature spaces."""
-        return self._points_of(self.cells[k])
+        return self._slots[k]
 
     def _points_of(self, cells: np.ndarray) -> np.ndarray:
         """The point indices (cell-major, point-minor) of ``cells``: mesh cells give the slots in the
@@ -133,6 +135,7 @@ class PlasticZone:
         # only the zones' slots are ever written (the Quadrature spaces span the whole mesh: zeroing
         # all of C_t - C was 8 ms of a 19 ms evaluation on the plastic rig)
         trial, n_yield, yielding_cells = [], 0, []
+        picked = self._candidate_state() if restricted else None
         for k, zone in enumerate(self.zones):
             pos = self._candidates[k] if restricted else None
             cells = self.cells[k] if pos is None else self.cells[k][pos]
@@ -141,15 +144,20 @@ class PlasticZone:
                 continue
             eps = self._strain.eval(cells).reshape(-1, 6)
             if pos is None:
-                eps_p, alpha = self.plastic_strain[k], self.alpha[k]
+                eps_p, alpha, slots = self.plastic_strain[k], self.alpha[k], self._slots[k]
             else:
-                points = self._points_of(pos)
-                eps_p, alpha = self.plastic_strain[k][points], self.alpha[k][points]
+                eps_p, alpha, slots = picked[k]
             res = return_map(zone.material, eps, eps_p, alpha, tangent)
-            slots = self._points_of(cells)
-            # restricted: the correction beyond the frozen one, sigma - C (eps - eps_p,n), zero
-            # where the point stays elastic
-            sc[slots] = res.stress - (eps if pos is None else eps - eps_p) @ self._elastic[k]
+            if pos is None:
+                # sigma - C eps = -C eps_p,n+1 (sigma = C (eps - eps_p,n+1)): the frozen force's
+                # own expression where a point stays elastic
+                sc[slots] = -zone.material.elastic_stress(res.plastic_strain)
+            else:
+                # restricted: the correction beyond the frozen one, sigma - C (eps - eps_p,n)
+                # = -C d eps_p, zero where the point stays elastic
+                y = np.flatnonzero(res.yielding)
+                sc[slots] = 0.0
+                sc[slots[y]] = -zone.material.elastic_stress(res.plastic_increment[y])
             if tangent:
                 tc[slots] = res.tangent - self._elastic[k][None, :, :]
             trial.append(res)
@@ -165,6 +173,18 @@ class PlasticZone:
         self._yielding_cells = (np.unique(np.concatenate(yielding_cells)) if yielding_cells
                                 else np.zeros(0, np.int32))
         return n_yield
+
+    def _candidate_state(self) -> list:
+        """Per zone, the committed (eps_p, alpha) of the candidates' points and their quadrature
+        slots: gathered once per selection and plastic state, not every iteration."""
+        if self._picked is None or self._picked[0] != self.version:
+            picked = []
+            for k, pos in enumerate(self._candidates):
+                points = self._points_of(pos)
+                picked.append((self.plastic_strain[k][points], self.alpha[k][points],
+                               self._points_of(self.cells[k][pos])))
+            self._picked = (self.version, picked)
+        return self._picked[1]
 
     def select_candidates(self, stress_fraction: float) -> int:
         """Make the cells of the last full evaluation with a point at or above ``stress_fraction``
@@ -188,6 +208,7 @@ class PlasticZone:
             picked.append(pos)
             mesh_cells.append(self.cells[k][pos])
         self._candidates = picked
+        self._picked = None
         mesh = self.V.mesh
         cells = np.unique(np.concatenate(mesh_cells)).astype(np.int32) if mesh_cells else np.zeros(0, np.int32)
         tags = dmesh.meshtags(mesh, mesh.topology.dim, cells, np.ones(len(cells), dtype=np.int32))
@@ -246,15 +267,25 @@ class PlasticZone:
         self._trial = None
         self._restricted = False
         self._candidates = self._candidate_form = None     # another state: chosen again
+        self._picked = None
         self._stress = [None] * len(self.zones)
         self.version += 1
         self._prune_cache()
 
     # --- operators ----------------------------------------------------------------------------
-    def force_correction(self):
+    def force_correction(self, out=None):
         """f_c = int_zone B^T (sigma - C eps) dV (N, a PETSc Vec of V; zero on Dirichlet rows); after a
-        candidates-only evaluation f_frozen plus the candidate cells' part (:meth:`select_candidates`)."""
-        b = fem_petsc.assemble_vector(self._candidate_form if self._restricted else self._f_form)
+        candidates-only evaluation f_frozen plus the candidate cells' part (:meth:`select_candidates`).
+        ``out``: a Vec of V to assemble into (overwritten, and returned), else a new one (a ghosted
+        Vec's creation was a third of the assembly's cost, once an iteration)."""
+        form = self._candidate_form if self._restricted else self._f_form
+        if out is None:
+            b = fem_petsc.assemble_vector(form)
+        else:
+            b = out
+            with b.localForm() as local:
+                local.set(0.0)
+            fem_petsc.assemble_vector(b, form)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem_petsc.set_bc(b, self.bcs, scale=0.0)
         if self._restricted:
@@ -279,7 +310,7 @@ class PlasticZone:
         sc[:] = 0.0
         for k in range(len(self.zones)):
             if len(self.cells[k]):
-                sc[self.quadrature_slots(k)] = -self.plastic_strain[k] @ self._elastic[k]
+                sc[self.quadrature_slots(k)] = -self.zones[k].material.elastic_stress(self.plastic_strain[k])
         self.stress_correction.x.scatter_forward()
         self._trial = None
         return self.force_correction()

@@ -65,10 +65,30 @@ def from_mandel(v: np.ndarray) -> np.ndarray:
                      np.stack([s[:, 1], s[:, 0], v[:, 2]], 1)], axis=1)
 
 
+def deviator(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(dev v, tr v) of (n, 6) Mandel vectors: dev v = v - (tr v / 3) I.
+
+    numpy's elementwise operations on rows of 6 (broadcasting, axis sums) cost ~6 ns an entry,
+    a product with P_DEV more: the trace is a BLAS product with I and the normal components are
+    shifted as three long strided rows of the transpose (13,000 points: 0.3 against 0.55 ms)."""
+    v = np.asarray(v, dtype=float)
+    tr = v @ IDENTITY
+    dev = v.copy()
+    third = tr / 3.0
+    for i in range(3):
+        dev[..., i] -= third
+    return dev, tr
+
+
+def _norm6(v: np.ndarray) -> np.ndarray:
+    """|v| of (n, 6) rows (np.linalg.norm(v, axis=1) to rounding; its generic path took 0.7 ms
+    for 13,000 points, this 0.17 ms)."""
+    return np.sqrt(np.square(v) @ np.ones(v.shape[-1]))
+
+
 def von_mises(stress: np.ndarray) -> np.ndarray:
     """q = sqrt(3/2) |dev sigma| of (n, 6) Mandel stresses, Pa."""
-    dev = np.asarray(stress) @ P_DEV
-    return np.sqrt(1.5) * np.linalg.norm(dev, axis=-1)
+    return np.sqrt(1.5) * _norm6(deviator(stress)[0])
 
 
 @dataclass(frozen=True)
@@ -151,10 +171,21 @@ class J2Material:
         """C = 3 K P_vol + 2 G P_dev (6 x 6, Mandel), Pa."""
         return 3.0 * self.bulk_modulus * P_VOL + 2.0 * self.shear_modulus * P_DEV
 
+    def elastic_stress(self, strain: np.ndarray) -> np.ndarray:
+        """C eps = K tr(eps) I + 2 G dev(eps) of (n, 6) Mandel strains (Pa), elementwise: the
+        product ``strain @ elastic_matrix()`` to rounding, without a 6 x 6 product per point."""
+        dev, tr = deviator(strain)
+        dev *= 2.0 * self.shear_modulus
+        vol = self.bulk_modulus * tr
+        for i in range(3):
+            dev[..., i] += vol
+        return dev
+
 
 class ReturnMapResult(NamedTuple):
     """The state at the end of a step, per point: stress (n, 6) Pa, plastic strain (n, 6), alpha
-    (n,), consistent tangent (n, 6, 6) Pa or None, yielding mask (n,), plastic work of the step (n,) J/m^3."""
+    (n,), consistent tangent (n, 6, 6) Pa or None, yielding mask (n,), plastic work of the step
+    (n,) J/m^3, and the step's plastic strain increment (n, 6; zero where the point stays elastic)."""
 
     stress: np.ndarray
     plastic_strain: np.ndarray
@@ -162,6 +193,7 @@ class ReturnMapResult(NamedTuple):
     tangent: np.ndarray
     yielding: np.ndarray
     dissipation_increment: np.ndarray
+    plastic_increment: np.ndarray
 
 
 def _consistency(flow: FlowCurve, q_tr: np.ndarray, alpha: np.ndarray, G: float) -> np.ndarray:
@@ -186,31 +218,41 @@ def return_map(material: J2Material, strain: np.ndarray, plastic_strain: np.ndar
     """Radial return of total strains ``strain`` (n, 6) from the committed state (plastic strain
     (n, 6), alpha (n,)); see the module docstring for the equations. ``tangent=False`` leaves the
     consistent tangent out (``None``): an iteration on the elastic operator needs none."""
-    C = material.elastic_matrix()
     G, flow = material.shear_modulus, material.flow
     strain, plastic_strain, alpha = (np.asarray(x, dtype=float) for x in (strain, plastic_strain, alpha))
-    trial = (strain - plastic_strain) @ C
-    dev = trial @ P_DEV
-    q_tr = np.sqrt(1.5) * np.linalg.norm(dev, axis=1)
+    # the trial stress C (eps - eps_p), elementwise: dev sigma_tr = 2 G dev(eps - eps_p), so
+    # q_tr = sqrt(3/2) 2 G |dev(eps - eps_p)| and n = dev / |dev|
+    dev, tr = deviator(strain - plastic_strain)
+    stress = 2.0 * G * dev
+    vol = material.bulk_modulus * tr
+    for i in range(3):
+        stress[:, i] += vol
+    dev_norm = _norm6(dev)
+    q_tr = np.sqrt(1.5) * 2.0 * G * dev_norm
     yielding = q_tr - flow.flow_stress(alpha) > CONSISTENCY_RTOL * flow.yield_stress
-    stress, eps_p, alpha_new = trial.copy(), plastic_strain.copy(), alpha.copy()
-    C_t = np.repeat(C[None], len(strain), axis=0) if tangent else None
+    eps_p, alpha_new = plastic_strain.copy(), alpha.copy()
+    deps_p = np.zeros_like(eps_p)
+    C_t = np.repeat(material.elastic_matrix()[None], len(strain), axis=0) if tangent else None
     work = np.zeros(len(strain))
-    if np.any(yielding):
-        y = yielding
+    y = np.flatnonzero(yielding)          # integer rows: a boolean mask gathers 10x slower when few yield
+    if y.size:
         dg = _consistency(flow, q_tr[y], alpha[y], G)
-        n = np.sqrt(1.5) * dev[y] / q_tr[y, None]          # unit Mandel normal
-        deps_p = np.sqrt(1.5) * dg[:, None] * n
-        stress[y] = trial[y] - 2.0 * G * deps_p
-        eps_p[y] += deps_p
+        d = dev[y]
+        d.T[...] *= np.sqrt(1.5) * dg / dev_norm[y]      # sqrt(3/2) dg n, n = dev / |dev| (unit Mandel normal)
+        deps_p[y] = d
+        stress_y = stress[y] - 2.0 * G * d
+        stress[y] = stress_y
+        eps_p[y] = eps_p[y] + d
         alpha_new[y] += dg
         if tangent:
+            n = dev[y] / dev_norm[y, None]
+            C = material.elastic_matrix()
             H = flow.slope(alpha_new[y])
             a = 6.0 * G * G * dg / q_tr[y]
             b = 6.0 * G * G * (dg / q_tr[y] - 1.0 / (3.0 * G + H))
             C_t[y] = C[None] - a[:, None, None] * P_DEV[None] + b[:, None, None] * np.einsum("pi,pj->pij", n, n)
-        work[y] = np.einsum("pi,pi->p", stress[y], deps_p)
-    return ReturnMapResult(stress, eps_p, alpha_new, C_t, yielding, work)
+        work[y] = (stress_y * d) @ np.ones(6)
+    return ReturnMapResult(stress, eps_p, alpha_new, C_t, yielding, work, deps_p)
 
 
 def flow_curve_from_fields(yield_stress: Optional[float], hardening_modulus: float = 0.0,

@@ -405,6 +405,8 @@ def _run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: di
     if rec.fields:
         fields = list(rec.fields)
         writers.append(lambda folder: write_fields(model, fields, Path(folder) / "fields.xdmf", rec.plastic_fields))
+    if plastic is not None:
+        plastic.destroy()
     return RunOutput(method, ts, results, model_info, extra_writers=writers, notes=notes)
 
 

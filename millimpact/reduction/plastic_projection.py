@@ -34,12 +34,15 @@ class ProjectedPlasticZone:
 
     def __init__(self, zone, red: ReducedModel):
         self.zone, self.red = zone, red
-        self._u = red.model.K.createVecRight()
+        self._u = None                   # the zone's displacement G q (a Vec of the model's dofs)
+        self._f = None                   # the zone's force correction, assembled in place
         self._residual_solver = None     # (K, M, the factorized K_r + s M_r): kept for the next impact
         self._frozen = None              # (plastic state version, G^T f_frozen)
 
     def _expand(self, q: PETSc.Vec) -> PETSc.Vec:
         """u = G q: exact on the zone's dofs (all the zone's cells read); zero in the interior."""
+        if self._u is None:
+            self._u = self.red.model.K.createVecRight()
         self.red.Gr.mult(q, self._u)
         return self._u
 
@@ -56,10 +59,11 @@ class ProjectedPlasticZone:
         return self.zone.select_candidates(stress_fraction)
 
     def force_correction(self) -> PETSc.Vec:
-        f = self.zone.force_correction()
-        r = self._restrict(f)
-        f.destroy()
-        return r
+        if self._f is None:
+            self._f = self.zone.force_correction()
+        else:
+            self.zone.force_correction(self._f)
+        return self._restrict(self._f)
 
     def frozen_force(self) -> PETSc.Vec:
         """G^T f_frozen of the committed state (a new Vec; the projection is kept per plastic state:
@@ -114,6 +118,21 @@ class ProjectedPlasticZone:
             ksp.destroy()
             A.destroy()
             self._residual_solver = None
+
+    def destroy(self) -> None:
+        """Free the kept Vecs (the zone's displacement and force, G^T f_frozen) and the residual-state
+        factorization, at a case's end (collective). A dropped Vec is parked on its communicator's
+        garbage for the life of the process (:meth:`PlasticZone._prune_cache`): ~1.2 MB a case of
+        a plastic table. They are made again if the zone is used after."""
+        self.release()
+        for name in ("_u", "_f"):
+            vec = getattr(self, name)
+            if vec is not None:
+                vec.destroy()
+                setattr(self, name, None)
+        if self._frozen is not None:
+            self._frozen[1].destroy()
+            self._frozen = None
 
     def stiffness_correction(self) -> PETSc.Mat:
         dK = self.zone.stiffness_correction()

@@ -193,3 +193,30 @@ def test_consistency_failure_is_reported(monkeypatch):
     monkeypatch.setattr(P, "CONSISTENCY_MAX_ITERATIONS", 0)
     with pytest.raises(PlasticityError, match="did not converge at 1 point"):
         return_map(material(points=CURVE), np.array([[0.3, -0.15, -0.15, 0, 0, 0]]), np.zeros((1, 6)), np.zeros(1))
+
+
+def test_elementwise_elastic_law_and_increment_match_the_matrices():
+    """The return map's elementwise elastic law (K tr I + 2 G dev, for speed) against the 6 x 6
+    Mandel products it replaces, C = 3 K P_vol + 2 G P_dev and P_dev, on random strains; and its
+    plastic increment, the change of the plastic strain, zero where a point stays elastic. The
+    tolerance is rounding: the two orders of summation differ by a few ulps of the largest term."""
+    from millimpact.fem.plasticity import P_DEV, deviator
+
+    rng = np.random.default_rng(3)
+    mat = material(H=20e9)
+    eps = rng.normal(size=(500, 6)) * 0.5 * Y / E
+    ep = rng.normal(size=(500, 6)) * 0.2 * Y / E
+    ep[:, :3] -= ep[:, :3].mean(axis=1, keepdims=True)      # plastic strain is deviatoric
+    al = np.abs(rng.normal(size=500)) * 1e-3
+    scale = np.abs(eps).max()
+    assert np.allclose(mat.elastic_stress(eps), eps @ mat.elastic_matrix(), rtol=0, atol=1e-14 * E * scale)
+    dev, tr = deviator(eps)
+    assert np.allclose(dev, eps @ P_DEV, rtol=0, atol=1e-15 * scale)
+    assert np.allclose(tr, eps[:, :3].sum(axis=1), rtol=0, atol=1e-15 * scale)
+    r = return_map(mat, eps, ep, al, tangent=False)
+    assert 0 < np.count_nonzero(r.yielding) < len(eps)      # both kinds of point are tested
+    assert np.allclose(r.stress, (eps - r.plastic_strain) @ mat.elastic_matrix(), rtol=0, atol=1e-13 * Y)
+    assert np.allclose(r.plastic_increment, r.plastic_strain - ep, rtol=0, atol=1e-15 * scale)
+    assert np.all(r.plastic_increment[~r.yielding] == 0.0)
+    assert np.allclose(von_mises(r.stress), np.sqrt(1.5) * np.linalg.norm(r.stress @ P_DEV, axis=1),
+                       rtol=1e-14)
