@@ -32,7 +32,7 @@ from petsc4py import PETSc
 
 from ..scene.plan import Plan
 from .model import FEModel
-from .probes import locate_points, tabulate_at
+from .probes import locate_points, scalar_element, tabulate_at
 
 log = logging.getLogger(__name__)
 
@@ -151,11 +151,12 @@ def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
     face_points = proj - 1e-9 * plan.h_contact * n       # just inside the block
     cells = locate_points(V, face_points, model.block_cells)
     block_face_dofs = []
+    element = scalar_element(V) if np.any(cells >= 0) else None
     for i, c in enumerate(cells):
         if c < 0:
             continue
         # the cell was found just inside; its trace is evaluated on the face
-        N, _, cnodes = tabulate_at(V, int(c), proj[i])
+        N, _, cnodes = tabulate_at(V, int(c), proj[i], element)
         gcn = imap.local_to_global(cnodes.astype(np.int32))
         for w, gn in zip(N, gcn):
             if abs(w) > 1e-9:  # nodes off the face have weight 0 up to round-off
