@@ -267,7 +267,6 @@ class PlasticZone:
         self._trial = None
         self._restricted = False
         self._candidates = self._candidate_form = None     # another state: chosen again
-        self._picked = None
         self._stress = [None] * len(self.zones)
         self.version += 1
         self._prune_cache()
