@@ -79,6 +79,9 @@ class ContactOperator:
     Ct_csr: tuple                      #: (rows, cols, values) of the local rows of C^T
     chunk: int = W_CHUNK
     n_rhs: int = 0                     #: columns computed so far (right-hand sides solved)
+    #: (key of the columns, S[:, cols], S[cols, cols]) of the last :meth:`columns`, dropped when
+    #: :meth:`ensure` computes a column (its symmetrization rewrites known rows)
+    _block: tuple | None = None
 
     @property
     def S(self) -> np.ndarray:
@@ -117,7 +120,19 @@ class ContactOperator:
         S[np.ix_(new, new)] = 0.5 * (part[new, :] + part[new, :].T)
         self.known[new] = True
         self.n_rhs += new.size
+        self._block = None
         return new.size
+
+    def columns(self, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(S[:, cols], S[cols, cols]) of computed columns ``cols``, copies kept while the same
+        columns are asked for and no column is computed. A yielding step solves its contact
+        problem on the same touching columns in every iteration: on the plastic liner segment the
+        two fancy-indexed copies were ~3.7 ms of an iteration's ~21 ms contact solve. Read only."""
+        key = np.asarray(cols, dtype=np.int64).tobytes()
+        if self._block is None or self._block[0] != key:
+            S_cols = self.S_known[:, cols]
+            self._block = (key, S_cols, S_cols[cols, :])
+        return self._block[1], self._block[2]
 
     def _solve_columns(self, cols: np.ndarray) -> None:
         """W[:, cols] = A^-1 C^T[:, cols]: one multi-right-hand-side solve with a factorization,
@@ -204,8 +219,9 @@ def solve_on_touching(op: ContactOperator, q: np.ndarray, start: np.ndarray, gap
     while True:
         cols = node_columns(nodes, n_c, frictional)
         op.ensure(cols)
-        res, x_sub = solve(nodes, cols, op.S_known[np.ix_(cols, cols)])
-        gap = q + op.S_known[:n_c, cols] @ x_sub
+        S_cols, S_sub = op.columns(cols)
+        res, x_sub = solve(nodes, cols, S_sub)
+        gap = q + S_cols[:n_c] @ x_sub
         left_out = np.ones(n_c, dtype=bool)
         left_out[nodes] = False
         join = np.flatnonzero(left_out & (gap < -gap_tol))

@@ -323,7 +323,7 @@ class NewmarkScheme:
         res, nodes, x = self._on_touching(C, q, gap_tol, solve)
         apply_contact_update(C, x, self.u_pred, self.u_new)
         cols = node_columns(nodes, n_c, True)
-        ds = q_t + C.S_known[n_c:, cols] @ x[cols]  # slip increments over the step, m
+        ds = q_t + C.columns(cols)[0][n_c:] @ x[cols]  # slip increments over the step, m
         lam, tau, slip = x[:n_c], x[n_c:], np.zeros(n_c, dtype=bool)
         slip[nodes] = res.slip
         self.stats.friction_work_J += max(0.0, -float(tau @ ds))

@@ -83,3 +83,23 @@ def test_friction_on_the_touching_nodes_equals_the_whole_problem():
     assert np.allclose(x[:n_c], want.lam, rtol=0, atol=1e-8 * scale)
     assert np.allclose(x[n_c:], want.tau, rtol=0, atol=1e-8 * scale)
     assert op.n_rhs == node_columns(nodes, n_c, True).size < 3 * n_c
+
+
+def test_kept_columns_follow_the_operator_when_columns_are_added():
+    """S[:, cols] and S[cols, cols] are kept between contact solves on the same columns; computing
+    another column rewrites known rows (the symmetrized block), so the kept copies must follow."""
+    A, C, ksp, Cp, _ = _system()
+    S = C @ np.linalg.solve(A, C.T)
+    op = contact_operator(ksp, Cp)
+    cols = np.array([2, 5, 8])
+    op.ensure(cols)
+    S_cols, S_sub = op.columns(cols)
+    assert op.columns(cols)[0] is S_cols                       # kept while nothing changed
+    assert np.allclose(S_sub, S[np.ix_(cols, cols)], rtol=1e-12, atol=1e-14)
+    op.ensure(np.array([4]))                                    # a new column: rows 2, 5, 8 rewritten
+    wider = np.array([2, 4, 5, 8])
+    S_cols2, S_sub2 = op.columns(cols)
+    assert S_cols2 is not S_cols
+    # the factorization's round-off, as above; the NaN of unknown columns would fail allclose
+    assert np.allclose(S_cols2, S[:, cols], rtol=1e-12, atol=1e-14)
+    assert np.allclose(op.columns(wider)[1], S[np.ix_(wider, wider)], rtol=1e-12, atol=1e-14)
