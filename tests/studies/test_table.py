@@ -223,3 +223,24 @@ def test_groups_take_different_bands():
     assert taken[4] == (1, 1) and taken[5] == (1, 2)     # A moved to band 1 after band 0 ran out
     assert next_case(state, sizes, cur["A"]) is None and next_case(state, sizes, cur["B"]) is None
     assert sorted(t for t in taken if t) == [(0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2)]
+
+
+def test_bands_and_cases_are_taken_dearest_first():
+    """costliest_first: the band with the fastest normal speed comes first, and within a band the
+    case with the fastest normal speed (angle 0 before 60 deg); every case once. Two radii: at equal
+    normal speeds the larger ball's band first."""
+    from millimpact.studies.table import costliest_first, define_cases
+
+    base = builtin_scene("hertz-halfspace").with_value("model.h_contact", 5.8e-4).with_value("model.h_far", 0.012)
+    r = base.ball.radius
+    cases = define_cases(base, [0.5, 1.0, 4.0], [0.0, 60.0], [r, 1.5 * r], "improved", {})
+    groups = costliest_first(cases)
+    fastest = [max(c.scene.normal_speed for c in g) for g in groups]
+    assert fastest == sorted(fastest, reverse=True)
+    assert groups[0][0].speed == 4.0 and groups[0][0].angle == 0.0 and groups[0][0].radius == 1.5 * r
+    assert groups[1][0].speed == 4.0 and groups[1][0].radius == r
+    for g in groups:
+        assert len({c.band for c in g}) == 1
+        speeds = [c.scene.normal_speed for c in g]
+        assert speeds == sorted(speeds, reverse=True)
+    assert sorted(c.index for g in groups for c in g) == list(range(len(cases)))
