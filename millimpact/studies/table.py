@@ -26,10 +26,11 @@ and an interrupted table keeps the finished ones.
 Parallel. Under ``mpirun -n N``, ``--ranks-per-case K`` splits MPI_COMM_WORLD into N / K groups of K
 ranks (``Comm.Split``); the groups take the next case from a shared state (an MPI window on rank 0,
 read and written under an exclusive lock), so a slow case does not idle the others. Bands and
-their cases are taken dearest first (the fastest normal speed first: :func:`costliest_first`). A group stays
-on its band while it has cases and then starts a band no group works on (:func:`next_case`), so
-groups build different bands' reductions rather than each building every band; each keeps the
-reduced model of its current band only. Rank 0 gathers the rows and prints the progress.
+their cases are taken dearest first (the fastest normal speed first: :func:`costliest_first`). A
+group stays on its band while it has cases and then starts a band no group works on
+(:func:`next_case`), so groups build different bands' reductions rather than each building every
+band; each keeps the reduced model of its current band only. Rank 0 gathers the rows and prints
+the progress.
 """
 from __future__ import annotations
 
