@@ -352,7 +352,10 @@ def costliest_first(todo: Sequence[TableCase]) -> list[list[TableCase]]:
     bands: dict[int, list[TableCase]] = {}
     for c in todo:
         bands.setdefault(c.band, []).append(c)
-    order = sorted(bands.values(), key=lambda g: (max(c.scene.normal_speed for c in g), g[0].radius), reverse=True)
+    def cost(g: list[TableCase]) -> tuple[float, float]:
+        return max(c.scene.normal_speed for c in g), g[0].radius
+
+    order = sorted(bands.values(), key=cost, reverse=True)
     return [sorted(g, key=lambda c: -c.scene.normal_speed) for g in order]
 
 
