@@ -103,6 +103,10 @@ class PlasticZone:
         self._picked = None       # (version, per zone (eps_p, alpha, slots) of the candidates)
         self.version = 0          #: bumped by commit() when the plastic state changed
         self._cache: dict = {}
+        #: the candidates' iterations by the compiled kernel (:mod:`.return_map_kernel`); False: numpy
+        self.compiled = True
+        self._kernel = None
+        self._compiled_force = None
 
     # --- state --------------------------------------------------------------------------------
     def _set_displacement(self, u_vec) -> None:
@@ -127,6 +131,9 @@ class PlasticZone:
         stay elastic: their f_c is the frozen plastic strain's). Such an evaluation gives
         :meth:`force_correction` but no trial state to commit: a full evaluation confirms it."""
         restricted = candidates_only and self._candidates is not None
+        if restricted and not tangent and self._compiled() is not None:
+            return self._evaluate_compiled(u_vec)
+        self._compiled_force = None
         if restricted:
             self._frozen_force()      # kept before the stress correction is written below
         self._set_displacement(u_vec)
@@ -172,6 +179,56 @@ class PlasticZone:
         # without the tangent, stiffness_correction() is zero (no stale C_t - C is assembled)
         self._yielding_cells = (np.unique(np.concatenate(yielding_cells)) if yielding_cells
                                 else np.zeros(0, np.int32))
+        return n_yield
+
+    def _compiled(self):
+        """(the compiled kernel module, per zone its cell data and flow table), built on first use;
+        None where the kernel is off (``compiled = False``), unbuildable or the space not one it
+        handles (:mod:`millimpact.fem.return_map_kernel`)."""
+        if self._kernel is None:
+            from . import return_map_kernel as rk
+
+            module = rk.load_kernel() if self.compiled and rk.ZoneKernelData.supports(self.V) else None
+            if module is None:
+                self._kernel = False
+            else:
+                points, weights = basix.make_quadrature(basix.CellType.tetrahedron, self.q_degree)
+                self._kernel = (module, [(rk.ZoneKernelData(self.V, c, points, weights), rk.flow_table(z.material.flow))
+                                         for c, z in zip(self.cells, self.zones)])
+        return self._kernel or None
+
+    def _evaluate_compiled(self, u_vec) -> int:
+        """:meth:`evaluate` of the candidates without the tangent, by the compiled kernel: strains,
+        return map and the candidates' force correction in one pass (kept for
+        :meth:`force_correction`; no stress correction is written, no trial state kept)."""
+        from . import return_map_kernel as rk
+        from .plasticity import CONSISTENCY_MAX_ITERATIONS, CONSISTENCY_RTOL, PlasticityError
+
+        module, data = self._compiled()
+        self._frozen_force()      # assembled (if not kept) before this evaluation marks itself restricted
+        self._set_displacement(u_vec)
+        u = self.u.x.array
+        f = self._compiled_force
+        if f is None or f.size != u.size:
+            f = np.zeros_like(u)
+        else:
+            f[:] = 0.0
+        n_yield = 0
+        for k, zone in enumerate(self.zones):
+            pos = self._candidates[k]
+            if not len(pos):
+                continue
+            flow = zone.material.flow
+            n = rk.zone_force(module, data[k][0], pos, u, self.plastic_strain[k], self.alpha[k], zone.material,
+                              data[k][1], CONSISTENCY_RTOL * flow.yield_stress, CONSISTENCY_RTOL * flow.yield_stress,
+                              CONSISTENCY_MAX_ITERATIONS, f)
+            if n < 0:
+                raise PlasticityError("return map: the consistency equation did not converge at 1 point(s) or more")
+            n_yield += n
+        self._compiled_force = f
+        self._trial = None
+        self._restricted = True
+        self._yielding_cells = np.zeros(0, np.int32)
         return n_yield
 
     def _candidate_state(self) -> list:
@@ -277,6 +334,14 @@ class PlasticZone:
         candidates-only evaluation f_frozen plus the candidate cells' part (:meth:`select_candidates`).
         ``out``: a Vec of V to assemble into (overwritten, and returned), else a new one (a ghosted
         Vec's creation was a third of the assembly's cost, once an iteration)."""
+        if self._restricted and self._compiled_force is not None:
+            b = out if out is not None else fem_petsc.create_vector(self._f_form)
+            with b.localForm() as local:
+                local.array[:] = self._compiled_force
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            fem_petsc.set_bc(b, self.bcs, scale=0.0)
+            b.axpy(1.0, self._frozen_force())
+            return b
         form = self._candidate_form if self._restricted else self._f_form
         if out is None:
             b = fem_petsc.assemble_vector(form)
@@ -312,6 +377,7 @@ class PlasticZone:
                 sc[self.quadrature_slots(k)] = -self.zones[k].material.elastic_stress(self.plastic_strain[k])
         self.stress_correction.x.scatter_forward()
         self._trial = None
+        self._restricted, self._compiled_force = False, None     # the form over every zone cell
         return self.force_correction()
 
     def stiffness_correction(self):

@@ -62,7 +62,10 @@ class NonlinearZone(Protocol):
     plastic work of the trial state over the step (J, global); ``commit()`` accepts the trial state.
     ``select_candidates(fraction)`` picks the cells near yielding at the last full evaluation, and
     ``evaluate(u, candidates_only=True)`` then return-maps those alone (f_c elsewhere the frozen
-    one); such a state is confirmed by a full evaluation before it is committed."""
+    one); such a state is confirmed by a full evaluation before it is committed. ``compiled``
+    chooses the compiled pass for those candidates' evaluations (``evaluate(u, False, True)``)."""
+
+    compiled: bool
 
     def evaluate(self, u: PETSc.Vec, tangent: bool = True, candidates_only: bool = False) -> int: ...
 

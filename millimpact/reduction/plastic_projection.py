@@ -52,6 +52,15 @@ class ProjectedPlasticZone:
         self.red.Gr.multTranspose(f, r)
         return r
 
+    @property
+    def compiled(self) -> bool:
+        """Whether the candidates' iterations take the compiled kernel (the zone's own flag)."""
+        return self.zone.compiled
+
+    @compiled.setter
+    def compiled(self, value: bool) -> None:
+        self.zone.compiled = value
+
     def evaluate(self, q: PETSc.Vec, tangent: bool = True, candidates_only: bool = False) -> int:
         return self.zone.evaluate(self._expand(q), tangent, candidates_only)
 

@@ -1,0 +1,70 @@
+"""The compiled candidates' pass (millimpact.fem.return_map_kernel) against the numpy path.
+
+From a committed plastic state, a second displacement is return-mapped on the candidate cells by
+both paths: the same number of yielding points and the same force correction. The two compute
+the same expressions in a different order (FFCx's strain and assembly kernels against one C loop),
+so they agree to rounding: 1e-12 of the force's largest entry, where the force is the sum of ~10^2
+terms of one sign pattern (the observed differences are ~1e-15). The mesh is sheared and stretched
+(a general affine map), so J^-1 is not diagonal; P1 and P2; a linear and a tabulated flow curve
+(the tabulated one, with breakpoints the
+step crosses, takes the per-point Newton of the consistency equation).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from dolfinx import fem, mesh as dmesh
+from mpi4py import MPI
+
+from millimpact.fem import return_map_kernel as rk
+from millimpact.fem.plastic_zone import PlasticZone, ZoneMaterial
+from millimpact.fem.plasticity import FlowCurve, J2Material
+
+E, NU = 200e9, 0.3
+LINEAR = J2Material(E, NU, FlowCurve(1e9, 20e9))
+TABULATED = J2Material(E, NU, FlowCurve(380e6, 0.0, ((0.0, 380e6), (2e-4, 450e6), (6e-4, 560e6), (2e-3, 700e6))))
+
+pytestmark = pytest.mark.skipif(rk.load_kernel() is None, reason="no C compiler for the kernel")
+
+
+def _zone(p, material):
+    m = dmesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
+    A = np.array([[1.3, 0.2, 0.0], [0.1, 0.9, 0.3], [0.0, -0.2, 1.1]]) * 1e-2      # 1 cm, sheared
+    m.geometry.x[:] = m.geometry.x @ A.T
+    n = m.topology.index_map(3).size_local + m.topology.index_map(3).num_ghosts
+    mid = dmesh.compute_midpoints(m, 3, np.arange(n, dtype=np.int32))
+    tags = dmesh.meshtags(m, 3, np.arange(n, dtype=np.int32), np.where(mid[:, 2] < 0.6e-2, 3, 4).astype(np.int32))
+    V = fem.VectorFunctionSpace(m, ("Lagrange", p))
+    return PlasticZone(V, tags, [ZoneMaterial(3, material)]), V
+
+
+def _indent(V, depth):
+    """A displacement that strains the zone unevenly (a dent below a point of the top face)."""
+    u = fem.Function(V)
+    u.interpolate(lambda x: np.vstack([depth * 0.3 * np.sin(200 * x[1]), 0.1 * depth * x[0] * 100,
+                                       -depth * np.exp(-((x[0] - 0.006) ** 2 + (x[1] - 0.005) ** 2) / 2e-5)
+                                       * (x[2] / 0.01)]))
+    return u
+
+
+@pytest.mark.parametrize("p", [1, 2])
+@pytest.mark.parametrize("material", [LINEAR, TABULATED], ids=["linear", "tabulated"])
+def test_compiled_candidates_equal_numpy(p, material):
+    zone, V = _zone(p, material)
+    depth = 6e-5 if material is LINEAR else 3e-5
+    u1, u2 = _indent(V, depth), _indent(V, 1.4 * depth)
+    assert zone.comm.allreduce(zone.evaluate(u1.vector, tangent=False)) > 0
+    zone.commit()                                   # a plastic state to start from
+    assert zone.comm.allreduce(zone.evaluate(u2.vector, tangent=False)) > 0
+    assert zone.comm.allreduce(zone.select_candidates(0.5)) > 0
+    got = {}
+    for compiled in (False, True):
+        zone.compiled, zone._kernel = compiled, None
+        n = zone.comm.allreduce(zone.evaluate(u2.vector, tangent=False, candidates_only=True))
+        got[compiled] = (n, zone.force_correction().array.copy())
+    assert zone._kernel, "the compiled path ran"
+    assert got[True][0] == got[False][0] > 0
+    scale = zone.comm.allreduce(np.abs(got[False][1]).max(), op=MPI.MAX)
+    assert np.abs(got[True][1] - got[False][1]).max() <= 1e-12 * scale
+    # and the force differs from the frozen one (the candidates do yield at u2)
+    assert np.abs(got[True][1] - zone.frozen_force().array).max() > 1e-6 * scale
