@@ -1,4 +1,4 @@
-"""The compiled candidates' pass (millimpact.fem.return_map_kernel) against the numpy path.
+"""The compiled pass (millimpact.fem.return_map_kernel) against the numpy path.
 
 From a committed plastic state, a second displacement is return-mapped on the candidate cells by
 both paths: the same number of yielding points and the same force correction. The two compute
@@ -68,3 +68,33 @@ def test_compiled_candidates_equal_numpy(p, material):
     assert np.abs(got[True][1] - got[False][1]).max() <= 1e-12 * scale
     # and the force differs from the frozen one (the candidates do yield at u2)
     assert np.abs(got[True][1] - zone.frozen_force().array).max() > 1e-6 * scale
+
+
+@pytest.mark.parametrize("p", [1, 2])
+@pytest.mark.parametrize("material", [LINEAR, TABULATED], ids=["linear", "tabulated"])
+def test_compiled_full_evaluation_equals_numpy(p, material):
+    """Over every zone cell the kernel also keeps the trial state to commit: stress, plastic
+    strain, alpha, the step's plastic work and the yielding points equal numpy's return map
+    (1e-12 of each field's largest value: rounding), and so does the force correction."""
+    zone, V = _zone(p, material)
+    depth = 6e-5 if material is LINEAR else 3e-5
+    zone.compiled = False
+    zone.evaluate(_indent(V, depth).vector, tangent=False)
+    zone.commit()
+    u2 = _indent(V, 1.4 * depth)
+    got = {}
+    for compiled in (False, True):
+        zone.compiled, zone._kernel = compiled, None
+        n = zone.comm.allreduce(zone.evaluate(u2.vector, tangent=False))
+        got[compiled] = (n, zone.trial()[0], zone.force_correction().array.copy(), zone.step_plastic_work())
+    assert zone._kernel, "the compiled path ran"
+    (n0, r0, f0, w0), (n1, r1, f1, w1) = got[False], got[True]
+    assert n1 == n0 > 0
+    assert np.array_equal(r1.yielding, r0.yielding)
+    for name in ("stress", "plastic_strain", "alpha", "dissipation_increment", "plastic_increment"):
+        a, b = getattr(r1, name), getattr(r0, name)
+        assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max(), name
+    assert np.abs(f1 - f0).max() <= 1e-12 * np.abs(f0).max()
+    assert w1 == pytest.approx(w0, rel=1e-12)
+    zone.commit()                                    # the kernel's trial state commits
+    assert zone.max_equivalent_plastic_strain() == pytest.approx(r0.alpha.max(), rel=1e-12)
