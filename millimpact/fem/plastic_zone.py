@@ -182,31 +182,21 @@ class PlasticZone:
         return n_yield
 
     def _compiled(self):
-        """(the compiled kernel module, per zone its cell data and flow table), built on first use;
-        None where the kernel is off (``compiled = False``), unbuildable or the space not one it
-        handles (:mod:`millimpact.fem.return_map_kernel`)."""
+        """The compiled pass (:class:`.return_map_kernel.CompiledPass`), built on first use; None
+        where it is off (``compiled = False``), cannot be built or the space is not one it handles."""
         if self._kernel is None:
-            from . import return_map_kernel as rk
+            from .return_map_kernel import CompiledPass
 
-            module = rk.load_kernel() if self.compiled and rk.ZoneKernelData.supports(self.V) else None
-            if module is None:
-                self._kernel = False
-            else:
-                points, weights = basix.make_quadrature(basix.CellType.tetrahedron, self.q_degree)
-                self._kernel = (module, [(rk.ZoneKernelData(self.V, c, points, weights), rk.flow_table(z.material.flow))
-                                         for c, z in zip(self.cells, self.zones)])
+            self._kernel = (CompiledPass.build(self.V, self.cells, [z.material for z in self.zones], self.q_degree)
+                            if self.compiled else None) or False
         return self._kernel or None
 
     def _evaluate_compiled(self, u_vec, restricted: bool) -> int:
-        """:meth:`evaluate` without the tangent by the compiled kernel: strains, return map and the
+        """:meth:`evaluate` without the tangent by the compiled pass: strains, return map and the
         force correction beyond the frozen one (the yielding points' -int B^T C d eps_p dV) in one
-        pass, kept for :meth:`force_correction`; the stress correction is not written. Over the
+        loop, kept for :meth:`force_correction`; the stress correction is not written. Over the
         candidates (``restricted``: no trial state kept) or every zone cell (the trial state kept,
         as numpy's :func:`return_map` gives it)."""
-        from . import return_map_kernel as rk
-        from .plasticity import CONSISTENCY_MAX_ITERATIONS, CONSISTENCY_RTOL, PlasticityError, ReturnMapResult
-
-        module, data = self._compiled()
         self._frozen_force()      # assembled (if not kept) before this evaluation marks itself restricted
         self._set_displacement(u_vec)
         u = self.u.x.array
@@ -215,26 +205,9 @@ class PlasticZone:
             f = np.zeros_like(u)
         else:
             f[:] = 0.0
-        n_yield, trial = 0, []
-        for k, zone in enumerate(self.zones):
-            pos = self._candidates[k] if restricted else np.arange(len(self.cells[k]))
-            if not len(pos):
-                trial.append(None)
-                continue
-            n_points = len(pos) * self.n_q
-            state = None if restricted else (np.empty((n_points, 6)), np.empty((n_points, 6)), np.empty(n_points),
-                                             np.empty(n_points, dtype=bool))
-            flow = zone.material.flow
-            n = rk.zone_force(module, data[k][0], pos, u, self.plastic_strain[k], self.alpha[k], zone.material,
-                              data[k][1], CONSISTENCY_RTOL * flow.yield_stress, CONSISTENCY_RTOL * flow.yield_stress,
-                              CONSISTENCY_MAX_ITERATIONS, f, state)
-            if n < 0:
-                raise PlasticityError("return map: the consistency equation did not converge at 1 point(s) or more")
-            n_yield += n
-            if state is not None:
-                stress, deps, dg, yielding = state
-                trial.append(ReturnMapResult(stress, self.plastic_strain[k] + deps, self.alpha[k] + dg, None,
-                                             yielding, np.einsum("pi,pi->p", stress, deps), deps))
+        positions = self._candidates if restricted else [np.arange(len(c)) for c in self.cells]
+        n_yield, trial = self._compiled().evaluate(u, positions, self.plastic_strain, self.alpha, f,
+                                                   keep_state=not restricted)
         self._compiled_force = f
         self._trial = None if restricted else trial
         self._restricted = restricted

@@ -39,7 +39,7 @@ import logging
 import os
 import tempfile
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Sequence
 
 import numpy as np
 
@@ -293,3 +293,54 @@ def zone_force(module, data: ZoneKernelData, pos: np.ndarray, u: np.ndarray, pla
                               ptr(u), ptr(plastic_strain), ptr(alpha),
                               material.shear_modulus, material.bulk_modulus, len(a), ptr(a), ptr(s), ptr(k),
                               yield_tol, consistency_tol, max_iterations, ptr(f), *outputs))
+
+
+class CompiledPass:
+    """The kernel bound to a zone's bodies: per body its cell data (:class:`ZoneKernelData`), J2
+    material and flow table, for :meth:`PlasticZone.evaluate` without the tangent."""
+
+    def __init__(self, module, V, cells: Sequence[np.ndarray], materials: Sequence, q_degree: int):
+        import basix
+
+        points, weights = basix.make_quadrature(basix.CellType.tetrahedron, q_degree)
+        self.module, self.materials = module, list(materials)
+        self.data = [ZoneKernelData(V, c, points, weights) for c in cells]
+        self.tables = [flow_table(m.flow) for m in self.materials]
+
+    @classmethod
+    def build(cls, V, cells: Sequence[np.ndarray], materials: Sequence, q_degree: int) -> "Optional[CompiledPass]":
+        """The pass for these zones, or None where the space is not one the kernel handles or the
+        kernel cannot be built here."""
+        module = load_kernel() if ZoneKernelData.supports(V) else None
+        return None if module is None else cls(module, V, cells, materials, q_degree)
+
+    def evaluate(self, u: np.ndarray, positions: Sequence[np.ndarray], plastic_strain: Sequence[np.ndarray],
+                 alpha: Sequence[np.ndarray], f: np.ndarray, keep_state: bool) -> tuple[int, list]:
+        """Per body, return-map the points of the cells at ``positions`` (in its cell list) from the
+        committed (``plastic_strain``, ``alpha``) and add their force correction beyond the frozen
+        one to ``f``; returns (the yielding points, per body its :class:`ReturnMapResult` without
+        tangent when ``keep_state``, else None)."""
+        from .plasticity import CONSISTENCY_MAX_ITERATIONS, CONSISTENCY_RTOL, PlasticityError, ReturnMapResult
+
+        n_yield, trial = 0, []
+        for k, (pos, material) in enumerate(zip(positions, self.materials)):
+            if not len(pos):
+                trial.append(None)
+                continue
+            n_points = len(pos) * self.data[k].n_q
+            state = (np.empty((n_points, 6)), np.empty((n_points, 6)), np.empty(n_points),
+                     np.empty(n_points, dtype=bool)) if keep_state else None
+            tol = CONSISTENCY_RTOL * material.flow.yield_stress
+            n = zone_force(self.module, self.data[k], pos, u, plastic_strain[k], alpha[k], material, self.tables[k],
+                           tol, tol, CONSISTENCY_MAX_ITERATIONS, f, state)
+            if n < 0:
+                raise PlasticityError("return map: the consistency equation did not converge at 1 point(s) or more")
+            n_yield += n
+            if state is not None:
+                stress, deps, dg, yielding = state
+                trial.append(ReturnMapResult(stress, plastic_strain[k] + deps, alpha[k] + dg, None, yielding,
+                                             np.einsum("pi,pi->p", stress, deps), deps))
+            else:
+                trial.append(None)
+        return n_yield, trial
+

@@ -98,3 +98,19 @@ def test_compiled_full_evaluation_equals_numpy(p, material):
     assert w1 == pytest.approx(w0, rel=1e-12)
     zone.commit()                                    # the kernel's trial state commits
     assert zone.max_equivalent_plastic_strain() == pytest.approx(r0.alpha.max(), rel=1e-12)
+
+
+def test_without_a_buildable_kernel_the_numpy_path_stays(tmp_path, monkeypatch, caplog):
+    """A cache folder that cannot be made (here a file stands in its way; on a machine without a
+    C compiler the build fails the same way): one warning, and the zone's evaluations keep numpy's
+    path with the same answer."""
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))
+    monkeypatch.setattr(rk, "_loaded", None)
+    with caplog.at_level("WARNING", logger=rk.__name__):
+        assert rk.load_kernel() is None
+    assert any("using numpy" in r.getMessage() for r in caplog.records)
+    zone, V = _zone(2, LINEAR)
+    n = zone.evaluate(_indent(V, 6e-5).vector, tangent=False)
+    assert zone._kernel is False and n > 0 and zone.trial()[0].yielding.any()
