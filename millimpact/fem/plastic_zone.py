@@ -103,7 +103,7 @@ class PlasticZone:
         self._picked = None       # (version, per zone (eps_p, alpha, slots) of the candidates)
         self.version = 0          #: bumped by commit() when the plastic state changed
         self._cache: dict = {}
-        #: the candidates' iterations by the compiled kernel (:mod:`.return_map_kernel`); False: numpy
+        #: evaluations without the tangent by the compiled pass (:mod:`.return_map_kernel`); False: numpy
         self.compiled = True
         self._kernel = None
         self._compiled_force = None

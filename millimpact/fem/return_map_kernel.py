@@ -1,4 +1,4 @@
-"""A compiled pass over a zone's candidate cells: strains, radial return and the force correction.
+"""A compiled pass over a zone's cells: strains, radial return and the force correction.
 
 A yielding step's iterations on the elastic operator (:mod:`millimpact.integration.plastic_newmark`,
 ``plastic_linearisation elastic``) need, per iteration, only the force correction of the candidate
@@ -334,7 +334,7 @@ class CompiledPass:
             n = zone_force(self.module, self.data[k], pos, u, plastic_strain[k], alpha[k], material, self.tables[k],
                            tol, tol, CONSISTENCY_MAX_ITERATIONS, f, state)
             if n < 0:
-                raise PlasticityError("return map: the consistency equation did not converge at 1 point(s) or more")
+                raise PlasticityError(f"return map: the consistency equation did not converge at point {-1 - n} of zone {k}")
             n_yield += n
             if state is not None:
                 stress, deps, dg, yielding = state

@@ -63,7 +63,7 @@ class NonlinearZone(Protocol):
     ``select_candidates(fraction)`` picks the cells near yielding at the last full evaluation, and
     ``evaluate(u, candidates_only=True)`` then return-maps those alone (f_c elsewhere the frozen
     one); such a state is confirmed by a full evaluation before it is committed. ``compiled``
-    chooses the compiled pass for those candidates' evaluations (``evaluate(u, False, True)``)."""
+    chooses the compiled pass for the evaluations without the tangent (``evaluate(u, False)``)."""
 
     compiled: bool
 

@@ -83,11 +83,11 @@ which nothing yields (it can end the step). The converged step is the same: on t
 3,136 passes against 4,888, 1,470 iterations against 1,459, the answers equal to 1e-10. With the
 predictor, the liner's time loop took 0.75 and 0.91 of the code's before them (runs in turn).
 
-The candidates' iterations without a tangent (option ``plastic_return_map``, default ``compiled``)
-take their strains, return map and force correction from one compiled loop over the candidate
-points (:mod:`millimpact.fem.return_map_kernel`) instead of three numpy/FFCx passes; ``numpy``
-keeps those. The force is the same to rounding (1e-14 relative); a step's full evaluations (the
-first that yields, the confirmation) stay numpy's, which keeps the trial state to commit.
+The zone's evaluations without a tangent (option ``plastic_return_map``, default ``compiled``;
+every evaluation of the ``elastic`` and ``held`` paths' iterations) take their strains, return map
+and force correction from one compiled loop over the points (:mod:`millimpact.fem.return_map_kernel`)
+instead of three numpy/FFCx passes; ``numpy`` keeps those. The force is the same to rounding
+(2e-14 relative), and a full evaluation keeps the same trial state to commit.
 
 A step whose Newton does not converge in ``plastic_max_iterations`` (default 40 with
 ``tangent``, 80 with the accelerated fixed point) raises
@@ -123,9 +123,9 @@ FRICTION_LOOSEST = 1e-3
 #: a step's first iterate (``-impact_plastic_predictor``): the committed plastic force extrapolated
 #: from the last step's increment, or the committed force itself
 PREDICTORS = ("extrapolated", "frozen")
-#: the candidates' iterations (``-impact_plastic_return_map``): one compiled pass for strains, return
-#: map and force (:mod:`millimpact.fem.return_map_kernel`), or the numpy return map between FFCx's
-#: strain and assembly kernels
+#: the zone's evaluations without tangent (``-impact_plastic_return_map``): one compiled pass for
+#: strains, return map and force (:mod:`millimpact.fem.return_map_kernel`), or the numpy return map
+#: between FFCx's strain and assembly kernels
 RETURN_MAPS = ("compiled", "numpy")
 
 
