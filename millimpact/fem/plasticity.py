@@ -125,6 +125,13 @@ class FlowCurve:
         slopes = np.diff(pts[:, 1]) / np.diff(pts[:, 0])
         return pts[:, 0], pts[:, 1], np.append(slopes, slopes[-1])
 
+    def segments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(a_i, s_i, k_i): the curve as segments sigma_y = s_i + k_i (alpha - a_i) from a_i on (the
+        last one continued); a linear curve is one segment (0, yield stress, hardening modulus)."""
+        if self.points is None:
+            return np.zeros(1), np.array([self.yield_stress]), np.array([self.hardening_modulus])
+        return self._table()
+
     def flow_stress(self, alpha: np.ndarray) -> np.ndarray:
         """sigma_y(alpha), Pa."""
         alpha = np.asarray(alpha, dtype=float)

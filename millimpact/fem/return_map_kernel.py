@@ -50,7 +50,7 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
                const double *weights, const int *dofs, const double *jinv, const double *det,
                const double *u, const double *eps_p, const double *alpha,
                double G, double K, int n_pts, const double *a, const double *s, const double *k,
-               double yield_tol, double consistency_tol, int max_it, double *f,
+               double tol, int max_it, double *f,
                double *stress_out, double *deps_out, double *dg_out, unsigned char *yield_out);
 """
 
@@ -71,14 +71,15 @@ static int segment(int n, const double *a, double alpha)
    ref_grad (n_q, n_nodes, 3) the reference gradients, weights (n_q), dofs (cells, n_nodes) block
    indices into u and f (3 per node), jinv (cells, 3, 3) J^-1, det (cells) |det J|, eps_p
    (cells * n_q, 6) and alpha (cells * n_q) the committed state; the flow table has n_pts rows
-   (a linear curve: one row, a = 0, s = yield stress, k = hardening modulus). f is added to.
+   (a linear curve: one row, a = 0, s = yield stress, k = hardening modulus); tol (Pa) both the
+   yield test's margin and the consistency equation's (plasticity.CONSISTENCY_RTOL). f is added to.
    With stress_out (not NULL) the trial state is kept per point (ip * n_q + q): the stress (6),
    the plastic strain increment (6), dg (the increment of alpha) and whether it yields. */
 int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *ref_grad,
                const double *weights, const int *dofs, const double *jinv, const double *det,
                const double *u, const double *eps_p, const double *alpha,
                double G, double K, int n_pts, const double *a, const double *s, const double *k,
-               double yield_tol, double consistency_tol, int max_it, double *f,
+               double tol, int max_it, double *f,
                double *stress_out, double *deps_out, double *dg_out, unsigned char *yield_out)
 {
     const double s2 = sqrt(2.0), s15 = sqrt(1.5);
@@ -116,7 +117,7 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
             const long o = (long)ip * n_q + q;
             double sig[6] = {2.0 * G * dev[0] + K * tr, 2.0 * G * dev[1] + K * tr, 2.0 * G * dev[2] + K * tr,
                              2.0 * G * dev[3], 2.0 * G * dev[4], 2.0 * G * dev[5]};
-            if (!(q_tr - (s[i0] + k[i0] * (al - a[i0])) > yield_tol)) {
+            if (!(q_tr - (s[i0] + k[i0] * (al - a[i0])) > tol)) {
                 if (stress_out) {
                     for (int i = 0; i < 6; i++) { stress_out[6 * o + i] = sig[i]; deps_out[6 * o + i] = 0.0; }
                     dg_out[o] = 0.0;
@@ -132,13 +133,13 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
                 for (int it = 0; it < max_it; it++) {
                     int i1 = segment(n_pts, a, al + dg);
                     double r = q_tr - 3.0 * G * dg - (s[i1] + k[i1] * (al + dg - a[i1]));
-                    if (fabs(r) <= consistency_tol) { ok = 1; break; }
+                    if (fabs(r) <= tol) { ok = 1; break; }
                     dg = dg + r / (3.0 * G + k[i1]);
                     if (dg < 0.0) dg = 0.0;
                 }
                 if (!ok) {
                     int i1 = segment(n_pts, a, al + dg);
-                    if (fabs(q_tr - 3.0 * G * dg - (s[i1] + k[i1] * (al + dg - a[i1]))) > consistency_tol)
+                    if (fabs(q_tr - 3.0 * G * dg - (s[i1] + k[i1] * (al + dg - a[i1]))) > tol)
                         return -1 - (int)p;
                 }
             }
@@ -260,16 +261,8 @@ class ZoneKernelData:
                 and V.ufl_element().degree() in (1, 2) and V.dofmap.bs == 3)
 
 
-def flow_table(flow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(a, s, k) of a :class:`~millimpact.fem.plasticity.FlowCurve`: one row for a linear curve."""
-    if flow.points is None:
-        return np.zeros(1), np.array([flow.yield_stress]), np.array([flow.hardening_modulus])
-    a, s, k = flow._table()
-    return np.ascontiguousarray(a), np.ascontiguousarray(s), np.ascontiguousarray(k)
-
-
 def zone_force(module, data: ZoneKernelData, pos: np.ndarray, u: np.ndarray, plastic_strain: np.ndarray,
-               alpha: np.ndarray, material, table, yield_tol: float, consistency_tol: float,
+               alpha: np.ndarray, material, table, tol: float,
                max_iterations: int, f: np.ndarray, state: Optional[tuple] = None) -> int:
     """Add the cells' (``pos``, positions in the zone's cells) force correction beyond the frozen
     one, -int B^T C d eps_p dV, to ``f`` (the local array, ghosts included) for the displacement
@@ -292,7 +285,7 @@ def zone_force(module, data: ZoneKernelData, pos: np.ndarray, u: np.ndarray, pla
                               ptr(data.weights), ptr(data.dofs, "int *"), ptr(data.jinv), ptr(data.det),
                               ptr(u), ptr(plastic_strain), ptr(alpha),
                               material.shear_modulus, material.bulk_modulus, len(a), ptr(a), ptr(s), ptr(k),
-                              yield_tol, consistency_tol, max_iterations, ptr(f), *outputs))
+                              tol, max_iterations, ptr(f), *outputs))
 
 
 class CompiledPass:
@@ -305,7 +298,8 @@ class CompiledPass:
         points, weights = basix.make_quadrature(basix.CellType.tetrahedron, q_degree)
         self.module, self.materials = module, list(materials)
         self.data = [ZoneKernelData(V, c, points, weights) for c in cells]
-        self.tables = [flow_table(m.flow) for m in self.materials]
+        self.tables = [tuple(np.ascontiguousarray(x, dtype=float) for x in m.flow.segments())
+                       for m in self.materials]
 
     @classmethod
     def build(cls, V, cells: Sequence[np.ndarray], materials: Sequence, q_degree: int) -> "Optional[CompiledPass]":
@@ -332,7 +326,7 @@ class CompiledPass:
                      np.empty(n_points, dtype=bool)) if keep_state else None
             tol = CONSISTENCY_RTOL * material.flow.yield_stress
             n = zone_force(self.module, self.data[k], pos, u, plastic_strain[k], alpha[k], material, self.tables[k],
-                           tol, tol, CONSISTENCY_MAX_ITERATIONS, f, state)
+                           tol, CONSISTENCY_MAX_ITERATIONS, f, state)
             if n < 0:
                 raise PlasticityError(f"return map: the consistency equation did not converge at point {-1 - n} of zone {k}")
             n_yield += n

@@ -54,7 +54,7 @@ class ProjectedPlasticZone:
 
     @property
     def compiled(self) -> bool:
-        """Whether the candidates' iterations take the compiled kernel (the zone's own flag)."""
+        """Whether the evaluations without the tangent take the compiled pass (the zone's own flag)."""
         return self.zone.compiled
 
     @compiled.setter

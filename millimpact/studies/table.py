@@ -352,6 +352,7 @@ def costliest_first(todo: Sequence[TableCase]) -> list[list[TableCase]]:
     bands: dict[int, list[TableCase]] = {}
     for c in todo:
         bands.setdefault(c.band, []).append(c)
+
     def cost(g: list[TableCase]) -> tuple[float, float]:
         return max(c.scene.normal_speed for c in g), g[0].radius
 

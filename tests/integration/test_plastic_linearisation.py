@@ -14,9 +14,10 @@ COARSE = [*PLASTIC_HALFSPACE, "--set", "outputs.figures=false"]
 KEYS = ("peak_contact_force_N", "restitution", "plastic_dissipation_J", "residual_dent_depth_m")
 
 
-def _run(tmp_path, linearisation):
-    out = tmp_path / linearisation
-    r = run_cli("run", *COARSE, "--out", str(out), "-impact_plastic_linearisation", linearisation)
+def _run(tmp_path, name, *options):
+    """The coarse run with PETSc ``options`` in tmp_path/name: its summary."""
+    out = tmp_path / name
+    r = run_cli("run", *COARSE, "--out", str(out), *options)
     assert r.returncode == 0, r.stderr[-3000:]
     return json.loads((out / "summary.json").read_text())
 
@@ -26,13 +27,13 @@ def test_linearisations_agree(tmp_path, plastic_halfspace_run):
     force scale), so they converge to the same step: the results agree within 1e-6 (the issue's
     bound; the residual tolerance propagated over ~60 yielding steps, measured 1e-9 - 5e-9),
     while the elastic path factorizes no tangent."""
-    ta = _run(tmp_path, "tangent")
+    ta = _run(tmp_path, "tangent", "-impact_plastic_linearisation", "tangent")
     assert ta["integration"]["n_tangent_factorizations"] > 0
     # "elastic" is the default (plastic_newmark.py): conftest's run of the same scene without the
     # option, which tests/methods/test_plastic.py checks too (the figures alone differ)
     elastic = json.loads((plastic_halfspace_run / "summary.json").read_text())
     for lin in ("elastic", "held"):
-        s = elastic if lin == "elastic" else _run(tmp_path, lin)
+        s = elastic if lin == "elastic" else _run(tmp_path, lin, "-impact_plastic_linearisation", lin)
         for k in KEYS:
             assert s[k] == pytest.approx(ta[k], rel=1e-6), (lin, k)
         assert s["integration"]["n_plastic_steps"] == ta["integration"]["n_plastic_steps"]
@@ -47,13 +48,8 @@ def test_candidate_cells_give_the_step_of_every_cell(tmp_path, plastic_halfspace
     With candidates at 0.99 of the flow stress, points outside them yield: the confirmation must
     catch each (misses > 0) and the answers stay the same (measured 1e-10)."""
     default = json.loads((plastic_halfspace_run / "summary.json").read_text())
-    every = tmp_path / "every"
-    r = run_cli("run", *COARSE, "--out", str(every), "-impact_plastic_candidate_fraction", "0")
-    assert r.returncode == 0, r.stderr[-3000:]
-    tight = tmp_path / "tight"
-    r = run_cli("run", *COARSE, "--out", str(tight), "-impact_plastic_candidate_fraction", "0.99")
-    assert r.returncode == 0, r.stderr[-3000:]
-    every, tight = (json.loads((d / "summary.json").read_text()) for d in (every, tight))
+    every = _run(tmp_path, "every", "-impact_plastic_candidate_fraction", "0")
+    tight = _run(tmp_path, "tight", "-impact_plastic_candidate_fraction", "0.99")
     assert every["integration"]["n_plastic_candidate_misses"] == 0
     assert tight["integration"]["n_plastic_candidate_misses"] > 0
     for s in (default, tight):
@@ -68,10 +64,7 @@ def test_extrapolated_predictor_gives_the_step_of_the_frozen_one(tmp_path, plast
     1e-6 (the issue's bound; measured 5e-9, the residual tolerance) over the same yielding steps,
     and the closer start saves iterations (deterministic counts: 546 against 563 here)."""
     default = json.loads((plastic_halfspace_run / "summary.json").read_text())
-    out = tmp_path / "frozen"
-    r = run_cli("run", *COARSE, "--out", str(out), "-impact_plastic_predictor", "frozen")
-    assert r.returncode == 0, r.stderr[-3000:]
-    frozen = json.loads((out / "summary.json").read_text())
+    frozen = _run(tmp_path, "frozen", "-impact_plastic_predictor", "frozen")
     for k in KEYS:
         assert default[k] == pytest.approx(frozen[k], rel=1e-6), k
     d, f = default["integration"], frozen["integration"]
@@ -125,10 +118,7 @@ def test_compiled_return_map_gives_the_step_of_numpys(tmp_path, plastic_halfspac
     so the iterations are the same (the counts equal) and the results agree within 1e-6 (the
     issue's bound; measured 1e-13 - 5e-15, rounding carried through the steps)."""
     default = json.loads((plastic_halfspace_run / "summary.json").read_text())
-    out = tmp_path / "numpy"
-    r = run_cli("run", *COARSE, "--out", str(out), "-impact_plastic_return_map", "numpy")
-    assert r.returncode == 0, r.stderr[-3000:]
-    numpy_path = json.loads((out / "summary.json").read_text())
+    numpy_path = _run(tmp_path, "numpy", "-impact_plastic_return_map", "numpy")
     for k in KEYS:
         assert default[k] == pytest.approx(numpy_path[k], rel=1e-6), k
     d, n = default["integration"], numpy_path["integration"]
