@@ -14,6 +14,7 @@ from dolfinx import fem, mesh as dmesh
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 
+from millimpact.fem import return_map_kernel as rk
 from millimpact.fem.plastic_zone import PlasticZone, ZoneMaterial, mandel_strain
 from millimpact.fem.plasticity import FlowCurve, J2Material, return_map
 
@@ -40,14 +41,18 @@ def _stiffness(V):
     return K
 
 
+@pytest.mark.parametrize("tangent", [True, False], ids=["numpy", "compiled"])
 @pytest.mark.parametrize("p", [1, 2])
-def test_uniform_strain_and_force_decomposition(p):
+def test_uniform_strain_and_force_decomposition(p, tangent):
+    """Without the tangent the compiled pass evaluates (return_map_kernel): both paths against the
+    closed-form return map of the uniform strain and the directly assembled plastic stress."""
     m, tags, V = _setup(p)
     zone = PlasticZone(V, tags, [ZoneMaterial(3, MAT)])
     e = np.array([8e-3, -2e-3, -1e-3, 0.0, 0.0, 3e-3 * np.sqrt(2)])   # Mandel: eps_xy = 3e-3
     u = fem.Function(V)
     u.interpolate(lambda x: np.vstack([e[0] * x[0] + 3e-3 * x[1], e[1] * x[1] + 3e-3 * x[0], e[2] * x[2]]))
-    n_y = m.comm.allreduce(zone.evaluate(u.vector))
+    n_y = m.comm.allreduce(zone.evaluate(u.vector, tangent=tangent))
+    assert bool(zone._kernel) == (not tangent and rk.load_kernel() is not None)
     ref = return_map(MAT, e[None], np.zeros((1, 6)), np.zeros(1))
     assert ref.yielding[0] and n_y == m.comm.allreduce(len(zone.cells[0]) * zone.n_q)
     for res in zone.trial():
