@@ -42,17 +42,17 @@ def residual_displacement(model: FEModel, zone, reduced=None):
     f.scale(-1.0)
     dk, dm = model.K.getDiagonal(), model.M.getDiagonal()
     s = 1e-9 * dk.max()[1] / max(dm.max()[1], 1e-300)
-    K, M = (model.K, model.M) if reduced is None else (reduced.K, reduced.M)
-    A = K.copy()
-    A.axpy(s, M)
-    ksp = solvers.create_factored_solver(A, "impact_dent_", solvers.effective_solver_defaults(model.K.getComm().tompi4py()))
-    rhs = f if reduced is None else reduced.restrict(f)
-    x = A.createVecRight()
-    solvers.solve_checked(ksp, rhs, x, "residual (dent) solve", 0, 0.0)
-    ksp.destroy()
-    A.destroy()
     if reduced is None:
+        A = model.K.copy()
+        A.axpy(s, model.M)
+        ksp = solvers.create_factored_solver(A, "impact_dent_", solvers.effective_solver_defaults(model.comm))
+        x = A.createVecRight()
+        solvers.solve_checked(ksp, f, x, "residual (dent) solve", 0, 0.0)
+        ksp.destroy()
+        A.destroy()
         return x
+    rhs = reduced.restrict(f)
+    x = reduced.static_solve(rhs, s, "residual (dent) solve")     # the factorization kept with it
     u = reduced.expand(x)
     for v in (x, rhs):
         v.destroy()
