@@ -180,7 +180,7 @@ def residual_offset(red: ReducedModel, system: integrators.LinearDynamics, conta
     contact gaps it shifts (``gap_shift`` = B_r q_s, replicated, m) and the plastic state's
     ``version`` it belongs to."""
     plastic = system.plastic
-    q_s = plastic.residual_state(red.K, red.M)
+    q_s = plastic.residual_state()
     shift = system.B.createVecLeft()
     system.B.mult(q_s, shift)
     gap_shift = np.concatenate(red.comm.allgather(shift.array_r.copy()))

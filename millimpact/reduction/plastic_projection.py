@@ -19,7 +19,6 @@ import math
 import numpy as np
 from petsc4py import PETSc
 
-from ..integration.solvers import create_factored_solver, effective_solver_defaults, mark_symmetric, solve_checked
 from .reduced_model import ReducedModel
 
 #: the residual state's solve regularizes the free ball's rigid motions by this shift of
@@ -36,7 +35,6 @@ class ProjectedPlasticZone:
         self.zone, self.red = zone, red
         self._u = None                   # the zone's displacement G q (a Vec of the model's dofs)
         self._f = None                   # the zone's force correction, assembled in place
-        self._residual_solver = None     # (K, M, the factorized K_r + s M_r): kept for the next impact
         self._frozen = None              # (plastic state version, G^T f_frozen)
 
     def _expand(self, q: PETSc.Vec) -> PETSc.Vec:
@@ -93,7 +91,7 @@ class ProjectedPlasticZone:
         """Counts the committed plastic states (changes when a step yields)."""
         return self.zone.version
 
-    def residual_state(self, K: PETSc.Mat, M: PETSc.Mat) -> PETSc.Vec:
+    def residual_state(self) -> PETSc.Vec:
         """The static state q_s that the frozen plastic strain holds when the bodies are apart and
         at rest, K_r q_s = -f_frozen (the residual, unloaded state: its dent and residual stress).
 
@@ -101,39 +99,21 @@ class ProjectedPlasticZone:
         (:mod:`millimpact.methods.free_phase`). The free ball makes K_r singular; f_frozen is
         self-equilibrated (rigid motions do no work on it), so the solve uses
         K_r + (2 pi RESIDUAL_SHIFT_HZ)^2 M_r, which fixes the rigid part near zero (any rigid
-        offset is carried by the rigid free modes). Prefix ``residual_`` (Cholesky: CHOLMOD in
-        serial, MUMPS under MPI). The factorization is kept for the next call with the same K and M
-        (each impact of a repeated-impact sequence ends at a new residual state: 1.2 s a call on
-        paper-rig-plastic's sequence model, 14,833 coordinates)."""
-        held = self._residual_solver
-        if held is None or held[0] is not K or held[1] is not M:
-            self.release()
-            A = K.copy()
-            A.axpy((2.0 * math.pi * RESIDUAL_SHIFT_HZ) ** 2, M, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-            mark_symmetric(A)
-            ksp = create_factored_solver(A, "residual_", effective_solver_defaults(K.getComm().tompi4py()))
-            self._residual_solver = held = (K, M, A, ksp)
+        offset is carried by the rigid free modes). Prefix ``residual_``. The factorization is the
+        reduced model's, kept (:meth:`ReducedModel.static_solve`): each impact of a
+        repeated-impact sequence ends at a new residual state, and a table's cases share it."""
         b = self.frozen_force()
         b.scale(-1.0)
-        q = K.createVecRight()
-        solve_checked(held[3], b, q, "residual state (K_r q_s = -f_frozen)", 0, 0.0)
+        q = self.red.static_solve(b, (2.0 * math.pi * RESIDUAL_SHIFT_HZ) ** 2, "residual_",
+                                  "residual state (K_r q_s = -f_frozen)")
         b.destroy()
         return q
 
-    def release(self) -> None:
-        """Free the kept residual-state factorization (collective)."""
-        if self._residual_solver is not None:
-            _, _, A, ksp = self._residual_solver
-            ksp.destroy()
-            A.destroy()
-            self._residual_solver = None
-
     def destroy(self) -> None:
-        """Free the kept Vecs (the zone's displacement and force, G^T f_frozen) and the residual-state
-        factorization, at a case's end (collective). A dropped Vec is parked on its communicator's
-        garbage for the life of the process (:meth:`PlasticZone._prune_cache`): ~1.2 MB a case of
-        a plastic table. They are made again if the zone is used after."""
-        self.release()
+        """Free the kept Vecs (the zone's displacement and force, G^T f_frozen) at a case's end
+        (collective). A dropped Vec is parked on its communicator's garbage for the life of the
+        process (:meth:`PlasticZone._prune_cache`): ~1.2 MB a case of a plastic table. They are
+        made again if the zone is used after."""
         for name in ("_u", "_f"):
             vec = getattr(self, name)
             if vec is not None:

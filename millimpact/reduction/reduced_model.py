@@ -16,8 +16,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..fem.model import FEModel
-from ..integration.solvers import (create_factored_solver, effective_solver_defaults, solve_checked,
-                                   solve_or_factorize)
+from ..integration.solvers import (create_factored_solver, effective_solver_defaults, mark_symmetric,
+                                   solve_checked, solve_or_factorize)
 from .partition import DofPartition, ZoneBasis
 from .distributed import aij_from_local_csr, dense_columns, gather_rows, positions_in
 
@@ -117,7 +117,7 @@ class ReducedModel:
     n_zone: int
     timings: dict[str, float] = field(default_factory=dict)
     _mass_ksp: Optional[PETSc.KSP] = None
-    _static: dict = field(default_factory=dict)          #: (K_r + s M_r, its factored KSP) by s
+    _static: dict = field(default_factory=dict)   #: (K_r + s M_r, its factored KSP) by (s, prefix)
     _scatters: dict = field(default_factory=dict)
     _recovery_rows: dict = field(default_factory=dict)   #: mode_acceleration_rows by the rows' CSR hash
 
@@ -351,19 +351,23 @@ class ReducedModel:
         self._recovery_rows[key] = (D, C)
         return D, C
 
-    def static_solve(self, rhs: PETSc.Vec, shift: float, what: str) -> PETSc.Vec:
-        """q with ``(K_r + s M_r) q = rhs`` (s = ``shift``, 1/s^2: a mass shift that holds a free
-        body), e.g. the residual state of a frozen plastic strain (the dent). Factorized once per
-        shift and kept with the model: a contact table's cases and a run's repeated calls share
-        it (the paper-rig's 11,433 coordinates: ~0.4 s a factorization, with the matrix sum),
-        freed with the model (:func:`~millimpact.integration.solvers.destroy_petsc_tree`).
-        Options prefix ``-impact_dent_``; ``what`` names the solve in a failure."""
-        if shift not in self._static:
+    def static_solve(self, rhs: PETSc.Vec, shift: float, prefix: str, what: str) -> PETSc.Vec:
+        """q with ``(K_r + s M_r) q = rhs``, s = ``shift`` (1/s^2: a mass shift that holds the free
+        ball), e.g. the residual state of a frozen plastic strain. Factorized once per shift and
+        options ``prefix`` (Cholesky: CHOLMOD in serial, MUMPS under MPI) and kept with the model:
+        a contact table's cases, a repeated-impact sequence's impacts and a run's dent share it
+        (paper-rig's 11,433 coordinates: ~0.4 s a factorization with the matrix sum; 1.2 s on the
+        sequence's 14,833). Freed with the model
+        (:func:`~millimpact.integration.solvers.destroy_petsc_tree`); ``what`` names the solve in a
+        failure."""
+        key = (shift, prefix)
+        if key not in self._static:
             A = self.K.copy()
-            A.axpy(shift, self.M)
-            self._static[shift] = (A, create_factored_solver(A, "impact_dent_", effective_solver_defaults(self.comm)))
+            A.axpy(shift, self.M, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+            mark_symmetric(A)
+            self._static[key] = (A, create_factored_solver(A, prefix, effective_solver_defaults(self.comm)))
         q = self.create_vector()
-        solve_checked(self._static[shift][1], rhs, q, what, 0, 0.0)
+        solve_checked(self._static[key][1], rhs, q, what, 0, 0.0)
         return q
 
     def release_recovery(self) -> None:

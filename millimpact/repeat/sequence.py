@@ -504,7 +504,7 @@ class _ReducedEngine(_Engine):
         if self.plastic is None or self.zone.max_equivalent_plastic_strain() <= 0.0:
             return None
         if self._q_res is None or self._q_res[0] != self.zone.version:
-            self._q_res = (self.zone.version, self.plastic.residual_state(self.red.K, self.red.M))
+            self._q_res = (self.zone.version, self.plastic.residual_state())
         return self._q_res[1]
 
     def _ball_field(self, vector):

@@ -52,7 +52,7 @@ def residual_displacement(model: FEModel, zone, reduced=None):
         A.destroy()
         return x
     rhs = reduced.restrict(f)
-    x = reduced.static_solve(rhs, s, "residual (dent) solve")     # the factorization kept with it
+    x = reduced.static_solve(rhs, s, "impact_dent_", "residual (dent) solve")    # kept with the model
     u = reduced.expand(x)
     for v in (x, rhs):
         v.destroy()

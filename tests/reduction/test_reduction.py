@@ -233,7 +233,7 @@ def test_static_solve_keeps_one_factorization_per_shift(traditional):
     for seed in (1, 2, 3):
         rhs = red.create_vector()
         rhs.setArray(np.random.default_rng(seed).normal(size=rhs.getLocalSize()))
-        q = red.static_solve(rhs, shift, "test solve")
+        q = red.static_solve(rhs, shift, "test_static_", "test solve")
         A = red.K.copy()
         A.axpy(shift, red.M)
         r = rhs.duplicate()
@@ -242,7 +242,7 @@ def test_static_solve_keeps_one_factorization_per_shift(traditional):
         # a direct solve of a shifted SPD system: round-off, ~1e-15 measured
         assert r.norm() <= 1e-10 * rhs.norm()
         assert len(red._static) == 1            # the same factorization each time
-    q2 = red.static_solve(rhs, 2.0 * shift, "test solve")
+    q2 = red.static_solve(rhs, 2.0 * shift, "test_static_", "test solve")
     assert len(red._static) == 2 and not np.allclose(q2.array, q.array)
 
 
