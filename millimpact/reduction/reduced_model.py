@@ -352,8 +352,8 @@ class ReducedModel:
         return D, C
 
     def static_solve(self, rhs: PETSc.Vec, shift: float, prefix: str, what: str) -> PETSc.Vec:
-        """q with ``(K_r + s M_r) q = rhs``, s = ``shift`` (1/s^2: a mass shift that holds the free
-        ball), e.g. the residual state of a frozen plastic strain. Factorized once per shift and
+        """q with ``(K_r + s M_r) q = rhs``, s = ``shift`` (1/s^2; the mass term holds the free
+        ball's rigid motions), e.g. the residual state of a frozen plastic strain. Factorized once per shift and
         options ``prefix`` (Cholesky: CHOLMOD in serial, MUMPS under MPI) and kept with the model:
         a contact table's cases, a repeated-impact sequence's impacts and a run's dent share it
         (paper-rig's 11,433 coordinates: ~0.4 s a factorization with the matrix sum; 1.2 s on the
