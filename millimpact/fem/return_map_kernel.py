@@ -43,6 +43,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from .plasticity import CONSISTENCY_MAX_ITERATIONS, CONSISTENCY_RTOL, PlasticityError, ReturnMapResult
+
 log = logging.getLogger(__name__)
 
 _CDEF = """
@@ -314,8 +316,6 @@ class CompiledPass:
         committed (``plastic_strain``, ``alpha``) and add their force correction beyond the frozen
         one to ``f``; returns (the yielding points, per body its :class:`ReturnMapResult` without
         tangent when ``keep_state``, else None)."""
-        from .plasticity import CONSISTENCY_MAX_ITERATIONS, CONSISTENCY_RTOL, PlasticityError, ReturnMapResult
-
         n_yield, trial = 0, []
         for k, (pos, material) in enumerate(zip(positions, self.materials)):
             if not len(pos):

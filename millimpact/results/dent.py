@@ -46,16 +46,17 @@ def residual_displacement(model: FEModel, zone, reduced=None):
         A = model.K.copy()
         A.axpy(s, model.M)
         ksp = solvers.create_factored_solver(A, "impact_dent_", solvers.effective_solver_defaults(model.comm))
-        x = A.createVecRight()
-        solvers.solve_checked(ksp, f, x, "residual (dent) solve", 0, 0.0)
-        ksp.destroy()
-        A.destroy()
-        return x
-    rhs = reduced.restrict(f)
-    x = reduced.static_solve(rhs, s, "impact_dent_", "residual (dent) solve")    # kept with the model
-    u = reduced.expand(x)
-    for v in (x, rhs):
-        v.destroy()
+        u = A.createVecRight()
+        solvers.solve_checked(ksp, f, u, "residual (dent) solve", 0, 0.0)
+        owned = (ksp, A)
+    else:
+        rhs = reduced.restrict(f)
+        x = reduced.static_solve(rhs, s, "impact_dent_", "residual (dent) solve")    # kept with the model
+        u = reduced.expand(x)
+        owned = (x, rhs)
+    # a dropped handle would park its object on the communicator's garbage (a table's every case)
+    for obj in (*owned, f, dk, dm):
+        obj.destroy()
     return u
 
 
