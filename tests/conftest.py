@@ -18,6 +18,9 @@ os.environ.setdefault("OMPI_MCA_ess_singleton_isolated", "1")
 # ranks beside the other worker: one BLAS thread a process (a serial run alone takes its cores,
 # millimpact/__init__.py), set here so that every process the tests start keeps it
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# OpenBLAS's kernels for this CPU (OPENBLAS_CORETYPE, millimpact/__init__.py), chosen before numpy
+# loads OpenBLAS in this process and kept by every process the tests start
+import millimpact  # noqa: E402,F401
 
 
 def mpi_env() -> dict[str, str]:

@@ -182,6 +182,36 @@ def test_blas_threads_follow_the_cores_a_process_may_use():
     assert _blas_threads_seen({"OMPI_COMM_WORLD_LOCAL_SIZE": "2"})[:2] == (shared, shared)
 
 
+def test_blas_kernels_follow_the_cpu_features(tmp_path):
+    """OPENBLAS_CORETYPE from the CPU's features (millimpact/__init__.py): AVX-512 gives SkylakeX,
+    AVX2 with FMA Haswell, older or unreadable none; and OpenBLAS runs the kernels chosen, or the
+    ones the user named."""
+    from millimpact import _blas_coretype
+
+    def cpu(flags: str) -> str:
+        path = tmp_path / f"cpuinfo{len(flags)}"
+        path.write_text(f"processor\t: 0\nvendor_id\t: GenuineIntel\nflags\t\t: {flags}\n\n")
+        return str(path)
+
+    assert _blas_coretype(cpu("fpu sse2 avx2 fma avx512f avx512dq avx512cd avx512bw avx512vl")) == "SkylakeX"
+    assert _blas_coretype(cpu("fpu sse2 avx2 fma avx512f")) == "Haswell"
+    assert _blas_coretype(cpu("fpu sse2 avx avx2")) is None
+    assert _blas_coretype(str(tmp_path / "absent")) is None
+    code = ("import os, ctypes, millimpact, numpy\n"
+            "lib = ctypes.CDLL('libopenblas.so.0'); lib.openblas_get_corename.restype = ctypes.c_char_p\n"
+            "print(os.environ.get('OPENBLAS_CORETYPE'), lib.openblas_get_corename().decode())")
+    base = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+    for extra in ({}, {"OPENBLAS_CORETYPE": "Prescott"}):
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**base, **extra},
+                           timeout=120)
+        assert r.returncode == 0, r.stderr[-2000:]
+        chosen, running = r.stdout.split()
+        expect = extra.get("OPENBLAS_CORETYPE") or _blas_coretype()
+        assert chosen == str(expect)
+        if expect is not None:
+            assert running == expect
+
+
 def test_study_workers_share_the_blas_threads():
     """``share_blas_threads(n)`` before n side-by-side workers gives each its share, once (the
     marker goes: the workers keep it), and leaves a user's value alone."""
