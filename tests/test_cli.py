@@ -183,7 +183,8 @@ def test_bad_block_krylov_size_is_one_line(value):
     ("substructures", "-2", "integer >= 0"), ("substructures", "two", "integer >= 0"),
     ("substructure_f_factor", "0.5", "number >= 1"), ("substructure_trace_density", "-1", "number >= 0"),
     ("substructure_margin", "x", "number >= 0"), ("substructure_compress", "1", "number in [0, 1)"),
-    ("substructure_zone_degree", "-1", "integer >= 0"), ("substructure_zone_degree", "2.5", "integer >= 0")])
+    ("substructure_zone_degree", "-1", "integer >= 0"), ("substructure_zone_degree", "2.5", "integer >= 0"),
+    ("substructure_eps_tol", "0", "number in [1e-15, 1)"), ("substructure_eps_tol", "2", "number in [1e-15, 1)")])
 def test_bad_substructure_settings_are_one_line(suffix, value, words):
     """The substructuring settings out of range are refused before any work, one line, exit 2."""
     option = f"-impact_reduction_block_{suffix}"

@@ -588,7 +588,9 @@ def check_type_options(options: Mapping[str, object]) -> None:
                 ("substructure_across", 0.0, math.inf, "a slab over this x the mean slab is cut again across; "
                                                        "0: never; default 2"),
                 ("substructure_compress", 0.0, 1.0, "relative Gram eigenvalue of a dropped second-pass direction; "
-                                                    "0: keep all; default 1e-12")):
+                                                    "0: keep all; default 1e-12"),
+                ("substructure_eps_tol", 1e-15, 1.0, "the slabs' eigensolver tolerance, relative residual; "
+                                                     "default 1e-4")):
             if str(key).endswith(suffix):
                 try:
                     ok = low <= float(value) < high

@@ -38,7 +38,8 @@ log = logging.getLogger(__name__)
 
 CACHE_ENV = "MILLIMPACT_REDUCTION_CACHE"
 #: bump when what reduce_model computes for the same matrices changes
-CACHE_VERSION = 2     # 2: a substructured body's wide slab is cut again across (substructure_across)
+CACHE_VERSION = 3     # 2: a substructured body's wide slab is cut again across (substructure_across)
+                      # 3: its slabs' modes to substructure_eps_tol (1e-4, was the body's 1e-10)
 #: a rank's files above this are not written (the disk is not a second memory)
 MAX_BYTES_PER_RANK = 2e9
 

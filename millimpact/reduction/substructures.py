@@ -65,7 +65,8 @@ Options (prefix ``impact_reduction_<body>_``): ``substructures`` S (0 or 1: one 
 or a gauge: closer, the static response to the zone varies too fast for the polynomial traces;
 the coarse panel's bolt gauge was off by 3x with a cut next to it), ``substructure_compress``
 (1e-12; 0 keeps every column of step 4), ``substructure_zone_degree`` (0), ``substructure_across``
-(2; 0 keeps the slabs whole).
+(2; 0 keeps the slabs whole), ``substructure_eps_tol`` (1e-4: the slabs' modes are Ritz vectors,
+converged more loosely than the body's modes, :data:`SLAB_EPS_TOL`).
 
 Under MPI each rank takes whole slabs, the costliest first to the least loaded rank
 (:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
@@ -93,6 +94,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -115,6 +117,12 @@ AUTO_SLAB_DOFS = 70_000
 #: million-DOF run's (0.5 and exact constraint modes ran out of memory there: docs/scenes.md)
 AUTO_MARGIN = 0.25
 AUTO_ZONE_DEGREE = 3
+#: the slabs' eigensolver tolerance (``substructure_eps_tol``, the relative residual of SLEPc and
+#: :mod:`.block_krylov`): a slab's modes are Ritz vectors, which the second pass and the
+#: Rayleigh-Ritz refine, so they need not be converged like a body's modes (``eps_tol`` 1e-10).
+#: Liner panel, 17 slabs on 2 ranks: block Krylov bases of 416 -> 224-256 columns, the busier
+#: rank's eigensolves 83.5 -> 59.8 s; frequencies within 3e-9, F_max and e 1e-9, the gauges 7e-7
+SLAB_EPS_TOL = 1e-4
 #: rows of a slab expanded and sent to their owners at a time (16k rows x ~300 columns: 40 MB)
 EXPAND_ROWS = 16384
 
@@ -130,6 +138,7 @@ class SubstructureSettings:
     compress: float = 1e-12        #: second pass: relative Gram eigenvalue of a dropped direction (0: keep all)
     zone_degree: int = 0           #: zone-interface patterns' polynomial degree (0: exact constraint modes)
     across: float = ACROSS_RATIO   #: a slab over this x the mean is cut again across (0: never)
+    eps_tol: float = SLAB_EPS_TOL  #: the slabs' eigensolver tolerance
 
 
 def substructure_settings(prefix: str, options: Optional[dict[str, str]],
@@ -141,7 +150,7 @@ def substructure_settings(prefix: str, options: Optional[dict[str, str]],
     with the margin and zone-interface patterns of the liner panel's million-DOF run
     (:data:`AUTO_MARGIN`, :data:`AUTO_ZONE_DEGREE`) unless given."""
     keys = ("substructures", "substructure_f_factor", "substructure_trace_density", "substructure_margin",
-            "substructure_compress", "substructure_zone_degree", "substructure_across")
+            "substructure_compress", "substructure_zone_degree", "substructure_across", "substructure_eps_tol")
     with petsc_options({}, {k: v for k, v in (options or {}).items() if k in keys}, prefix=prefix):
         db = PETSc.Options()
         raw = {k: db.getString(prefix + k, "") for k in keys}
@@ -155,7 +164,8 @@ def substructure_settings(prefix: str, options: Optional[dict[str, str]],
                                     float(raw["substructure_compress"] or default.compress),
                                     int(raw["substructure_zone_degree"]
                                         or (AUTO_ZONE_DEGREE if auto else default.zone_degree)),
-                                    float(raw["substructure_across"] or default.across))
+                                    float(raw["substructure_across"] or default.across),
+                                    float(raw["substructure_eps_tol"] or default.eps_tol))
     return settings if settings.slabs >= 2 else None
 
 
@@ -246,6 +256,7 @@ class _Slab:
     B: np.ndarray
     used: np.ndarray               #: which shared columns (zone statics, traces) reach the slab
     n_own: int                     #: the slab's own columns (modes, second-order statics)
+    first_blocks: Optional[tuple]  #: (B^T K_ss B, B^T M_ss B) of the first pass (:func:`_slab_blocks`)
     stats: dict
     cols: np.ndarray = None
     projected: int = 0             #: columns of B already in K_V, M_V (see _project_slab)
@@ -309,11 +320,13 @@ def _global_rows(A: sp.csr_matrix, r0: int, n: int, comm: MPI.Comm) -> sp.csr_ma
                          shape=(n, A.shape[1]))
 
 
-def _serial_options(options: Optional[dict[str, str]]) -> dict[str, str]:
-    """A slab is factored by one rank: CHOLMOD unless another package was asked for."""
+def _serial_options(options: Optional[dict[str, str]], eps_tol: float) -> dict[str, str]:
+    """A slab is factored by one rank: CHOLMOD unless another package was asked for; its modes are
+    converged to ``eps_tol`` (``substructure_eps_tol``; a command-line ``eps_tol`` still wins)."""
     opts = dict(options or {})
     if opts.get("pc_factor_mat_solver_type", "mumps") == "mumps":
         opts["pc_factor_mat_solver_type"] = "cholmod"
+    opts["eps_tol"] = repr(eps_tol)
     return opts
 
 
@@ -379,7 +392,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     slab_ids = [s for s in range(n_slabs) if len(slab_rows[s])]
     owners = slab_owners([len(slab_rows[s]) for s in slab_ids], size)
     my_ids = [s for s, o in zip(slab_ids, owners) if o == rank]
-    serial_opts = _serial_options(options)
+    serial_opts = _serial_options(options, settings.eps_tol)
     mine: list[_Slab] = []
     # pass 1: every rank gathers the rows of all its slabs in one collective call (a slab's matrices
     # are kept to the end anyway), then reduces them alone: no rank waits for another between slabs
@@ -402,13 +415,13 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         C_s = CD_full[rows][:, :n_b]
         used_t = np.bincount(T_full[np.unique(K_sg_csr.indices)].indices, minlength=n_t) > 0
         used = np.concatenate([np.bincount(C_s.indices, minlength=n_b) > 0, used_t])
-        rhs = np.hstack([C_s[:, used[:n_b]].toarray(), (K_sg_csr @ T_full[:, used_t]).toarray()])
-        X = -_solve(ksp, rhs) if used.any() else np.zeros((len(rows), 0))
-        del rhs
+        rhs = sp.hstack([C_s[:, used[:n_b]], K_sg_csr @ T_full[:, used_t]]).tocsr()
+        X = -_solve(ksp, rhs.toarray()) if used.any() else np.zeros((len(rows), 0))
         # second-order statics: the response to the inertia of the slab's zone statics, M_ss Z_s + M_sz
         n_zone = int(used[:n_b].sum())
-        X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], MPI.COMM_SELF)
-                     + CD_full[rows][:, n_b:][:, used[:n_b]].toarray()) if n_zone else np.zeros((len(rows), 0)))
+        D_s = CD_full[rows][:, n_b:][:, used[:n_b]].tocsr()
+        X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], MPI.COMM_SELF) + D_s.toarray())
+              if n_zone else np.zeros((len(rows), 0)))
         t_static = time.perf_counter() - ts - t_factor
         te = time.perf_counter()
         f_s, vecs, _ = compute_modes(K_ss, M_ss, ksp, settings.f_factor * f_cut, None, prefix, serial_opts,
@@ -419,11 +432,17 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
             v.destroy()
         ksp.destroy()
         return_freed_memory()      # the slab's factors and Krylov basis: the next slab's room
-        mine.append(_Slab(s, rows, K_ss, M_ss, K_sg_csr, M_sg_csr, np.hstack([X, Phi_s, X2]), used,
-                          Phi_s.shape[1] + X2.shape[1],
+        B = np.hstack([X, Phi_s, X2])
+        del X, X2
+        tb = time.perf_counter()
+        blocks = _slab_blocks(K_ss, M_ss, B, -rhs, D_s, Phi_s.shape[1])
+        del rhs, D_s
+        mine.append(_Slab(s, rows, K_ss, M_ss, K_sg_csr, M_sg_csr, B, used,
+                          Phi_s.shape[1] + n_zone, blocks,
                           {"slab": s, "rank": rank, "dofs": len(rows), "modes": int(Phi_s.shape[1]),
-                           "static_columns": int(used.sum() + X2.shape[1]), "factor_s": round(t_factor, 3),
+                           "static_columns": int(used.sum()) + n_zone, "factor_s": round(t_factor, 3),
                            "statics_s": round(t_static, 3), "eigen_s": round(t_eigen, 3),
+                           "blocks_s": round(time.perf_counter() - tb, 3),
                            "total_s": round(time.perf_counter() - ts, 3),
                            "peak_rss_gb": _peak_rss_gb()}))
         log.info("substructures %s: slab %d on rank %d: %s", prefix, s, rank, mine[-1].stats)
@@ -591,8 +610,7 @@ def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, 
 
     def images():                                         # K_V, M_V and the eigenpairs are rank 0's
         CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()     # replicated data: no sum
-        WY, lam = ritz["WY"], ritz["lam"]                 # the final Rayleigh-Ritz's, not solved again
-        H = lambda X: WY @ ((WY.T @ X) / lam[:, None])    # noqa: E731  (K_V^+ X)
+        H = ritz["solve"]                                 # K_V^+: the final Rayleigh-Ritz's factor
         return -H(CV[:, :n_b]), -H(CV[:, n_b:]), -H(MV @ A)
     H_C, H_D, H_M = computed_on_root(comm, images)
     return {"rows": rows, "V": keep, "H_C": H_C, "H_D": H_D, "H_M": H_M}
@@ -623,6 +641,24 @@ def constraint_residual(K_ii: PETSc.Mat, Psi: PETSc.Mat, C: sp.csr_matrix, comm:
     return math.sqrt(num) / max(math.sqrt(den), 1e-300)
 
 
+def _slab_blocks(K_ss: PETSc.Mat, M_ss: PETSc.Mat, B: np.ndarray, K_X: sp.csr_matrix, D_s: sp.csr_matrix,
+                 n_modes: int) -> tuple[np.ndarray, np.ndarray]:
+    """A slab's own blocks B^T K_ss B and B^T M_ss B of its first-pass columns B = [X | Phi_s | X2],
+    with K_ss B taken from what the statics solved rather than multiplied out: K_ss X = ``K_X``
+    (sparse: the zone couplings and K_sG T, X = -K_ss^-1 [C_s | K_sG T]) and K_ss X2 = M_ss X_z +
+    ``D_s`` (the second-order statics' load, X_z the first D_s.shape[1] columns of X); only the
+    ``n_modes`` modes' K_ss Phi_s is a product. The statics are most of a slab's columns (liner
+    panel: 150-579 against 0-24 modes), so the dense (columns x dofs x columns) product is done
+    once, for M, not twice. (K_ss X = K_X to the direct solve's backward error, the rounding of
+    the product it replaces.)"""
+    MB = _mult_local(M_ss, B, MPI.COMM_SELF)
+    PM = MB.T @ B
+    n_x, n_zone = K_X.shape[1], D_s.shape[1]
+    KPhi = _mult_local(K_ss, B[:, n_x:n_x + n_modes], MPI.COMM_SELF)
+    PK = np.vstack([np.asarray(K_X.T @ B), KPhi.T @ B, PM[:n_zone] + np.asarray(D_s.T @ B)])
+    return PK, PM
+
+
 def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_full: sp.csr_matrix,
              current: tuple, comm: MPI.Comm, n_cols: int, n_rhs: int) -> tuple:
     """K_V = V^T K_ii V, M_V = V^T M_ii V and [V^T C | V^T D] (n_cols Ritz columns, n_rhs columns
@@ -633,8 +669,10 @@ def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_fu
     for sl in slabs:
         new = slice(sl.projected, None)
         B, Bn, cols, cn = sl.B, sl.B[:, new], sl.cols, sl.cols[new]
-        for V_, A_, A_g in ((KV, sl.K_ss, sl.K_sg), (MV, sl.M_ss, sl.M_sg)):
-            P = _mult_local(A_, Bn, MPI.COMM_SELF).T @ B                       # new rows x all columns
+        first = sl.first_blocks if sl.projected == 0 else None
+        for k, (V_, A_, A_g) in enumerate(((KV, sl.K_ss, sl.K_sg), (MV, sl.M_ss, sl.M_sg))):
+            # new rows x all columns (the first pass's were formed with the slab: _slab_blocks)
+            P = first[k] if first is not None else _mult_local(A_, Bn, MPI.COMM_SELF).T @ B
             V_[np.ix_(cn, cols)] += P
             V_[np.ix_(cols, cn)] += P.T
             V_[np.ix_(cn, cn)] -= P[:, new]                                    # the new-new block once
@@ -643,6 +681,7 @@ def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_fu
             V_[np.ix_(t_idx, cn)] += G.T
         CV[cn] += np.asarray((CD_full[sl.rows].T @ Bn).T)
         sl.projected = B.shape[1]
+        sl.first_blocks = None
     KV, MV, CV = (_sum_on_root(x, comm) for x in (KV, MV, CV))
     if comm.rank != 0:
         return None, None, None
@@ -668,10 +707,9 @@ def _sum_on_root(a: np.ndarray, comm: MPI.Comm) -> Optional[np.ndarray]:
 
 def _ritz_on_root(KV, MV, CV, n_b: int, f_cut: float, comm: MPI.Comm) -> dict:
     """:func:`_rayleigh_ritz` on rank 0 (which holds K_V, M_V, C_V) with the waiting ranks' cores,
-    its results broadcast; the eigenvectors ``WY`` and eigenvalues ``lam`` (for
-    :func:`ritz_recovery`) stay on rank 0."""
+    its results broadcast; the solver ``solve`` (K_V^+, for :func:`ritz_recovery`) stays on rank 0."""
     return computed_on_root(comm, lambda: _rayleigh_ritz(KV, MV, CV, n_b, f_cut),
-                            lambda ritz: {k: v for k, v in ritz.items() if k not in ("WY", "lam")})
+                            lambda ritz: {k: v for k, v in ritz.items() if k != "solve"})
 
 
 def _patterns_and_grams(KV: np.ndarray, MV: np.ndarray, ritz: dict):
@@ -685,18 +723,58 @@ def _patterns_and_grams(KV: np.ndarray, MV: np.ndarray, ritz: dict):
 def _rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_cut: float) -> dict:
     """The Craig-Bampton of the interior in span(V), in an M_V-orthonormal basis W (dependent
     directions dropped): psi (K_V psi = -V^T C), the Ritz modes phi under f_cut and their
-    frequencies, and R A_b's coefficients (the residual flexibility from the Ritz modes above the
-    cutoff applied to V^T A_b = M_V psi + V^T D)."""
+    frequencies (with the next one), and R A_b's coefficients (the residual flexibility from the
+    Ritz modes above the cutoff applied to V^T A_b = M_V psi + V^T D).
+
+    With K_W = W^T K_V W (positive definite: the interior is held) factored by Cholesky,
+    K_V^+ X = W K_W^-1 W^T X; the statics psi = -K_V^+ V^T C and R A_b = K_V^+ (I - M_V phi
+    phi^T) A_b (mode acceleration's residual flexibility; Craig and Kurdila, Fundamentals of
+    Structural Dynamics, 2nd ed., 2006) need only the Cholesky factor and the modes under the
+    cutoff, so only those eigenpairs of K_W are computed (LAPACK's MRRR on a window of the
+    spectrum, :func:`lowest_eigenpairs`). The liner panel's final Ritz (4,368 columns, 157 modes;
+    its K_V, M_V, C_V saved and solved again, one process, 2 threads): 54-61 s with every
+    eigenpair, 37-42 s so; psi within 4e-12, R A_b 2.5e-11, the frequencies 1.4e-11."""
     # columns scaled to unit M_V-norm first: the statics are ~1/omega^2 smaller than the M-normalized
     # modes, and an unscaled Gram matrix would drop them as "dependent" (1e-20 against 1)
     W = gram_basis(MV, DEPENDENT_TOL)
-    lam, Y = np.linalg.eigh(W.T @ KV @ W)
-    WY = W @ Y
-    psi = -WY @ ((WY.T @ CV[:, :n_b]) / lam[:, None])
-    m = int(np.searchsorted(lam, (2 * math.pi * f_cut) ** 2, side="right"))
+    KW = W.T @ (KV @ W)
+    KW += KW.T
+    KW *= 0.5
+    lam_cut = (2 * math.pi * f_cut) ** 2
+    lam, Y = lowest_eigenpairs(KW, lam_cut)
+    chol = sla.cho_factor(KW, lower=True, overwrite_a=True, check_finite=False)   # KW's storage
+    solve = _ritz_solver(W, chol)
+    m = int(np.searchsorted(lam, lam_cut, side="right"))
+    phi = W @ Y[:, :m]
+    psi = -solve(CV[:, :n_b])
     Ab = MV @ psi + CV[:, n_b:]
-    flex = WY[:, m:] @ ((WY[:, m:].T @ Ab) / lam[m:, None])
-    return {"psi": psi, "phi": WY[:, :m], "flex": flex, "m": m, "rank": int(W.shape[1]),
-            "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), "WY": WY, "lam": lam}
+    # the modes under the cutoff taken out of the load before the solve, not from its result: their
+    # 1/lambda-amplified part would cancel there (liner panel: 1.1e-8 against 2.5e-11 of R A_b,
+    # relative to the full eigendecomposition)
+    flex = solve(Ab - MV @ (phi @ (phi.T @ Ab)))
+    return {"psi": psi, "phi": phi, "flex": flex, "m": m, "rank": int(W.shape[1]),
+            "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), "solve": solve}
 
 
+def _ritz_solver(W: np.ndarray, chol: tuple):
+    """X -> K_V^+ X = W K_W^-1 W^T X with K_W's Cholesky factor ``chol`` (scipy's cho_factor)."""
+    return lambda X: W @ sla.cho_solve(chol, W.T @ X)
+
+
+#: the first eigenvalue window of :func:`lowest_eigenpairs`, over the cutoff: (1.2 f_cut)^2
+WINDOW = 1.44
+
+
+def lowest_eigenpairs(A: np.ndarray, lam_cut: float) -> tuple[np.ndarray, np.ndarray]:
+    """The eigenpairs of the symmetric ``A`` up to ``lam_cut`` and at least the next one (all when
+    there are fewer), ascending: LAPACK's dsyevr on the window (-inf, WINDOW lam_cut], widened 4x
+    while no eigenvalue falls above lam_cut in it (each widening one more tridiagonalization)."""
+    n = len(A)
+    hi = WINDOW * lam_cut
+    while True:
+        lam, Y = sla.eigh(A, subset_by_value=(-np.inf, hi), driver="evr")
+        if len(lam) == n or (len(lam) and lam[-1] > lam_cut):
+            return lam, Y
+        if not np.isfinite(hi) or hi <= 0:
+            return sla.eigh(A, driver="evr")
+        hi *= 4.0

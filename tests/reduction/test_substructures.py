@@ -443,3 +443,57 @@ if comm.rank == 0:
     out = run_mpi_script(code)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == "OK", out.stdout
+
+
+@pytest.mark.parametrize("gap", [False, True])
+def test_lowest_eigenpairs_are_the_full_solvers(gap):
+    """The windowed eigensolve gives the lowest eigenpairs of a full dsyevd up to the cutoff and the
+    next one, also when no eigenvalue lies in the first window and it is widened (``gap``). Rounding
+    tolerance: eigenvalues of a matrix of norm ~1e3 to 1e-12 of the largest, vectors (up to sign)
+    to 1e-9 (their separation is >= 1e-2: perturbation theory, eps ||A|| / gap)."""
+    from millimpact.reduction.substructures import WINDOW, lowest_eigenpairs
+
+    rng = np.random.default_rng(3)
+    n = 120
+    lam = np.concatenate([np.linspace(1.0, 8.5, 12), np.linspace(9.0 * (WINDOW * 30.0 if gap else 1.1), 1e3, n - 12)])
+    Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    A = (Q * lam) @ Q.T
+    got, Y = lowest_eigenpairs(A, 9.0)
+    ref, R = np.linalg.eigh(A)
+    assert len(got) >= 13 and got[12] > 9.0 and np.all(got[:12] <= 9.0)
+    assert np.max(np.abs(got - ref[:len(got)])) < 1e-12 * ref[-1]
+    assert np.max(np.abs(np.abs(np.sum(Y * R[:, :len(got)], axis=0)) - 1)) < 1e-9
+
+
+def test_ritz_statics_and_residual_flexibility_match_the_full_eigenbasis():
+    """The Rayleigh-Ritz with K_W's Cholesky factor and only the modes under the cutoff gives the
+    statics psi = -K_V^+ C, the modes and the residual flexibility sum_{i>m} y_i y_i^T A_b / lam_i
+    of the full eigendecomposition on a pencil with two dependent columns (dropped). Compared as
+    vectors of span(V), in the M_V norm (coefficients of dependent columns are not unique):
+    within 1e-10 (rounding, condition of K_W ~1e4)."""
+    from millimpact.reduction.distributed import DEPENDENT_TOL, gram_basis
+    from millimpact.reduction.substructures import _rayleigh_ritz
+
+    rng = np.random.default_rng(5)
+    n, n_b = 90, 4
+    V = rng.standard_normal((200, n))
+    V[:, -2:] = V[:, :2] @ rng.standard_normal((2, 2))        # two dependent columns
+    K0 = rng.standard_normal((200, 200))
+    Kf, Mf = K0 @ K0.T + 200 * np.eye(200), np.diag(rng.uniform(1.0, 2.0, 200))
+    KV, MV, CV = V.T @ Kf @ V, V.T @ Mf @ V, rng.standard_normal((n, 2 * n_b))
+    f_cut = np.sqrt(np.median(np.linalg.eigvalsh(np.linalg.solve(Mf, Kf)))) / (2 * np.pi)
+    got = _rayleigh_ritz(KV.copy(), MV.copy(), CV.copy(), n_b, f_cut)
+    # the reference: every eigenpair of the pencil in the M_V-orthonormal basis
+    W = gram_basis(MV, DEPENDENT_TOL)
+    lam, Y = np.linalg.eigh(W.T @ KV @ W)
+    WY = W @ Y
+    m = int(np.searchsorted(lam, (2 * np.pi * f_cut) ** 2, side="right"))
+    psi = -WY @ ((WY.T @ CV[:, :n_b]) / lam[:, None])
+    Ab = MV @ psi + CV[:, n_b:]
+    flex = WY[:, m:] @ ((WY[:, m:].T @ Ab) / lam[m:, None])
+    assert got["m"] == m and 0 < m < W.shape[1] and got["rank"] == n - 2
+    m_norm = lambda X: np.sqrt(np.sum(X * (MV @ X)))           # noqa: E731
+    assert m_norm(got["psi"] - psi) < 1e-10 * m_norm(psi)
+    assert m_norm(got["flex"] - flex) < 1e-10 * m_norm(flex)
+    assert np.max(np.abs(np.abs(np.sum(got["phi"] * (MV @ WY[:, :m]), axis=0)) - 1)) < 1e-10   # up to sign
+    assert np.allclose(got["freq"][:m + 1], np.sqrt(lam[:m + 1]) / (2 * np.pi), rtol=1e-12)
