@@ -19,6 +19,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import millimpact  # noqa: F401  (before numpy: it chooses OpenBLAS's kernels, millimpact/__init__.py)
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]

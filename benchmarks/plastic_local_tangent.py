@@ -39,6 +39,7 @@ import sys
 import time
 from pathlib import Path
 
+import millimpact  # noqa: F401  (before numpy: it chooses OpenBLAS's kernels, millimpact/__init__.py)
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla

@@ -43,6 +43,7 @@ import sys
 import time
 from pathlib import Path
 
+import millimpact  # noqa: F401  (before numpy: it chooses OpenBLAS's kernels, millimpact/__init__.py)
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]

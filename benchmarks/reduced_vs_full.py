@@ -29,6 +29,7 @@ import platform
 import time
 from pathlib import Path
 
+import millimpact  # noqa: F401  (before numpy: it chooses OpenBLAS's kernels, millimpact/__init__.py)
 import numpy as np
 from mpi4py import MPI
 

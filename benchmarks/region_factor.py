@@ -17,6 +17,7 @@ import resource
 import sys
 import time
 
+import millimpact  # noqa: F401  (before numpy: it chooses OpenBLAS's kernels, millimpact/__init__.py)
 import numpy as np
 
 

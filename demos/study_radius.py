@@ -8,6 +8,7 @@ energy stays in the block's vibration. The demo checks both.
     .venv/bin/python demos/study_radius.py            # full size: 3 cases x 40 ms
     .venv/bin/python demos/study_radius.py --small    # 2 cases, 0.2 ms impacts
 """
+import millimpact  # noqa: F401  (before numpy: it chooses OpenBLAS's kernels, millimpact/__init__.py)
 import numpy as np
 
 from _common import column, exponent, parse, run

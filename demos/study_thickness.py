@@ -8,6 +8,7 @@ vibration (a lower restitution) and the contact force falls below Hertz. The dem
     .venv/bin/python demos/study_thickness.py            # full size: 3 cases x 40 ms
     .venv/bin/python demos/study_thickness.py --small    # 2 cases, 0.2 ms impacts
 """
+import millimpact  # noqa: F401  (before numpy: it chooses OpenBLAS's kernels, millimpact/__init__.py)
 import numpy as np
 
 from _common import column, parse, run
