@@ -451,7 +451,7 @@ def test_lowest_eigenpairs_are_the_full_solvers(gap):
     next one, also when no eigenvalue lies in the first window and it is widened (``gap``). Rounding
     tolerance: eigenvalues of a matrix of norm ~1e3 to 1e-12 of the largest, vectors (up to sign)
     to 1e-9 (their separation is >= 1e-2: perturbation theory, eps ||A|| / gap)."""
-    from millimpact.reduction.substructures import WINDOW, lowest_eigenpairs
+    from millimpact.reduction.ritz import WINDOW, lowest_eigenpairs
 
     rng = np.random.default_rng(3)
     n = 120
@@ -472,7 +472,7 @@ def test_ritz_statics_and_residual_flexibility_match_the_full_eigenbasis():
     vectors of span(V), in the M_V norm (coefficients of dependent columns are not unique):
     within 1e-10 (rounding, condition of K_W ~1e4)."""
     from millimpact.reduction.distributed import DEPENDENT_TOL, gram_basis
-    from millimpact.reduction.substructures import _rayleigh_ritz
+    from millimpact.reduction.ritz import rayleigh_ritz
 
     rng = np.random.default_rng(5)
     n, n_b = 90, 4
@@ -482,7 +482,7 @@ def test_ritz_statics_and_residual_flexibility_match_the_full_eigenbasis():
     Kf, Mf = K0 @ K0.T + 200 * np.eye(200), np.diag(rng.uniform(1.0, 2.0, 200))
     KV, MV, CV = V.T @ Kf @ V, V.T @ Mf @ V, rng.standard_normal((n, 2 * n_b))
     f_cut = np.sqrt(np.median(np.linalg.eigvalsh(np.linalg.solve(Mf, Kf)))) / (2 * np.pi)
-    got = _rayleigh_ritz(KV.copy(), MV.copy(), CV.copy(), n_b, f_cut)
+    got = rayleigh_ritz(KV.copy(), MV.copy(), CV.copy(), n_b, f_cut)
     # the reference: every eigenpair of the pencil in the M_V-orthonormal basis
     W = gram_basis(MV, DEPENDENT_TOL)
     lam, Y = np.linalg.eigh(W.T @ KV @ W)
