@@ -30,14 +30,15 @@ def one_factor(rig):
 
 
 def substructured(rig, slabs: int = 2, density: float = 0.0, f_factor: float = 1.5, compress: float = 1e-12,
-                  zone_degree: int = 0, across: float = 0.0):
+                  zone_degree: int = 0, across: float = 0.0, eps_tol: float = 1e-4):
     from millimpact.reduction.craig_bampton import reduce_model
 
     model, plan = rig
     return reduce_model(model, f_cut=plan.f_cut, solver_options={
         "substructures": str(slabs), "substructure_trace_density": str(density),
         "substructure_f_factor": str(f_factor), "substructure_margin": "0", "substructure_compress": str(compress),
-        "substructure_zone_degree": str(zone_degree), "substructure_across": str(across)},
+        "substructure_zone_degree": str(zone_degree), "substructure_across": str(across),
+        "substructure_eps_tol": str(eps_tol)},
         keep_away=np.array([g.point for g in plan.probes.gauges]))
 
 
@@ -236,10 +237,14 @@ def test_substructured_reduction_under_mpi_matches_serial(rig, tmp_path, slabs, 
     factorizations are MUMPS against CHOLMOD in serial, to rounding). 3 slabs on 2 ranks: one rank
     reduces two, the other one (the collective gathering with unequal slab counts). With
     zone-interface patterns (no Psi): the norm of Phi (rotations of its columns leave it alone).
-    Slabs cut across (across 0.5): the pieces' labels and faces agree over the ranks."""
+    Slabs cut across (across 0.5): the pieces' labels and faces agree over the ranks.
+    The slabs' modes converged to 1e-10 here (substructure_eps_tol; 1e-4 by default): at 1e-4 a
+    frequency differed by 1.9e-9 in one run of six (likely cause: the distributed assembly's
+    rounding ends a slab's block Krylov solve a block earlier or later), a difference of the slab
+    bases' convergence, not of the distribution this test checks; at 1e-10, 32 of 32 passed."""
     if MPI.COMM_WORLD.size > 1:
         pytest.skip("runs its own mpirun")
-    red = substructured(rig, slabs=slabs, density=2.0, zone_degree=zone_degree, across=across)
+    red = substructured(rig, slabs=slabs, density=2.0, zone_degree=zone_degree, across=across, eps_tol=1e-10)
     b = red.bodies[1]
     serial = np.concatenate([b.frequencies_hz, [(b.Psi or b.Phi).norm(), red.K.norm(), red.M.norm()]])
     code = f"""
@@ -257,7 +262,7 @@ plan = make_plan(scene)
 model = create_fe_model(create_mesh(scene, plan, MPI.COMM_WORLD), plan, 2)
 red = reduce_model(model, f_cut=plan.f_cut, solver_options={{"substructures": "{slabs}",
     "substructure_trace_density": "2.0", "substructure_margin": "0", "substructure_zone_degree": "{zone_degree}",
-    "substructure_across": "{across}"}},
+    "substructure_across": "{across}", "substructure_eps_tol": "1e-10"}},
     keep_away=np.array([g.point for g in plan.probes.gauges]))
 b = red.bodies[1]
 out = np.concatenate([b.frequencies_hz, [(b.Psi or b.Phi).norm(), red.K.norm(), red.M.norm()]])
