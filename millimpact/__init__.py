@@ -74,8 +74,10 @@ def _blas_coretype(cpuinfo: str = "/proc/cpuinfo"):
     return next((name for name, need in _BLAS_CORES if need <= flags), None)
 
 
-if "OPENBLAS_CORETYPE" not in _os.environ and _blas_coretype():
-    _os.environ["OPENBLAS_CORETYPE"] = _blas_coretype()
+if "OPENBLAS_CORETYPE" not in _os.environ:
+    _core = _blas_coretype()
+    if _core:
+        _os.environ["OPENBLAS_CORETYPE"] = _core
 
 # Open MPI starts every process not launched by mpirun (a "singleton": `millimpact run`, a study's
 # worker, the test process) with a helper daemon, `orted --hnp --set-sid`, in its own session. A

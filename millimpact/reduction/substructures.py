@@ -256,7 +256,7 @@ class _Slab:
     B: np.ndarray
     used: np.ndarray               #: which shared columns (zone statics, traces) reach the slab
     n_own: int                     #: the slab's own columns (modes, second-order statics)
-    first_blocks: Optional[tuple]  #: (B^T K_ss B, B^T M_ss B) of the first pass (:func:`_slab_blocks`)
+    first_blocks: Optional[tuple]  #: (B^T K_ss B, B^T M_ss B) of the first pass until projected (:func:`_slab_blocks`)
     stats: dict
     cols: np.ndarray = None
     projected: int = 0             #: columns of B already in K_V, M_V (see _project_slab)
@@ -669,10 +669,9 @@ def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_fu
     for sl in slabs:
         new = slice(sl.projected, None)
         B, Bn, cols, cn = sl.B, sl.B[:, new], sl.cols, sl.cols[new]
-        first = sl.first_blocks if sl.projected == 0 else None
         for k, (V_, A_, A_g) in enumerate(((KV, sl.K_ss, sl.K_sg), (MV, sl.M_ss, sl.M_sg))):
             # new rows x all columns (the first pass's were formed with the slab: _slab_blocks)
-            P = first[k] if first is not None else _mult_local(A_, Bn, MPI.COMM_SELF).T @ B
+            P = sl.first_blocks[k] if sl.first_blocks is not None else _mult_local(A_, Bn, MPI.COMM_SELF).T @ B
             V_[np.ix_(cn, cols)] += P
             V_[np.ix_(cols, cn)] += P.T
             V_[np.ix_(cn, cn)] -= P[:, new]                                    # the new-new block once
