@@ -146,6 +146,8 @@ class IntegrationStats:
     max_plastic_iterations: int = 0
     #: converged iterates whose full return map found a yielding point outside the candidate cells
     n_plastic_candidate_misses: int = 0
+    #: iterations' solves of one body's block skipped: its load had not changed (body_blocks.py)
+    n_body_solves_skipped: int = 0
     n_tangent_factorizations: int = 0
     dt_contact: float = 0.0
     dt_free: float = 0.0

@@ -43,6 +43,8 @@ class StepOperators:
     ksp_u: PETSc.KSP
     saddle: Optional[SaddlePointSolver]
     contact: Optional[ContactOperator] = None
+    #: A solved body by body (:class:`.body_blocks.BodyBlockSolver`), built by a plastic scheme
+    body_blocks: Optional[object] = None
 
 
 class NewmarkScheme:
@@ -375,4 +377,6 @@ def _destroy_step_operators(op: StepOperators) -> None:
         op.ksp_u.destroy()
     if op.contact is not None:
         op.contact.W.destroy()
+    if op.body_blocks:       # False: A did not split
+        op.body_blocks.destroy()
     op.A.destroy()

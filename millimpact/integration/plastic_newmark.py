@@ -89,6 +89,14 @@ and force correction from one compiled loop over the points (:mod:`millimpact.fe
 instead of three numpy/FFCx passes; ``numpy`` keeps those. The force is the same to rounding
 (2e-14 relative), and a full evaluation keeps the same trial state to commit.
 
+Body by body (option ``plastic_body_blocks``, default 1; 0 = the whole operator in every solve):
+the step operator of two bodies that only contact couples is block-diagonal over them, so a
+yielding step's later solves are made body by body and a body whose part of r - f_c(u_k) did not
+change (it does not yield at u_k: its frozen force) keeps its last solution
+(:mod:`.body_blocks`). Each solve stays exact. On the plastic rig the ball yields in 58 of the
+block's 827 yielding evaluations, and 561 of 1,364 block solves are skipped (results equal to
+1e-11).
+
 A step whose Newton does not converge in ``plastic_max_iterations`` (default 40 with
 ``tangent``, 80 with the accelerated fixed point) raises
 :class:`SolverError` naming the step, the time and the residual.
@@ -102,6 +110,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import solvers
+from .body_blocks import BodyBlockSolver
 from .contact_operator import ContactOperator, apply_contact_update, contact_operator
 from .friction import PASS_RTOL
 from ..errors import InputError, SolverError
@@ -123,6 +132,9 @@ FRICTION_LOOSEST = 1e-3
 #: a step's first iterate (``-impact_plastic_predictor``): the committed plastic force extrapolated
 #: from the last step's increment, or the committed force itself
 PREDICTORS = ("extrapolated", "frozen")
+#: a step size's operator is split into its bodies' blocks (:mod:`.body_blocks`) once its yielding
+#: steps have needed this many solves beyond their first (the plastic liner's third step size: 10)
+BODY_BLOCKS_AFTER = 20
 #: the zone's evaluations without tangent (``-impact_plastic_return_map``): one compiled pass for
 #: strains, return map and force (:mod:`millimpact.fem.return_map_kernel`), or the numpy return map
 #: between FFCx's strain and assembly kernels
@@ -176,6 +188,12 @@ class PlasticNewmarkScheme(NewmarkScheme):
         if kernel not in RETURN_MAPS:
             raise InputError(f"-impact_plastic_return_map {kernel!r}: choose {', '.join(RETURN_MAPS)}")
         self.zone.compiled = kernel == "compiled"
+        # a yielding step's iterations re-solve only the bodies whose load changed (.body_blocks)
+        blocks = str(solvers.get_option("plastic_body_blocks", options, "1")).lower()
+        if blocks not in ("0", "1", "true", "false"):
+            raise InputError(f"-impact_plastic_body_blocks {blocks!r}: choose 1 or 0")
+        self.body_blocks = blocks in ("1", "true")
+        self._later_solves: dict[float, int] = {}     # per step size, solves beyond a step's first
 
     def initialize(self, u0: PETSc.Vec, v0: PETSc.Vec) -> None:
         """Newmark's start with the zone's frozen plastic force: M a0 = -K u0 - f_c(u0). A start
@@ -297,7 +315,12 @@ class PlasticNewmarkScheme(NewmarkScheme):
             if mixing is not None:
                 mixing.bind(ksp)
             fresh = False
-            solvers.solve_checked(ksp, self._rhs, self.u_pred, "plastic effective-matrix solve", step, t_new)
+            blocks = self._body_blocks(op) if it > 0 and ksp is op.ksp_u else None
+            if blocks is not None:
+                self.stats.n_body_solves_skipped += blocks.solve(self._rhs, self.u_pred,
+                                                                 "plastic effective-matrix solve", step, t_new)
+            else:
+                solvers.solve_checked(ksp, self._rhs, self.u_pred, "plastic effective-matrix solve", step, t_new)
             self.stats.n_solves += 1
             q = self.contact.gap(self.u_pred)
             gap_tol = self.gap_rtol * max(float(np.max(np.abs(q), initial=0.0)),
@@ -396,6 +419,21 @@ class PlasticNewmarkScheme(NewmarkScheme):
         res.axpy(-1.0, force)
         res.array[self.fixed] = 0.0
         return res.norm(), scale
+
+    def _body_blocks(self, op):
+        """The step size's operator solved body by body (:class:`.body_blocks.BodyBlockSolver`),
+        built once this step size has needed BODY_BLOCKS_AFTER solves beyond its steps' first
+        (a step size that iterates a few times does not pay for the blocks' factorizations);
+        None before, when off (``-impact_plastic_body_blocks 0``), distributed, or A does not split."""
+        if not self.body_blocks or op.body_blocks is False:
+            return None
+        if op.body_blocks is None:
+            seen = self._later_solves.get(op.dt, 0) + 1
+            self._later_solves[op.dt] = seen
+            if seen < BODY_BLOCKS_AFTER:
+                return None
+            op.body_blocks = BodyBlockSolver.build(op.A, self.petsc_options) or False
+        return op.body_blocks or None
 
     def _direct_elastic(self, op) -> bool:
         """Whether the elastic step operator is solved exactly (a factorization, no Krylov
