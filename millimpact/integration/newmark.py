@@ -196,18 +196,23 @@ class NewmarkScheme:
             op.contact = contact_operator(op.ksp_u, self.contact.C)
         return op.contact
 
+    def _start_active(self) -> np.ndarray:
+        """The active set a contact problem starts from (its nodes first solved on and the LCP's
+        warm start): the last accepted step's."""
+        return self.active
+
     def _on_touching(self, C: ContactOperator, q: np.ndarray, gap_tol: float, solve):
         """:func:`solve_on_touching` from the last active set and the predicted penetrations,
         booking the columns of W it computed."""
         before = C.n_rhs
-        out = solve_on_touching(C, q, self.active | (q < -gap_tol), gap_tol, self.frictional, solve, self.comm)
+        out = solve_on_touching(C, q, self._start_active() | (q < -gap_tol), gap_tol, self.frictional, solve, self.comm)
         self.stats.n_w_columns += C.n_rhs - before
         return out
 
     def _lcp(self, C: ContactOperator, q: np.ndarray, gap_tol: float) -> LCPResult:
         """The frictionless contact LCP of the step over all candidates, solved on those that touch."""
         def solve(nodes, cols, S_sub):
-            r = broadcast(self.comm, solve_lcp(S_sub, q[nodes], self.active[nodes], gap_tol))
+            r = broadcast(self.comm, solve_lcp(S_sub, q[nodes], self._start_active()[nodes], gap_tol))
             return r, r.lam
         res, nodes, lam = self._on_touching(C, q, gap_tol, solve)
         return LCPResult(lam, lam > 0, res.iterations, res.method)
@@ -316,7 +321,7 @@ class NewmarkScheme:
         def solve(nodes, cols, S_sub):
             # dense and small: solved on rank 0 only (the ranks share cores), the answer broadcast
             pairs = np.concatenate([nodes, n_c + nodes])
-            r = (friction.solve_friction(S_sub, q[nodes], q_t[pairs], self.mu, self.active[nodes],
+            r = (friction.solve_friction(S_sub, q[nodes], q_t[pairs], self.mu, self._start_active()[nodes],
                                          self.sliding[nodes], gap_tol, None if tau0 is None else tau0[pairs],
                                          self.friction_rtol)
                  if self.comm.rank == 0 else None)
