@@ -11,7 +11,7 @@ candidates with the yield stresses raised to YIELD_NEVER, so nothing yields (the
 runs, each step takes one solve and one return map; its answer is the elastic one). Its wall time
 is the improved plastic run's floor, reached only by a plastic step that costs nothing over an
 elastic one: full P2's wall time over it is the largest speed-up any plastic step gives here (the
-"ceiling" column). Writes benchmarks/out/plastic_improved_vs_full/{plastic_improved_vs_full.csv,.md}.
+ceiling, in the report's first line). Writes benchmarks/out/plastic_improved_vs_full/{plastic_improved_vs_full.csv,.md}.
 
     .venv/bin/python benchmarks/plastic_improved_vs_full.py [--scene paper-rig-plastic] [--set time.end=...]
 """
