@@ -43,7 +43,8 @@ class StepOperators:
     ksp_u: PETSc.KSP
     saddle: Optional[SaddlePointSolver]
     contact: Optional[ContactOperator] = None
-    #: A solved body by body (:class:`.body_blocks.BodyBlockSolver`), built by a plastic scheme
+    #: A solved body by body (:class:`.body_blocks.BodyBlockSolver`), built by a plastic scheme;
+    #: None until it is, False when A did not split (or is distributed)
     body_blocks: Optional[object] = None
 
 
@@ -382,6 +383,6 @@ def _destroy_step_operators(op: StepOperators) -> None:
         op.ksp_u.destroy()
     if op.contact is not None:
         op.contact.W.destroy()
-    if op.body_blocks:       # False: A did not split
+    if op.body_blocks:
         op.body_blocks.destroy()
     op.A.destroy()

@@ -22,6 +22,19 @@ def _run(tmp_path, name, *options):
     return json.loads((out / "summary.json").read_text())
 
 
+def _default(plastic_halfspace_run):
+    """The summary of conftest's run of the coarse scene with the default options."""
+    return json.loads((plastic_halfspace_run / "summary.json").read_text())
+
+
+def _assert_same_step(s, ref, label=""):
+    """``s`` converged to the step of ``ref``: KEYS within 1e-6 (the issue's bound) over the same
+    yielding steps."""
+    for k in KEYS:
+        assert s[k] == pytest.approx(ref[k], rel=1e-6), (label, k)
+    assert s["integration"]["n_plastic_steps"] == ref["integration"]["n_plastic_steps"]
+
+
 def test_linearisations_agree(tmp_path, plastic_halfspace_run):
     """All iterate to the same residual test (|A u + f_c(u) - r - C^T x| <= 1e-8 of the step's
     force scale), so they converge to the same step: the results agree within 1e-6 (the issue's
@@ -31,12 +44,10 @@ def test_linearisations_agree(tmp_path, plastic_halfspace_run):
     assert ta["integration"]["n_tangent_factorizations"] > 0
     # "elastic" is the default (plastic_newmark.py): conftest's run of the same scene without the
     # option, which tests/methods/test_plastic.py checks too (the figures alone differ)
-    elastic = json.loads((plastic_halfspace_run / "summary.json").read_text())
+    elastic = _default(plastic_halfspace_run)
     for lin in ("elastic", "held"):
         s = elastic if lin == "elastic" else _run(tmp_path, lin, "-impact_plastic_linearisation", lin)
-        for k in KEYS:
-            assert s[k] == pytest.approx(ta[k], rel=1e-6), (lin, k)
-        assert s["integration"]["n_plastic_steps"] == ta["integration"]["n_plastic_steps"]
+        _assert_same_step(s, ta, lin)
         if lin == "elastic":
             assert s["integration"]["n_tangent_factorizations"] == 0
 
@@ -47,15 +58,13 @@ def test_candidate_cells_give_the_step_of_every_cell(tmp_path, plastic_halfspace
     iteration (fraction 0) the results agree within 1e-6 (the issue's bound; measured 1e-13).
     With candidates at 0.99 of the flow stress, points outside them yield: the confirmation must
     catch each (misses > 0) and the answers stay the same (measured 1e-10)."""
-    default = json.loads((plastic_halfspace_run / "summary.json").read_text())
+    default = _default(plastic_halfspace_run)
     every = _run(tmp_path, "every", "-impact_plastic_candidate_fraction", "0")
     tight = _run(tmp_path, "tight", "-impact_plastic_candidate_fraction", "0.99")
     assert every["integration"]["n_plastic_candidate_misses"] == 0
     assert tight["integration"]["n_plastic_candidate_misses"] > 0
     for s in (default, tight):
-        for k in KEYS:
-            assert s[k] == pytest.approx(every[k], rel=1e-6), k
-        assert s["integration"]["n_plastic_steps"] == every["integration"]["n_plastic_steps"]
+        _assert_same_step(s, every)
 
 
 def test_extrapolated_predictor_gives_the_step_of_the_frozen_one(tmp_path, plastic_halfspace_run):
@@ -63,12 +72,10 @@ def test_extrapolated_predictor_gives_the_step_of_the_frozen_one(tmp_path, plast
     (default) instead of the committed force: only the start moves, so the results agree within
     1e-6 (the issue's bound; measured 5e-9, the residual tolerance) over the same yielding steps,
     and the closer start saves iterations (deterministic counts: 546 against 563 here)."""
-    default = json.loads((plastic_halfspace_run / "summary.json").read_text())
+    default = _default(plastic_halfspace_run)
     frozen = _run(tmp_path, "frozen", "-impact_plastic_predictor", "frozen")
-    for k in KEYS:
-        assert default[k] == pytest.approx(frozen[k], rel=1e-6), k
+    _assert_same_step(default, frozen)
     d, f = default["integration"], frozen["integration"]
-    assert d["n_plastic_steps"] == f["n_plastic_steps"]
     assert d["n_plastic_iterations"] < f["n_plastic_iterations"]
 
 
@@ -118,12 +125,10 @@ def test_compiled_return_map_gives_the_step_of_numpys(tmp_path, plastic_halfspac
     between FFCx's kernels: the force is the same to rounding (tests/fem/test_return_map_kernel.py),
     so the iterations are the same (the counts equal) and the results agree within 1e-6 (the
     issue's bound; measured 1e-13 - 5e-15, rounding carried through the steps)."""
-    default = json.loads((plastic_halfspace_run / "summary.json").read_text())
+    default = _default(plastic_halfspace_run)
     numpy_path = _run(tmp_path, "numpy", "-impact_plastic_return_map", "numpy")
-    for k in KEYS:
-        assert default[k] == pytest.approx(numpy_path[k], rel=1e-6), k
+    _assert_same_step(default, numpy_path)
     d, n = default["integration"], numpy_path["integration"]
-    assert d["n_plastic_steps"] == n["n_plastic_steps"]
     assert d["n_plastic_iterations"] == n["n_plastic_iterations"]
 
 
@@ -141,12 +146,10 @@ def test_body_blocks_give_the_step_of_whole_solves(tmp_path, plastic_halfspace_r
     block solve of a step. Each solve is exact either way (Cholesky factors of A or of its
     diagonal blocks), so the iterates differ by rounding only: the results agree within 1e-6 (the
     issue's bound; measured 1e-11 on paper-rig-plastic) over the same yielding steps."""
-    default = json.loads((plastic_halfspace_run / "summary.json").read_text())
+    default = _default(plastic_halfspace_run)
     whole = _run(tmp_path, "whole", "-impact_plastic_body_blocks", "0")
-    for k in KEYS:
-        assert default[k] == pytest.approx(whole[k], rel=1e-6), k
+    _assert_same_step(default, whole)
     d, w = default["integration"], whole["integration"]
-    assert d["n_plastic_steps"] == w["n_plastic_steps"]
     assert w["n_body_solves_skipped"] == 0
     # most later iterations skip the elastic ball (bounded by the later iterations themselves)
     later = d["n_plastic_iterations"] - d["n_plastic_steps"]
