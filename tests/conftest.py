@@ -126,3 +126,83 @@ def small_rig_mesh():
     scene = small_rig_scene()
     plan = make_plan(scene)
     return scene, plan, create_mesh(scene, plan, MPI.COMM_WORLD)
+
+
+# --- the quick tier ---------------------------------------------------------------------------
+#: each test's measured time (setup + call + teardown, seconds, on the 2-core machine with 2
+#: workers), written by ``./dev test --store-durations``. ``./dev test --quick`` runs the test
+#: modules whose tests together were measured under QUICK_MODULE_S (module fixtures included),
+#: that start no mpirun and use none of the session's FE runs below, and every module not measured yet
+DURATIONS = Path(__file__).with_name("durations.json")
+QUICK_MODULE_S = 10.0
+#: the session fixtures above that run finite-element cases (tens of seconds on first use)
+SESSION_RUNS = {"rig_contact_table", "plastic_halfspace_run"}
+
+
+def pytest_addoption(parser):
+    parser.addoption("--quick", action="store_true",
+                     help=f"the quick tier: test modules measured under {QUICK_MODULE_S:g} s in all "
+                          "(tests/durations.json) that start no mpirun")
+    parser.addoption("--store-durations", action="store_true",
+                     help="write each test's measured time to tests/durations.json")
+
+
+#: the times of this run's tests, when they are to be stored (``--store-durations``)
+_TIMES: dict[str, float] | None = None
+
+
+def pytest_configure(config):
+    global _TIMES
+    config.addinivalue_line("markers", "quick: in the quick tier (chosen from tests/durations.json)")
+    if config.getoption("--store-durations") and not hasattr(config, "workerinput"):
+        _TIMES = {}
+
+
+def _measured() -> dict[str, float]:
+    import json
+
+    try:
+        return json.loads(DURATIONS.read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def _module_seconds(measured: dict[str, float]) -> dict[str, float]:
+    total: dict[str, float] = {}
+    for nodeid, seconds in measured.items():
+        module = nodeid.split("::", 1)[0]
+        total[module] = total.get(module, 0.0) + seconds
+    return total
+
+
+def pytest_collection_modifyitems(config, items):
+    per_module = _module_seconds(_measured())
+    quick, rest = [], []
+    for item in items:
+        module = item.nodeid.split("::", 1)[0]
+        fast = per_module.get(module, 0.0) < QUICK_MODULE_S and not SESSION_RUNS & set(item.fixturenames) \
+            and item.get_closest_marker("mpi") is None and item.get_closest_marker("slow") is None
+        if fast:
+            item.add_marker(pytest.mark.quick)
+        (quick if fast else rest).append(item)
+    if config.getoption("--quick"):
+        items[:] = quick
+        config.hook.pytest_deselected(items=rest)
+
+
+def pytest_runtest_logreport(report):
+    # on the controller (xdist sends every worker's reports here) and in a plain run alike
+    if _TIMES is not None:
+        _TIMES[report.nodeid] = _TIMES.get(report.nodeid, 0.0) + report.duration
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if _TIMES is None:
+        return
+    import json
+
+    measured = _measured()
+    measured.update({k: round(v, 2) for k, v in _TIMES.items()})
+    tmp = DURATIONS.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(dict(sorted(measured.items())), indent=0) + "\n")
+    tmp.replace(DURATIONS)
