@@ -1,5 +1,7 @@
-"""Closed-form contact mechanics: the independent references the simulations are checked against.
+"""Closed-form references the simulations are checked against.
 
-Takes numbers (radii, masses, speeds, moduli), gives Hertz impact values and histories (and the
-plastic-impact theory as it lands). Imports nothing of millimpact: any stage may use it.
+Takes numbers (radii, masses, speeds, moduli, a mill's size, speed and fill), gives Hertz impact
+values and histories, the plastic-impact theory (Thornton), and the empirical models mill
+engineers check a mill's power draw and charge shape against (Morrell, Austin:
+:mod:`millimpact.theory.mill_power`). Imports nothing of millimpact: any stage may use it.
 """
