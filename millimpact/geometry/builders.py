@@ -1,6 +1,6 @@
 """Geometry: gmsh (OpenCASCADE) models of the ball and the struck body, meshed with tetrahedra.
 
-Stage 3 of a run (DESIGN.md section 1). This module holds what the builders share (tags, sizes,
+Stage 3 of a run (design.md section 1). This module holds what the builders share (tags, sizes,
 the gmsh session, zone splitting, size fields, meshing); the builders are :mod:`.block` (the rig)
 and :mod:`.liner` (a liner segment), pure functions of their parameters that
 act on the *current* gmsh session on one rank (rank 0); :mod:`millimpact.geometry.mesh` converts the result
