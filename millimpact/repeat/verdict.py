@@ -25,7 +25,7 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
-#: elastic shakedown: an impact's plastic work below this share of the first's (issue 32)
+#: elastic shakedown: an impact's plastic work below this share of the first's
 ELASTIC_SHARE = 0.01
 #: plastic shakedown: dent increments below this share of the first impact's dent
 CLOSED_SHARE = 0.01

@@ -80,7 +80,7 @@ def _study_base() -> Scene:
     )
 
 
-#: the mill-regime block scenes (issue 32): a 125 mm ball, a liner-thick block backed by the shell
+#: the mill-regime block scenes: a 125 mm ball, a liner-thick block backed by the shell
 MILL_BALL_RADIUS = 0.0625
 MILL_BLOCK = dict(length=0.250, thickness=0.075, height=0.250, support="back")
 

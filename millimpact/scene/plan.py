@@ -50,7 +50,7 @@ P2_REMEDY = "--degree 2 (model.degree = 2) or --method improved is within ~1 %"
 #: a ball whose radius is at most this share of the struck body's smallest side is a *small ball*
 #: (a hardness-test tip on a block, a 2.5 mm ball on hertz-halfspace's 100 mm block): its far
 #: size R / 4 stays inside the ball, and the struck body's far size is its own side / 4, so the
-#: block's cost follows the contact, not the ball (issue 32: the 2.5 mm ball on the 100 mm block
+#: block's cost follows the contact, not the ball (the 2.5 mm ball on the 100 mm block
 #: meshed everything at R / 4 and passed 9 GB). Every built-in scene has a ball larger than this
 #: (hertz-halfspace: 0.15 of its 100 mm block) and keeps its plan.
 SMALL_BALL_SHARE = 0.1
