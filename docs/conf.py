@@ -71,6 +71,24 @@ def _escape_bars(app, what, name, obj, options, lines):
             lines[i] = line.replace("|", "\\|")
 
 
+_PROSE = {}
+
+
+def _keep_constant_prose(app, what, name, obj, options, lines):
+    """A constant's ``#:`` comment is prose, but napoleon reads "words: more words" on its first
+    line as "type: description" (a Type field under the constant). Before napoleon: keep the lines;
+    after it: put them back."""
+    if what in ("data", "attribute"):
+        _PROSE[name] = list(lines)
+
+
+def _restore_constant_prose(app, what, name, obj, options, lines):
+    if what in ("data", "attribute") and name in _PROSE:
+        lines[:] = _PROSE.pop(name)
+
+
 def setup(app):
     app.connect("builder-inited", _write_api_pages)
-    app.connect("autodoc-process-docstring", _escape_bars)
+    app.connect("autodoc-process-docstring", _keep_constant_prose, priority=100)    # before napoleon
+    app.connect("autodoc-process-docstring", _restore_constant_prose, priority=900)  # after it
+    app.connect("autodoc-process-docstring", _escape_bars, priority=950)
