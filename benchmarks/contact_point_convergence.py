@@ -1,4 +1,4 @@
-"""Benchmark: convergence of the contact point's kinematics under the time step and the mesh (issue 18).
+"""Benchmark: convergence of the contact point's kinematics under the time step and the mesh.
 
 The contact point's velocity and acceleration are those of the centre of mass of the half-ball of
 radius a_max under the impact point (``millimpact.fem.probes.patch_momentum_row``: its momentum

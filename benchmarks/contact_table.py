@@ -1,15 +1,15 @@
-"""Benchmark: a DEM contact table (issue 16): its wall time, the cost per case after the first of
+"""Benchmark: a DEM contact table: its wall time, the cost per case after the first of
 each band against a standalone run of the same case cut to the impact, and 1 against N ranks.
 
 Runs ``millimpact table SCENE --velocity ... --angle ...`` at 1 rank and (with ``--ranks N``) under
 ``mpirun -n N --ranks-per-case 1``, each into its own folder (no reuse between them), and one
-standalone ``millimpact run`` of the table's fastest normal case cut to the impact. The issue's
+standalone ``millimpact run`` of the table's fastest normal case cut to the impact. The target
 targets: the 100-case table (10 speeds 0.5-10 m/s x 10 angles 0-60 deg) on paper-rig with improved
 in under 5 minutes on 2 cores; a case after the first of its band at most 1/10 of the standalone
 run; parallel efficiency (cases per second per rank) >= 0.9; the peak resident memory of the busiest rank. Writes
 benchmarks/out/contact_table/contact_table_bench.{csv,md}.
 
-    .venv/bin/python benchmarks/contact_table.py                       # the issue's 100 cases, 1 and 2 ranks
+    .venv/bin/python benchmarks/contact_table.py                       # the 100 cases, 1 and 2 ranks
     .venv/bin/python benchmarks/contact_table.py --speeds 1,3 --angles 0,30 --ranks 2   # a quick look
     .venv/bin/python benchmarks/contact_table.py --ranks 64            # on a larger machine
 """

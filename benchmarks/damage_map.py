@@ -1,9 +1,9 @@
-"""Benchmark: the liner's damage map (issue 34): ``millimpact damage liner-segment`` from a
-2-revolution impact log with at most 30 bins; the issue's target is under 20 minutes on 2 cores.
+"""Benchmark: the liner's damage map: ``millimpact damage liner-segment`` from a
+2-revolution impact log with at most 30 bins; the target is under 20 minutes on 2 cores.
 
 The log is a ``millimpact mill`` run's impacts.csv (``--impacts``) or, until that command is merged,
 a synthetic 2-revolution spectrum (``--synthetic N``: N impacts a revolution, seeded): normal
-speeds log-normal about 1.5 m/s (0.2-8 m/s, the 3-13 m/s of DESIGN.md 10 for the fastest balls
+speeds log-normal about 1.5 m/s (0.2-8 m/s, the 3-13 m/s of design.md section 10 for the fastest balls
 less their tangential part), angles 0-70 deg, half of them on the plate, a third on the lifter
 face, the rest on its top, arc positions over each place. The map runs under ``mpirun -n RANKS
 --ranks-per-case 1`` (the table engine's groups); with ``--serial`` also at 1 rank into its own
@@ -15,7 +15,7 @@ an edge (docs/damage.md, edge impacts). Writes benchmarks/out/damage_map/damage_
 ``--resume`` keeps --out, so a map interrupted there continues (its finished bins are then not
 timed again: the wall and CPU times cover the rerun only).
 
-    .venv/bin/python benchmarks/damage_map.py                                  # the issue's benchmark
+    .venv/bin/python benchmarks/damage_map.py                                  # the benchmark
     .venv/bin/python benchmarks/damage_map.py --max-bins 10 --set model.h_far=0.04   # a quick look
     .venv/bin/python benchmarks/damage_map.py --impacts out/mill/impacts.csv   # from a mill run
     .venv/bin/millimpact mill liner-segment --revolutions 2 --balls 200 --out out/mill-segment   # that run

@@ -1,5 +1,5 @@
 """The Leeb rebound hardness test (ASTM A956, ISO 16859-1) simulated: the restitution of the D
-probe on steels of known hardness against their published HLD / 1000 (issue 32, item 5).
+probe on steels of known hardness against their published HLD / 1000.
 
 Scene ``leeb-d`` (a 5.5 g impact body on a 3 mm tungsten-carbide tip at 2.0 m/s, 11 mJ; the block
 40 x 40 x 25 mm clamped at its back), method ``improved`` (P2 contact zone, J2 plasticity), the
@@ -45,7 +45,7 @@ LEVELS = {
 #: the D probe's dent on steel of 600 HLD: ~0.5 mm across (Wikipedia, as above); the PCE-2800 manual's
 #: Table 3 gives 0.54 mm at 300 and 600 HV, 0.35 mm at 800 HV
 DENT_600HLD_M = 0.5e-3
-#: the issue's gate on |e - HLD / 1000|
+#: the gate on |e - HLD / 1000|
 GATE = 0.03
 #: a run whose plastic region reaches the zone's boundary is rerun with the zone it asks for, this often
 RERUNS = 2

@@ -1,7 +1,7 @@
 """Speed of ``millimpact mill``: 2 revolutions of 200 balls in the liner-panel mill (11 m across, 77
 lifters), one and two Yade threads, run one after the other in this one invocation.
 
-The issue's target: 2 revolutions of about 200 balls in under 5 minutes on 2 cores. Reported per
+The target: 2 revolutions of about 200 balls in under 5 minutes on 2 cores. Reported per
 case: the wall time of the whole command, Yade's own wall and CPU time (run.json), the steps and
 the time per step. On a loaded machine the wall time is inflated; Yade's CPU time is not.
 

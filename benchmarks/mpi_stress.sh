@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# MPI stress: run the suite's mpirun tests N times and count the passes (issue 18). The MUMPS
+# MPI stress: run the suite's mpirun tests N times and count the passes. The MUMPS
 # workspace failure (INFOG(1) = -8/-9 at a factorization under mpirun -n 2) came ~2 times in 10 suite
 # runs before integration/solvers.py retried such factorizations with a larger ICNTL(14).
 #   benchmarks/mpi_stress.sh [N=20] [pytest selection, default: -m mpi]

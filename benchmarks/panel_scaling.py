@@ -1,11 +1,11 @@
-"""Benchmark: strong scaling of the liner panel (issue 17) with ``improved``, at any rank counts.
+"""Benchmark: strong scaling of the liner panel with ``improved``, at any rank counts.
 
 Runs ``millimpact run liner-panel --method improved`` once per rank count (``mpirun -n N``; 1 rank
 plain), side by side in one invocation, each into its own folder, and writes one row per rank
 count: DOFs, reduced coordinates, wall time and its parts (offline reduction, time loop), speed-up
 against the first rank count, the busiest rank's peak resident memory (``wait4``'s ru_maxrss:
 the largest of mpirun's ranks) and F_max / t_c with their largest difference from the first row
-(issue 17: ``mpirun -n N`` equals serial to 1e-9). The mesh is made once first (cached), so no row
+(``mpirun -n N`` equals serial to 1e-9). The mesh is made once first (cached), so no row
 pays for gmsh. The machine's load is printed with the table: wall times on a shared machine
 measure the load.
 

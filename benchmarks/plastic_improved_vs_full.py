@@ -1,9 +1,9 @@
-"""Benchmark: the improved method against full FE of the same mesh on a plastic scene (issue 15).
+"""Benchmark: the improved method against full FE of the same mesh on a plastic scene.
 
 Runs ``paper-rig-plastic`` (both steels yield, 3 m/s, 40 ms; ``--set time.end=2e-3`` for the impact) with ``improved``, then ``full`` P2 on
 the same mesh, zone and contact candidates (the radii the improved run's notes print), one after
 the other on this machine, and reports F_max, restitution, residual dent depth, plastic work and
-the wall times with their ratio. The issue's bounds: F_max within 1 %, restitution within 0.01,
+the wall times with their ratio. The bounds: F_max within 1 %, restitution within 0.01,
 dent within 2 %, improved at least 20x faster over the scene's run time.
 
 A third run bounds what a faster plastic step can give: ``improved`` on the same mesh, zone and

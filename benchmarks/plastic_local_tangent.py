@@ -1,5 +1,5 @@
 """Benchmark: how well a local tangent on the yielding coordinates would precondition a yielding
-step (issue 31's next direction), measured on the plastic rig's own operators.
+step (a direction not taken), measured on the plastic rig's own operators.
 
 A yielding step's iteration today is the fixed point on the elastic operator A (Anderson-mixed):
 its linear rate is that of a Krylov method on A^-1 B, B = A + dK_r the step's tangent, whose

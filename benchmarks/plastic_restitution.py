@@ -1,7 +1,7 @@
 """Restitution of an elastic-perfectly-plastic steel sphere on a very stiff flat against V / V_y,
 to V / V_y = 1000, each point at two meshes (h and h / 1.5), with Thornton's 1997 analytical
 curve (theory/thornton.py), the fitted slope of log e against log(V / V_y) and the small-strain
-check (issues 15 and 32).
+check.
 
 Configuration (Thornton 1997; Wu, Li & Thornton 2005): the ball (r 15 mm, steel, Y = 1 GPa,
 perfectly plastic) strikes the hertz-halfspace block made 10x stiffer (G x 10: nearly rigid);
@@ -59,16 +59,16 @@ from millimpact.theory.thornton import (FIRST_YIELD_PRESSURE_FACTOR, FULLY_PLAST
 
 Y = 1e9
 STIFF = 10.0
-#: e converged: the two meshes' restitutions within this (the issue's bound)
+#: e converged: the two meshes' restitutions within this (the bound of the validation)
 CONVERGED = 0.01
 #: the small-strain J2 model's limit on the equivalent plastic strain (millimpact/results/dent.py)
 SMALL_STRAIN = 0.1
 #: Thornton's asymptote e -> 1.185 (V / V_y)^(-1/4) (eq. 26 as r = V_y / V -> 0:
 #: (6 sqrt(3) / 5)^(1/2) / (2 (6/5)^(1/2))^(1/4) = 1.185)
 THORNTON_ASYMPTOTE = (math.sqrt(6.0 * math.sqrt(3.0) / 5.0) / (2.0 * math.sqrt(1.2)) ** 0.25, -0.25)
-#: the Wu, Li & Thornton (2005) high-speed law in the form the issue gives it, e = 0.62 (V/V_y)^(-1/2)
+#: the Wu, Li & Thornton (2005) high-speed law in the form it is often quoted, e = 0.62 (V/V_y)^(-1/2)
 #: (Int. J. Impact Eng. 32, 593-604). NOT verified against the paper here (not reachable from this
-#: machine): plotted as the issue states it, its slope compared with ours
+#: machine): plotted as it is quoted, its slope compared with ours
 WLT_LAW = (0.62, -0.5)
 
 
@@ -254,7 +254,7 @@ def summarise(rows: list[dict], refines: list[float], fit_from: float) -> tuple[
     text += "\n\nFitted slope of log e against log(V/V_y):\n\n| fit | V/V_y | slope |\n|---|---|---|\n"
     text += "".join(f"| {k} | {', '.join(f'{x:g}' for x in v[1])} | {v[0]:.3f} |\n" for k, v in fits.items())
     text += (f"| Thornton 1997 asymptote | V/V_y -> inf | {THORNTON_ASYMPTOTE[1]:.3f} |\n"
-             f"| Wu, Li & Thornton 2005 (form as the issue gives it, unverified) | high | {WLT_LAW[1]:.3f} |\n")
+             f"| Wu, Li & Thornton 2005 (form as quoted, unverified) | high | {WLT_LAW[1]:.3f} |\n")
     text += ("\nNot converged to 0.01 on the meshes run: " + (", ".join(f"{k:g}" for k in sorted(by) if not conv[k]) or "none")
              + "\nNot valid (plastic strain at the contact zone's boundary, or the contact not ended): "
              + (", ".join(f"{k:g}" for k in sorted(by) if not valid[k]) or "none") + "\n")
@@ -274,7 +274,7 @@ def plot(out: Path, rows: list[dict], refines: list[float], vy: float, hc: float
     if 30.0 in finest:      # reference slopes through the finest 30 V_y point
         xh = x[x >= 30]
         for (c, k), style, label in ((THORNTON_ASYMPTOTE, ":", "slope -1/4 (Thornton 1997 asymptote)"),
-                                     (WLT_LAW, "-.", "slope -1/2 (Wu-Li-Thornton 2005 as the issue gives it, unverified)")):
+                                     (WLT_LAW, "-.", "slope -1/2 (Wu-Li-Thornton 2005 as quoted, unverified)")):
             ax.loglog(xh, finest[30.0] * (xh / 30.0) ** k, style, color="0.4" if k == -0.25 else "tab:red", lw=1,
                       label=label + ", through the 30 V_y point")
     for refine, mk in zip(refines, ("o-", "s--", "^")):

@@ -1,5 +1,5 @@
 """Benchmark: a plastic impact against its elastic twin, and the plastic step's two linearisations
-(issue 31), side by side in one run on this machine.
+side by side in one run on this machine.
 
 Runs, one after the other, each impact only (``--set time.end=...``):
   1. the elastic scene (``paper-rig``; with ``--liner``: ``liner-segment`` with both bodies
@@ -10,7 +10,7 @@ Runs, one after the other, each impact only (``--set time.end=...``):
      are ``--linearisations``, default ``elastic,tangent``),
 and prints the time loop (summary ``timings_s.integrate``) and the whole run (``wall_time_s``) of
 each over the elastic one's, and the plastic answers' relative differences between 2 and 3
-(F_max, restitution, plastic work, dent; the issue's bound 1e-6), each against the last. The issue's targets: the time
+(F_max, restitution, plastic work, dent; the bound 1e-6), each against the last. The targets: the time
 loop at most 2.5x the elastic one's and the run at most 2x on the rig; the liner's time loop at most 3x.
 Writes benchmarks/out/plastic_speed/{plastic_speed.csv,.md}.
 

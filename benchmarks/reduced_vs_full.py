@@ -1,4 +1,4 @@
-"""Benchmark: the reduced methods against the full FE model (issue 5), side by side in one run.
+"""Benchmark: the reduced methods against the full FE model, side by side in one run.
 
 Part A (``--part a``): the default scene ``paper-rig`` over ``--t-end`` (default 40 ms), on one
 mesh (the reduced methods' default contact zone, 2.5 a_max; ``model.zone_radius`` set to it for the

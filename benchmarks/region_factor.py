@@ -1,6 +1,6 @@
 """Benchmark: the struck body's region of ``liner-panel`` (improved, P2) at the plan's sizes or
 coarser: its size, the fill, time and memory of its factorization, and what one solve and a
-multi-right-hand-side solve cost a column (issue 17: the numbers behind the million-DOF run).
+multi-right-hand-side solve cost a column (the numbers behind the million-DOF run).
 
     .venv/bin/python benchmarks/region_factor.py                         # the plan's 1.2M P2 DOFs (~23 GB peak)
     .venv/bin/python benchmarks/region_factor.py --set model.h_far=0.025 # 157k DOFs

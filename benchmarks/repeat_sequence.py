@@ -1,11 +1,11 @@
-"""Benchmark: a repeated-impact sequence against one impact-only run of the same scene (issue 32).
+"""Benchmark: a repeated-impact sequence against one impact-only run of the same scene.
 
 Side by side, in one process tree each, on the same machine state: ``millimpact repeat SCENE
 --impacts N`` against two impact-only runs of the scene: ``millimpact repeat SCENE --impacts 1``
 (mesh, reduction, one impact to 0.1 t_c after separation, the sequence's first impact alone) and
 ``millimpact run SCENE --set time.end=T`` with T = ``--impact-end`` (0.3 ms: the impact-only run
-of issue 31's table, which writes a run's full outputs); and, for context, ``millimpact run SCENE``
-(the scene's 40 ms with the closed-form free phase). The issue's target: the 10-impact sequence on
+of the plastic contact table, which writes a run's full outputs); and, for context, ``millimpact run SCENE``
+(the scene's 40 ms with the closed-form free phase). The target: the 10-impact sequence on
 paper-rig-plastic costs at most 3x one impact-only run. A mesh is made once first (the mesh cache
 serves the timed runs). Writes benchmarks/out/repeat_sequence/repeat_sequence.{csv,md}.
 
@@ -32,7 +32,7 @@ def main() -> int:
     ap.add_argument("--impacts", type=int, default=10)
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
     ap.add_argument("--impact-end", type=float, default=3e-4,
-                    help="time.end (s) of the impact-only `run` (default 3e-4, issue 31's paper-rig-plastic)")
+                    help="time.end (s) of the impact-only `run` (default 3e-4, the plastic rig's impact-only run)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "repeat_sequence"))
     args = ap.parse_args()
     out = Path(args.out)

@@ -1,4 +1,4 @@
-"""A small ball on a large block stays a small model (issue 32, item 5): the gmsh mesh of a ball of
+"""A small ball on a large block stays a small model: the gmsh mesh of a ball of
 radius R on hertz-halfspace cubes of growing side L, its vertices, P1 DOFs, meshing time and peak
 memory, beside the plan's estimate. Each case runs in its own process (peak RSS per case).
 

@@ -42,6 +42,6 @@ if __name__ == "__main__":
           f"{100 * s['vibration_energy_share_end']:.1f} % left in the bodies' vibration, restitution "
           f"{s['restitution']:.3f}")
     print("  gauge peaks: " + ", ".join(f"{g} {v / 1e6:+.1f} MPa" for g, v in s["peak_gauge_stress_Pa"].items()))
-    # the issue's targets: 5 % of Hertz (finite block), energy balance within 1 %
+    # the checks: 5 % of Hertz (finite block), energy balance within 1 %
     assert abs(rel["peak_contact_force"]) < 0.05 and abs(rel["contact_duration"]) < 0.05, rel
     assert abs(e1 / e0 - 1) < 0.01, (e0, e1)

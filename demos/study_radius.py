@@ -23,7 +23,7 @@ if __name__ == "__main__":
     k_f = exponent(r, force)
     print(f"F_max ~ r^{k_f:.3f} (Hertz 2), contact stress {np.round(stress / 1e9, 2)} GPa (Hertz: same for all r), "
           f"vibration share {np.round(100 * vib)} %")
-    assert abs(k_f / 2.0 - 1) < 0.10, k_f                 # the 10 % on the exponent
+    assert abs(k_f / 2.0 - 1) < 0.10, k_f                 # 10 % on the exponent
     assert np.ptp(stress) / stress.mean() < 0.15, stress  # p0 independent of R, up to the sampling noise
     assert np.all(np.diff(vib) > 0), vib                  # the heavier ball leaves more in the block
     print(f"trends beside the paper's conclusion (4): {res.out / 'study.md'}")

@@ -18,7 +18,7 @@ if __name__ == "__main__":
     _, duration = column(res, "t_c")
     k_f, k_t = exponent(v, force), exponent(v, duration)
     print(f"F_max ~ v^{k_f:.3f} (Hertz 1.2), t_c ~ v^{k_t:.3f} (Hertz -0.2)")
-    # the tolerance on the force exponent: 10 %; the contact shortens as v grows
+    # the tolerance on the force exponent: 10 %; the contact shortens as v grows
     assert abs(k_f / 1.2 - 1) < 0.10, k_f
     assert k_t < 0, k_t
     print(f"trends beside the paper's conclusion (3): {res.out / 'study.md'}")

@@ -36,16 +36,30 @@ suppress_warnings = ["myst.header"]
 
 
 def _write_api_pages(app):
-    """One page per module of the package (docs/api/, regenerated at each build, not tracked)."""
+    """One page per subpackage (its modules, each with automodule) and one for the top-level modules
+    (docs/api/, regenerated at each build, not tracked): the API sidebar lists the stages."""
     import pkgutil
 
     out = Path(app.srcdir) / "api"
     out.mkdir(exist_ok=True)
     for old in out.glob("*.rst"):
         old.unlink()
-    for mod in pkgutil.walk_packages(millimpact.__path__, "millimpact."):
-        name = mod.name
-        (out / f"{name}.rst").write_text(f"{name}\n{'=' * len(name)}\n\n.. automodule:: {name}\n")
+    top = [m.name for m in pkgutil.iter_modules(millimpact.__path__, "millimpact.") if not m.ispkg]
+    pages = {"Top-level modules": ("millimpact.top", top)}
+    for pkg in pkgutil.iter_modules(millimpact.__path__, "millimpact."):
+        if pkg.ispkg:
+            sub = __import__(pkg.name, fromlist=["__path__"])
+            mods = [m.name for m in pkgutil.walk_packages(sub.__path__, pkg.name + ".")]
+            pages[pkg.name] = (pkg.name, [pkg.name, *mods])
+    for title, (stem, modules) in pages.items():
+        text = [title, "=" * len(title), ""]
+        for name in modules:
+            if name == stem:    # the subpackage's own docstring opens its page
+                text += [f".. automodule:: {name}", ""]
+                continue
+            heading = f"``{name}``"
+            text += [heading, "-" * len(heading), "", f".. automodule:: {name}", ""]
+        (out / f"{stem}.rst").write_text("\n".join(text))
 
 
 def _escape_bars(app, what, name, obj, options, lines):
@@ -57,6 +71,24 @@ def _escape_bars(app, what, name, obj, options, lines):
             lines[i] = line.replace("|", "\\|")
 
 
+_PROSE = {}
+
+
+def _keep_constant_prose(app, what, name, obj, options, lines):
+    """A constant's ``#:`` comment is prose, but napoleon reads "words: more words" on its first
+    line as "type: description" (a Type field under the constant). Before napoleon: keep the lines;
+    after it: put them back."""
+    if what in ("data", "attribute"):
+        _PROSE[name] = list(lines)
+
+
+def _restore_constant_prose(app, what, name, obj, options, lines):
+    if what in ("data", "attribute") and name in _PROSE:
+        lines[:] = _PROSE.pop(name)
+
+
 def setup(app):
     app.connect("builder-inited", _write_api_pages)
-    app.connect("autodoc-process-docstring", _escape_bars)
+    app.connect("autodoc-process-docstring", _keep_constant_prose, priority=100)    # before napoleon
+    app.connect("autodoc-process-docstring", _restore_constant_prose, priority=900)  # after it
+    app.connect("autodoc-process-docstring", _escape_bars, priority=950)

@@ -80,7 +80,7 @@ if "OPENBLAS_CORETYPE" not in _os.environ:
         _os.environ["OPENBLAS_CORETYPE"] = _core
 
 # Open MPI starts every process not launched by mpirun (a "singleton": `millimpact run`, a study's
-# worker, the test process) with a helper daemon, `orted --hnp --set-sid`, in its own session. A
+# worker, the test process) with a helper daemon, `orted --hnp --set-sid`, in its own process group (setsid). A
 # singleton whose daemon is gone ends at its next runtime call without a word (kill -9 of the
 # daemon: exit 195, nothing on stderr). (The exit-1 deaths of CI runs once blamed on it were gmsh's:
 # millimpact.geometry.builders.gmsh_session.) millimpact needs nothing the

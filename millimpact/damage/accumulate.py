@@ -46,7 +46,7 @@ from ..dem.impacts import PLACES, Impact
 from .bins import Bin
 from .responses import finite
 
-#: the largest equivalent plastic strain small-strain J2 plasticity describes (DESIGN.md 10)
+#: the largest equivalent plastic strain small-strain J2 plasticity describes (design.md section 10)
 EPS_SMALL_STRAIN = 0.1
 
 

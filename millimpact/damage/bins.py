@@ -40,7 +40,7 @@ from ..theory.thornton import restitution_thornton
 #: speed ratio of the bins of an elastic liner (no yield-onset speed): its restitution is ~1 and
 #: varies only through the liner's vibration, which grows slowly with speed (Hunter 1957)
 ELASTIC_SPEED_RATIO = 2.0
-#: the restitution spread a bin may have across its speeds, by default (the issue's criterion)
+#: the restitution spread a bin may have across its speeds, by default (docs/damage.md)
 DEFAULT_TOLERANCE = 0.02
 
 

@@ -145,7 +145,7 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
         tot.update(dent_trend(rep, tot["impacts_per_rev"], place_extent(scene.liner, p), slice_length))
         if tot["max_eq_plastic_strain_last"] >= 0.1:
             warn(f"{p}: the largest equivalent plastic strain {tot['max_eq_plastic_strain_last']:.3g} passes the "
-                 "small-strain limit 0.1 (DESIGN.md 10): the numbers there are beyond the model")
+                 "small-strain limit 0.1 (docs: design, section 10): the numbers there are beyond the model")
     profile = profile_rates(impacts, shares, st.cell_m, st.revolutions, st.lifters)
     bin_rows = []
     for bc in bcs:

@@ -20,7 +20,7 @@ import numpy as np
 from .. import __version__
 from ..dem.impacts import PLACES, Impact
 
-#: where the model stops (DESIGN.md 12): said in every file that shows its numbers
+#: where the model stops (design.md section 12): said in every file that shows its numbers
 LIMITS = ("small-strain J2 plasticity (equivalent plastic strain up to ~0.1); no wear: no material is "
           "removed; no fatigue cracking; impacts at one spot repeat the place's dominant bin only")
 

@@ -1,4 +1,4 @@
-"""The DEM round trip (DESIGN.md 11). :mod:`millimpact.dem.export` (``millimpact export``) takes a
+"""The DEM round trip (design.md section 11). :mod:`millimpact.dem.export` (``millimpact export``) takes a
 contact table's folder and gives the contact law for Yade, LIGGGHTS and LAMMPS
 (:mod:`millimpact.dem.contact_law`, :mod:`millimpact.dem.export_files`), checked in Yade with
 ``--check`` (:mod:`millimpact.dem.roundtrip`); :mod:`millimpact.dem.mill` (``millimpact mill``)

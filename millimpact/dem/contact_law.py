@@ -26,7 +26,7 @@ with the damping ratio
 Relation (1) is the linear spring-dashpot's e(beta) carried over to the Hertz spring. For the Hertz
 law the restitution it gives is independent of the impact speed but is not e_in (Thornton,
 Cummins & Cleary, Powder Technol. 233 (2013) 30-46, who integrated the contact numerically; Yade
-with e_in = 0.8 returns 0.65, /work/shared/examples/yade_drop.py). Here the law is integrated
+with e_in = 0.8 returns 0.65 with its default damping, docs/dem.md). Here the law is integrated
 exactly in its dimensionless form (delta = delta_0 x, t = (delta_0 / v) s, delta_0 = (m v^2 /
 k_no)^(2/5)):
 

@@ -28,7 +28,7 @@ from ..errors import InputError
 from .contact_law import code_restitution_for_damping, peak_force_factor, point_law, restitution_of_damping
 from .table_input import ContactTable
 
-#: a constant law "holds" at a table point within these (the issue's round-trip tolerances)
+#: a constant law "holds" at a table point within these (the round trip's tolerances: docs/dem.md)
 BAND_E_N, BAND_F_MAX = 0.02, 0.05
 #: Yade material labels the exported law recognises
 BALL_MATERIAL, LINER_MATERIAL = "millimpact_ball", "millimpact_liner"

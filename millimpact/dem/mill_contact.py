@@ -15,12 +15,12 @@ coefficient of restitution does not depend on the speed, the sizes or the moduli
 2023.02a with ``NewtonIntegrator(damping=0)``, a 15 mm steel ball at 3 m/s on a facet rebounds at
 e = 0.300, 0.500, 0.800, 0.948 for en = 0.3, 0.5, 0.8, 0.95 (tests/dem/test_mill_contact.py runs
 it): the mill's script passes the wanted e as ``en`` and switches Yade's numerical damping off.
-(``/work/shared/examples/yade_drop.py`` measures e = 0.65 at en = 0.8 because it keeps
+(a plain Yade drop of that ball measures e = 0.65 at en = 0.8 because it keeps
 NewtonIntegrator's default damping = 0.2, Cundall's non-viscous damping, which removes energy
 on top of the contact law.)
 
 The default restitution of a scene's elastic-plastic materials is Thornton's (1997) e(V) at the
-shell's speed omega R: the impact speeds of a mill's balls are of that order (DESIGN.md 10);
+shell's speed omega R: the impact speeds of a mill's balls are of that order (design.md section 10);
 Thornton's is a lower bound of an elastic-plastic sphere's e (:mod:`millimpact.theory.thornton`).
 """
 from __future__ import annotations

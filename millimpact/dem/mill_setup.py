@@ -38,7 +38,7 @@ from .mill_contact import GRAVITY, critical_omega, critical_rpm, hertz_contact_t
 from .mill_geometry import MillProfile, build_profile
 from .mill_law import LAW_SCRIPT, MillLaw, check_law_ball, read_mill_law
 
-#: allowed ranges of the options (the issue's: speed fraction in (0, 2], fill in [0.05, 0.5])
+#: allowed ranges of the options (speed fraction in (0, 2], fill in [0.05, 0.5])
 SPEED_FRACTION_RANGE = (0.0, 2.0)
 FILL_RANGE = (0.05, 0.5)
 #: the ball bed's porosity in the fill (Austin, Klimpel & Luckie 1984)

@@ -3,7 +3,7 @@
 Yade (:func:`millimpact.dem.yade.run_yade`) runs ``yade_scripts/roundtrip.py``: a ball of the
 table's radius and density strikes a wall at each table speed and angle, with the exported law
 file (``law`` mode) or a naive constant input (``naive`` mode: ``Ip2(en = mean table e_n)``, the
-materials' Young's modulus and Yade's default NewtonIntegrator, as the issue's first try). The
+materials' Young's modulus and Yade's default NewtonIntegrator, the plain set-up). The
 time step is t_c / 2000 of the point's Hertz-dashpot contact (dimensionless duration ~3.2
 delta_0 / v_n): halving it changes e_n by < 1e-5 (yade_drop at 1e-8 and 2.5e-9 s).
 ``roundtrip.csv`` puts millimpact's and Yade's e_n, e_t and F_max side by side; ``roundtrip.png``
@@ -26,7 +26,7 @@ from .yade import run_yade
 SCRIPT = Path(__file__).with_name("yade_scripts") / "roundtrip.py"
 #: time steps per contact duration
 STEPS_PER_CONTACT = 2000
-#: the columns of roundtrip.csv (the issue's)
+#: the columns of roundtrip.csv (docs/dem.md)
 COLUMNS = ("impact_speed_m_s", "impact_angle_deg", "restitution_normal_table", "restitution_normal_dem",
            "restitution_tangential_table", "restitution_tangential_dem", "peak_normal_force_N_table",
            "peak_normal_force_N_dem")

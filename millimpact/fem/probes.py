@@ -197,7 +197,7 @@ def patch_momentum_row(mass, chi, e):
     patch over its mass, chi^T (f_contact - K u) / m_patch: it follows the contact force and the
     stresses around the patch, smooth in time, while the contact node's own velocity jumps at
     first contact (a massless node under mass redistribution takes the contact impulse alone)
-    and its acceleration spikes at onset and release (issue 18). For the contact point
+    and its acceleration spikes at onset and release. For the contact point
     (:class:`millimpact.results.recorder.Recorder`) the patch is the half-ball of radius a_max
     under the impact point; ``benchmarks/contact_point_convergence.py`` measures its convergence
     under dt and h. Collective; the caller destroys c."""

@@ -1,10 +1,9 @@
 """Geometry: gmsh (OpenCASCADE) models of the ball and the struck body, meshed with tetrahedra.
 
-Stage 3 of a run (DESIGN.md section 1). This module holds what the builders share (tags, sizes,
-the gmsh session, zone splitting, size fields, meshing); the builders are :mod:`.block` (the rig)
-and :mod:`.liner` (a liner segment), pure functions of their parameters that
-act on the *current* gmsh session on one rank (rank 0); :mod:`millimpact.geometry.mesh` converts the result
-to DOLFINx once and caches it. Units are SI (metres) throughout.
+Stage 3 of a run (design.md section 1): what the builders :mod:`.block` (the rig) and :mod:`.liner`
+share (tags, sizes, the gmsh instance, zone splitting, size fields, meshing). The builders act on
+the current gmsh instance on rank 0; :mod:`millimpact.geometry.mesh` converts the result to DOLFINx
+once and caches it. Units are SI (metres) throughout.
 
 One model holds both bodies as disjoint volumes (the ball never touches the block: the plan's gap
 separates them). Each body is split into a *contact zone* (the body inside a sphere of radius
@@ -14,10 +13,9 @@ and the ball's lowest point), so contact-point outputs are nodal values. Symmetr
 ``x >= x_p`` (plane ``"x"``) and ``z >= z_p`` (plane ``"z"``).
 
 Element size: ``h_contact`` within ``fine_radius`` of either contact point, growing linearly with
-the distance to ``h_far`` at ``fine_radius + SIZE_GROWTH_ZONE_RADII * zone_radius`` (a small ball's
-plan: further when that growth would exceed :data:`millimpact.scene.plan.MAX_SIZE_GROWTH`), never above ``h_far``
-(gmsh Distance + Threshold fields); inside a small ball, never above ``h_ball`` (a Ball field).
-Elements are first-order tetrahedra.
+the distance to ``h_far`` at ``fine_radius + SIZE_GROWTH_ZONE_RADII * zone_radius`` (further for a
+small ball, :data:`millimpact.scene.plan.MAX_SIZE_GROWTH`), never above ``h_far`` (gmsh Distance +
+Threshold fields) nor ``h_ball`` inside a small ball (a Ball field); first-order tetrahedra.
 
 Physical groups (integer tags below, also named with ``setPhysicalName``):
 
@@ -144,7 +142,7 @@ class ModelInfo:
     mesh_time: float = 0.0                   #: gmsh generate time, s (0 if not meshed)
 
 
-# --- gmsh session ----------------------------------------------------------------------------------
+# --- gmsh instance ---------------------------------------------------------------------------------
 #: open :func:`gmsh_session` calls that initialized gmsh or run inside one that did. gmsh 4.8 has no
 #: "is initialized" query, and its API must not be asked: a call before ``gmsh.initialize()`` goes
 #: to gmsh's Msg::Error, which at random ends the process with exit(1) and no message (an
@@ -158,10 +156,10 @@ _open_sessions = [0]
 def gmsh_session(name: str = "millimpact") -> Iterator[None]:
     """Initialize gmsh (quiet) if needed, make a fresh current model ``name``, and clean up.
 
-    Finalizes gmsh on exit only if this call initialized it (sessions nest). Use on every rank
+    Finalizes gmsh on exit only if this call initialized it (the calls nest). Use on every rank
     before :func:`dolfinx.io.gmshio.model_to_mesh` (it needs gmsh initialized everywhere). gmsh is
     initialized through here only: a caller's own ``gmsh.initialize()`` is not seen, and a
-    session would finalize it.
+    call would finalize it.
     """
     owned = _open_sessions[0] == 0
     if owned:
@@ -254,7 +252,7 @@ def orient_poles(sphere: int, centre: Vec3, axis: Vec3) -> None:
     surface cuts a sliver off the sphere's cap (at a plate impact 0.175 m from the lifter of
     liner-segment, with a zone of 24.2 mm, a 0.82 mm edge beside the pole) and gmsh's 2D mesher
     aborted the process ("The 1D mesh seems not to be forming a closed loop", a C++ exception
-    Python cannot catch; issue 34). With the poles on the contact normal the surface cuts the
+    Python cannot catch). With the poles on the contact normal the surface cuts the
     sphere near its equator, as far from both poles as it can be. The sphere itself is unchanged.
     """
     ex, ey, ez = axis

@@ -1,4 +1,4 @@
-"""Time integrators with unilateral contact by Lagrange multipliers (DESIGN.md section 4).
+"""Time integrators with unilateral contact by Lagrange multipliers (design.md section 4).
 
 Independent of the geometry: an integrator sees a :class:`LinearDynamics` (assembled PETSc M, K,
 contact rows B with gaps ``g = g0 + B u >= 0``) and advances ``M a + K u = f + B^T lambda`` with
@@ -13,7 +13,7 @@ Methods (:data:`METHODS`):
     Mech. A 27, 2008), contact imposed on ``u_{n+1}``. The massless contact dofs follow the body
     quasi-statically, so an impact does not excite the spurious contact-node oscillation, the
     status does not chatter and the energy is conserved up to the small O(dt) release/impact
-    error (bar: DESIGN.md section 3; measured in tests/integration/test_bar.py).
+    error (bar: design.md section 3; measured in tests/integration/test_bar.py).
 ``newmark``
     The same with the consistent mass: the known chattering baseline (status switches every few
     steps, energy errors an order larger).
@@ -34,11 +34,9 @@ Steps where the predictor opens every gap skip the contact work.
 
 Non-PETSc settings (``options`` keys or command-line ``-impact_<key>``): ``contact_solve``
 (fieldsplit|schur|lu), ``penalty`` (k_p in N/m; default ``penalty_factor`` (1) times the largest
-``sum_j B_ij^2 K_jj``, i.e. about the element stiffness behind a contact node: on the bar a
-10x stiffer penalty made the tip chatter at a stable step), ``critical_step_safety`` (0.5: the
-on/off penalty contact of the sphere impact diverges at 0.8-0.9 of the linear estimate at 3 m/s and
-0.7-0.8 at 20 m/s, ``millimpact stability``; the bar is stable to 0.91 h/c as theory says),
-``limit_step`` (true), ``divergence_factor`` (10: energy growth that counts as blow-up),
+``sum_j B_ij^2 K_jj``, about the element stiffness behind a contact node), ``critical_step_safety``
+(0.5 of the linear estimate; why: docs/development/module-notes.md), ``limit_step`` (true),
+``divergence_factor`` (10: energy growth that counts as blow-up),
 ``gap_rtol`` (1e-9), ``lambda_check_rtol`` (1e-6: saddle-point multipliers vs the LCP's).
 The step-size rule's safety margin is :attr:`TimeSchedule.margin`.
 """

@@ -4,102 +4,39 @@ The equation of a step (average acceleration, u = u_{n+1}; :mod:`millimpact.inte
 
     A u + f_c(u) = r + C^T x,     A = K + M / (beta dt^2),   r = M (c0 u_n + c1 v_n + c2 a_n),
 
-with f_c the zone's plastic force correction (``f_int = K u + f_c``; :mod:`millimpact.fem.plastic_zone`)
-and x the contact multipliers (normal, and tangential with friction). Newton iteration k linearises
-f_c at u_k with the consistent tangent dK_k and solves the contact problem of the linear step
-exactly, as the elastic scheme does:
+with f_c the zone's plastic force correction (N; ``f_int = K u + f_c``, :mod:`millimpact.fem.plastic_zone`)
+and x the contact multipliers (normal, and tangential with friction). Converged when the residual
+|A u + f_c(u) - r - C^T x| is below ``plastic_rtol`` (default 1e-8) of the step's force scale
+max(|f_c(u)|, |C^T x|) (not |r|, which carries the ball's rigid-body inertia); a step with neither
+converges at 1e-12 |r|. While no point yields f_c is the frozen plastic strain's and the step is
+the elastic one. Each converged step books the plastic work of its return map
+(``stats.plastic_work_J``) and commits the zone's state; after separation the plastic strain stays
+frozen and the free vibration is linear about the residual state.
 
-    (A + dK_k) u_{k+1} = r - f_c(u_k) + dK_k u_k + C^T x,    x from the LCP (or friction) on
-    S_k = C (A + dK_k)^-1 C^T,   u_{k+1} = u_pred,k + W_k x,
+Linearisation (option ``plastic_linearisation``):
 
-so the contact active set is re-decided in every iteration (a semi-smooth Newton on plasticity and
-contact together). Converged when the residual |A u + f_c(u) - r - C^T x| is below ``plastic_rtol``
-(default 1e-8) of the step's force scale max(|f_c(u)|, |C^T x|) (N): the zone's plastic force and
-the contact force, not |r|, which carries the ball's rigid-body inertia M u_n / (beta dt^2) (1e7-1e8 N
-on the rig, so 1e-8 |r| left errors of 1e-4 in the peak force); a step with neither converges at
-the round-off floor 1e-12 |r|. While no point yields the tangent is the elastic one and f_c is constant
-(the frozen plastic strain's), so such a step is the elastic step with one more right-hand side
-and converges in one iteration without refactorizing; a yielding step factorizes A + dK_k once
-per iteration and recomputes W_k (a solve per column of the candidates that touch, as the contact
-solve asks for them: :func:`.contact_operator.solve_on_touching`). Each converged step books the
-plastic work of its return map (``stats.plastic_work_J``) and commits the zone's state; after separation
-the plastic strain stays frozen and the free vibration is linear about the residual state.
+- ``elastic`` (the default): the fixed point u = G(u) of
+  ``A u_{k+1} = r - f_c(u_k) + C^T x``, x from the LCP (or friction) on the elastic S = C A^-1 C^T,
+  solved with the step size's elastic factorization and cached contact operator, accelerated by
+  Anderson mixing of the last ``plastic_anderson_depth`` (10) iterates (:class:`AndersonMixing`;
+  Walker and Ni, SIAM J. Numer. Anal. 49, 2011). Its fixed point is the Newton step's.
+- ``tangent``: Newton with the consistent tangent dK_k (Simo and Hughes 1998, ch. 3),
+  ``(A + dK_k) u_{k+1} = r - f_c(u_k) + dK_k u_k + C^T x`` with x on S_k = C (A + dK_k)^-1 C^T, the
+  active set re-decided every iteration (a semi-smooth Newton on plasticity and contact); a tangent
+  is reused while the residual contracts by ``plastic_tangent_reuse`` (0.5) an iteration.
+- ``held``: the held tangent's iterates mixed as ``elastic``'s.
 
-Tangent reuse (option ``plastic_tangent_reuse``, default 0.5; 0 = a new tangent every yielding
-iteration, full Newton): a factorized tangent and its W are kept across iterations and steps and
-reused while the residual contracts by at least this factor per iteration; a slower contraction
-takes a new tangent at the next iteration. Any fixed tangent gives the same converged step (the
-residual test is on the exact residual), so this trades the quadratic rate for fewer
-factorizations and W solves, which are most of a yielding step's cost (on the plastic rig: 87
-tangents for 116 yielding steps in full Newton). A step where no point yields uses the elastic
-operator, exact.
+The three agree within 5e-9 on the coarse plastic half-space (F_max, e, plastic work, dent). On the
+accelerated paths: ``plastic_candidate_fraction`` (0.5) return-maps only the cells near yield
+between full checks; ``plastic_predictor`` (``extrapolated``) starts from the plastic force
+extrapolated in time; ``plastic_friction_forcing`` (0.1) loosens the Coulomb alternation on
+iterates far from the answer; ``plastic_return_map`` (``compiled``) evaluates the zone in one
+compiled loop (:mod:`millimpact.fem.return_map_kernel`); ``plastic_body_blocks`` (1) solves body by
+body once a step size has iterated a while (:mod:`.body_blocks`). None changes the converged step.
+What each saves, measured: docs/development/module-notes.md.
 
-Linearisation (option ``plastic_linearisation``, issue 31): the iteration above with a factorized
-tangent is ``tangent`` (today's path, kept to compare). The default ``elastic`` solves every
-iteration with the step size's elastic factorization and its cached contact operator W (no
-factorization, no new W column during yielding; the return map without its tangent), i.e. the
-fixed point u = G(u) of
-
-    A u_{k+1} = r - f_c(u_k) + C^T x,    x from the LCP (or friction) on the elastic S,
-
-whose fixed point is the step above (same residual test), accelerated by Anderson mixing of the
-last ``plastic_anderson_depth`` (default 10) iterates (:class:`AndersonMixing`). ``held`` mixes
-the held tangent's iterates the same way. On the coarse plastic half-space (tests) the three
-agree within 5e-9 (F_max, e, plastic work, dent); ``elastic`` takes 9-10 iterations a yielding
-step against 3-4 for full Newton, each as cheap as an elastic step's solve plus a return map.
-The residual's product A u is not formed per iteration on that path: a direct solve gives
-A G(u_k) = r - f_c(u_k) + C^T x_k, and Anderson's iterate is a combination of the G(u_i), so
-A u_{k+1} is the same combination of those right-hand sides; the product itself confirms the
-iterate that passes the test (plastic rig: 1023 products of 5.7 ms became one per step).
-
-Candidate cells (option ``plastic_candidate_fraction``, default 0.5; 0 = every cell in every
-iteration; not on the ``tangent`` path): outside the cells near yield the zone's force is that of
-the frozen plastic strain, f_c(u) = f_frozen + int_cand B^T (sigma - C (eps - eps_p,n)) dV, so after
-the step's first full return map that yields, the iterations return-map and assemble only the
-cells with a point at or above that fraction of its flow stress (:meth:`PlasticZone.select_candidates`).
-The iterate that passes the residual test is return-mapped in full: the same number of yielding
-points confirms it (none outside the candidates, so its f_c is the one tested); otherwise the
-candidates are chosen again, the Anderson pairs forgotten and the iteration goes on. The step is
-the same (coarse half-space: 1e-13 against every cell; with candidates at 0.99, 11 misses caught,
-1e-10). On the plastic rig the zone's 4,767 cells give up to 3,342 candidates at 0.5 (the zone is
-sized to the plastic region), so it saves ~5 % of the time loop (28.0 against 29.6 s, paired).
-
-Predictor (option ``plastic_predictor``; not on the ``tangent`` path): a step's first solve takes the
-committed state's plastic force extrapolated in time, f_c,n + (dt / dt_prev) (f_c,n - f_c,n-1), when
-the last step yielded (``extrapolated``, the default), or f_c,n itself (``frozen``). Either is only
-the starting iterate: the fixed point and its residual test are the same. During loading the
-plastic force grows smoothly from step to step, so the start is closer: the rig's first residual
-falls 2-10x and its iterations 792 -> 754, the plastic liner's 1,554 -> 1,459 (time loop 81.8 ->
-76.2 s), the answers equal to 1.2e-8. The first residual falls more than the iterations do: the
-iteration's rate (~0.4, the spectrum of A^-1 (A + dK)) is unchanged.
-
-Coulomb friction inside a yielding step (option ``plastic_friction_forcing``, default 0.1; 0 = the
-full test in every iteration): each iteration's contact problem is the normal/tangential
-alternation of :mod:`.friction`, which stopped when two passes agreed to 1e-8 of the normal force.
-An iterate far from the step's answer needs no such precision: the alternation now stops at 0.1 of
-the step's relative residual (at most 1e-3, at least 1e-8), the iterate that passes the residual
-test must come from a solve at the full 1e-8 (else one more iteration), and so must a solve after
-which nothing yields (it can end the step). The converged step is the same: on the plastic liner
-3,136 passes against 4,888, 1,470 iterations against 1,459, the answers equal to 1e-10. With the
-predictor, the liner's time loop took 0.75 and 0.91 of the code's before them (runs in turn).
-
-The zone's evaluations without a tangent (option ``plastic_return_map``, default ``compiled``;
-every evaluation of the ``elastic`` and ``held`` paths' iterations) take their strains, return map
-and force correction from one compiled loop over the points (:mod:`millimpact.fem.return_map_kernel`)
-instead of three numpy/FFCx passes; ``numpy`` keeps those. The force is the same to rounding
-(2e-14 relative), and a full evaluation keeps the same trial state to commit.
-
-Body by body (option ``plastic_body_blocks``, default 1; 0 = the whole operator in every solve):
-the step operator of two bodies that only contact couples is block-diagonal over them, so once a
-step size has iterated a while its solves are made body by body, and a body whose part of
-r - f_c(u_k) did not change (it does not yield at u_k: its frozen force) keeps its last solution
-(:mod:`.body_blocks`). Each solve stays exact. On the plastic rig the ball yields in 58 of the
-block's 827 yielding evaluations, and 610 of 1,508 block solves are skipped (results equal to
-1e-11; the solves 3.5 s against 5.3-6.8 s, in process, runs in turn).
-
-A step whose Newton does not converge in ``plastic_max_iterations`` (default 40 with
-``tangent``, 80 with the accelerated fixed point) raises
-:class:`SolverError` naming the step, the time and the residual.
+A step that does not converge in ``plastic_max_iterations`` (40 with ``tangent``, 80 otherwise)
+raises :class:`SolverError` naming the step, the time and the residual.
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""PETSc/SLEPc solver set-ups of the time integrators (DESIGN.md section 1, "solvers").
+"""PETSc/SLEPc solver set-ups of the time integrators (design.md section 1, "solvers").
 
 Everything here sees assembled PETSc objects only. Every KSP has a non-empty options prefix; its
 defaults come from a function that returns a fresh dict, the caller's options are merged over
@@ -556,7 +556,7 @@ def estimate_max_eigenvalue(K: PETSc.Mat, m_lumped: PETSc.Vec, B: Optional[PETSc
 
 
 #: the PETSc option suffixes whose values name a type, with the names PETSc knows (petsc4py's
-#: enumerations; the solver packages are those Debian's PETSc is built with, NOTES-dolfinx-0.5.md)
+#: enumerations; the solver packages are those Debian's PETSc is built with)
 _TYPE_OPTIONS = {
     "ksp_type": ("KSP", PETSc.KSP.Type),
     "pc_type": ("PC", PETSc.PC.Type),

@@ -44,7 +44,7 @@ def default_solver_options(comm_size: int) -> dict[str, str]:
     """Fresh default PETSc/SLEPc options, relative to ``impact_reduction_<body>_``.
 
     A Cholesky factorization (the same factorization serves the constraint modes' multi-right-
-    hand-side solve and the shift-and-invert eigensolver, NOTES-dolfinx-0.5.md): CHOLMOD in serial,
+    hand-side solve and the shift-and-invert eigensolver): CHOLMOD in serial,
     MUMPS in parallel (``-impact_reduction_block_pc_factor_mat_solver_type mumps`` in serial: 17 %
     more CPU on the paper-rig improved reduction, 7.0 s against 5.9 s, two runs each); Krylov-Schur
     for the lowest modes (target 0, target-magnitude ordering).

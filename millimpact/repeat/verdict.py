@@ -5,7 +5,7 @@ load a body either shakes down, residual stresses and hardening making every lat
 or reaches a closed plastic cycle (plastic shakedown: plastic work in every cycle, no net growth of
 the deformation); or ratchets (the permanent deformation grows each cycle). The same ball
 repeated on one spot unloads along the last unloading curve, which holds only e_1^2 of the impact
-energy, so it yields again beyond the previous peak with smaller increments (DESIGN.md 10).
+energy, so it yields again beyond the previous peak with smaller increments (design.md section 10).
 From the per-impact outcomes (plastic work W_k, dent depth D_k, increments dD_k = D_k - D_(k-1)
 with D_0 = 0):
 
@@ -25,7 +25,7 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
-#: elastic shakedown: an impact's plastic work below this share of the first's (issue 32)
+#: elastic shakedown: an impact's plastic work below this share of the first's
 ELASTIC_SHARE = 0.01
 #: plastic shakedown: dent increments below this share of the first impact's dent
 CLOSED_SHARE = 0.01

@@ -80,7 +80,7 @@ def _study_base() -> Scene:
     )
 
 
-#: the mill-regime block scenes (issue 32): a 125 mm ball, a liner-thick block backed by the shell
+#: the mill-regime block scenes: a 125 mm ball, a liner-thick block backed by the shell
 MILL_BALL_RADIUS = 0.0625
 MILL_BLOCK = dict(length=0.250, thickness=0.075, height=0.250, support="back")
 
@@ -93,7 +93,7 @@ def _mill_block(name: str, liner_material: str, what: str) -> Scene:
         name=name,
         description=(f"A 125 mm forged 60 HRC ball (Y 1.9 GPa) at 8 m/s normal to a 75 mm {what} liner plate, "
                      "250 x 250 mm, clamped at its back (the shell). Balls of 100-150 mm strike SAG liners at "
-                     "3-13 m/s (100-580 J for 125 mm; DESIGN.md 10); the plate thickness is the liner-segment "
+                     "3-13 m/s (100-580 J for 125 mm; docs: design, section 10); the plate thickness is the liner-segment "
                      "scene's shell plate (Royston 2007: 75-100 mm). Material values and sources: "
                      "scene/materials.toml. Impact only (0.6 ms)."),
         ball=Ball(radius=MILL_BALL_RADIUS, material=coerce_value(Material, "forged-ball-60hrc", "ball.material")),

@@ -1,4 +1,4 @@
-"""The plan: what a scene needs, derived from its Hertz estimate (DESIGN.md section 5).
+"""The plan: what a scene needs, derived from its Hertz estimate (design.md section 5).
 
 Every choice (symmetry, contact-zone radius, element sizes, initial gap, time steps, modal cutoff)
 is computed here from the scene, can be overridden in ``scene.model`` / ``scene.time`` /
@@ -22,7 +22,7 @@ from ..theory.hertz import HertzImpact, effective_modulus, hertz_impact
 from ..theory.thornton import plastic_zone_radius
 from .schema import Ball, Material, Scene, Vec3
 
-#: elements across the Hertz contact radius a_max: ~4 gives ~1 % on F_max (DESIGN.md section 3)
+#: elements across the Hertz contact radius a_max: ~4 gives ~1 % on F_max (design.md section 3)
 ELEMENTS_ACROSS_CONTACT = 4.0
 #: contact-zone radius in units of a_max: the zone must hold the whole contact patch with margin
 ZONE_RADIUS_FACTOR = 4.0
@@ -38,7 +38,7 @@ PLASTIC_ZONE_CAP = 0.98
 GAP_FACTOR = 0.05
 #: steps per contact duration while in contact
 STEPS_PER_CONTACT = 100
-#: modal cutoff in units of 1/t_c (DESIGN.md section 4: keep modes up to (3-5)/t_c)
+#: modal cutoff in units of 1/t_c (design.md section 4: keep modes up to (3-5)/t_c)
 F_CUT_FACTOR = 4.0
 #: what the plan's degree, P1, gives (``--method full``): too stiff by a few percent whatever
 #: h_contact (measured: hertz-halfspace F_max +3.0 %, t_c -3.0 % against Hertz, P2 +1.0 %; the rig
@@ -50,7 +50,7 @@ P2_REMEDY = "--degree 2 (model.degree = 2) or --method improved is within ~1 %"
 #: a ball whose radius is at most this share of the struck body's smallest side is a *small ball*
 #: (a hardness-test tip on a block, a 2.5 mm ball on hertz-halfspace's 100 mm block): its far
 #: size R / 4 stays inside the ball, and the struck body's far size is its own side / 4, so the
-#: block's cost follows the contact, not the ball (issue 32: the 2.5 mm ball on the 100 mm block
+#: block's cost follows the contact, not the ball (the 2.5 mm ball on the 100 mm block
 #: meshed everything at R / 4 and passed 9 GB). Every built-in scene has a ball larger than this
 #: (hertz-halfspace: 0.15 of its 100 mm block) and keeps its plan.
 SMALL_BALL_SHARE = 0.1
@@ -358,7 +358,7 @@ def _vec3(x) -> Vec3:
 
 
 def make_plan(scene: Scene) -> Plan:
-    """Derive the modelling choices of a scene from its Hertz estimate (DESIGN.md section 5)."""
+    """Derive the modelling choices of a scene from its Hertz estimate (design.md section 5)."""
     h = scene_hertz(scene)
     m = scene.model
     sym, planes, sym_reason = decide_symmetry(scene)
@@ -448,7 +448,7 @@ def make_plan(scene: Scene) -> Plan:
     dt_c = t.dt_contact if t.dt_contact is not None else h.contact_time / STEPS_PER_CONTACT
     reasons["dt_contact"] = "user" if t.dt_contact is not None else f"t_c / {STEPS_PER_CONTACT}"
     f_cut = m.f_cut if m.f_cut is not None else F_CUT_FACTOR / h.contact_time
-    reasons["f_cut"] = "user" if m.f_cut is not None else f"{F_CUT_FACTOR:g} / t_c (DESIGN.md section 4)"
+    reasons["f_cut"] = "user" if m.f_cut is not None else f"{F_CUT_FACTOR:g} / t_c (docs: design, section 4)"
     # free vibration: resolve the kept band (10 steps per period of f_cut)
     dt_f = t.dt_free if t.dt_free is not None else max(dt_c, 1.0 / (10.0 * f_cut))
     reasons["dt_free"] = "user" if t.dt_free is not None else "1 / (10 f_cut): ten steps per period of the highest kept mode"

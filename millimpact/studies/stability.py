@@ -23,8 +23,8 @@ the same mesh's newmark-mr run at the smallest step, so that the coarse mesh's o
 Hertz does not hide the integrators'; the Hertz error is in the CSV's note); failure (exception, NaN, the explicit method's divergence flag, energy growth > 50 %).
 
 Status: ``failed`` as above; ``degraded`` if energy drift > 5 %, any pulse break, roughness > 5 %,
-penetration > 5 %, or the duration (bar) / peak force (sphere) off by > 10 % / 15 %; else ``pass``.
-Under the step limit the explicit method's runs are sub-stepped: the sweep turns the limit off.
+penetration > 5 %, or the duration (bar) / peak force (sphere) off by > 10 % / 15 %; else ``pass``
+(the sweep turns the explicit method's step limit off).
 
 Theory of the explicit critical step (central differences, lumped mass): dt_crit = 2 / omega_max.
 Bar P1 with lumped mass: omega_max = 2 c / h without contact, so dt_crit = h / c (Courant 1); in
@@ -34,10 +34,9 @@ eigensolver (numpy) on the bar's matrices, independently of the integrator's SLE
 Sphere: dt_crit ~ h_min / c_p (P1 tetrahedra, lumped mass); the sweep's boundary is compared with
 the integrator's estimate 2 / sqrt(lambda_max).
 
-Output under ``--out``: ``stability.csv`` (one row per run, units in the header), one map figure
-per integrator ``map_<integrator>.png`` (pass / degraded / failed over step and velocity, one
-panel per problem), ``critical_step.json`` (the explicit method's measured boundary against
-theory).
+Output under ``--out``: ``stability.csv`` (a row per run, units in the header), ``map_<integrator>.png``
+(pass / degraded / failed over step and velocity, a panel per problem), ``critical_step.json``
+(the explicit method's measured boundary against theory).
 """
 from __future__ import annotations
 
