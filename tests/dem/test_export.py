@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from millimpact.dem.contact_law import (HERTZ_PEAK, code_restitution, code_restitution_for_damping,
+from millimpact.dem.export.contact_law import (HERTZ_PEAK, code_restitution, code_restitution_for_damping,
                                         damping_of_code_restitution, peak_force_factor,
                                         restitution_of_damping)
 
@@ -110,9 +110,9 @@ def test_naive_constant_en_input_misses(table, tmp_path):
     """The same check with the naive input (the table's mean e_n as Yade's en, the materials'
     Young's modulus, Yade's default NewtonIntegrator) misses the table by far more than the
     tolerances: the check can fail."""
-    from millimpact.dem.export_files import fit_law
-    from millimpact.dem.roundtrip import roundtrip_rows, run_roundtrip
-    from millimpact.dem.table_input import read_table
+    from millimpact.dem.export.files import fit_law
+    from millimpact.dem.export.roundtrip import roundtrip_rows, run_roundtrip
+    from millimpact.dem.export.table_input import read_table
 
     law = fit_law(read_table(table))
     rows = roundtrip_rows(law.table, run_roundtrip(law, tmp_path / "naive", "naive"))

@@ -23,8 +23,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .. import __version__
-from ..errors import InputError
+from ... import __version__
+from ...errors import InputError
 from .contact_law import code_restitution_for_damping, peak_force_factor, point_law, restitution_of_damping
 from .table_input import ContactTable
 

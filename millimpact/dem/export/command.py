@@ -2,7 +2,7 @@
 
 Reads a ``millimpact table`` folder (:mod:`.table_input`), fits the Hertz-dashpot law that gives
 the table's e_n and F_max at each of its points in that code's own damping formula
-(:mod:`.contact_law`, :mod:`.export_files`) and writes the file to include. ``--check`` runs the
+(:mod:`.contact_law`, :mod:`.files`) and writes the file to include. ``--check`` runs the
 law in Yade, one ball per table point, and writes ``roundtrip.csv`` and ``roundtrip.png``
 (:mod:`.roundtrip`); ``--to liggghts|lammps --check`` runs their constant law (the same equation)
 in Yade.
@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..results.output_folder import FORCE_HELP, OUT_HELP
+from ...results.output_folder import FORCE_HELP, OUT_HELP
 
 HELP = "write a contact table's law for a DEM code (yade, liggghts, lammps); --check runs it in Yade"
 
@@ -41,10 +41,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..console import say, world_rank
-    from ..errors import InputError
-    from ..results.output_folder import claim_output, default_out
-    from .export_files import CODES, WRITERS, fit_law, write_law_json
+    from ...console import say, world_rank
+    from ...errors import InputError
+    from ...results.output_folder import claim_output, default_out
+    from .files import CODES, WRITERS, fit_law, write_law_json
     from .table_input import read_table
 
     code = str(args.to).lower()
@@ -52,7 +52,7 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"--to {args.to!r}: must be one of {', '.join(CODES)}")
     table = read_table(args.table)
     if args.check:
-        from .yade import yade_executable
+        from ..yade import yade_executable
 
         yade_executable()                  # not installed: one line and exit 2, before any output
     out = args.out if args.out is not None else default_out(Path(args.table).resolve().name, prefix=f"dem-{code}-")

@@ -19,9 +19,9 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from .export_files import ExportedLaw, law_data
+from .files import ExportedLaw, law_data
 from .table_input import ContactTable
-from .yade import run_yade
+from ..yade import run_yade
 
 SCRIPT = Path(__file__).with_name("yade_scripts") / "roundtrip.py"
 #: time steps per contact duration
@@ -46,7 +46,7 @@ def _cases(t: ContactTable, e_star: np.ndarray) -> list[dict]:
 
 def constant_law_file(law: ExportedLaw, path: Path) -> Path:
     """A Yade law file with the constant law (what LIGGGHTS and LAMMPS get) on a 1 x 1 grid."""
-    from .export_files import RUNTIME
+    from .files import RUNTIME
 
     data = law_data(law)
     data.update(speeds_m_s=[1.0], angles_deg=[0.0], zeta=[[law.zeta_const]], e_star_Pa=[[law.e_star_const]])
@@ -99,7 +99,7 @@ def write_roundtrip(folder: Path, t: ContactTable, rows: Sequence[dict], code: s
 
 
 def plot_roundtrip(path: Path, t: ContactTable, rows: Sequence[dict], code: str) -> None:
-    from ..results.plots import _plt
+    from ...results.plots import _plt
 
     plt = _plt()
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), constrained_layout=True)
