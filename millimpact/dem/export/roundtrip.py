@@ -85,20 +85,21 @@ def roundtrip_rows(t: ContactTable, results: Sequence[dict]) -> list[dict]:
     return rows
 
 
-def write_roundtrip(folder: Path, t: ContactTable, rows: Sequence[dict], code: str) -> None:
-    """roundtrip.csv (a # header naming the table and the law) and roundtrip.png."""
-    with open(folder / "roundtrip.csv", "w", newline="") as fh:
+def write_roundtrip(folder: Path, t: ContactTable, rows: Sequence[dict], code: str, runner: str = "Yade",
+                    stem: str = "roundtrip") -> None:
+    """STEM.csv (a # header naming the table, the law and the code that ran it) and STEM.png."""
+    with open(folder / f"{stem}.csv", "w", newline="") as fh:
         fh.write(f"# millimpact export --check: the {code} law exported from {t.folder.resolve()} (scene "
-                 f"{t.scene_name}, method {t.method}) run in Yade, one ball on a wall per table point\n")
-        fh.write("# _table: millimpact's contact table; _dem: Yade. e_t NaN at normal incidence. SI units\n")
+                 f"{t.scene_name}, method {t.method}) run in {runner}, one ball on a wall per table point\n")
+        fh.write(f"# _table: millimpact's contact table; _dem: {runner}. e_t NaN at normal incidence. SI units\n")
         w = csv.writer(fh)
         w.writerow(COLUMNS)
         for r in rows:
             w.writerow([repr(float(r[c])) for c in COLUMNS])
-    plot_roundtrip(folder / "roundtrip.png", t, rows, code)
+    plot_roundtrip(folder / f"{stem}.png", t, rows, code, runner)
 
 
-def plot_roundtrip(path: Path, t: ContactTable, rows: Sequence[dict], code: str) -> None:
+def plot_roundtrip(path: Path, t: ContactTable, rows: Sequence[dict], code: str, runner: str = "Yade") -> None:
     from ...results.plots import _plt
 
     plt = _plt()
@@ -112,12 +113,12 @@ def plot_roundtrip(path: Path, t: ContactTable, rows: Sequence[dict], code: str)
             tab = [r[f"{key}_table" if key != "peak_normal_force_N" else "peak_normal_force_N_table"] * scale for r in rr]
             dem = [r[f"{key}_dem" if key != "peak_normal_force_N" else "peak_normal_force_N_dem"] * scale for r in rr]
             ax.plot(v, tab, "o-", color=c, label=f"millimpact, {a:g} deg")
-            ax.plot(v, dem, "x--", color=c, ms=9, label=f"Yade, {a:g} deg")
+            ax.plot(v, dem, "x--", color=c, ms=9, label=f"{runner}, {a:g} deg")
     for ax, lab in zip(axes, ("normal restitution e_n", "tangential restitution e_t", "peak normal force (kN)")):
         ax.set_xlabel("impact speed (m/s)")
         ax.set_ylabel(lab)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
-    fig.suptitle(f"{code} law from the table of {t.scene_name} ({t.method}): millimpact (o) against Yade (x)")
+    fig.suptitle(f"{code} law from the table of {t.scene_name} ({t.method}): millimpact (o) against {runner} (x)")
     fig.savefig(path, dpi=130)
     plt.close(fig)

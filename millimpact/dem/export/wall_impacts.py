@@ -74,8 +74,8 @@ compute spin all reduce sum c_omega
 variable wy equal c_spin
 variable fz equal fz[1]
 fix trace all print 1 "${{vx}} ${{vz}} ${{wy}} ${{fz}}" file trace_{k}.txt screen no
-thermo {CASE_STEPS}
-run {CASE_STEPS}
+thermo {case.get('steps', CASE_STEPS)}
+run {case.get('steps', CASE_STEPS)}
 print "{PROGRESS_PREFIX}case {k + 1}/{n}: v = {v:g} m/s, {case['angle_deg']:g} deg"
 """
 
@@ -85,7 +85,7 @@ def measure(trace: Path, case: dict, radius: float) -> dict:
     data = np.loadtxt(trace, ndmin=2)
     vx, vz, wy, fz = data.T
     if fz[-1] != 0.0 or vz[-1] <= 0.0:
-        raise DemCodeError(f"{trace.name}: the ball is still on the wall after {CASE_STEPS} steps")
+        raise DemCodeError(f"{trace.name}: the ball is still on the wall after {case.get('steps', CASE_STEPS)} steps")
     a = math.radians(case["angle_deg"])
     v = case["speed_m_s"]
     ux_in = v * math.sin(a)
@@ -135,4 +135,7 @@ def run_cases(cmd: Sequence[str], workdir: Path, cases: Sequence[dict], radius: 
     """Every case in one run of the code; the measured rows in the cases' order."""
     script = "".join(case_script(k, len(cases), c, radius, density, setup, law, wall) for k, c in enumerate(cases))
     run_code(cmd, workdir, script, timeout=timeout, on_progress=on_progress)
-    return [measure(workdir / f"trace_{k}.txt", c, radius) for k, c in enumerate(cases)]
+    rows = [measure(workdir / f"trace_{k}.txt", c, radius) for k, c in enumerate(cases)]
+    for k in range(len(cases)):            # a few MB each; the script and the log stay
+        (workdir / f"trace_{k}.txt").unlink()
+    return rows

@@ -1,0 +1,123 @@
+"""LAMMPS' plastic ``mdr`` law fitted to a table's e_n over speed: its yield stress.
+
+The mdr normal model (Zunker & Kamrin, J. Mech. Phys. Solids 183 (2024) 105492) is an elastic -
+perfectly plastic contact: below the yield stress Y the Hertz contact, above it a plastic zone
+that keeps the energy, so e_n falls with the impact speed as a plastic table's does (Thornton's
+e ~ v^(-1/4) well above yield), where the Hertz-dashpot law has one e_n at every speed.
+
+Its elastic part is the scene's materials: LAMMPS' mdr wall (``fix wall/gran/region``, a rigid
+plane) uses E / (1 - nu^2) as the contact modulus (measured: an elastic 15 mm steel ball's F_max
+at 3 m/s is the Hertz value of that modulus within 0.02 %), so E = (1 - nu^2) E*_materials.
+No surface energy (no adhesion), psi_b = 0.5 (LAMMPS' example; the bulk response it triggers needs
+far larger deformations than an impact's), no damping (eta_n0 = 0: plasticity is the loss).
+
+The fit: Y minimises the sum over the table's points of (e_n,mdr(v_n) - e_n,table)^2, e_n,mdr from
+LAMMPS itself (a ball at each point's normal speed v_n against the plane): a grid of 7 values of
+ln Y over [1e8, 1e11] Pa, then Brent's bounded search between the best point's neighbours to 1 %
+in Y. ~17 LAMMPS runs of 1-3 s.
+"""
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+from typing import Callable, NamedTuple, Optional
+
+import numpy as np
+
+from .files import ExportedLaw, _source_lines
+from .lammps import SETUP_MDR, lammps_executable, wall_line
+from .wall_impacts import CASE_STEPS, impact_cases, run_cases
+
+#: the yield stresses searched (Pa)
+Y_RANGE = (1e8, 1e11)
+#: mdr's critical confinement ratio psi_b (LAMMPS' example value)
+PSI_B = 0.5
+#: steps a case runs: a plastic contact lasts longer than the elastic t_c its time step comes from
+MDR_STEPS = 5 * CASE_STEPS
+
+
+class MdrLaw(NamedTuple):
+    """The fitted mdr law (SI) and how well it follows the table."""
+
+    young: float            #: E of the mdr input, Pa
+    poisson: float
+    yield_stress: float     #: Y, Pa
+    friction: float
+    e_n_fit: np.ndarray     #: mdr's e_n at each table point (normal impact at its v_n)
+    e_n_table: np.ndarray
+    rms: float              #: root mean square of e_n,mdr - e_n,table
+    worst: float            #: largest |e_n,mdr - e_n,table|
+
+    def coefficients(self) -> str:
+        """The ``pair_coeff * *`` model (and the wall's)."""
+        return (f"mdr {self.young:.6g} {self.poisson:g} {self.yield_stress:.6g} 0.0 {PSI_B:g} 0.0 damping mdr 1 "
+                f"tangential mindlin NULL 0.0 {self.friction:g}")
+
+
+def _mdr_e_n(law: ExportedLaw, young: float, y: float, workdir: Path) -> np.ndarray:
+    t = law.table
+    probe = MdrLaw(young, t.poisson, y, t.friction, np.empty(0), np.empty(0), 0.0, 0.0)
+    vn = t.normal_speed.ravel()
+    cases = [dict(c, steps=MDR_STEPS) for c in impact_cases([(v, 0.0, v) for v in vn], t.ball_mass, t.radius,
+                                                                t.e_star_materials)]
+    rows = run_cases([lammps_executable()], workdir, cases, t.radius, t.ball_density, SETUP_MDR,
+                     f"pair_style granular\npair_coeff * * {probe.coefficients()}",
+                     wall_line(probe.coefficients(), mdr=True), timeout=600)
+    return np.array([r["restitution_normal"] for r in rows]).reshape(t.normal_speed.shape)
+
+
+def fit_mdr(law: ExportedLaw, workdir: Path, on_progress: Optional[Callable[[str], None]] = None) -> MdrLaw:
+    """The mdr law whose yield stress fits the table's e_n over speed (module docstring)."""
+    from scipy.optimize import minimize_scalar
+
+    t = law.table
+    young = (1.0 - t.poisson**2) * t.e_star_materials
+    target = np.minimum(t.e_n, 1.0)
+    seen: dict[float, np.ndarray] = {}
+
+    def cost(ln_y: float) -> float:
+        run_dir = workdir / f"y{len(seen)}"
+        e = _mdr_e_n(law, young, math.exp(ln_y), run_dir)
+        shutil.rmtree(run_dir)
+        seen[ln_y] = e
+        if on_progress is not None:
+            on_progress(f"mdr Y = {math.exp(ln_y):.4g} Pa: rms e_n difference {np.sqrt(np.mean((e - target) ** 2)):.4f}")
+        return float(np.sum((e - target) ** 2))
+
+    grid = np.linspace(math.log(Y_RANGE[0]), math.log(Y_RANGE[1]), 7)
+    costs = [cost(g) for g in grid]
+    k = int(np.argmin(costs))
+    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    best = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 0.01})
+    ln_y = min(seen, key=lambda g: float(np.sum((seen[g] - target) ** 2)))
+    e = seen[ln_y]
+    del best
+    return MdrLaw(young, t.poisson, math.exp(ln_y), t.friction, e, target,
+                  float(np.sqrt(np.mean((e - target) ** 2))), float(np.max(np.abs(e - target))))
+
+
+def write_lammps_mdr(folder: Path, law: ExportedLaw, mdr: MdrLaw) -> Path:
+    """``contact_law_lammps_mdr.in``: the mdr law (type 1 ball, type 2 liner) and its fit."""
+    t = law.table
+    coeff = mdr.coefficients()
+    lines = ["# millimpact contact law for LAMMPS (22 Jul 2025 or later: pair_style granular with the mdr normal model",
+             "# of Zunker & Kamrin 2024, an elastic - perfectly plastic contact): atom type 1 = ball, type 2 = liner.",
+             "# mdr needs: atom_style sphere 1, newton off, and the liner as fix wall/gran/region with the same model.",
+             f"# E = (1 - nu^2) E*_materials = {mdr.young:.6g} Pa (mdr's rigid wall uses E / (1 - nu^2)), no adhesion,",
+             f"# psi_b {PSI_B:g}, no damping. The yield stress Y = {mdr.yield_stress:.6g} Pa is FITTED: least squares of e_n",
+             "# over the table's points (LAMMPS itself, a ball at each point's normal speed); it is a law parameter,",
+             "# not the liner's yield stress.",
+             *_source_lines(t, "#")[:-1],
+             f"# Fit residual: rms e_n difference {mdr.rms:.4f}, largest {mdr.worst:.4f}.",
+             "# Table point: V (m/s), angle (deg), v_n (m/s): e_n table / mdr"]
+    for i, s in enumerate(t.speeds):
+        for j, a in enumerate(t.angles):
+            lines.append(f"#   {s:g}, {a:g}, {t.normal_speed[i, j]:.4g}: {mdr.e_n_table[i, j]:.4f} / {mdr.e_n_fit[i, j]:.4f}")
+    lines += ["", "pair_style granular", f"pair_coeff * * {coeff}",
+              "# the liner as a granular region wall with the same model, e.g. a plane z = 0:",
+              "# region liner_plane plane 0 0 0 0 0 1 side in units box",
+              f"# fix liner all wall/gran/region granular {coeff} region liner_plane", ""]
+    path = folder / "contact_law_lammps_mdr.in"
+    path.write_text("\n".join(lines))
+    return path
