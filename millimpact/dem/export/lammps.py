@@ -93,4 +93,5 @@ def run_lammps_roundtrip(law: ExportedLaw, law_file: Path, workdir: Path, timeou
     if mdr:                                # a plastic contact lasts longer than the elastic t_c
         cases = [dict(c, steps=5 * CASE_STEPS) for c in cases]
     return run_cases([lammps_executable()], workdir, cases, t.radius, t.ball_density, SETUP_MDR if mdr else SETUP,
-                     f"include {law_file.resolve()}", wall_line(coeff, mdr), timeout=timeout, on_progress=on_progress)
+                     f"include {law_file.resolve()}", wall_line(coeff, mdr), timeout=timeout, on_progress=on_progress,
+                     halt=True)

@@ -33,6 +33,8 @@ from .wall_impacts import CASE_STEPS, impact_cases, run_cases
 Y_RANGE = (1e8, 1e11)
 #: mdr's critical confinement ratio psi_b (LAMMPS' example value)
 PSI_B = 0.5
+#: the damping coefficients eta_n0 of the first pass
+ETA_GRID = (0.0, 0.1, 0.2, 0.3, 0.45, 0.6)
 #: steps a case runs: a plastic contact lasts longer than the elastic t_c its time step comes from
 MDR_STEPS = 5 * CASE_STEPS
 
@@ -43,6 +45,7 @@ class MdrLaw(NamedTuple):
     young: float            #: E of the mdr input, Pa
     poisson: float
     yield_stress: float     #: Y, Pa
+    damping: float          #: eta_n0 of mdr's damping class 1
     friction: float
     e_n_fit: np.ndarray     #: mdr's e_n at each table point (normal impact at its v_n)
     e_n_table: np.ndarray
@@ -51,50 +54,60 @@ class MdrLaw(NamedTuple):
 
     def coefficients(self) -> str:
         """The ``pair_coeff * *`` model (and the wall's)."""
-        return (f"mdr {self.young:.6g} {self.poisson:g} {self.yield_stress:.6g} 0.0 {PSI_B:g} 0.0 damping mdr 1 "
-                f"tangential mindlin NULL 0.0 {self.friction:g}")
+        return mdr_coefficients(self.young, self.poisson, self.yield_stress, self.damping, self.friction)
 
 
-def _mdr_e_n(law: ExportedLaw, young: float, y: float, workdir: Path) -> np.ndarray:
+def mdr_coefficients(young: float, poisson: float, y: float, eta: float, friction: float) -> str:
+    """mdr's ``pair_coeff`` model: E nu Y (no surface energy) psi_b eta_n0, damping class 1, Mindlin."""
+    return (f"mdr {young:.6g} {poisson:g} {y:.6g} 0.0 {PSI_B:g} {eta:.6g} damping mdr 1 "
+            f"tangential mindlin NULL 0.0 {friction:g}")
+
+
+def _grid_e_n(law: ExportedLaw, young: float, pairs: list[tuple[float, float]], workdir: Path) -> list[np.ndarray]:
+    """mdr's e_n at the table's normal speeds for each (Y, eta_n0) of ``pairs``: one LAMMPS run."""
     t = law.table
-    probe = MdrLaw(young, t.poisson, y, t.friction, np.empty(0), np.empty(0), 0.0, 0.0)
     vn = t.normal_speed.ravel()
-    cases = [dict(c, steps=MDR_STEPS) for c in impact_cases([(v, 0.0, v) for v in vn], t.ball_mass, t.radius,
-                                                                t.e_star_materials)]
-    rows = run_cases([lammps_executable()], workdir, cases, t.radius, t.ball_density, SETUP_MDR,
-                     f"pair_style granular\npair_coeff * * {probe.coefficients()}",
-                     wall_line(probe.coefficients(), mdr=True), timeout=600)
-    return np.array([r["restitution_normal"] for r in rows]).reshape(t.normal_speed.shape)
+    base = impact_cases([(v, 0.0, v) for v in vn], t.ball_mass, t.radius, t.e_star_materials)
+    cases, laws, walls = [], [], []
+    for y, eta in pairs:
+        coeff = mdr_coefficients(young, t.poisson, y, eta, t.friction)
+        for c in base:
+            cases.append(dict(c, steps=MDR_STEPS))
+            laws.append(f"pair_style granular\npair_coeff * * {coeff}")
+            walls.append(wall_line(coeff, mdr=True))
+    rows = run_cases([lammps_executable()], workdir, cases, t.radius, t.ball_density, SETUP_MDR, laws, walls,
+                     timeout=1800, halt=True)
+    e = np.array([r["restitution_normal"] for r in rows]).reshape(len(pairs), -1)
+    return [row.reshape(t.normal_speed.shape) for row in e]
 
 
 def fit_mdr(law: ExportedLaw, workdir: Path, on_progress: Optional[Callable[[str], None]] = None) -> MdrLaw:
-    """The mdr law whose yield stress fits the table's e_n over speed (module docstring)."""
-    from scipy.optimize import minimize_scalar
-
+    """The mdr law whose yield stress (and damping) fit the table's e_n over speed (module docstring)."""
     t = law.table
     young = (1.0 - t.poisson**2) * t.e_star_materials
     target = np.minimum(t.e_n, 1.0)
-    seen: dict[float, np.ndarray] = {}
-
-    def cost(ln_y: float) -> float:
-        run_dir = workdir / f"y{len(seen)}"
-        e = _mdr_e_n(law, young, math.exp(ln_y), run_dir)
+    best = None
+    ys = np.exp(np.linspace(math.log(Y_RANGE[0]), math.log(Y_RANGE[1]), 13))
+    etas = np.array(ETA_GRID)
+    for stage in range(3):
+        pairs = [(float(y), float(eta)) for y in ys for eta in etas]
+        run_dir = workdir / f"grid{stage}"
+        for pair, e in zip(pairs, _grid_e_n(law, young, pairs, run_dir)):
+            cost = float(np.sum((e - target) ** 2))
+            if best is None or cost < best[0]:
+                best = (cost, pair, e)
         shutil.rmtree(run_dir)
-        seen[ln_y] = e
+        (y0, eta0), e = best[1], best[2]
         if on_progress is not None:
-            on_progress(f"mdr Y = {math.exp(ln_y):.4g} Pa: rms e_n difference {np.sqrt(np.mean((e - target) ** 2)):.4f}")
-        return float(np.sum((e - target) ** 2))
-
-    grid = np.linspace(math.log(Y_RANGE[0]), math.log(Y_RANGE[1]), 7)
-    costs = [cost(g) for g in grid]
-    k = int(np.argmin(costs))
-    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
-    best = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 0.01})
-    ln_y = min(seen, key=lambda g: float(np.sum((seen[g] - target) ** 2)))
-    e = seen[ln_y]
-    del best
-    return MdrLaw(young, t.poisson, math.exp(ln_y), t.friction, e, target,
-                  float(np.sqrt(np.mean((e - target) ** 2))), float(np.max(np.abs(e - target))))
+            on_progress(f"mdr fit, pass {stage + 1}/3: Y {y0:.4g} Pa, eta_n0 {eta0:.3g}: "
+                        f"rms e_n difference {np.sqrt(np.mean((e - target) ** 2)):.4f}")
+        ratio = (ys[1] / ys[0]) ** 0.5
+        ys = y0 * ratio ** np.linspace(-1, 1, 5)
+        step = (etas[1] - etas[0]) / 2 if len(etas) > 1 else 0.01
+        etas = np.maximum(eta0 + step * np.array([-1.0, 0.0, 1.0]), 0.0)
+    cost, (y, eta), e = best
+    return MdrLaw(young, t.poisson, y, eta, t.friction, e, target, float(np.sqrt(np.mean((e - target) ** 2))),
+                  float(np.max(np.abs(e - target))))
 
 
 def write_lammps_mdr(folder: Path, law: ExportedLaw, mdr: MdrLaw) -> Path:

@@ -46,9 +46,13 @@ def impact_cases(speeds_angles: Sequence[tuple[float, float, float]], mass: floa
     return out
 
 
-def case_script(k: int, n: int, case: dict, radius: float, density: float, setup: str, law: str, wall: str) -> str:
+def case_script(k: int, n: int, case: dict, radius: float, density: float, setup: str, law: str, wall: str,
+                halt: bool = False) -> str:
     """The commands of case ``k`` of ``n``: ``setup`` (atom style, newton, communication), ``law``
-    (the pair style and its coefficients: the exported file included) and ``wall`` (the wall fix)."""
+    (the pair style and its coefficients: the exported file included) and ``wall`` (the wall fix);
+    ``halt`` (LAMMPS): the run stops once the ball has left the wall (checked every 20 steps)."""
+    halt = ('variable gone equal "v_vz > 0 && v_fz == 0"\n'
+            "fix stop all halt 20 v_gone > 0.5 error continue\n") if halt else ""
     a = math.radians(case["angle_deg"])
     v = case["speed_m_s"]
     return f"""clear
@@ -74,7 +78,7 @@ compute spin all reduce sum c_omega
 variable wy equal c_spin
 variable fz equal fz[1]
 fix trace all print 1 "${{vx}} ${{vz}} ${{wy}} ${{fz}}" file trace_{k}.txt screen no
-thermo {case.get('steps', CASE_STEPS)}
+{halt}thermo {case.get('steps', CASE_STEPS)}
 run {case.get('steps', CASE_STEPS)}
 print "{PROGRESS_PREFIX}case {k + 1}/{n}: v = {v:g} m/s, {case['angle_deg']:g} deg"
 """
@@ -130,10 +134,14 @@ def run_code(cmd: Sequence[str], workdir: Path, script: str, timeout: Optional[f
 
 
 def run_cases(cmd: Sequence[str], workdir: Path, cases: Sequence[dict], radius: float, density: float,
-              setup: str, law: str, wall: str, timeout: Optional[float] = 1800,
-              on_progress: Optional[Callable[[str], None]] = None) -> list[dict]:
-    """Every case in one run of the code; the measured rows in the cases' order."""
-    script = "".join(case_script(k, len(cases), c, radius, density, setup, law, wall) for k, c in enumerate(cases))
+              setup: str, law: str | Sequence[str], wall: str | Sequence[str], timeout: Optional[float] = 1800,
+              on_progress: Optional[Callable[[str], None]] = None, halt: bool = False) -> list[dict]:
+    """Every case in one run of the code; the measured rows in the cases' order. ``law`` and
+    ``wall``: one for all cases, or one per case."""
+    laws = [law] * len(cases) if isinstance(law, str) else list(law)
+    walls = [wall] * len(cases) if isinstance(wall, str) else list(wall)
+    script = "".join(case_script(k, len(cases), c, radius, density, setup, laws[k], walls[k], halt)
+                     for k, c in enumerate(cases))
     run_code(cmd, workdir, script, timeout=timeout, on_progress=on_progress)
     rows = [measure(workdir / f"trace_{k}.txt", c, radius) for k, c in enumerate(cases)]
     for k in range(len(cases)):            # a few MB each; the script and the log stay
