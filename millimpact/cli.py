@@ -266,8 +266,8 @@ EXTRA_COMMANDS = {
     "bench": "millimpact.studies.bench",
     "stability": "millimpact.studies.stability",
     "compare": "millimpact.studies.compare",
-    "export": "millimpact.dem.export",
-    "mill": "millimpact.dem.mill",
+    "export": "millimpact.dem.export.command",
+    "mill": "millimpact.dem.mill.command",
     "damage": "millimpact.damage.command",
     "repeat": "millimpact.repeat.command",
 }

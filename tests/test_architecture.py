@@ -25,16 +25,22 @@ def _lint(project: Path) -> subprocess.CompletedProcess:
 def test_layers_contract_is_kept():
     res = _lint(ROOT)
     assert res.returncode == 0, res.stdout + res.stderr
-    assert "1 kept, 0 broken" in res.stdout
+    assert "2 kept, 0 broken" in res.stdout   # the stages' layers and dem's two commands
 
 
-def test_an_upward_import_breaks_the_contract(tmp_path):
-    """The scene (a low stage) importing the mesher (a higher one) is refused."""
+@pytest.mark.parametrize("module, line, shown", [
+    # the scene (a low stage) importing the mesher (a higher one)
+    ("scene/schema.py", "from ..geometry import mesh as _upward", "millimpact.scene.schema -> millimpact.geometry.mesh"),
+    # one DEM command importing the other (they share only dem/impacts.py and dem/yade.py)
+    ("dem/mill/law.py", "from ..export import files as _sideways", "millimpact.dem.mill.law -> millimpact.dem.export.files"),
+])
+def test_a_forbidden_import_breaks_the_contract(tmp_path, module, line, shown):
+    """A copy of the package with one forbidden import is refused, naming it."""
     copy = tmp_path / "project"
     shutil.copytree(ROOT / "millimpact", copy / "millimpact", ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copy(ROOT / "pyproject.toml", copy / "pyproject.toml")
-    schema = copy / "millimpact" / "scene" / "schema.py"
-    schema.write_text(schema.read_text() + "\nfrom ..geometry import mesh as _upward  # noqa\n")
+    path = copy / "millimpact" / module
+    path.write_text(path.read_text() + f"\n{line}  # noqa\n")
     res = _lint(copy)
     assert res.returncode != 0
-    assert "millimpact.scene.schema -> millimpact.geometry.mesh" in res.stdout
+    assert shown in res.stdout

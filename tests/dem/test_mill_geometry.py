@@ -6,9 +6,9 @@ import math
 
 import pytest
 
-from millimpact.dem.mill_contact import critical_rpm
-from millimpact.dem.mill_geometry import build_profile, lifter_count
-from millimpact.dem.mill_setup import MillOptions, lattice_positions, plan_mill
+from millimpact.dem.mill.contact import critical_rpm
+from millimpact.dem.mill.geometry import build_profile, lifter_count
+from millimpact.dem.mill.setup import MillOptions, lattice_positions, plan_mill
 from millimpact.scene.builtin import resolve_scene
 
 

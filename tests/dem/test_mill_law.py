@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from millimpact.dem.mill import run_mill
-from millimpact.dem.mill_setup import MillOptions, plan_mill
-from millimpact.dem.table_input import read_table
+from millimpact.dem.mill.command import run_mill
+from millimpact.dem.mill.setup import MillOptions, plan_mill
+from millimpact.dem.export.table_input import read_table
 
 from mill_scenes import needs_yade, small_mill_scene
 

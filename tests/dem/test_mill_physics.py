@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from millimpact.dem.impacts import read_impacts
-from millimpact.dem.mill import run_mill
-from millimpact.dem.mill_setup import MillOptions, plan_mill
+from millimpact.dem.mill.command import run_mill
+from millimpact.dem.mill.setup import MillOptions, plan_mill
 from millimpact.dem.yade import run_yade
 
 from mill_scenes import needs_yade, small_mill_scene

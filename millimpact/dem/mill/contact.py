@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 
-from ..errors import InputError
+from ...errors import InputError
 
 #: g (m/s^2)
 GRAVITY = 9.81
@@ -54,8 +54,8 @@ def hertz_contact_time(mass: float, radius: float, e_star: float, speed: float) 
 def scene_restitution(scene, speed: float) -> tuple[float, str]:
     """(e, source) for a mill run of ``scene`` without --restitution: Thornton's e(V) at ``speed``
     (m/s) with the yield stress of the softer of ball and liner; InputError for elastic materials."""
-    from ..theory.hertz import effective_modulus
-    from ..theory.thornton import restitution_thornton, yield_onset_velocity
+    from ...theory.hertz import effective_modulus
+    from ...theory.thornton import restitution_thornton, yield_onset_velocity
 
     ball, liner = scene.ball.material, scene.liner.material
     ys = [m.yield_stress if m.yield_stress is not None else (m.flow_curve[0][1] if m.flow_curve else None)

@@ -16,7 +16,7 @@ counted); the impact energy is (1/2) m (v_n^2 + v_t^2). (The velocity when the c
 is no substitute: Yade's Tsuji damping, proportional to delta^(1/4), takes ~ 10 % of the normal
 speed in the first steps of a contact.) The impact's arc position is its contact point turned back
 by the liner's angle omega t (the liner starts at angle 0 at t = 0), measured by
-:meth:`~millimpact.dem.mill_geometry.MillProfile.arc_position`.
+:meth:`~millimpact.dem.mill.geometry.MillProfile.arc_position`.
 """
 from __future__ import annotations
 
@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .impacts import Impact
-from .mill_setup import MillSetup
+from ..impacts import Impact
+from .setup import MillSetup
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """The mill run with an exported contact law (``millimpact mill --law DIR``).
 
 ``DIR`` is a folder ``millimpact export TABLE --to yade`` wrote: ``contact_law_yade.py`` (the law
-``MILLIMPACT_LAW`` and its Yade runtime, ``millimpact/dem/yade_scripts/contact_law_runtime.py``)
+``MILLIMPACT_LAW`` and its Yade runtime, ``millimpact/dem/export/yade_scripts/contact_law_runtime.py``)
 and ``contact_law.json``. The mill's Yade script runs that file as the user's own model would
 (docs/dem.md): the balls get the ``millimpact_ball`` material, the liner's facets
 ``millimpact_liner``, the interactions ``millimpact_ip2()`` (Hertz-Mindlin in betan mode with the
@@ -28,7 +28,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import InputError
+from ...errors import InputError
 
 #: the files of a ``millimpact export --to yade`` folder
 LAW_SCRIPT, LAW_JSON = "contact_law_yade.py", "contact_law.json"

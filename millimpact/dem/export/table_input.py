@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
 
 #: columns of contact_table.json's rows the export reads
 NEEDED = ("impact_speed_m_s", "impact_angle_deg", "ball_radius_m", "normal_velocity_in_m_s",
@@ -53,8 +53,8 @@ def _not_a_table(folder: Path, why: str) -> InputError:
 
 def read_table(folder: Path | str) -> ContactTable:
     """The table in ``folder`` (InputError, one line, if it is not one or its grid is incomplete)."""
-    from ..scene.toml_io import scene_from_dict
-    from ..theory.hertz import effective_modulus
+    from ...scene.toml_io import scene_from_dict
+    from ...theory.hertz import effective_modulus
 
     try:
         import tomllib

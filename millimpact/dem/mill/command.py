@@ -1,11 +1,11 @@
 """``millimpact mill SCENE --revolutions R``: a slice of the mill in Yade and its ball-liner impact spectrum.
 
 The scene's liner (shell radius, lifters' count, height, top, face angle, spacing) makes the mill's
-profile round the whole shell (:mod:`~millimpact.dem.mill_geometry`); balls of the scene's radius
-fill a slice of it (:mod:`~millimpact.dem.mill_setup`); Yade turns it at a fraction of the critical
-speed (``millimpact/dem/yade_scripts/mill_slice.py``) and logs every new ball-liner contact; the log
-becomes ``impacts.csv`` (:mod:`~millimpact.dem.mill_log`) and the reports
-(:mod:`~millimpact.dem.mill_report`).
+profile round the whole shell (:mod:`~millimpact.dem.mill.geometry`); balls of the scene's radius
+fill a slice of it (:mod:`~millimpact.dem.mill.setup`); Yade turns it at a fraction of the critical
+speed (``millimpact/dem/mill/yade_scripts/mill_slice.py``) and logs every new ball-liner contact; the log
+becomes ``impacts.csv`` (:mod:`~millimpact.dem.mill.log`) and the reports
+(:mod:`~millimpact.dem.mill.report`).
 """
 from __future__ import annotations
 
@@ -15,9 +15,9 @@ import shutil
 import sys
 from pathlib import Path
 
-from ..console import say
-from ..errors import InputError
-from ..results.output_folder import FORCE_HELP, OUT_HELP
+from ...console import say
+from ...errors import InputError
+from ...results.output_folder import FORCE_HELP, OUT_HELP
 
 HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe"
 
@@ -41,7 +41,7 @@ settings) and yade/ (the script, its input and its raw output). Needs Yade (apt-
   millimpact mill liner-panel --revolutions 2 --balls 200 --law out/dem-yade --out out/mill-law
 """
 
-#: the Yade script (millimpact/dem/yade_scripts/)
+#: the Yade script (millimpact/dem/mill/yade_scripts/)
 SCRIPT = Path(__file__).resolve().parent / "yade_scripts" / "mill_slice.py"
 
 
@@ -79,8 +79,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _scene(args: argparse.Namespace):
-    from ..scene.builtin import resolve_scene
-    from ..scene.schema import parse_value
+    from ...scene.builtin import resolve_scene
+    from ...scene.schema import parse_value
 
     scene = resolve_scene(args.scene)
     for assignment in args.set or []:
@@ -92,8 +92,8 @@ def _scene(args: argparse.Namespace):
 
 
 def options_from_args(args: argparse.Namespace):
-    """The :class:`~millimpact.dem.mill_setup.MillOptions` of the command line, checked."""
-    from .mill_setup import MillOptions, check_mill_options
+    """The :class:`~millimpact.dem.mill.setup.MillOptions` of the command line, checked."""
+    from .setup import MillOptions, check_mill_options
 
     opts = MillOptions(revolutions=args.revolutions, balls=args.balls, fill=args.fill,
                        speed_fraction=args.speed_fraction, restitution=args.restitution, friction=args.friction,
@@ -142,12 +142,12 @@ def _contact_summary(setup) -> dict:
 
 def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=None) -> dict:
     """Plan, run and report one mill run into the folder ``stage``; returns the summary."""
-    from .impacts import write_impacts
-    from .mill_log import read_mill_run
-    from .mill_report import (charge_angles, charge_figure, energy_balance, place_table, plot_spectrum,
+    from ..impacts import write_impacts
+    from .log import read_mill_run
+    from .report import (charge_angles, charge_figure, energy_balance, place_table, plot_spectrum,
                               write_spectrum_csv)
-    from .mill_setup import plan_mill
-    from .yade import run_yade
+    from .setup import plan_mill
+    from ..yade import run_yade
 
     if setup is None:
         setup = plan_mill(scene, opts)
@@ -206,10 +206,10 @@ def _restitution_text(setup) -> str:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..results.output_folder import claim_output, default_out
-    from ..results.timeseries import write_summary
-    from .mill_setup import plan_mill
-    from .yade import yade_executable
+    from ...results.output_folder import claim_output, default_out
+    from ...results.timeseries import write_summary
+    from .setup import plan_mill
+    from ..yade import yade_executable
 
     # every check before any folder is made: options, scene, the plan, Yade, then --out
     opts = options_from_args(args)

@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .impacts import PLACES, Impact
-from .mill_setup import MillSetup
+from ..impacts import PLACES, Impact
+from .setup import MillSetup
 
 #: sector width (deg) of the shoulder and toe count
 SECTOR_DEG = 5.0

@@ -1,6 +1,6 @@
 # A slice of a tumbling mill in Yade: run as  yade -n -j1 -x mill_slice.py INPUT.json
 #
-# Written by millimpact (millimpact/dem/mill_script.py writes INPUT.json; millimpact/dem/mill_log.py
+# Written by millimpact (millimpact/dem/mill/setup.py writes INPUT.json; millimpact/dem/mill/log.py
 # reads what this leaves). It runs inside Yade's own Python: no millimpact imports here.
 #
 # The liner: the profile's segments (x0, y0, x1, y1 in the mill's cross-section, axis on z through

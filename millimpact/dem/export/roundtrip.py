@@ -19,9 +19,9 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from .export_files import ExportedLaw, law_data
+from .files import ExportedLaw, law_data
 from .table_input import ContactTable
-from .yade import run_yade
+from ..yade import run_yade
 
 SCRIPT = Path(__file__).with_name("yade_scripts") / "roundtrip.py"
 #: time steps per contact duration
@@ -46,7 +46,7 @@ def _cases(t: ContactTable, e_star: np.ndarray) -> list[dict]:
 
 def constant_law_file(law: ExportedLaw, path: Path) -> Path:
     """A Yade law file with the constant law (what LIGGGHTS and LAMMPS get) on a 1 x 1 grid."""
-    from .export_files import RUNTIME
+    from .files import RUNTIME
 
     data = law_data(law)
     data.update(speeds_m_s=[1.0], angles_deg=[0.0], zeta=[[law.zeta_const]], e_star_Pa=[[law.e_star_const]])
@@ -85,21 +85,22 @@ def roundtrip_rows(t: ContactTable, results: Sequence[dict]) -> list[dict]:
     return rows
 
 
-def write_roundtrip(folder: Path, t: ContactTable, rows: Sequence[dict], code: str) -> None:
-    """roundtrip.csv (a # header naming the table and the law) and roundtrip.png."""
-    with open(folder / "roundtrip.csv", "w", newline="") as fh:
+def write_roundtrip(folder: Path, t: ContactTable, rows: Sequence[dict], code: str, runner: str = "Yade",
+                    stem: str = "roundtrip") -> None:
+    """STEM.csv (a # header naming the table, the law and the code that ran it) and STEM.png."""
+    with open(folder / f"{stem}.csv", "w", newline="") as fh:
         fh.write(f"# millimpact export --check: the {code} law exported from {t.folder.resolve()} (scene "
-                 f"{t.scene_name}, method {t.method}) run in Yade, one ball on a wall per table point\n")
-        fh.write("# _table: millimpact's contact table; _dem: Yade. e_t NaN at normal incidence. SI units\n")
+                 f"{t.scene_name}, method {t.method}) run in {runner}, one ball on a wall per table point\n")
+        fh.write(f"# _table: millimpact's contact table; _dem: {runner}. e_t NaN at normal incidence. SI units\n")
         w = csv.writer(fh)
         w.writerow(COLUMNS)
         for r in rows:
             w.writerow([repr(float(r[c])) for c in COLUMNS])
-    plot_roundtrip(folder / "roundtrip.png", t, rows, code)
+    plot_roundtrip(folder / f"{stem}.png", t, rows, code, runner)
 
 
-def plot_roundtrip(path: Path, t: ContactTable, rows: Sequence[dict], code: str) -> None:
-    from ..results.plots import _plt
+def plot_roundtrip(path: Path, t: ContactTable, rows: Sequence[dict], code: str, runner: str = "Yade") -> None:
+    from ...results.plots import _plt
 
     plt = _plt()
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), constrained_layout=True)
@@ -112,12 +113,12 @@ def plot_roundtrip(path: Path, t: ContactTable, rows: Sequence[dict], code: str)
             tab = [r[f"{key}_table" if key != "peak_normal_force_N" else "peak_normal_force_N_table"] * scale for r in rr]
             dem = [r[f"{key}_dem" if key != "peak_normal_force_N" else "peak_normal_force_N_dem"] * scale for r in rr]
             ax.plot(v, tab, "o-", color=c, label=f"millimpact, {a:g} deg")
-            ax.plot(v, dem, "x--", color=c, ms=9, label=f"Yade, {a:g} deg")
+            ax.plot(v, dem, "x--", color=c, ms=9, label=f"{runner}, {a:g} deg")
     for ax, lab in zip(axes, ("normal restitution e_n", "tangential restitution e_t", "peak normal force (kN)")):
         ax.set_xlabel("impact speed (m/s)")
         ax.set_ylabel(lab)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
-    fig.suptitle(f"{code} law from the table of {t.scene_name} ({t.method}): millimpact (o) against Yade (x)")
+    fig.suptitle(f"{code} law from the table of {t.scene_name} ({t.method}): millimpact (o) against {runner} (x)")
     fig.savefig(path, dpi=130)
     plt.close(fig)

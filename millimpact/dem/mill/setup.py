@@ -2,11 +2,11 @@
 
 :func:`check_mill_options` refuses out-of-range options (one line each, before anything is made);
 :func:`plan_mill` turns a scene with a liner into a :class:`MillSetup`: the liner's profile
-(:mod:`millimpact.dem.mill_geometry`), the slice, the balls and where they start, the speed, the
+(:mod:`millimpact.dem.mill.geometry`), the slice, the balls and where they start, the speed, the
 contact law and the clock; :meth:`MillSetup.yade_input` is the JSON of
-``millimpact/dem/yade_scripts/mill_slice.py``.
+``millimpact/dem/mill/yade_scripts/mill_slice.py``.
 
-- Speed: omega = S omega_c, omega_c = sqrt(g / R) (n_c = 42.3 / sqrt(D) rpm; :mod:`~millimpact.dem.mill_contact`).
+- Speed: omega = S omega_c, omega_c = sqrt(g / R) (n_c = 42.3 / sqrt(D) rpm; :mod:`~millimpact.dem.mill.contact`).
 - Balls: ``--balls N``, or ``--fill J``, the fraction of the mill's volume the ball bed fills (the
   usual measure of a mill's load): N = J A L (1 - phi) / (4/3 pi r^3), A the open area inside the
   liner's profile, L the slice's thickness, phi = 0.4 the bed's porosity (Austin, Klimpel &
@@ -16,15 +16,15 @@ contact law and the clock; :meth:`MillSetup.yade_input` is the JSON of
   walls.
 - Contact: Yade's Hertz-Mindlin with the scene's elastic constants, Young's moduli times
   ``--stiffness-scale`` (0.01 by default: see :data:`DEFAULT_STIFFNESS_SCALE`), restitution e
-  (``--restitution``, else :func:`~millimpact.dem.mill_contact.scene_restitution`), Coulomb
+  (``--restitution``, else :func:`~millimpact.dem.mill.contact.scene_restitution`), Coulomb
   friction mu (``--friction``, else the scene's ``contact.friction``) between balls and with the
-  liner. ``--law DIR``: an exported contact law instead (:mod:`~millimpact.dem.mill_law`): its
+  liner. ``--law DIR``: an exported contact law instead (:mod:`~millimpact.dem.mill.law`): its
   moduli times ``--stiffness-scale``, its friction, its e_n per ball-liner contact and its median
   damping between balls.
 - Clock: dt = t_c / 25, t_c the shortest Hertz contact time at the largest speed expected, the
   shell's speed plus a fall across the mill, v_max = omega R + sqrt(4 g R); new contacts are looked
   for every t_c / 8 (none ends unseen) and take the ball's velocity from the check before
-  (:mod:`~millimpact.dem.mill_log`).
+  (:mod:`~millimpact.dem.mill.log`).
 """
 from __future__ import annotations
 
@@ -33,10 +33,10 @@ import random
 from dataclasses import dataclass
 from typing import Optional
 
-from ..errors import InputError
-from .mill_contact import GRAVITY, critical_omega, critical_rpm, hertz_contact_time, scene_restitution
-from .mill_geometry import MillProfile, build_profile
-from .mill_law import LAW_SCRIPT, MillLaw, check_law_ball, read_mill_law
+from ...errors import InputError
+from .contact import GRAVITY, critical_omega, critical_rpm, hertz_contact_time, scene_restitution
+from .geometry import MillProfile, build_profile
+from .law import LAW_SCRIPT, MillLaw, check_law_ball, read_mill_law
 
 #: allowed ranges of the options (speed fraction in (0, 2], fill in [0.05, 0.5])
 SPEED_FRACTION_RANGE = (0.0, 2.0)

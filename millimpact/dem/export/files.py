@@ -23,8 +23,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .. import __version__
-from ..errors import InputError
+from ... import __version__
+from ...errors import InputError
 from .contact_law import code_restitution_for_damping, peak_force_factor, point_law, restitution_of_damping
 from .table_input import ContactTable
 
@@ -166,6 +166,8 @@ def write_liggghts(folder: Path, law: ExportedLaw) -> Path:
              *_source_lines(t, "#"), *_band_lines(law, "#"),
              "# Ball-ball pairs (1 1) get the same values: the table describes ball-liner impacts only.",
              "",
+             "# steel's modulus is above LIGGGHTS' default limit for SI units (1e9 Pa)",
+             "hard_particles yes",
              f"fix m1 all property/global youngsModulus peratomtype {young:.6g} {young:.6g}",
              f"fix m2 all property/global poissonsRatio peratomtype {t.poisson:g} {t.poisson:g}",
              f"fix m3 all property/global coefficientRestitution peratomtypepair 2 {e:.6f} {e:.6f} {e:.6f} {e:.6f}",
@@ -175,9 +177,9 @@ def write_liggghts(folder: Path, law: ExportedLaw) -> Path:
              "# tangential_damping off: the table's contact has no tangential damping",
              "pair_style gran model hertz tangential history limitForce on tangential_damping off",
              "pair_coeff * *",
-             "# the liner as a mesh wall of type 2, same model, e.g.:",
-             "# fix liner all wall/gran model hertz tangential history limitForce on tangential_damping off "
-             "mesh n_meshes 1 meshes cad1",
+             "# the liner as a mesh wall of type 2, same model (its keywords after the geometry), e.g.:",
+             "# fix liner all wall/gran model hertz tangential history mesh n_meshes 1 meshes cad1 "
+             "limitForce on tangential_damping off",
              ""]
     path = folder / "contact_law_liggghts.in"
     path.write_text("\n".join(lines))

@@ -30,8 +30,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..errors import InputError
-from ..scene.liner_shape import LinerShape
+from ...errors import InputError
+from ...scene.liner_shape import LinerShape
 
 #: a plate chord's sagitta, at most this fraction of the ball radius: L <= sqrt(8 R r f)
 CHORD_SAG_FRACTION = 0.01
