@@ -1,4 +1,4 @@
-"""A DEM contact table (``millimpact table``) and its law exported for Yade (``millimpact export``): restitution and force over speed and angle.
+"""A DEM contact table (``millimpact table``, ``export``): restitution and force over speed and angle, the law in Yade.
 
 A discrete-element model of a mill needs, for every ball-liner contact, how much of the normal
 speed comes back (the restitution e_n) and how hard the contact pushes (the peak force) at that

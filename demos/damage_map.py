@@ -107,4 +107,5 @@ if __name__ == "__main__":
         e_in = b["impacts_per_rev"] * 0.5 * mass * (b["normal_speed_m_s"]**2 + b["tangential_speed_m_s"]**2)
         # energy conservation; 1e-9 J of slack for the elastic bins' rounding (absorbed ~ +-1e-10 J)
         assert -1e-9 <= b["plastic_work_J_per_rev"] <= b["energy_absorbed_J_per_rev"] + 1e-9 <= e_in + 2e-9, b
-    print("checks passed: the bins add up to the log's impact energy; absorbed <= impact energy, plastic work <= absorbed")
+    print("checks passed: the bins add up to the log's impact energy; absorbed <= impact energy, "
+          "plastic work <= absorbed")

@@ -63,12 +63,14 @@ if __name__ == "__main__":
           f"{2e3 * s['charge']['ball_radius_m']:g} mm, {revolutions:g} revolution(s) logged -> {out}/")
     print(f"  critical speed {mill['critical_speed_rpm']:.3f} rpm (from g and D: {n_c:.3f} rpm), turning at "
           f"{mill['speed_rpm']:.3f} rpm = {mill['speed_rpm'] / mill['critical_speed_rpm']:.2f} n_c")
-    print(f"  {len(impacts)} impacts logged: per revolution " + ", ".join(
-        f"{k} {v:.0f}" for k, v in s["impacts_per_revolution"].items()) + f"; {s['energy_per_revolution_J']['all'] / 1e3:.1f} kJ")
+    rates = ", ".join(f"{k} {v:.0f}" for k, v in s["impacts_per_revolution"].items())
+    print(f"  {len(impacts)} impacts logged: per revolution {rates}; "
+          f"{s['energy_per_revolution_J']['all'] / 1e3:.1f} kJ")
     print(f"  largest impact {e_max:.0f} J (free-fall bound {e_fall:.0f} J at {v_fall:.1f} m/s); shoulder "
           f"{s['shoulder_deg']} deg, toe {s['toe_deg']} deg")
-    print(f"  energy balance: drive's work {bal['drive_work_J'] / 1e3:.2f} kJ, dissipated {bal['dissipated_J'] / 1e3:.2f} kJ, "
-          f"kinetic + potential change {bal['mechanical_change_J'] / 1e3:.2f} kJ: error {100 * bal['relative_error']:+.2f} %")
+    print(f"  energy balance: drive's work {bal['drive_work_J'] / 1e3:.2f} kJ, dissipated "
+          f"{bal['dissipated_J'] / 1e3:.2f} kJ, kinetic + potential change {bal['mechanical_change_J'] / 1e3:.2f} kJ: "
+          f"error {100 * bal['relative_error']:+.2f} %")
     print(f"  Yade: {yade['steps']} steps of {yade['dt_s'] * 1e6:.1f} us, {yade['cpu_s']:.1f} s of CPU")
 
     # 42.3 / sqrt(D) is (60 / 2 pi) sqrt(2 g) = 42.30 rounded: 0.1 % covers the rounding and g

@@ -87,7 +87,8 @@ if __name__ == "__main__":
         lost = (1 - e**2) * d["impact_energy_J"]
         growth.append(dent - dent_before)
         share.append(w / lost)
-        print(f" {r['impact']:6d}  {e:.4f}  {w * 1e3:8.2f}  {w / lost:17.3f}  {dent * 1e6:9.2f}  {growth[-1] * 1e6:11.3f}")
+        print(f" {r['impact']:6d}  {e:.4f}  {w * 1e3:8.2f}  {w / lost:17.3f}  {dent * 1e6:9.2f}  "
+              f"{growth[-1] * 1e6:11.3f}")
         dent_before = dent
     v = summary["verdict"]
     print(f"elastic twin's restitution {e_el:.4f}; verdict: {v['kind']} ({v['numbers'].get('reason', '')})")
