@@ -1,4 +1,5 @@
-"""Shared command line of the study demos: full size by default, ``--small`` for a quick check."""
+"""Shared helpers of the demos: the study demos' command line (full size by default, ``--small`` for a
+quick check), one millimpact command run in-process, the figure backend."""
 from __future__ import annotations
 
 import argparse
@@ -44,3 +45,23 @@ def exponent(x, y) -> float:
     import numpy as np
 
     return float(np.polyfit(np.log(x), np.log(y), 1)[0])
+
+
+def millimpact(*args: str) -> None:
+    """Run one ``millimpact`` command in this process (as typed after ``millimpact``; its figures and
+    files go where its ``--out`` says); a failed command stops the demo with its exit status."""
+    from millimpact.cli import main
+
+    code = main([str(a) for a in args])
+    if code != 0:
+        raise SystemExit(f"millimpact {' '.join(map(str, args))}: exit status {code}")
+
+
+def figure_backend():
+    """matplotlib's pyplot on the file-only backend (the demos write PNGs, never open a window)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt

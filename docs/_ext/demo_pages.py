@@ -3,15 +3,15 @@
 At ``builder-inited`` each demo gets a MyST page ``docs/demos/<name>.md`` (generated at each build,
 not tracked) made of its docstring, the command of its quick variant, what that run printed (the
 numbers the demo checks), every figure it wrote and its code; ``docs/demos/index.md`` lists them.
-The figures come from the demo's **quick variant** (``--small``, ~20 s each on 2 cores), run by the
+The figures come from the demo's **quick variant** (``--small``, 20-80 s each on 2 cores), run by the
 build when its record is missing or stale: a record ``<demo_runs>/<name>/demo-run.json`` keeps the
 fingerprint (a hash of the demo, ``demos/_common.py`` and the package's sources), the command and
 what it printed; the outputs lie beside it in ``out/``. So a fresh clone's ``./dev docs`` runs the
-five quick variants once (~1.5 min) and a rebuild with unchanged sources reuses them. A demo that
+ten quick variants once (~6 min) and a rebuild with unchanged sources reuses them. A demo that
 fails (its own physics checks are asserts) stops the build, with the end of what it printed.
 
 The demos never run at full size here: the full-size figures need minutes to hours (the paper's
-rig and the studies over 40 ms). ``tests/test_demos.py`` runs the same quick variants and builds
+rig and the studies over 40 ms, a mill's two revolutions in Yade). ``tests/test_demos.py`` runs the same quick variants and builds
 their pages with this extension, so a demo or a page that breaks fails the test suite too.
 
 Config values: ``demo_runs`` (folder of the records, default ``docs/_build/demo-runs``),
@@ -34,7 +34,8 @@ ROOT = Path(__file__).resolve().parents[2]
 DEMOS = ROOT / "demos"
 RECORD = "demo-run.json"
 #: figures shown first when a demo wrote them (the rest follow in name order)
-FIGURE_ORDER = ["contact_force.png", "trends.png", "energy.png", "restitution.png"]
+FIGURE_ORDER = ["contact_force.png", "trends.png", "force_approach.png", "energy.png", "restitution.png",
+                "shakedown.png", "e_n_speed.png", "spectrum.png", "damage_map.png"]
 #: the extra arguments of a quick variant (the studies compute their two cases side by side)
 EXTRA_ARGS = {"study_": ["--jobs", "2"]}
 
@@ -143,7 +144,9 @@ def index_text(names: list[str]) -> str:
     return "\n".join([
         "# Demos", "",
         "Literate scripts under `demos/`, each checking its own physics (Hertz's exponents, the rig's 5 % "
-        "to Hertz and 1 % energy balance, the paper's trends). Each page gives the demo's prose, the "
+        "to Hertz and 1 % energy balance, the paper's trends, plastic restitution between Thornton's bound "
+        "and the elastic rig, shakedown under repeated impacts, a mill's energy balance in Yade, the damage "
+        "map's energy sums). Each page gives the demo's prose, the "
         "figures and numbers of its quick variant (`--small`, the size the test suite runs) and its "
         "code. Run one at full size with `.venv/bin/python demos/NAME.py` (its page says what full "
         "size is).", "", *rows, "",
