@@ -1,54 +1,35 @@
 """Manifold (NMM) enrichment of the contact zone: a prolongation into the P2 space.
 
-The paper's "improved multivariable method" describes the contact zone of each body by
-first-order numerical-manifold covers (DESIGN.md section 4)::
+The paper's "improved multivariable method" describes the contact zone of each body by first-order
+numerical-manifold covers (docs/methods.md, "Methods")::
 
     u(x) = sum_i N_i(x) (a_i + b_i . (x - x_i) / h_i)          (one such field per component)
 
 with ``N_i`` the P1 hat functions of the zone's vertices ``x_i`` (the partition of unity), ``a_i``
 the vertex value and ``b_i`` the scaled gradient (``h_i`` the mean length of the zone edges at
-vertex i, so that ``a`` and ``b`` share the unit metre and the reduced mass matrix stays well
-conditioned: unscaled, the ``b`` rows would carry an extra factor h^2 ~ 1e-7).
-
-On each (affine) tetrahedron ``u`` is quadratic, so the enriched fields form a subspace of the
-whole-mesh P2 space and are *exactly* their P2 nodal interpolant. The prolongation ``P`` maps the
-cover coordinates to P2 nodal values:
+vertex i: ``a`` and ``b`` share the unit metre and the reduced mass matrix stays well conditioned).
+On each affine tetrahedron ``u`` is quadratic, so the enriched fields are exactly their P2 nodal
+interpolant. The prolongation ``P`` maps the cover coordinates to P2 nodal values:
 
 * vertex node j:                 u_j = a_j
 * midpoint m of edge (i, j):     u_m = (a_i + a_j) / 2 + (b_i / h_i - b_j / h_j) . (x_j - x_i) / 4
 
-Conformity with the region. Every P2 node of a zone cell, the nodes on the zone/region interface
-included, takes its value from ``P``; region cells read the same nodal values, so the field is
-one conforming P2 function on the whole mesh (no constraint between two descriptions is needed).
-The region's interior is then reduced by Craig-Bampton on top (:mod:`millimpact.reduction`), with
-the interface nodes' cover coordinates as boundary coordinates.
+Every P2 node of a zone cell, the interface nodes included, takes its value from ``P``, so the
+field is one conforming P2 function on the whole mesh; the region's interior is reduced by
+Craig-Bampton on top (:mod:`.craig_bampton`), the interface nodes' cover coordinates as boundary
+coordinates.
 
-Null space. Fields with ``a = 0`` and ``b_i = c + W x_i`` (W antisymmetric) vanish at every node:
-``(b_i - b_j) . (x_j - x_i) = 0`` on every edge. They are the infinitesimal rigid motions of the
-edge framework, 6 per scalar field and connected zone (DESIGN.md section 4; fewer on a symmetry
-plane, where some ``b`` components are removed, see below), so with every vertex enriched
-``P^T M P`` is singular. Remedies (``remedy=``):
+Null space: fields with ``a = 0`` and ``b_i = c + W x_i`` (W antisymmetric) vanish at every node
+(the rigid motions of the edge framework, 6 per scalar field and connected zone), so with every
+vertex enriched ``P^T M P`` is singular. Remedies (``remedy=``): ``"interface"`` (default) drops
+``b`` at the interface vertices (a piecewise linear trace, 3 boundary coordinates per interface
+vertex instead of 12); ``"anchors"`` drops it at three far-apart, non-collinear interface vertices
+per zone; ``"none"`` keeps every vertex enriched (singular, for tests of the null space).
 
-* ``"interface"`` (default): no ``b`` at the interface vertices. ``c + W x_i = 0`` at the
-  (non-collinear) interface vertices forces ``c = W = 0``. The interface trace becomes piecewise
-  linear, which also keeps the Craig-Bampton boundary small (3 coordinates per interface vertex
-  instead of 12), at the price of a P1-like coupling to the region, far from the contact.
-* ``"anchors"``: no ``b`` at three interface vertices per zone, chosen far apart and not
-  collinear (the least change that removes the null space: 9 coordinates per zone).
-* ``"none"``: every vertex enriched; singular, for tests that show the null space.
-
-Constrained dofs. Where a component ``c`` of a zone vertex is fixed (symmetry plane ``u . n = 0``
-or a clamp), ``a^c`` is dropped and so are the components of ``b^c`` along the edges whose
-midpoints are fixed in ``c`` (the plane's tangents): then every fixed P2 dof is zero for every
-coordinate vector. Rows of ``P`` at fixed dofs are left empty.
-
-Exact zeros. Edge-vector components below ``DIRECTION_TOL`` of the edge length are set to zero
-before they enter ``P``: on the symmetry plane the P2 node coordinates carry ~1e-20 m of
-round-off that depends on the mesh partition and the BLAS, and the resulting ~1e-17 entries made
-gradient coordinates "touch" contact dofs on some partitions only, so mass redistribution made
-another set of coordinates massless and ``mpirun -n 2`` differed from serial by 1.7e-5 on F_max.
-
-Only this module and :mod:`millimpact.reduction` hold PETSc objects (STYLE.md).
+Constrained dofs: where component c of a zone vertex is fixed (symmetry plane or clamp), ``a^c``
+is dropped and so are the components of ``b^c`` along the edges whose midpoints are fixed in c;
+rows of ``P`` at fixed dofs stay empty. Edge-vector components below ``DIRECTION_TOL`` of the edge
+length are exact zeros, so that ``P`` does not depend on the mesh partition's round-off.
 """
 from __future__ import annotations
 
@@ -127,6 +108,25 @@ def _cell_layout(V):
     return np.array(vcol), np.array(ecol)
 
 
+@dataclass(frozen=True)
+class _ZoneMesh:
+    """The zone's P2 nodes as :func:`create_nmm_zone` reads them: the model's dof layout (``imap``,
+    ``bs``, owned and local nodes), node coordinates ``X``, each zone edge as (midpoint, vertex i,
+    vertex j), the zone cells' nodes ``cn`` and the fixed flags (node, component) of every local node."""
+
+    imap: object
+    bs: int
+    n_own: int
+    n_loc: int
+    X: np.ndarray
+    E: np.ndarray
+    cn: np.ndarray
+    vcol: np.ndarray
+    ball_cells: np.ndarray
+    cell_nodes: np.ndarray
+    fixed: np.ndarray
+
+
 def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
                     remedy: str = "interface", scale: bool = True) -> NMMZone:
     """The manifold-enriched zone of a P2 model (see the module docstring). Collective."""
@@ -135,8 +135,50 @@ def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
     if remedy not in REMEDIES:
         raise InputError(f"NMM null-space remedy {remedy!r}: must be one of {', '.join(REMEDIES)}")
     part = partition or partition_dofs(model)
-    V = model.V
     comm = model.comm
+    zm = _zone_mesh(model)
+    is_vertex, is_ball, h, tangent_fixed = _vertex_data(zm, scale)
+    # kept slots of the owned zone vertices
+    own_v = np.nonzero(is_vertex[:zm.n_own])[0].astype(np.int32)
+    keep = np.ones((len(own_v), SLOTS), dtype=bool)
+    keep[:, :3] = ~zm.fixed[own_v]
+    keep[:, 3:] = ~tangent_fixed[own_v].reshape(-1, 9)
+    n_fixed_drop = int(np.count_nonzero(~keep))
+    interface_v = part.region_node[own_v]
+    if remedy == "interface":
+        keep[interface_v, 3:] = False
+    elif remedy == "anchors":
+        anchors = _choose_anchors(comm, zm.imap, own_v[interface_v], zm.X[own_v[interface_v]],
+                                  is_ball[own_v[interface_v]], model)
+        gidx = zm.imap.local_to_global(own_v)
+        keep[np.isin(gidx, anchors), 3:] = False
+    n_drop = int(np.count_nonzero(~keep))
+    n_q = int(np.count_nonzero(keep))
+    q0 = comm.exscan(n_q) or 0
+    index = np.full((len(own_v), SLOTS), -1, dtype=np.int64)
+    index[keep] = q0 + np.arange(n_q)
+    idx_all = np.full((zm.n_loc, SLOTS), -1.0)
+    idx_all[own_v] = index
+    idx_all = _accumulate(zm.imap, SLOTS, idx_all, op="forward").round().astype(np.int64)
+    P = _prolongation(zm, idx_all, h, n_q, comm)
+    body = np.repeat(np.where(is_ball[own_v], 0, 1), SLOTS).reshape(-1, SLOTS)[keep].astype(np.int8)
+    totals = comm.allreduce(np.array([len(own_v), n_q, n_fixed_drop, n_drop - n_fixed_drop,
+                                      int(np.count_nonzero(interface_v))], dtype=np.int64), op=MPI.SUM)
+    info = {"zone_vertices": int(totals[0]), "zone_coordinates": int(totals[1]),
+            "dropped_constrained": int(totals[2]), "dropped_remedy": int(totals[3]),
+            "interface_vertices": int(totals[4]), "remedy": remedy,
+            "p2_zone_dofs": int(comm.allreduce(len(part.zone)))}
+    if comm.rank == 0:
+        log.info("NMM zone: %d vertices, %d cover coordinates (P2 zone dofs %d), dropped %d constrained + %d (%s)",
+                 info["zone_vertices"], info["zone_coordinates"], info["p2_zone_dofs"],
+                 info["dropped_constrained"], info["dropped_remedy"], remedy)
+    basis = ZoneBasis(P, body, "nmm", info)
+    return NMMZone(basis, own_v, zm.X[own_v].copy(), h[own_v].copy(), index, remedy)
+
+
+def _zone_mesh(model: FEModel) -> _ZoneMesh:
+    """The zone's cells, edges and the fixed flags of every local node."""
+    V = model.V
     mesh = V.mesh
     imap = V.dofmap.index_map
     bs = V.dofmap.index_map_bs
@@ -146,24 +188,28 @@ def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
     n_cells_own = mesh.topology.index_map(mesh.topology.dim).size_local
     cell_nodes = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
     vcol, ecol = _cell_layout(V)
-
     zone_cells = tagged_cells(model, (G.BALL_ZONE, G.BLOCK_ZONE))
     zone_cells = zone_cells[zone_cells < n_cells_own]
     ball_cells = tagged_cells(model, (G.BALL_ZONE,))
     ball_cells = ball_cells[ball_cells < n_cells_own]
     cn = cell_nodes[zone_cells]                                   # (nc, 10)
     E = np.stack([cn[:, ecol[:, 0]], cn[:, ecol[:, 1]], cn[:, ecol[:, 2]]], axis=-1).reshape(-1, 3)  # m, i, j
-
     # fixed flags on every local node
     fixed = np.zeros(n_own * bs)
     fixed[model.fixed_dofs] = 1.0
     fixed = _accumulate(imap, bs, np.concatenate([fixed, np.zeros((n_loc - n_own) * bs)]).reshape(-1, bs),
                         op="forward") > 0.5
+    return _ZoneMesh(imap, bs, n_own, n_loc, X, E, cn, vcol, ball_cells, cell_nodes, fixed)
 
-    # per node: zone vertex, ball-zone vertex, edge-length sum and count, tangential drop mask (9)
-    acc = np.zeros((n_loc, 13))
-    acc[np.unique(cn[:, vcol]), 0] = 1.0
-    acc[np.unique(cell_nodes[ball_cells][:, vcol]), 1] = 1.0
+
+def _vertex_data(zm: _ZoneMesh, scale: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per local node: zone vertex, ball-zone vertex, the scale h (mean zone edge length, m; 1
+    without ``scale``) and the tangential drop mask [node, c, k] (a midpoint fixed in c on an edge
+    along axis k), summed over the ranks that hold the node."""
+    E, X = zm.E, zm.X
+    acc = np.zeros((zm.n_loc, 13))
+    acc[np.unique(zm.cn[:, zm.vcol]), 0] = 1.0
+    acc[np.unique(zm.cell_nodes[zm.ball_cells][:, zm.vcol]), 1] = 1.0
     d = X[E[:, 2]] - X[E[:, 1]]
     length = np.linalg.norm(d, axis=1)
     for end in (1, 2):
@@ -171,54 +217,33 @@ def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
         np.add.at(acc[:, 3], E[:, end], 1.0)
     along = np.abs(d) > DIRECTION_TOL * length[:, None]           # (ne, 3) axes an edge spans
     for c in range(3):
-        fm = fixed[E[:, 0], c]                                     # midpoint fixed in component c
+        fm = zm.fixed[E[:, 0], c]                                  # midpoint fixed in component c
         for end in (1, 2):
             for k in range(3):
                 sel = fm & along[:, k]
                 np.add.at(acc[:, 4 + 3 * c + k], E[sel, end], 1.0)
-    acc = _accumulate(imap, 13, acc)
-    is_vertex = acc[:, 0] > 0.5
-    is_ball = acc[:, 1] > 0.5
-    h = np.where(acc[:, 3] > 0, acc[:, 2] / np.maximum(acc[:, 3], 1), 1.0) if scale else np.ones(n_loc)
-    tangent_fixed = acc[:, 4:13].reshape(-1, 3, 3) > 0.5           # [node, c, k]
+    acc = _accumulate(zm.imap, 13, acc)
+    h = np.where(acc[:, 3] > 0, acc[:, 2] / np.maximum(acc[:, 3], 1), 1.0) if scale else np.ones(zm.n_loc)
+    return acc[:, 0] > 0.5, acc[:, 1] > 0.5, h, acc[:, 4:13].reshape(-1, 3, 3) > 0.5
 
-    # kept slots of the owned zone vertices
-    own_v = np.nonzero(is_vertex[:n_own])[0].astype(np.int32)
-    keep = np.ones((len(own_v), SLOTS), dtype=bool)
-    keep[:, :3] = ~fixed[own_v]
-    keep[:, 3:] = ~tangent_fixed[own_v].reshape(-1, 9)
-    n_fixed_drop = int(np.count_nonzero(~keep))
-    interface_v = part.region_node[own_v]
-    if remedy == "interface":
-        keep[interface_v, 3:] = False
-    elif remedy == "anchors":
-        anchors = _choose_anchors(comm, imap, own_v[interface_v], X[own_v[interface_v]], is_ball[own_v[interface_v]],
-                                  model)
-        gidx = imap.local_to_global(own_v)
-        keep[np.isin(gidx, anchors), 3:] = False
-    n_drop = int(np.count_nonzero(~keep))
-    n_q = int(np.count_nonzero(keep))
-    q0 = comm.exscan(n_q) or 0
-    index = np.full((len(own_v), SLOTS), -1, dtype=np.int64)
-    index[keep] = q0 + np.arange(n_q)
-    idx_all = np.full((n_loc, SLOTS), -1.0)
-    idx_all[own_v] = index
-    idx_all = _accumulate(imap, SLOTS, idx_all, op="forward").round().astype(np.int64)
 
-    # rows of P: vertex nodes and edge midpoints of the owned zone cells (off-process rows stashed)
-    P = PETSc.Mat().createAIJ(((n_own * bs, PETSc.DETERMINE), (n_q, PETSc.DETERMINE)), comm=comm)
+def _prolongation(zm: _ZoneMesh, idx_all: np.ndarray, h: np.ndarray, n_q: int, comm: MPI.Comm) -> PETSc.Mat:
+    """P's rows: vertex nodes and edge midpoints of the owned zone cells (off-process rows
+    stashed); ``idx_all`` the global coordinate index of each local node's slots (-1: dropped)."""
+    bs, X, fixed = zm.bs, zm.X, zm.fixed
+    P = PETSc.Mat().createAIJ(((zm.n_own * bs, PETSc.DETERMINE), (n_q, PETSc.DETERMINE)), comm=comm)
     P.setPreallocationNNZ((8, 8))
     P.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-    gnode = imap.local_to_global(np.arange(n_loc, dtype=np.int32))
+    gnode = zm.imap.local_to_global(np.arange(zm.n_loc, dtype=np.int32))
     INSERT = PETSc.InsertMode.INSERT_VALUES
-    for j in np.unique(cn[:, vcol]):
+    for j in np.unique(zm.cn[:, zm.vcol]):
         for c in range(3):
             col = idx_all[j, c]
             if fixed[j, c] or col < 0:
                 continue
             P.setValues([int(gnode[j]) * bs + c], [int(col)], [1.0], addv=INSERT)
-    mids, first = np.unique(E[:, 0], return_index=True)
-    for m, (_, i, j) in zip(mids, E[first]):
+    mids, first = np.unique(zm.E[:, 0], return_index=True)
+    for m, (_, i, j) in zip(mids, zm.E[first]):
         dij = X[j] - X[i]
         # components below round-off are exact zeros (an edge in a symmetry plane or an
         # axis-aligned face): the P2 dof coordinates carry ~1e-20 m there, which differ with the
@@ -238,20 +263,7 @@ def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
             if np.any(ok):
                 P.setValues([int(gnode[m]) * bs + c], cols[ok].astype(np.int32), vals[ok], addv=INSERT)
     P.assemble()
-
-    body = np.repeat(np.where(is_ball[own_v], 0, 1), SLOTS).reshape(-1, SLOTS)[keep].astype(np.int8)
-    totals = comm.allreduce(np.array([len(own_v), n_q, n_fixed_drop, n_drop - n_fixed_drop,
-                                      int(np.count_nonzero(interface_v))], dtype=np.int64), op=MPI.SUM)
-    info = {"zone_vertices": int(totals[0]), "zone_coordinates": int(totals[1]),
-            "dropped_constrained": int(totals[2]), "dropped_remedy": int(totals[3]),
-            "interface_vertices": int(totals[4]), "remedy": remedy,
-            "p2_zone_dofs": int(comm.allreduce(len(part.zone)))}
-    if comm.rank == 0:
-        log.info("NMM zone: %d vertices, %d cover coordinates (P2 zone dofs %d), dropped %d constrained + %d (%s)",
-                 info["zone_vertices"], info["zone_coordinates"], info["p2_zone_dofs"],
-                 info["dropped_constrained"], info["dropped_remedy"], remedy)
-    basis = ZoneBasis(P, body, "nmm", info)
-    return NMMZone(basis, own_v, X[own_v].copy(), h[own_v].copy(), index, remedy)
+    return P
 
 
 def _choose_anchors(comm: MPI.Comm, imap, nodes: np.ndarray, x: np.ndarray, ball: np.ndarray,

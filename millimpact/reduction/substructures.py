@@ -1,88 +1,40 @@
 """Substructured (two-level) Craig-Bampton of a body's interior: the constraint modes Psi and the
-fixed-interface modes Phi from a Ritz basis built slab by slab, without factorizing the whole interior.
+fixed-interface modes Phi from a Ritz basis built slab by slab, without factorizing the whole interior
+(one factorization fills like N^1.47; cut into S slabs, each factor is ~S^-1.47 of that and only one
+slab's is held at a time).
 
-Why: one Cholesky factorization of a large region fills like N^1.47 (liner panel: 78M nonzeros at
-147k region dofs, 1.52e9 and 14.4 GB at 1.12M, docs/scenes.md); the eigensolver's basis (~5x the
-modes) and the inertia count's second factorization come on top. Cut into S slabs, each factor is
-~S^-1.47 of that and only one slab's is held at a time.
+Component mode synthesis (Hurty, AIAA J. 3 (1965) 678-685; Craig and Bampton, AIAA J. 6 (1968)
+1313-1319), with the interface reduced (Krattiger et al., Mech. Syst. Signal Process. 114 (2019)
+579-603):
 
-The method (component mode synthesis: Hurty 1965, Craig and Bampton 1968; with the interface
-reduced, Krattiger et al., "Interface reduction for Hurty/Craig-Bampton substructured models:
-review and improvements", Mech. Syst. Signal Process. 114 (2019) 579-603):
+1. The interior is cut into S slabs along its longest extent (:mod:`.slab_cuts`), the cuts at least
+   ``margin`` shear wavelengths at f_cut from the zone-coupled dofs and the gauges. The dofs of a
+   slab coupled to a later slab form the interface Gamma; the rest P_s are uncoupled:
+   K_ii = [diag(K_ss)  K_PG; K_GP  K_GG].
+2. A Ritz basis V, per slab with one factorization: fixed-interface modes of P_s up to
+   ``f_factor`` x f_cut; static responses to the zone coordinates Z_s = -K_ss^-1 C_s and to their
+   inertia K_ss^-1 (M_ss Z_s + M_sz); trace extensions X_s = -K_ss^-1 K_sG t_k, the traces t_k
+   tensor Legendre polynomials per interface face and component (``trace_density`` 0: every Gamma
+   dof its own trace, the exact interface).
+3. Rayleigh-Ritz in span(V): K_V = V^T K_ii V, M_V = V^T M_ii V, C_V = V^T C; Psi = V psi with
+   K_V psi = -C_V, Phi = V phi with K_V phi = lambda M_V phi, lambda <= (2 pi f_cut)^2.
+4. One step of inverse iteration: each slab's static response (Gamma held) to the inertia
+   M_ii [Phi, Psi] + [0, M_ib] joins V (M-orthonormalised, directions under ``compress`` dropped)
+   and step 3 is repeated; it also puts K_ii^-1 A_b, which the mode-acceleration rows need, in V.
 
-1. The interior's dofs are cut into S slabs along the longest extent of the body, at quantiles of
-   the dof count, moved at least ``margin`` (half a shear wavelength at f_cut) away from the dofs
-   coupled to the contact zone and from the gauges; a slab of more than ``across`` x the mean
-   (the zone's) is cut again across (:mod:`.slab_cuts`; "slab" below is any piece). The dofs of a
-   slab that couple to a later slab form the interface Gamma; the slabs' remaining dofs P_s are
-   then uncoupled from each other: K_ii = [diag(K_ss)  K_PG; K_GP  K_GG].
-2. A Ritz basis V of the interior, per slab s (the slab's factorization serves all three):
+The Ritz frequencies are upper bounds of the exact ones (Rayleigh's principle). Zone-interface
+patterns (``substructure_zone_degree`` d >= 1): the interior's vectors are the static responses
+X = -K_ii^-1 K_iz W to p smooth interface motions W (monomials of degree <= d, :mod:`.interface_patterns`)
+instead of the n_b constraint modes, coordinates of their own beside the modes
+(:func:`pattern_vectors`; Castanier, Tan and Pierre, AIAA J. 39 (2001) 1182-1187); outputs are
+recovered in the Ritz space (:func:`ritz_recovery`).
 
-   * fixed-interface modes of P_s (Gamma and the zone held) up to ``f_factor`` x f_cut;
-   * static responses to the zone coordinates, Z_s = -K_ss^-1 C_s (zero on Gamma), and to their
-     inertia, K_ss^-1 (M_ss Z_s + M_sz);
-   * trace extensions: Gamma moves as t_k, the slabs follow statically, X_s = -K_ss^-1 K_sG t_k.
-     The traces t_k are per interface face and per displacement component tensor Legendre
-     polynomials of the face's two in-plane coordinates, degree ``trace_density`` x (extent /
-     shear wavelength at f_cut) in each (``trace_density`` 0: every Gamma dof its own trace, the
-     exact interface).
-3. Rayleigh-Ritz of the interior in span(V) (dense, a few thousand columns): K_V = V^T K_ii V,
-   M_V = V^T M_ii V, C_V = V^T C (columns scaled to unit M-norm first). Then Psi = V psi with
-   K_V psi = -C_V, and Phi = V phi with K_V phi = lambda M_V phi, lambda <= (2 pi f_cut)^2.
-4. One step of inverse iteration: each slab's static response (Gamma held) to the inertia of the
-   first Ritz modes and constraint modes, K_ss^-1 (M_ii [Phi, Psi] + [0, M_ib])_s, joins V and
-   step 3 is repeated (each slab's new columns first made M-orthonormal, dropping directions under
-   ``compress`` x the largest eigenvalue of their Gram: the responses to the ~n_b + m loads are
-   nearly dependent away from the zone; 157k-DOF panel, 4 slabs: 301 columns a slab -> 97-278).
-   This is what makes the modes near f_cut accurate with few slab modes
-   (paper-rig test mesh, every Gamma dof a trace: the highest mode 0.84 % high with slab modes
-   to 2 f_cut and no step 4, 0.018 % with them to 1.5 f_cut and step 4), and it puts
-   K_ii^-1 A_b, which the mode-acceleration rows need, in the span (R A_b 18 % -> 0.24 %).
-
-With every Gamma dof as a trace, Psi is the exact -K_ii^-1 C (the span holds it); with polynomial
-traces it is the Galerkin approximation, and the Ritz frequencies are upper bounds of the exact
-ones either way (Rayleigh's principle): a mode just under f_cut can rise above it and drop out
-(coarse liner panel: 160-162 modes against 164).
-
-Zone-interface patterns (``substructure_zone_degree`` d >= 1; 0, the default, keeps the exact
-constraint modes). The n_b constraint modes Psi drive the cost of the statics, the second pass,
-the projections and the expansion (n_b = 583 at the plan's 1.2M DOFs; every dense n_i x n_b array
-is 5.2 GB there). With patterns the interior's vectors are instead the static responses
-X = -K_ii^-1 K_iz W to p smooth interface motions W (per displacement component the monomials of
-total degree <= d in the interface nodes' coordinates: the rigid motions among them; p = 60 at
-d = 3; :mod:`.interface_patterns`), with coordinates of their own beside the modes (made M-orthogonal to them and
-Ritz-diagonalized: :func:`pattern_vectors`); the zone couples to them through K_iz and M_iz only
-(characteristic-constraint-mode-like interface reduction: Castanier, Tan and Pierre, AIAA J. 39
-(2001) 1182-1187, and the review of Krattiger et al. above). A Ritz approximation: the statics
-are exact once the patterns span the interface (paper-rig test mesh: 258 interface dofs, d = 8)
-and stiffer before (compliance -3.7e-3 at d = 1, -6.0e-5 at d = 2, -3.2e-6 at d = 4). The output
-rows are then recovered in the Ritz space (:func:`ritz_recovery`: the interior's static response to
-the zone's motion and to all inertia, a displacement term as well as an acceleration term).
-
-Options (prefix ``impact_reduction_<body>_``): ``substructures`` S (0 or 1: one factorization,
-:mod:`.craig_bampton`), ``substructure_f_factor`` (1.5), ``substructure_trace_density`` (4),
-``substructure_margin`` (0.5 shear wavelengths at f_cut between a cut and the zone-coupled dofs
-or a gauge: closer, the static response to the zone varies too fast for the polynomial traces;
-the coarse panel's bolt gauge was off by 3x with a cut next to it), ``substructure_compress``
-(1e-12; 0 keeps every column of step 4), ``substructure_zone_degree`` (0), ``substructure_across``
-(2; 0 keeps the slabs whole), ``substructure_eps_tol`` (1e-4: the slabs' modes are Ritz vectors,
-converged more loosely than the body's modes, :data:`SLAB_EPS_TOL`).
-
-Under MPI each rank takes whole slabs, the costliest first to the least loaded rank
-(:func:`slab_owners`), gathers all its slabs' rows in one collective call and then works alone
-until the Ritz matrices are summed on rank 0, which solves the dense Rayleigh-Ritz and broadcasts
-its results (the other ranks hold no copy of K_V, M_V: ~1 GB a rank at 4,368 columns). 157k-DOF
-panel, 4 slabs (``benchmarks/panel_scaling.py --h-far 0.025 --slabs 4``): 97.8 s at 1 rank,
-62.9 s at 2 (1.55x; one factorization beside it 90.6 -> 69.4 s, 1.30x); with the slabs dealt in
-turn and gathered round by round it was 1.41x. The slabs' factorizations and eigensolvers read the
-body's own options (``pc_``, ``eps_``, ``block_krylov_size``). The mode-acceleration output rows
-take R A_b from the Ritz space (:class:`~.reduced_model.BodyReduction` ``residual_b``) instead of
-K_ii's factorization.
-
-Measured (``benchmarks/panel_substructures.py``, coarse liner panel, 31k P2 DOFs, 4 slabs,
-defaults): F_max -0.04 %, t_c -0.12 %, e +0.2 %, the bolt and root gauges -1.9 % / +2.1 % from
-the one-factorization run (every Gamma dof a trace, 3 slabs: all within 0.005 %); docs/scenes.md
-has the 157k-DOF rows.
+Options (prefix ``impact_reduction_<body>_``): ``substructures`` S (0 or 1: one factorization),
+``substructure_f_factor`` (1.5), ``substructure_trace_density`` (4), ``substructure_margin`` (0.5),
+``substructure_compress`` (1e-12), ``substructure_zone_degree`` (0), ``substructure_across`` (2; 0
+keeps the slabs whole), ``substructure_eps_tol`` (:data:`SLAB_EPS_TOL`). Under MPI each rank takes
+whole slabs (:func:`slab_owners`) and only the Ritz matrices (solved on rank 0) and the final rows
+travel. Measured costs and accuracies: docs/development/reduction-notes.md.
 """
 from __future__ import annotations
 
@@ -103,7 +55,7 @@ from .distributed import (DEPENDENT_TOL, computed_on_root, deliver_rows, dense_f
                           reduce_array)
 from .eigen import compute_modes
 from .ritz import rayleigh_ritz
-from .slab_cuts import ACROSS_RATIO, cut_slabs, interface_faces, interface_next, polynomial_traces
+from .slab_cuts import ACROSS_RATIO, SlabCut, cut_slabs, interface_faces, interface_next, polynomial_traces
 
 log = logging.getLogger(__name__)
 
@@ -330,40 +282,135 @@ def _serial_options(options: Optional[dict[str, str]], eps_tol: float) -> dict[s
     return opts
 
 
+@dataclass(frozen=True)
+class SlabReduction:
+    """What :func:`substructured_modes` gives for a body's interior (module docstring)."""
+
+    Psi: Optional[PETSc.Mat]       #: constraint modes (dense, n_i x n_b); None with zone-interface patterns
+    Phi: np.ndarray                #: owned rows of the modes (then the pattern vectors), column-major
+    flex: Optional[PETSc.Mat]      #: R A_b (dense, n_i x n_b); None with zone-interface patterns
+    freq: np.ndarray               #: Phi's frequencies (Hz)
+    n_patterns: int                #: pattern vectors at the end of Phi
+    next: float                    #: the lowest Ritz frequency not kept (nan if none)
+    residual: float                #: ||K_ii Psi + C|| / ||C|| (0 without Psi)
+    stats: dict                    #: slabs, cuts, columns and the phases' times (s)
+    recovery: Optional[dict]       #: the Ritz-space output recovery (:func:`ritz_recovery`)
+    grams: Optional[tuple]         #: (Phi^T M_ii Phi, Phi^T K_ii Phi) from the Ritz space (patterns)
+
+
+@dataclass(frozen=True)
+class SlabLayout:
+    """The interior cut into slabs, known alike on every rank: the cut, the interface Gamma (owned
+    local rows ``gamma``; every rank's in ``gamma_glob``, global), its traces ``T`` (owned rows) and
+    ``T_full`` (all rows), ``[C | D]`` with every rank's rows (``CD_full``), each slab's global rows
+    off Gamma, the slabs that have rows and this rank's. Ritz columns: [zone statics (n_b) |
+    traces (n_t) | the slabs' own]."""
+
+    cut: SlabCut
+    gamma: np.ndarray
+    faces: list
+    T: sp.csr_matrix
+    T_full: sp.csr_matrix
+    gamma_glob: np.ndarray
+    CD_full: sp.csr_matrix
+    slab_rows: list[np.ndarray]
+    slab_ids: list[int]
+    my_ids: list[int]
+    r0: int
+    n_i: int
+    n_loc: int
+    n_b: int
+
+    @property
+    def n_t(self) -> int:
+        return self.T.shape[1]
+
+    @property
+    def t_idx(self) -> np.ndarray:
+        """The traces' Ritz columns."""
+        return self.n_b + np.arange(self.n_t)
+
+
+@dataclass
+class _RitzSystem:
+    """The dense Ritz matrices K_V, M_V, C_V (rank 0's; None elsewhere), ``n_cols`` columns, and the
+    last Rayleigh-Ritz's results; dropped (set to None) once the expansion no longer needs them."""
+
+    KV: Optional[np.ndarray]
+    MV: Optional[np.ndarray]
+    CV: Optional[np.ndarray]
+    n_cols: int
+    ritz: Optional[dict] = None
+
+
 def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: sp.csr_matrix, coords: np.ndarray,
                         comps: np.ndarray, f_cut: float, shear_speed: float, settings: SubstructureSettings,
                         prefix: str, options: Optional[dict[str, str]] = None,
                         keep_away: Optional[np.ndarray] = None, patterns: bool = False,
                         zone_couplings: Optional[tuple[sp.csr_matrix, sp.csr_matrix]] = None,
-                        recovery_rows: Optional[np.ndarray] = None, release: bool = False) -> dict:
-    """Psi (dense PETSc, n_i x n_b), Phi (owned rows, n_i_loc x m), the residual flexibility's
-    response to the interface inertia R A_b (dense PETSc, n_i x n_b), frequencies (Hz), the next
-    frequency, Psi's relative residual ||K_ii Psi + C|| / ||C|| and statistics, from the slab-wise
-    Ritz basis (module docstring). ``C``, ``D``: owned rows of K_iz G and M_iz G on the interface
-    coordinates (sparse: only the zone's slab has rows there); ``coords``, ``comps``: each owned
-    interior dof's node coordinates and displacement component; ``shear_speed`` (m/s) sets the
-    margin and the traces' degrees; ``keep_away`` (k x 3, m): points the cuts keep the margin from
-    (the gauges). Collective.
+                        recovery_rows: Optional[np.ndarray] = None, release: bool = False) -> SlabReduction:
+    """Psi, Phi, R A_b, frequencies (Hz), the next frequency, Psi's relative residual and statistics
+    from the slab-wise Ritz basis (module docstring; :class:`SlabReduction`). ``C``, ``D``: owned rows
+    of K_iz G and M_iz G on the interface coordinates (sparse: only the zone's slab has rows there);
+    ``coords``, ``comps``: each owned interior dof's node coordinates and displacement component;
+    ``shear_speed`` (m/s) sets the margin and the traces' degrees; ``keep_away`` (k x 3, m): points
+    the cuts keep the margin from (the gauges). Collective.
 
     ``patterns``: the columns of C and D are the couplings of zone-interface patterns
-    (:func:`~.interface_patterns.zone_interface_patterns`), not of the zone's coordinates: their static responses are
-    then returned as extra columns of Phi (made M-orthogonal to the modes and Ritz-diagonalized,
-    frequencies appended, ``n_patterns`` of them) and Psi and R A_b are None. The output rows are
-    then recovered from the Ritz space (:func:`ritz_recovery`, result ``recovery``): give
-    ``zone_couplings`` (the owned rows of K_iz G and M_iz G on the zone's interface coordinates)
-    and ``recovery_rows`` (global interior rows the output rows reach, e.g. the gauges' cells).
-    The Ritz space's Grams of Phi (``grams``: Phi^T M_ii Phi, Phi^T K_ii Phi) come with it, and
-    ``release`` destroys K_ii and M_ii once the slabs hold their blocks (2.2 GB at 1.2M DOFs).
+    (:func:`~.interface_patterns.zone_interface_patterns`), not of the zone's coordinates: their
+    static responses are then returned as extra columns of Phi (made M-orthogonal to the modes and
+    Ritz-diagonalized, ``n_patterns`` of them) and Psi and R A_b are None. The output rows are then
+    recovered from the Ritz space (:func:`ritz_recovery`): give ``zone_couplings`` (the owned rows of
+    K_iz G and M_iz G on the zone's interface coordinates) and ``recovery_rows`` (global interior
+    rows the output rows reach). ``release`` destroys K_ii and M_ii once the slabs hold their blocks.
 
-    Two passes over the slabs (steps 1-3 and step 4 of the module docstring). Under MPI the slabs
-    are shared out by size (:func:`slab_owners`): each rank gathers its slabs' rows
-    (MatCreateSubMatrices), factors and solves it alone (CHOLMOD), and only the Ritz matrices
-    (summed on rank 0, which solves the Rayleigh-Ritz and broadcasts its results) and the final
-    rows travel; a rank holds one slab's factor at a time. No dense n_i x n_b array but the two
-    results is formed (at the plan's 1.2M DOFs each is 5.2 GB)."""
+    Two passes over the slabs (steps 1-3 and step 4 of the module docstring); each rank reduces its
+    slabs alone (CHOLMOD), one slab's factor at a time, and only the Ritz matrices (summed on rank 0,
+    which solves the Rayleigh-Ritz and broadcasts its results) and the final rows travel."""
     comm = K_ii.getComm().tompi4py()
-    size, rank = comm.size, comm.rank
     t_start = time.perf_counter()
+    lay = _slab_layout(K_ii, C, D, coords, comps, f_cut, shear_speed, settings, keep_away, comm)
+    serial_opts = _serial_options(options, settings.eps_tol)
+    # pass 1: every rank gathers the rows of all its slabs in one collective call (a slab's matrices
+    # are kept to the end anyway), then reduces them alone: no rank waits for another between slabs
+    t_pass1 = time.perf_counter()
+    gathered = _gather_slab_matrices(K_ii, M_ii, [lay.slab_rows[s] for s in lay.my_ids], lay.gamma_glob)
+    KT_gg, MT_gg = _gamma_blocks(K_ii, M_ii, lay, release, comm)
+    mine = [_first_pass_slab(s, mats, lay, settings, f_cut, prefix, serial_opts, comm.rank)
+            for s, mats in zip(lay.my_ids, gathered)]
+    del gathered
+    phase = {"pass1_s": time.perf_counter() - t_pass1}        # this rank's slabs (before any wait)
+    t0 = time.perf_counter()
+    system = _first_projection(mine, lay, KT_gg, MT_gg, comm)
+    phase["project_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    system.ritz = _ritz_on_root(system.KV, system.MV, system.CV, lay.n_b, f_cut, comm)
+    phase["ritz_s"] = time.perf_counter() - t0
+    _second_pass(mine, lay, system, settings, f_cut, prefix, serial_opts, phase, comm)
+    return_freed_memory()          # the second pass's factors and solves, before the expansion
+    t0 = time.perf_counter()
+    m, freq, ritz_rank = system.ritz["m"], system.ritz["freq"], system.ritz["rank"]
+    Psi, Phi, flex, f_pat, recovery, grams = _expand(mine, lay, system, patterns, zone_couplings, recovery_rows, comm)
+    phase["expand_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    residual = constraint_residual(K_ii, Psi, C, comm) if lay.n_b and Psi is not None else 0.0
+    phase["residual_s"] = time.perf_counter() - t0
+    stats = _slab_statistics(mine, lay, phase, system.n_cols, ritz_rank, patterns, len(f_pat), t_start, comm)
+    if comm.rank == 0:
+        log.info("substructures %s: %d slabs along %s (cuts %s m; %d cut again across) on %d rank(s), %d "
+                 "interface dofs -> %d traces, %d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s",
+                 prefix, len(lay.slab_ids), stats["axis"], ", ".join(f"{c:.4g}" for c in lay.cut.cuts),
+                 len(lay.cut.across), comm.size, stats["interface_dofs"], lay.n_t, stats["slab_modes"],
+                 system.n_cols, m, stats["total_s"])
+    return SlabReduction(Psi, Phi, flex, np.concatenate([freq[:m], f_pat]) if patterns else freq[:m],
+                         len(f_pat) if patterns else 0, float(freq[m]) if m < len(freq) else math.nan,
+                         residual, stats, recovery, grams)
+
+
+def _slab_layout(K_ii: PETSc.Mat, C: sp.csr_matrix, D: sp.csr_matrix, coords: np.ndarray, comps: np.ndarray,
+                 f_cut: float, shear_speed: float, settings: SubstructureSettings,
+                 keep_away: Optional[np.ndarray], comm: MPI.Comm) -> SlabLayout:
+    """Step 1: the cuts, the interface Gamma and its traces, and which rank reduces which slab."""
     wavelength = shear_speed / f_cut
     zone_rows = np.nonzero(np.diff(C.indptr))[0]
     cut = cut_slabs(coords, zone_rows, settings.slabs, settings.margin * wavelength, comm, keep_away,
@@ -373,84 +420,94 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     on_gamma = nxt >= 0
     r0 = K_ii.getOwnershipRange()[0]
     n_i = K_ii.getSize()[0]
-    n_loc = len(labels)
     gamma = np.nonzero(on_gamma)[0]
     face, faces = interface_faces(labels, nxt, comm)
     traces = polynomial_traces(coords[gamma], comps[gamma], face, [cut.normal(a, b) for a, b in faces],
                                wavelength, settings.trace_density, comm)
     T = sp.hstack(traces).tocsr() if traces else sp.csr_matrix((len(gamma), 0))
-    n_t, n_b = T.shape[1], C.shape[1]
-    t_idx = n_b + np.arange(n_t)          # Ritz columns: [zone statics (n_b) | traces (n_t) | slabs' own]
+    n_t = T.shape[1]
     # what every slab's owner needs whole: Gamma's global rows and traces, the sparse couplings
     gamma_glob = np.concatenate(comm.allgather((r0 + gamma).astype(np.int64)))
     # sparse: a Gamma row has only its own cut's traces (dense, 1.6 GB a rank at 1.2M DOFs, 15 cuts)
     T_full = sp.vstack(comm.allgather(T)).tocsr() if n_t else sp.csr_matrix((len(gamma_glob), 0))
     CD_full = _global_rows(sp.hstack([C, D]).tocsr(), r0, n_i, comm)
-    n_slabs = cut.pieces
     slab_rows = [np.concatenate(comm.allgather((r0 + np.nonzero((labels == s) & ~on_gamma)[0]).astype(np.int64)))
-                 for s in range(n_slabs)]
-    slab_ids = [s for s in range(n_slabs) if len(slab_rows[s])]
-    owners = slab_owners([len(slab_rows[s]) for s in slab_ids], size)
-    my_ids = [s for s, o in zip(slab_ids, owners) if o == rank]
-    serial_opts = _serial_options(options, settings.eps_tol)
-    mine: list[_Slab] = []
-    # pass 1: every rank gathers the rows of all its slabs in one collective call (a slab's matrices
-    # are kept to the end anyway), then reduces them alone: no rank waits for another between slabs
-    t_pass1 = time.perf_counter()
-    gathered = _gather_slab_matrices(K_ii, M_ii, [slab_rows[s] for s in my_ids], gamma_glob)
-    # Gamma's own block of the Ritz matrices, T^T A_GG T with the owned rows of A_GG (columns
-    # numbered as gamma_glob, the IS's order); then (``release``) K_ii and M_ii are not needed
-    is_gamma = PETSc.IS().createGeneral((r0 + gamma).astype(np.int32), comm=comm)
+                 for s in range(cut.pieces)]
+    slab_ids = [s for s in range(cut.pieces) if len(slab_rows[s])]
+    owners = slab_owners([len(slab_rows[s]) for s in slab_ids], comm.size)
+    my_ids = [s for s, o in zip(slab_ids, owners) if o == comm.rank]
+    return SlabLayout(cut, gamma, faces, T, T_full, gamma_glob, CD_full, slab_rows, slab_ids, my_ids, r0, n_i,
+                      len(labels), C.shape[1])
+
+
+def _gamma_blocks(K_ii: PETSc.Mat, M_ii: PETSc.Mat, lay: SlabLayout, release: bool,
+                  comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
+    """Gamma's own block of the Ritz matrices, T^T A_GG T with the owned rows of A_GG (columns
+    numbered as gamma_glob, the IS's order); then (``release``) K_ii and M_ii are destroyed."""
+    is_gamma = PETSc.IS().createGeneral((lay.r0 + lay.gamma).astype(np.int32), comm=comm)
     Kgg, Mgg = K_ii.createSubMatrix(is_gamma, is_gamma), M_ii.createSubMatrix(is_gamma, is_gamma)
-    KT_gg, MT_gg = (reduce_array((T.T @ (_csr_rows(A) @ T_full)).toarray(), MPI.SUM, comm) for A in (Kgg, Mgg))
+    KT_gg, MT_gg = (reduce_array((lay.T.T @ (_csr_rows(A) @ lay.T_full)).toarray(), MPI.SUM, comm)
+                    for A in (Kgg, Mgg))
     for obj in (Kgg, Mgg, is_gamma) + ((K_ii, M_ii) if release else ()):
         obj.destroy()
-    for s, (K_ss, M_ss, K_sg_csr, M_sg_csr) in zip(my_ids, gathered):
-        rows = slab_rows[s]
-        ts = time.perf_counter()
-        ksp = create_factored_solver(K_ss, prefix, serial_opts)
-        t_factor = time.perf_counter() - ts
-        # the traces that reach the slab: those of the cuts its rows couple to (a dense K_sG T of
-        # every trace would be ~1 GB a slab at the plan's 1.2M DOFs)
-        C_s = CD_full[rows][:, :n_b]
-        used_t = np.bincount(T_full[np.unique(K_sg_csr.indices)].indices, minlength=n_t) > 0
-        used = np.concatenate([np.bincount(C_s.indices, minlength=n_b) > 0, used_t])
-        rhs = sp.hstack([C_s[:, used[:n_b]], K_sg_csr @ T_full[:, used_t]]).tocsr()
-        X = -_solve(ksp, rhs.toarray()) if used.any() else np.zeros((len(rows), 0))
-        # second-order statics: the response to the inertia of the slab's zone statics, M_ss Z_s + M_sz
-        n_zone = int(used[:n_b].sum())
-        D_s = CD_full[rows][:, n_b:][:, used[:n_b]].tocsr()
-        X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], MPI.COMM_SELF) + D_s.toarray())
-              if n_zone else np.zeros((len(rows), 0)))
-        t_static = time.perf_counter() - ts - t_factor
-        te = time.perf_counter()
-        f_s, vecs, _ = compute_modes(K_ss, M_ss, ksp, settings.f_factor * f_cut, None, prefix, serial_opts,
-                                     count_first=True)
-        t_eigen = time.perf_counter() - te
-        Phi_s = np.column_stack([v.getArray(readonly=True) for v in vecs]) if vecs else np.zeros((len(rows), 0))
-        for v in vecs:
-            v.destroy()
-        ksp.destroy()
-        return_freed_memory()      # the slab's factors and Krylov basis: the next slab's room
-        B = np.hstack([X, Phi_s, X2])
-        del X, X2
-        tb = time.perf_counter()
-        blocks = _slab_blocks(K_ss, M_ss, B, -rhs, D_s, Phi_s.shape[1])
-        del rhs, D_s
-        mine.append(_Slab(s, rows, K_ss, M_ss, K_sg_csr, M_sg_csr, B, used,
-                          Phi_s.shape[1] + n_zone, blocks,
-                          {"slab": s, "rank": rank, "dofs": len(rows), "modes": int(Phi_s.shape[1]),
-                           "static_columns": int(used.sum()) + n_zone, "factor_s": round(t_factor, 3),
-                           "statics_s": round(t_static, 3), "eigen_s": round(t_eigen, 3),
-                           "blocks_s": round(time.perf_counter() - tb, 3),
-                           "total_s": round(time.perf_counter() - ts, 3),
-                           "peak_rss_gb": _peak_rss_gb()}))
-        log.info("substructures %s: slab %d on rank %d: %s", prefix, s, rank, mine[-1].stats)
-    phase = {"pass1_s": time.perf_counter() - t_pass1}        # this rank's slabs (before any wait)
-    t0 = time.perf_counter()
-    # the Ritz columns, numbered slab by slab on every rank alike
+    return KT_gg, MT_gg
+
+
+def _first_pass_slab(s: int, matrices: tuple, lay: SlabLayout, settings: SubstructureSettings, f_cut: float,
+                     prefix: str, serial_opts: dict[str, str], rank: int) -> _Slab:
+    """Step 2 for slab ``s`` (its K_ss, M_ss, K_sG, M_sG in ``matrices``): the static responses to
+    the zone coordinates and their inertia, the trace extensions and the fixed-interface modes,
+    all with the slab's one factorization, and the slab's own blocks of K_V, M_V."""
+    K_ss, M_ss, K_sg_csr, M_sg_csr = matrices
+    n_b, n_t, T_full = lay.n_b, lay.n_t, lay.T_full
+    rows = lay.slab_rows[s]
+    ts = time.perf_counter()
+    ksp = create_factored_solver(K_ss, prefix, serial_opts)
+    t_factor = time.perf_counter() - ts
+    # the traces that reach the slab: those of the cuts its rows couple to (a dense K_sG T of
+    # every trace would be ~1 GB a slab at the plan's 1.2M DOFs)
+    C_s = lay.CD_full[rows][:, :n_b]
+    used_t = np.bincount(T_full[np.unique(K_sg_csr.indices)].indices, minlength=n_t) > 0
+    used = np.concatenate([np.bincount(C_s.indices, minlength=n_b) > 0, used_t])
+    rhs = sp.hstack([C_s[:, used[:n_b]], K_sg_csr @ T_full[:, used_t]]).tocsr()
+    X = -_solve(ksp, rhs.toarray()) if used.any() else np.zeros((len(rows), 0))
+    # second-order statics: the response to the inertia of the slab's zone statics, M_ss Z_s + M_sz
+    n_zone = int(used[:n_b].sum())
+    D_s = lay.CD_full[rows][:, n_b:][:, used[:n_b]].tocsr()
+    X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], MPI.COMM_SELF) + D_s.toarray())
+          if n_zone else np.zeros((len(rows), 0)))
+    t_static = time.perf_counter() - ts - t_factor
+    te = time.perf_counter()
+    f_s, vecs, _ = compute_modes(K_ss, M_ss, ksp, settings.f_factor * f_cut, None, prefix, serial_opts,
+                                 count_first=True)
+    t_eigen = time.perf_counter() - te
+    Phi_s = np.column_stack([v.getArray(readonly=True) for v in vecs]) if vecs else np.zeros((len(rows), 0))
+    for v in vecs:
+        v.destroy()
+    ksp.destroy()
+    return_freed_memory()      # the slab's factors and Krylov basis: the next slab's room
+    B = np.hstack([X, Phi_s, X2])
+    del X, X2
+    tb = time.perf_counter()
+    blocks = _slab_blocks(K_ss, M_ss, B, -rhs, D_s, Phi_s.shape[1])
+    del rhs, D_s
+    slab = _Slab(s, rows, K_ss, M_ss, K_sg_csr, M_sg_csr, B, used, Phi_s.shape[1] + n_zone, blocks,
+                 {"slab": s, "rank": rank, "dofs": len(rows), "modes": int(Phi_s.shape[1]),
+                  "static_columns": int(used.sum()) + n_zone, "factor_s": round(t_factor, 3),
+                  "statics_s": round(t_static, 3), "eigen_s": round(t_eigen, 3),
+                  "blocks_s": round(time.perf_counter() - tb, 3),
+                  "total_s": round(time.perf_counter() - ts, 3),
+                  "peak_rss_gb": _peak_rss_gb()})
+    log.info("substructures %s: slab %d on rank %d: %s", prefix, s, rank, slab.stats)
+    return slab
+
+
+def _first_projection(mine: list[_Slab], lay: SlabLayout, KT_gg: np.ndarray, MT_gg: np.ndarray,
+                      comm: MPI.Comm) -> _RitzSystem:
+    """Step 3's matrices after the first pass: the Ritz columns numbered slab by slab on every rank
+    alike, and K_V, M_V, C_V on rank 0."""
     layout = sorted(x for part in comm.allgather([(sl.index, sl.used, sl.n_own) for sl in mine]) for x in part)
-    n_cols, cols_of = n_b + n_t, {}
+    n_cols, cols_of = lay.n_b + lay.n_t, {}
     for s, used, own in layout:
         cols_of[s] = np.concatenate([np.nonzero(used)[0], n_cols + np.arange(own)])
         n_cols += own
@@ -460,70 +517,84 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     # its results: the same numbers as every rank solving it (the sums are one reduction), without
     # the other ranks' copies and workspaces (~1 GB a rank at the plan's 1.2M DOFs, 4,368 columns)
     KV = MV = CV = None
-    if rank == 0:
+    t_idx, n_b = lay.t_idx, lay.n_b
+    if comm.rank == 0:
         KV, MV, CV = np.zeros((n_cols, n_cols)), np.zeros((n_cols, n_cols)), np.zeros((n_cols, 2 * n_b))
         KV[np.ix_(t_idx, t_idx)], MV[np.ix_(t_idx, t_idx)] = KT_gg, MT_gg
-        CV[t_idx] = (CD_full[gamma_glob].T @ T_full).T.toarray()      # replicated data: no sum
-    KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm, n_cols=n_cols, n_rhs=2 * n_b)
-    phase["project_s"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    ritz = _ritz_on_root(KV, MV, CV, n_b, f_cut, comm)
-    phase["ritz_s"] = time.perf_counter() - t0
-    # pass 2: each slab's static response (Gamma held) to the inertia of the first pass's modes and
-    # constraint modes, M_ii Phi and A_b = M_ii Psi + M_ib: one step of inverse iteration on them.
-    # A slab's rows of M_ii V couple its own rows and Gamma's only
-    n_new = n_b + ritz["m"]
-    if n_new:
-        t0 = time.perf_counter()
-        coef = np.hstack([ritz["psi"], ritz["phi"]])
-        first_gamma = T_full @ coef[t_idx]
-        for sl in mine:
-            ts = time.perf_counter()
-            load = _mult_local(sl.M_ss, sl.B @ coef[sl.cols], MPI.COMM_SELF) + sl.M_sg @ first_gamma
-            load[:, :n_b] += CD_full[sl.rows][:, n_b:].toarray()
-            ksp = create_factored_solver(sl.K_ss, prefix, serial_opts)
-            X3 = _solve(ksp, load)
-            del load
-            ksp.destroy()
-            if settings.compress > 0:
-                # the responses to ~n_b + m loads are nearly dependent away from the zone (157k-DOF
-                # panel, 4 slabs: 301 columns a slab -> 97-278, the Ritz basis 2193 -> 1602)
-                X3 = mass_orthonormal_columns(X3, sl.M_ss, settings.compress)
-            sl.B = np.hstack([sl.B, X3])
-            sl.n_new = X3.shape[1]
-            sl.stats["inertia_statics_s"] = round(time.perf_counter() - ts, 3)
-            sl.stats["inertia_columns"] = int(X3.shape[1])
-            sl.stats["peak_rss_gb_pass2"] = _peak_rss_gb()
-        counts = dict(x for part in comm.allgather([(sl.index, sl.n_new) for sl in mine]) for x in part)
-        offsets = np.cumsum([0] + [counts[s] for s in slab_ids])
-        for sl in mine:
-            k = slab_ids.index(sl.index)
-            sl.cols = np.concatenate([sl.cols, n_cols + offsets[k] + np.arange(sl.n_new)])
-        phase["pass2_s"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        n_cols += int(offsets[-1])
-        KV, MV, CV = _project(mine, T_full, t_idx, CD_full, (KV, MV, CV), comm, n_cols=n_cols, n_rhs=2 * n_b)
-        _release_slab_matrices(mine)
-        phase["project_s"] += time.perf_counter() - t0
-        t0 = time.perf_counter()
-        ritz = _ritz_on_root(KV, MV, CV, n_b, f_cut, comm)
-        phase["ritz_s"] += time.perf_counter() - t0
-    else:
+        CV[t_idx] = (lay.CD_full[lay.gamma_glob].T @ lay.T_full).T.toarray()      # replicated data: no sum
+    KV, MV, CV = _project(mine, lay.T_full, t_idx, lay.CD_full, (KV, MV, CV), comm, n_cols=n_cols, n_rhs=2 * n_b)
+    return _RitzSystem(KV, MV, CV, n_cols)
+
+
+def _second_pass(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, settings: SubstructureSettings,
+                 f_cut: float, prefix: str, serial_opts: dict[str, str], phase: dict[str, float],
+                 comm: MPI.Comm) -> None:
+    """Step 4: each slab's static response (Gamma held) to the inertia of the first pass's modes and
+    constraint modes, M_ii Phi and A_b = M_ii Psi + M_ib (one step of inverse iteration on them),
+    joins the basis; ``system`` projected and solved again. A slab's rows of M_ii V couple its own
+    rows and Gamma's only. The slabs' matrices are freed after the last projection."""
+    n_b, ritz = lay.n_b, system.ritz
+    if not n_b + ritz["m"]:
         _release_slab_matrices(mine)   # the first projection was the last
-    return_freed_memory()          # the second pass's factors and solves, before the expansion
+        return
     t0 = time.perf_counter()
+    coef = np.hstack([ritz["psi"], ritz["phi"]])
+    first_gamma = lay.T_full @ coef[lay.t_idx]
+    for sl in mine:
+        ts = time.perf_counter()
+        load = _mult_local(sl.M_ss, sl.B @ coef[sl.cols], MPI.COMM_SELF) + sl.M_sg @ first_gamma
+        load[:, :n_b] += lay.CD_full[sl.rows][:, n_b:].toarray()
+        ksp = create_factored_solver(sl.K_ss, prefix, serial_opts)
+        X3 = _solve(ksp, load)
+        del load
+        ksp.destroy()
+        if settings.compress > 0:
+            # the responses to ~n_b + m loads are nearly dependent away from the zone (157k-DOF
+            # panel, 4 slabs: 301 columns a slab -> 97-278, the Ritz basis 2193 -> 1602)
+            X3 = mass_orthonormal_columns(X3, sl.M_ss, settings.compress)
+        sl.B = np.hstack([sl.B, X3])
+        sl.n_new = X3.shape[1]
+        sl.stats["inertia_statics_s"] = round(time.perf_counter() - ts, 3)
+        sl.stats["inertia_columns"] = int(X3.shape[1])
+        sl.stats["peak_rss_gb_pass2"] = _peak_rss_gb()
+    counts = dict(x for part in comm.allgather([(sl.index, sl.n_new) for sl in mine]) for x in part)
+    offsets = np.cumsum([0] + [counts[s] for s in lay.slab_ids])
+    for sl in mine:
+        k = lay.slab_ids.index(sl.index)
+        sl.cols = np.concatenate([sl.cols, system.n_cols + offsets[k] + np.arange(sl.n_new)])
+    phase["pass2_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    system.n_cols += int(offsets[-1])
+    system.KV, system.MV, system.CV = _project(mine, lay.T_full, lay.t_idx, lay.CD_full,
+                                               (system.KV, system.MV, system.CV), comm, n_cols=system.n_cols,
+                                               n_rhs=2 * n_b)
+    _release_slab_matrices(mine)
+    phase["project_s"] += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    system.ritz = None                 # the first Rayleigh-Ritz's results, before the second's
+    system.ritz = _ritz_on_root(system.KV, system.MV, system.CV, n_b, f_cut, comm)
+    phase["ritz_s"] += time.perf_counter() - t0
+
+
+def _expand(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, patterns: bool,
+            zone_couplings: Optional[tuple[sp.csr_matrix, sp.csr_matrix]], recovery_rows: Optional[np.ndarray],
+            comm: MPI.Comm) -> tuple:
+    """Psi, Phi, R A_b (or with ``patterns``: Phi with the pattern vectors, their frequencies, the
+    Ritz-space recovery and Grams) expanded from the Ritz coefficients, straight into their final
+    storage; each slab's rows sent to the ranks owning them. The dense Ritz matrices of ``system``
+    are dropped before the rows travel."""
+    ritz, KV, MV, T, t_idx, n_loc, n_b = system.ritz, system.KV, system.MV, lay.T, lay.t_idx, lay.n_loc, lay.n_b
     m = ritz["m"]
-    freq = ritz["freq"]
-    # the results straight into their final storage; each slab's rows sent to the ranks owning them
     recovery = grams = None
+    f_pat = np.zeros(0)
     if patterns:
         f_pat, c_pat, grams = computed_on_root(comm, lambda: _patterns_and_grams(KV, MV, ritz))
         A = np.hstack([ritz["phi"], c_pat])
         if zone_couplings is not None:
-            recovery = ritz_recovery(mine, T_full, t_idx, gamma_glob, ritz, MV, A,
-                                     _global_rows(sp.hstack(zone_couplings).tocsr(), r0, n_i, comm),
+            recovery = ritz_recovery(mine, lay.T_full, t_idx, lay.gamma_glob, ritz, MV, A,
+                                     _global_rows(sp.hstack(zone_couplings).tocsr(), lay.r0, lay.n_i, comm),
                                      np.asarray(recovery_rows if recovery_rows is not None else [], dtype=np.int64),
-                                     n_cols, comm)
+                                     system.n_cols, comm)
         Psi = flex = None
         Phi = np.zeros((n_loc, m + len(f_pat)), order="F")       # PETSc's dense layout: shared, not copied
         targets, parts = (Phi,), (A,)
@@ -532,8 +603,8 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
         Phi = np.zeros((n_loc, m), order="F")
         targets, parts = (Psi.getDenseArray(), flex.getDenseArray(), Phi), (ritz["psi"], ritz["flex"], ritz["phi"])
     for out, c in zip(targets, parts):
-        out[gamma] = T @ c[t_idx]
-    starts = np.array(comm.allgather(r0) + [n_i])
+        out[lay.gamma] = T @ c[t_idx]
+    starts = np.array(comm.allgather(lay.r0) + [lay.n_i])
     bounds = np.cumsum([0] + [c.shape[1] for c in parts])
 
     def put(local_rows: np.ndarray, block: np.ndarray) -> None:
@@ -541,8 +612,11 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
             out[local_rows] = block[:, a:b]
 
     coef = np.hstack(parts)
-    ritz_rank = ritz["rank"]
-    del KV, MV, CV, ritz, parts        # the dense Ritz matrices: not needed for the expansion
+    # the dense Ritz matrices: not needed for the expansion
+    del KV, MV, ritz, parts
+    system.KV = system.MV = system.CV = system.ritz = None
+    if patterns:
+        del A
 
     def pieces():
         """This rank's slabs' rows of the results, EXPAND_ROWS at a time; a slab's matrices and
@@ -555,33 +629,26 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
             return_freed_memory()
 
     deliver_rows(pieces(), starts, coef.shape[1], put, comm)
-    for A in (Psi, flex):
-        if A is not None:
-            A.assemble()
-    phase["expand_s"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    residual = constraint_residual(K_ii, Psi, C, comm) if n_b and Psi is not None else 0.0
-    phase["residual_s"] = time.perf_counter() - t0
+    for M in (Psi, flex):
+        if M is not None:
+            M.assemble()
+    return Psi, Phi, flex, f_pat, recovery, grams
+
+
+def _slab_statistics(mine: list[_Slab], lay: SlabLayout, phase: dict[str, float], n_cols: int, ritz_rank,
+                     patterns: bool, n_pattern_vectors: int, t_start: float, comm: MPI.Comm) -> dict:
+    """The slabs' statistics (every rank's slabs) and the phases' times (s): this rank's slabs, and on
+    rank 0 the projections, the dense Ritz solves, the second pass, the expansion and Psi's residual."""
     slab_stats = sorted((x for part in comm.allgather([sl.stats for sl in mine]) for x in part),
                         key=lambda x: x["slab"])
-    stats = {"slabs": slab_stats, **cut.stats(), "interface_faces": len(faces),
-             "interface_dofs": len(gamma_glob), "traces": n_t,
-             **({"zone_patterns": n_b, "pattern_vectors": len(f_pat)} if patterns else {"interface_coordinates": n_b}),
-             "ritz_columns": n_cols, "ritz_rank": ritz_rank, "slab_modes": int(sum(x["modes"] for x in slab_stats)),
-             # phases (s): this rank's slabs, and on rank 0 the projections, the dense Ritz solves, the
-             # second pass, the expansion into Psi / Phi / R A_b and Psi's residual
-             "pass1_s_by_rank": [round(x, 3) for x in comm.allgather(phase.pop("pass1_s"))],
-             **{k: round(v, 3) for k, v in phase.items()}, "total_s": round(time.perf_counter() - t_start, 3)}
-    if comm.rank == 0:
-        log.info("substructures %s: %d slabs along %s (cuts %s m; %d cut again across) on %d rank(s), %d "
-                 "interface dofs -> %d traces, %d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s", prefix,
-                 len(slab_ids), stats["axis"], ", ".join(f"{c:.4g}" for c in cut.cuts), len(cut.across), size,
-                 stats["interface_dofs"], n_t,
-                 stats["slab_modes"], n_cols, m, stats["total_s"])
-    return {"Psi": Psi, "Phi": Phi, "flex": flex, "freq": np.concatenate([freq[:m], f_pat]) if patterns else freq[:m],
-            "n_patterns": len(f_pat) if patterns else 0, "next": float(freq[m]) if m < len(freq) else math.nan,
-            "residual": residual, "stats": stats,
-            "recovery": recovery, "grams": grams}
+    n_b = lay.n_b
+    return {"slabs": slab_stats, **lay.cut.stats(), "interface_faces": len(lay.faces),
+            "interface_dofs": len(lay.gamma_glob), "traces": lay.n_t,
+            **({"zone_patterns": n_b, "pattern_vectors": n_pattern_vectors} if patterns
+               else {"interface_coordinates": n_b}),
+            "ritz_columns": n_cols, "ritz_rank": ritz_rank, "slab_modes": int(sum(x["modes"] for x in slab_stats)),
+            "pass1_s_by_rank": [round(x, 3) for x in comm.allgather(phase.pop("pass1_s"))],
+            **{k: round(v, 3) for k, v in phase.items()}, "total_s": round(time.perf_counter() - t_start, 3)}
 
 
 def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, gamma_glob: np.ndarray,
