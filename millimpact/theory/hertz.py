@@ -115,6 +115,17 @@ class HertzHistory(NamedTuple):
     rebound_speed: float       #: m/s
 
 
+class _Separation:
+    """The contact's end as a :func:`scipy.integrate.solve_ivp` event: the approach x = y[0] falls
+    through 0 (``direction`` -1), which ends the integration (``terminal``)."""
+
+    terminal = True
+    direction = -1
+
+    def __call__(self, _t: float, y: np.ndarray) -> float:
+        return y[0]
+
+
 def hertz_history(h: HertzImpact, n: int = 401, rtol: float = 1e-11) -> HertzHistory:
     """Integrate m x'' = -k x^(3/2), x(0) = 0, x'(0) = v, until x returns to 0 (scipy RK45/DOP853).
 
@@ -125,10 +136,7 @@ def hertz_history(h: HertzImpact, n: int = 401, rtol: float = 1e-11) -> HertzHis
     def rhs(_t: float, y: np.ndarray) -> list[float]:
         return [y[1], -c * max(y[0], 0.0) ** 1.5]
 
-    def separated(_t: float, y: np.ndarray) -> float:
-        return y[0]
-    separated.terminal = True
-    separated.direction = -1
+    separated = _Separation()
 
     t_guess = 1.5 * h.contact_time
     sol = integrate.solve_ivp(rhs, (0.0, t_guess), [0.0, h.speed], method="DOP853", rtol=rtol,
