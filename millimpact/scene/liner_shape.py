@@ -36,6 +36,7 @@ def vec3(values) -> Vec3:
     x, y, z = values
     return (float(x), float(y), float(z))
 
+
 #: where on a liner a ball can strike (the places of impacts.csv, millimpact.dem.impacts.PLACES)
 IMPACT_PLACES = ("lifter_face", "lifter_top", "plate")
 
