@@ -114,7 +114,7 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
     comm = system.M.getComm().tompi4py()
     wall0 = time.perf_counter()
     stats = IntegrationStats(method=method, t_end=schedule.t_end)
-    integ: Union[CentralPenaltyScheme, NewmarkScheme]      # or a PlasticNewmarkScheme, a NewmarkScheme
+    integ: Union[CentralPenaltyScheme, NewmarkScheme]      # PlasticNewmarkScheme is a NewmarkScheme
     if method == "central-penalty":
         if system.plastic is not None:
             raise InputError("--integrator central-penalty has no plasticity: use newmark-mr (or elastic materials)")

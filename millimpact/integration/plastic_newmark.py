@@ -578,7 +578,7 @@ class AndersonMixing:
 
     def __init__(self, depth: int, comm: MPI.Comm):
         self.depth, self.comm = depth, comm
-        self.operator: object = None
+        self.operator: object = None       # the KSP of G's solve (bind)
         #: the last iterate's (f, G(u), companion image or None), None before the first
         self._prev: Optional[tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]] = None
         # the pairs' columns in place, oldest overwritten (the least squares does not depend on
