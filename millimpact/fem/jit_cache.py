@@ -32,12 +32,13 @@ def release_interrupted_compile(exc: BaseException) -> Optional[Path]:
     """After the interrupt ``exc``: the module this process was compiling, released as FFCx
     releases a failed one (:func:`_release_claim`), looking through the exceptions ``exc``
     replaced (a study re-raises the interrupt as its own); returns the renamed claim, or None."""
+    current: Optional[BaseException] = exc
     seen = 0
-    while exc is not None and seen < 8:
-        claim = _release_claim(exc.__traceback__)
+    while current is not None and seen < 8:
+        claim = _release_claim(current.__traceback__)
         if claim is not None:
             return claim
-        exc, seen = exc.__cause__ or exc.__context__, seen + 1
+        current, seen = current.__cause__ or current.__context__, seen + 1
     return None
 
 

@@ -52,8 +52,8 @@ class FEModel:
     meshdata: MeshData
     V: fem.FunctionSpace
     degree: int
-    M: object
-    K: object
+    M: PETSc.Mat
+    K: PETSc.Mat
     bcs: list
     fixed_dofs: np.ndarray
     ball_dofs: np.ndarray

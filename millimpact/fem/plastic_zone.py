@@ -23,7 +23,7 @@ the committed one; :meth:`PlasticZone.commit` accepts it at the end of a converg
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Literal, Optional, Sequence, Union
 
 import basix
 import numpy as np
@@ -34,7 +34,10 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .plasticity import J2Material, flow_curve_from_fields, return_map
+from .plasticity import J2Material, ReturnMapResult, flow_curve_from_fields, return_map
+
+if TYPE_CHECKING:
+    from .return_map_kernel import CompiledPass
 
 _S2 = float(np.sqrt(2.0))
 
@@ -60,6 +63,9 @@ class PlasticZone:
     with their materials, ``bcs`` the model's Dirichlet conditions (their rows of f_c and dK are
     zero). The quadrature degree is 2 (p - 1) (at least 1): exact for the elastic stiffness.
     """
+
+    #: the committed stress per zone (None for an empty zone), set by commit() and set_state()
+    _stress: list[Optional[np.ndarray]]
 
     def __init__(self, V: fem.FunctionSpace, cell_tags, zones: Sequence[ZoneMaterial], bcs: Sequence = ()):
         mesh = V.mesh
@@ -88,7 +94,9 @@ class PlasticZone:
         v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
         self._f_form = fem.form(ufl.inner(self.stress_correction, mandel_strain(v)) * dxz)
         self._v = v
-        self._candidates = self._candidate_form = None     # select_candidates()
+        # select_candidates(): per zone the positions (in its cell list) of the candidate cells
+        self._candidates: Optional[list[np.ndarray]] = None
+        self._candidate_form: Optional[fem.FormMetaClass] = None
         self._restricted = False
         self._k_integrand = ufl.inner(ufl.dot(self.tangent_correction, mandel_strain(du)), mandel_strain(v))
         self._quad = quad
@@ -97,16 +105,17 @@ class PlasticZone:
         n = [len(c) * self.n_q for c in self.cells]
         self.plastic_strain = [np.zeros((k, 6)) for k in n]
         self.alpha = [np.zeros(k) for k in n]
-        self._trial = None
+        self._trial: Optional[list[Optional[ReturnMapResult]]] = None
         self._elastic = [z.material.elastic_matrix() for z in self.zones]
         self._slots = [self._points_of(c) for c in self.cells]     # each zone's quadrature slots
-        self._picked = None       # (version, per zone (eps_p, alpha, slots) of the candidates)
+        # (version, per zone (eps_p, alpha, slots) of the candidates)
+        self._picked: Optional[tuple[int, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]] = None
         self.version = 0          #: bumped by commit() when the plastic state changed
         self._cache: dict = {}
         #: evaluations without the tangent by the compiled pass (:mod:`.return_map_kernel`); False: numpy
         self.compiled = True
-        self._kernel = None
-        self._compiled_force = None
+        self._kernel: Union[CompiledPass, Literal[False], None] = None     # False: tried, none here
+        self._compiled_force: Optional[np.ndarray] = None
 
     # --- state --------------------------------------------------------------------------------
     def _set_displacement(self, u_vec) -> None:
@@ -130,7 +139,8 @@ class PlasticZone:
         ``candidates_only``: only the cells of :meth:`select_candidates` (the others are taken to
         stay elastic: their f_c is the frozen plastic strain's). Such an evaluation gives
         :meth:`force_correction` but no trial state to commit: a full evaluation confirms it."""
-        restricted = candidates_only and self._candidates is not None
+        candidates = self._candidates if candidates_only else None
+        restricted = candidates is not None
         if not tangent and self._compiled() is not None:
             return self._evaluate_compiled(u_vec, restricted)
         self._compiled_force = None
@@ -141,10 +151,11 @@ class PlasticZone:
         tc = self.tangent_correction.x.array.reshape(-1, 6, 6)
         # only the zones' slots are ever written (the Quadrature spaces span the whole mesh: zeroing
         # all of C_t - C was 8 ms of a 19 ms evaluation on the plastic rig)
-        trial, n_yield, yielding_cells = [], 0, []
-        picked = self._candidate_state() if restricted else None
+        trial: list[Optional[ReturnMapResult]] = []
+        n_yield, yielding_cells = 0, []
+        picked = self._candidate_state() if restricted else []
         for k, zone in enumerate(self.zones):
-            pos = self._candidates[k] if restricted else None
+            pos = candidates[k] if candidates is not None else None
             cells = self.cells[k] if pos is None else self.cells[k][pos]
             if not len(cells):
                 trial.append(None)
@@ -214,9 +225,10 @@ class PlasticZone:
         self._yielding_cells = np.zeros(0, np.int32)
         return n_yield
 
-    def _candidate_state(self) -> list:
+    def _candidate_state(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Per zone, the committed (eps_p, alpha) of the candidates' points and their quadrature
         slots: gathered once per selection and plastic state, not every iteration."""
+        assert self._candidates is not None, "called after select_candidates()"
         if self._picked is None or self._picked[0] != self.version:
             picked = []
             for k, pos in enumerate(self._candidates):
@@ -464,7 +476,7 @@ class PlasticZone:
         tdim = mesh.topology.dim
         mesh.topology.create_connectivity(tdim - 1, tdim)
         f2c = mesh.topology.connectivity(tdim - 1, tdim)
-        touching = set()
+        touching: set[int] = set()
         for f in np.asarray(interface_facets, dtype=np.int32):
             touching.update(int(c) for c in f2c.links(f))
         local = 0.0

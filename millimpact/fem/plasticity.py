@@ -197,7 +197,7 @@ class ReturnMapResult(NamedTuple):
     stress: np.ndarray
     plastic_strain: np.ndarray
     alpha: np.ndarray
-    tangent: np.ndarray
+    tangent: Optional[np.ndarray]
     yielding: np.ndarray
     dissipation_increment: np.ndarray
     plastic_increment: np.ndarray
@@ -251,7 +251,7 @@ def return_map(material: J2Material, strain: np.ndarray, plastic_strain: np.ndar
         stress[y] = stress_y
         eps_p[y] = eps_p[y] + d
         alpha_new[y] += dg
-        if tangent:
+        if C_t is not None:                  # the tangent asked for
             n = dev[y] / dev_norm[y, None]
             C = material.elastic_matrix()
             H = flow.slope(alpha_new[y])

@@ -311,12 +311,14 @@ class CompiledPass:
         return None if module is None else cls(module, V, cells, materials, q_degree)
 
     def evaluate(self, u: np.ndarray, positions: Sequence[np.ndarray], plastic_strain: Sequence[np.ndarray],
-                 alpha: Sequence[np.ndarray], f: np.ndarray, keep_state: bool) -> tuple[int, list]:
+                 alpha: Sequence[np.ndarray], f: np.ndarray, keep_state: bool
+                 ) -> tuple[int, list[Optional[ReturnMapResult]]]:
         """Per body, return-map the points of the cells at ``positions`` (in its cell list) from the
         committed (``plastic_strain``, ``alpha``) and add their force correction beyond the frozen
         one to ``f``; returns (the yielding points, per body its :class:`ReturnMapResult` without
         tangent when ``keep_state``, else None)."""
-        n_yield, trial = 0, []
+        n_yield = 0
+        trial: list[Optional[ReturnMapResult]] = []
         for k, (pos, material) in enumerate(zip(positions, self.materials)):
             if not len(pos):
                 trial.append(None)

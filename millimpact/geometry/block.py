@@ -62,7 +62,7 @@ def _impact(blk, R, centre, contact_block, contact_ball, planes, sizes, generate
     occ.synchronize()
 
     tol = 1e-9 * scale
-    support_plane = (2, 0.0) if blk.support == "base" else (1, -b)
+    support_plane: tuple[int, float] = (2, 0.0) if blk.support == "base" else (1, -b)   # (axis, value m)
 
     def block_facet(s: int, in_zone: bool) -> int:
         sym = symmetry_tag(s, planes, x_p, z_p, tol)

@@ -240,7 +240,7 @@ def zone_axis(normal: Vec3) -> Optional[Vec3]:
     norm = math.sqrt(sum(c * c for c in normal))
     if abs(normal[2]) >= math.sin(math.radians(ZONE_POLE_MIN_ANGLE)) * norm:
         return None
-    return tuple(normal)
+    return normal
 
 
 def orient_poles(sphere: int, centre: Vec3, axis: Vec3) -> None:

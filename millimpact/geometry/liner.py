@@ -107,7 +107,9 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, normal: Vec3, ball,
     axis = zone_axis(normal)
     zone, region, v_liner = split_body(body, point, sizes.zone_radius, keep_box(planes, point[0], 0.0, scale, lo, hi),
                                         "liner", axis=axis)
-    ball_zone, ball_region, v_ball = [], [], None
+    ball_zone: list[int] = []
+    ball_region: list[int] = []
+    v_ball: Optional[int] = None
     if ball is not None:
         ball_zone, ball_region, v_ball = split_body(sphere, ball[2], sizes.ball_zone,
                                                      keep_box(planes, point[0], 0.0, scale, lo, hi), "ball",
@@ -148,7 +150,7 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, normal: Vec3, ball,
 
     volumes = tag_groups(zone, region, ball_zone, ball_region, liner_facet, ball_facet)
     vertices = [v_liner] + ([v_ball] if v_ball is not None else [])
-    info = ModelInfo(contact_block=tuple(point), contact_ball=ball[2] if ball else None, volumes=volumes,
+    info = ModelInfo(contact_block=point, contact_ball=ball[2] if ball else None, volumes=volumes,
                      symmetry_planes=planes, sizes=sizes, contact_vertices=tuple(vertices),
                      block_volumes=tuple(zone + region), ball_volumes=tuple(ball_zone + ball_region))
     # the holes' edges (and seams) get the hole size: their walls are the clamped support

@@ -33,7 +33,7 @@ from dolfinx.io import XDMFFile, gmshio
 
 from . import builders as geo
 from ..errors import MeshError
-from ..scene.liner_shape import LinerShape
+from ..scene.liner_shape import LinerShape, vec3
 from .block import build_impact_model
 from .liner import build_liner_model
 from .builders import CELL_TAG_NAMES, FACET_TAG_NAMES, MeshSizes, ModelInfo
@@ -341,7 +341,10 @@ def _measure(model: ModelInfo, key: str, symmetry: str) -> MeshInfo:
     block = np.concatenate([cells_by_tag[t] for t in (geo.BLOCK_ZONE, geo.BLOCK_REGION) if t in cells_by_tag])
     ball = [cells_by_tag[t] for t in (geo.BALL_ZONE, geo.BALL_REGION) if t in cells_by_tag]
     h_block, h_mean = _edge_lengths_at(x, block, model.contact_block)
-    h_ball = _edge_lengths_at(x, np.concatenate(ball), model.contact_ball)[0] if ball else math.nan
+    h_ball = math.nan
+    if ball:
+        assert model.contact_ball is not None, "a model with ball cells has a ball contact point"
+        h_ball = _edge_lengths_at(x, np.concatenate(ball), model.contact_ball)[0]
     sizes = model.sizes
     tri = x[facets_by_tag.get(geo.BLOCK_CONTACT, np.zeros((0, 3), dtype=np.int64))]
     near = tri[np.linalg.norm(tri.mean(axis=1) - np.asarray(model.contact_block), axis=1) < sizes.fine_radius]
@@ -354,8 +357,8 @@ def _measure(model: ModelInfo, key: str, symmetry: str) -> MeshInfo:
         h_contact_ball_measured=h_ball,
         min_quality=float(tet_quality(x[tets]).min()), meshing_time=model.mesh_time, cache_key=key,
         symmetry=symmetry, symmetry_planes=tuple(model.symmetry_planes),
-        contact_point_block=tuple(float(c) for c in model.contact_block),
-        contact_point_ball=tuple(float(c) for c in model.contact_ball) if model.contact_ball else None,
+        contact_point_block=vec3(model.contact_block),
+        contact_point_ball=vec3(model.contact_ball) if model.contact_ball else None,
         volumes=dict(model.volumes))
 
 

@@ -27,7 +27,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .integrators import LinearDynamics, StepState, TimeSchedule, integrate, kinetic_energy, strain_energy
+from .integrators import IntegrationStats, LinearDynamics, StepState, TimeSchedule, integrate, kinetic_energy, strain_energy
 
 
 @dataclass(frozen=True)
@@ -124,7 +124,7 @@ class BarResult:
     momentum: np.ndarray     #: sum(M v), kg m/s
     v_mean: np.ndarray       #: momentum / mass, m/s
     n_active: np.ndarray
-    stats: object
+    stats: IntegrationStats
 
     def contact_mask(self) -> np.ndarray:
         """Steps at whose end the contact force is positive."""

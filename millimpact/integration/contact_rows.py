@@ -57,6 +57,7 @@ class ContactRows:
 
     def slip(self, du: PETSc.Vec) -> np.ndarray:
         """T du (m), replicated: relative tangential displacements [t1; t2]."""
+        assert self.T is not None, "slip() needs the friction rows T"
         self.T.mult(du, self._t)
         return gather(self._t)
 

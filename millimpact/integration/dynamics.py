@@ -63,9 +63,13 @@ class NonlinearZone(Protocol):
     ``select_candidates(fraction)`` picks the cells near yielding at the last full evaluation, and
     ``evaluate(u, candidates_only=True)`` then return-maps those alone (f_c elsewhere the frozen
     one); such a state is confirmed by a full evaluation before it is committed. ``compiled``
-    chooses the compiled pass for the evaluations without the tangent (``evaluate(u, False)``)."""
+    chooses the compiled pass for the evaluations without the tangent (``evaluate(u, False)``);
+    ``version`` changes whenever the committed state does."""
 
     compiled: bool
+
+    @property
+    def version(self) -> int: ...
 
     def evaluate(self, u: PETSc.Vec, tangent: bool = True, candidates_only: bool = False) -> int: ...
 

@@ -46,7 +46,7 @@ import logging
 import math
 import sys
 import time
-from typing import Callable, Mapping, Optional
+from typing import Callable, Mapping, Optional, Union
 
 import numpy as np
 from petsc4py import PETSc
@@ -112,6 +112,7 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
     comm = system.M.getComm().tompi4py()
     wall0 = time.perf_counter()
     stats = IntegrationStats(method=method, t_end=schedule.t_end)
+    integ: Union[CentralPenaltyScheme, NewmarkScheme]      # PlasticNewmarkScheme is a NewmarkScheme
     if method == "central-penalty":
         if system.plastic is not None:
             raise InputError("--integrator central-penalty has no plasticity: use newmark-mr (or elastic materials)")
@@ -191,7 +192,7 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
                 print(f"  {method}: {100 * t / schedule.t_end:3.0f} % ({t * t_scale:.3g} of {schedule.t_end * t_scale:.3g} "
                       f"{t_unit} simulated, {time.perf_counter() - plain['t0']:.1f} s)", file=sys.stderr, flush=True)
                 plain["next"] = math.floor(10 * t / schedule.t_end + 1e-9) / 10 + 0.1
-            if getattr(integ, "diverged", False):
+            if isinstance(integ, CentralPenaltyScheme) and integ.diverged:     # the explicit scheme's test
                 stats.diverged, stats.diverged_at = True, t
                 if comm.rank == 0:
                     log.warning("%s diverged at t = %.6g s (step %d, dt %.4g s, critical %.4g s): energy %.3e J "

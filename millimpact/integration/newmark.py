@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
-from typing import Mapping, Optional
+from typing import TYPE_CHECKING, Literal, Mapping, Optional, Union
 
 import numpy as np
 from mpi4py import MPI
@@ -27,6 +27,9 @@ from ..errors import InputError, SolverError
 from .contact_rows import ContactRows, broadcast
 from .dynamics import IntegrationStats, LinearDynamics, product_matrix
 from .mass import redistribute_mass
+
+if TYPE_CHECKING:
+    from .body_blocks import BodyBlockSolver
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +48,7 @@ class StepOperators:
     contact: Optional[ContactOperator] = None
     #: A solved body by body (:class:`.body_blocks.BodyBlockSolver`), built by a plastic scheme;
     #: None until it is, False when A did not split (or is distributed)
-    body_blocks: Optional[object] = None
+    body_blocks: Union[BodyBlockSolver, Literal[False], None] = None
 
 
 class NewmarkScheme:
@@ -93,9 +96,9 @@ class NewmarkScheme:
         self.check_rtol = float(solvers.get_option("lambda_check_rtol", options, 1e-6))
         # step operators per dt; shared between calls when the system keeps a cache (same mass
         # treatment and contact solve: they determine the operators)
-        self._shared_ops = system.operator_cache is not None
-        self.ops: dict[float, StepOperators] = (system.operator_cache.setdefault((cs, redistribute), {})
-                                                if self._shared_ops else {})
+        cache = system.operator_cache
+        self._shared_ops = cache is not None
+        self.ops: dict[float, StepOperators] = cache.setdefault((cs, redistribute), {}) if cache is not None else {}
         self.contact_seen = False            #: a contact was active at some accepted step
         self.n_releases = 0                  #: times the step operators were released (<= MAX_RELEASES)
         self.released_operators = 0          #: step sizes' operators released after the impact
@@ -250,6 +253,7 @@ class NewmarkScheme:
             elif self.contact_solve == "schur":
                 apply_contact_update(C, lam, self.u_pred, self.u_new)
             else:
+                assert op.saddle is not None, "a saddle-point contact solve has its solver"
                 op.saddle.set_active(res.active, C.S_known, step, t_new)
                 lam_s = op.saddle.solve(self.r, self.contact.g0, self.u_new, step, t_new)
                 self.stats.n_saddle_solves += 1
@@ -284,7 +288,7 @@ class NewmarkScheme:
         if n_c and (np.min(lam) < -lam_tol or np.min(gap) < -max(gap_tol, 1e-8 * scale)):
             raise SolverError(f"contact conditions violated after the step: min lambda {np.min(lam):.3e} N, "
                               f"min gap {np.min(gap):.3e} m at step {step}, t = {t_new:.9g} s")
-        if self.frictional:
+        if self.tau is not None:          # frictional
             self.tau = np.where(np.concatenate([lam, lam]) > lam_tol, self.tau, 0.0)
         lam = np.where(lam > lam_tol, lam, 0.0)
         # Newmark update on the local arrays

@@ -40,7 +40,7 @@ raises :class:`SolverError` naming the step, the time and the residual.
 """
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Mapping, Optional
 
 import numpy as np
 from mpi4py import MPI
@@ -86,6 +86,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
         # the state update is u_pred + W x (each iteration's tangent has its own W): "schur"
         super().__init__(system, redistribute, {**dict(options), "contact_solve": "schur"}, stats, comm)
         self.contact_solve = stats.contact_solve = "schur"
+        assert system.plastic is not None, "the plastic scheme integrates a system with a plastic zone"
         self.zone = system.plastic
         self.rtol = float(solvers.get_option("plastic_rtol", options, 1e-8))
         self.linearisation = str(solvers.get_option("plastic_linearisation", options, "elastic")).lower()
@@ -112,7 +113,8 @@ class PlasticNewmarkScheme(NewmarkScheme):
         if not 0.0 <= self.candidate_fraction < 1.0:
             raise InputError(f"-impact_plastic_candidate_fraction {self.candidate_fraction}: must be in [0, 1) "
                              "(0 = every zone cell in every iteration)")
-        self._held = None             # a factorized tangent kept for reuse: (dt, dK, A_t, ksp, W)
+        # a factorized tangent kept for reuse: (dt, dK, A_t, ksp, W)
+        self._held: Optional[tuple[float, PETSc.Mat, PETSc.Mat, PETSc.KSP, ContactOperator]] = None
         self.forcing = float(solvers.get_option("plastic_friction_forcing", options, 0.1))
         if not 0.0 <= self.forcing <= 1.0:
             raise InputError(f"-impact_plastic_friction_forcing {self.forcing}: must be in [0, 1] "
@@ -120,7 +122,8 @@ class PlasticNewmarkScheme(NewmarkScheme):
         self.predictor = str(solvers.get_option("plastic_predictor", options, "extrapolated")).lower()
         if self.predictor not in PREDICTORS:
             raise InputError(f"-impact_plastic_predictor {self.predictor!r}: choose {', '.join(PREDICTORS)}")
-        self._last_frozen = None      # (dt, version, f_c,n) of the last step's start: the predictor's increment
+        # (dt, version, f_c,n) of the last step's start: the predictor's increment
+        self._last_frozen: Optional[tuple[float, int, PETSc.Vec]] = None
         kernel = str(solvers.get_option("plastic_return_map", options, "compiled")).lower()
         if kernel not in RETURN_MAPS:
             raise InputError(f"-impact_plastic_return_map {kernel!r}: choose {', '.join(RETURN_MAPS)}")
@@ -131,7 +134,8 @@ class PlasticNewmarkScheme(NewmarkScheme):
             raise InputError(f"-impact_plastic_body_blocks {blocks!r}: choose 1 or 0")
         self.body_blocks = blocks in ("1", "true")
         self._later_solves: dict[float, int] = {}     # per step size, solves beyond a step's first
-        self._iteration_active = None      # the active set of the step's last iteration's contact
+        # the active set of the step's last iteration's contact
+        self._iteration_active: Optional[np.ndarray] = None
 
     def initialize(self, u0: PETSc.Vec, v0: PETSc.Vec) -> None:
         """Newmark's start with the zone's frozen plastic force: M a0 = -K u0 - f_c(u0). A start
@@ -446,7 +450,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
             # 1.0-1.03 GB after each release with the trim)
             solvers.return_freed_memory()
 
-    def _factorize_tangent(self, op, dK: PETSc.Mat):
+    def _factorize_tangent(self, op, dK: PETSc.Mat) -> tuple[PETSc.Mat, PETSc.KSP, ContactOperator]:
         """(A_t, ksp, W) of the tangent A + dK: factorized, with its contact operator."""
         A_t = op.A.copy()
         try:
@@ -511,11 +515,15 @@ class AndersonMixing:
 
     def __init__(self, depth: int, comm: MPI.Comm):
         self.depth, self.comm = depth, comm
-        self.f_prev = self.g_prev = self.b_prev = self.operator = None
+        self.operator: object = None       # the KSP of G's solve (bind)
+        #: the last iterate's (f, G(u), companion image or None), None before the first
+        self._prev: Optional[tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]] = None
         # the pairs' columns in place, oldest overwritten (the least squares does not depend on
         # their order): no copies into a stacked array per iteration, and the Gram matrix dF^T dF
         # updated by one row (rig: 1.5 ms an iteration with the columns stacked anew)
-        self._dF = self._dG = self._dB = None
+        self._dF: Optional[np.ndarray] = None
+        self._dG: Optional[np.ndarray] = None
+        self._dB: Optional[np.ndarray] = None
         self._gram = np.zeros((depth, depth))
         self._count = 0                    # pairs kept (at most depth)
         self._slot = 0                     # the next pair's column
@@ -529,25 +537,26 @@ class AndersonMixing:
 
     def forget(self) -> None:
         """Drop the secant pairs (the map G changed)."""
-        self.f_prev = self.g_prev = self.b_prev = None
+        self._prev = None
         self._count = self._slot = 0
 
     def _keep(self, df: np.ndarray, dg: np.ndarray, db: np.ndarray | None) -> None:
         """Store a pair in the next column and its row of the Gram matrix (reduced over the ranks)."""
-        if self._dF is None or self._dF.shape[0] != df.size:
-            self._dF = np.empty((df.size, self.depth), order="F")
-            self._dG = np.empty((df.size, self.depth), order="F")
+        dF, dG = self._dF, self._dG
+        if dF is None or dG is None or dF.shape[0] != df.size:
+            dF = self._dF = np.empty((df.size, self.depth), order="F")
+            dG = self._dG = np.empty((df.size, self.depth), order="F")
             self._dB = None
-        if db is not None and self._dB is None:
-            self._dB = np.empty((db.size, self.depth), order="F")
         j = self._slot
-        self._dF[:, j], self._dG[:, j] = df, dg
+        dF[:, j], dG[:, j] = df, dg
         if db is not None:
+            if self._dB is None:
+                self._dB = np.empty((db.size, self.depth), order="F")
             self._dB[:, j] = db
         self._count = min(self._count + 1, self.depth)
         self._slot = (j + 1) % self.depth
         k = self._count
-        row = self.comm.allreduce(self._dF[:, :k].T @ df, op=MPI.SUM)
+        row = self.comm.allreduce(dF[:, :k].T @ df, op=MPI.SUM)
         self._gram[j, :k] = row
         self._gram[:k, j] = row
 
@@ -556,14 +565,18 @@ class AndersonMixing:
         L G(u_k) (here A G(u_k)), is mixed with the same gamma: returns L u_{k+1} (None without)."""
         g = np.array(g_vec.array_r)
         f = g - u.array_r
-        if companion is not None and self.b_prev is None and self.f_prev is not None:
-            companion = None              # the history has no images: stop carrying them
-        if self.f_prev is not None and self.depth > 0:
-            self._keep(f - self.f_prev, g - self.g_prev, companion - self.b_prev if companion is not None else None)
-        self.f_prev, self.g_prev, self.b_prev = f, g, companion
+        if self._prev is not None:
+            f_prev, g_prev, b_prev = self._prev
+            if b_prev is None:
+                companion = None          # the history has no images: stop carrying them
+            if self.depth > 0:
+                self._keep(f - f_prev, g - g_prev,
+                           companion - b_prev if companion is not None and b_prev is not None else None)
+        self._prev = (f, g, companion)
         out, image = g, companion
         k = self._count
         if k:
+            assert self._dF is not None and self._dG is not None, "the kept pairs' columns"
             gram = self._gram[:k, :k]
             rhs = self.comm.allreduce(self._dF[:, :k].T @ f, op=MPI.SUM)
             # the normal equations with a relative ridge of 1e-12 (a column that repeats another
@@ -572,6 +585,7 @@ class AndersonMixing:
             gamma = np.linalg.lstsq(gram, rhs, rcond=None)[0]
             out = g - self._dG[:, :k] @ gamma
             if image is not None:
+                assert self._dB is not None, "a carried image was kept with its pairs"
                 image = image - self._dB[:, :k] @ gamma
         u.array[:] = out
         return image

@@ -139,6 +139,7 @@ class SaddlePointSolver:
         else:
             if self._mono is not None:
                 self._mono.destroy()
+            if self._mono_mat is not None:
                 self._mono_mat.destroy()
             Nm = self.N.convert("aij", PETSc.Mat())
             ksp = PETSc.KSP().create(self.comm)
@@ -161,6 +162,7 @@ class SaddlePointSolver:
             self.max_schur_iterations = max(self.max_schur_iterations, self.ksp_s.getIterationNumber())
             xu, xl = self._x_u, self._x_l
         else:
+            assert self._mono is not None and self._mono_mat is not None, "set_active() factorized the system"
             bb = self._mono_mat.createVecLeft()
             xx = self._mono_mat.createVecRight()
             n_loc = self._rhs_u.getLocalSize()

@@ -35,7 +35,7 @@ from __future__ import annotations
 import logging
 import math
 from contextlib import contextmanager
-from typing import Iterator, Mapping, Optional
+from typing import Iterator, Mapping, Optional, TypeVar
 
 import numpy as np
 from mpi4py import MPI
@@ -257,7 +257,11 @@ def petsc_options(defaults: Mapping[str, str], options: Optional[Mapping[str, ob
             opts.delValue(name)
 
 
-def get_option(name: str, options: Optional[Mapping[str, object]], default: object) -> object:
+#: the types a non-PETSc setting takes (its default's)
+OptionValue = TypeVar("OptionValue", bool, int, float, str)
+
+
+def get_option(name: str, options: Optional[Mapping[str, object]], default: OptionValue) -> OptionValue:
     """A non-PETSc setting ``-impact_<name>``: command line, else ``options``, else ``default``.
 
     The result has the type of ``default`` (bool, int, float or str).
@@ -592,8 +596,8 @@ def check_type_options(options: Mapping[str, object]) -> None:
                 ("substructure_eps_tol", 1e-15, 1.0, "the slabs' eigensolver tolerance, relative residual; "
                                                      "default 1e-4")):
             if str(key).endswith(suffix):
-                try:
-                    ok = low <= float(value) < high
+                try:    # a value that is no number or numeric string (None, a list) is refused too
+                    ok = isinstance(value, (int, float, str)) and low <= float(value) < high
                 except ValueError:
                     ok = False
                 if not ok:

@@ -40,6 +40,7 @@ from ..fem.contact import ContactSet
 from ..integration import integrators
 from ..integration.solvers import return_freed_memory
 from ..reduction.free_modes import ModalProjection, compute_free_modes
+from ..reduction.plastic_projection import ProjectedPlasticZone
 from ..reduction.reduced_model import ReducedModel
 from ..results.reduced_recorder import ReducedRecorder
 from ..scene.plan import Plan
@@ -89,7 +90,7 @@ def resolve_free_phase(free_phase: str, red: ReducedModel, plan: Plan, t_end: fl
 def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0: PETSc.Vec, qd0: PETSc.Vec,
                       contact: ContactSet, plan: Plan, t_end: float, rec: ReducedRecorder, *,
                       integrator: str = "newmark-mr", options: Optional[dict] = None, progress: bool = False,
-                      free_phase: str = "auto", f_free: Optional[float] = None,
+                      free_phase: str = "auto", f_free: float,
                       min_span: Optional[float] = None, stop=None) -> dict[str, Any]:
     """Integrate a reduced model over [0, t_end], feeding ``rec``.
 
@@ -180,6 +181,7 @@ def residual_offset(red: ReducedModel, system: integrators.LinearDynamics, conta
     contact gaps it shifts (``gap_shift`` = B_r q_s, replicated, m) and the plastic state's
     ``version`` it belongs to."""
     plastic = system.plastic
+    assert isinstance(plastic, ProjectedPlasticZone), "a reduced plastic run's zone is the projected one"
     q_s = plastic.residual_state()
     shift = system.B.createVecLeft()
     system.B.mult(q_s, shift)
@@ -269,7 +271,7 @@ def _free_vibration(modal: ModalProjection, gap_rows: np.ndarray, g0: np.ndarray
     w = np.where(rigid, 1.0, omega)
     g_thr = plan.gap
 
-    def state(tau: np.ndarray):
+    def state(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         c, s_ = np.cos(np.outer(omega, tau)), np.sin(np.outer(omega, tau))
         eta = eta0[:, None] * c + (etad0 / w)[:, None] * s_
         etad = -(eta0 * omega)[:, None] * s_ + etad0[:, None] * c

@@ -52,6 +52,7 @@ from ..results.output import RunOutput
 from .options import float_option, take
 from .reduced import refuse_plastic
 from ..scene.schema import Scene
+from ..theory.hertz import FallingZeroEvent
 
 log = logging.getLogger(__name__)
 
@@ -175,10 +176,7 @@ def _simulate(bm: BlockModes, m: float, k: float, v0: float, gap: float, n_sym: 
         f = k * d ** 1.5 if d > 0 else 0.0
         return np.concatenate([[xd, -f / m], etad, -w2 * eta + s * (f / n_sym)])
 
-    def released(_t, y):
-        return y[0] - gap - s @ y[2:2 + n]
-    released.terminal = True
-    released.direction = -1
+    released = FallingZeroEvent(lambda _t, y: y[0] - gap - s @ y[2:2 + n])
 
     smax = max(float(np.max(np.abs(s))), 1e-300) if n else 1.0
     d_scale = (m * v0 ** 2 / k) ** 0.4       # ~ delta_max

@@ -2,7 +2,7 @@
 errors that name the option."""
 from __future__ import annotations
 
-from typing import Optional
+from typing import Optional, overload
 
 from ..errors import InputError
 from ..integration.solvers import note_option_read, option_key
@@ -42,11 +42,19 @@ def _typed_option(options: dict, key: str, default, kind: type, what: str):
         raise InputError(f"option {key} = {value!r}: must be {what}") from None
 
 
+@overload
+def int_option(options: dict, key: str, default: int) -> int: ...
+@overload
+def int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]: ...
 def int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]:
     """Pop ``key`` as an integer."""
     return _typed_option(options, key, default, int, "an integer")
 
 
+@overload
+def float_option(options: dict, key: str, default: float) -> float: ...
+@overload
+def float_option(options: dict, key: str, default: Optional[float]) -> Optional[float]: ...
 def float_option(options: dict, key: str, default: Optional[float]) -> Optional[float]:
     """Pop ``key`` as a number."""
     return _typed_option(options, key, default, float, "a number")

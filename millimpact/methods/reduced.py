@@ -141,8 +141,7 @@ def read_reduced_options(method: str, scene: Scene, plan: Plan, options: dict[st
     recovery = str(take(options, "recovery") or "mode-acceleration")
     if recovery not in ("mode-acceleration", "modal"):
         raise InputError(f"option recovery = {recovery!r}: choose mode-acceleration or modal")
-    augment = str(take(options, "augment") or "none")
-    augment = tuple(a for a in augment.split(",") if a and a != "none")
+    augment = tuple(a for a in str(take(options, "augment") or "none").split(",") if a and a != "none")
     if any(a not in AUGMENTATION_PATTERNS for a in augment):
         raise InputError(f"option augment = {','.join(augment)}: choose from none, {', '.join(AUGMENTATION_PATTERNS)}")
     free_phase = str(take(options, "free_phase") or "auto")

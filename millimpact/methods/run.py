@@ -156,8 +156,9 @@ def run_scene(scene: Scene, method: str, out_dir: Union[Path, OutputFolder, None
     """Compute and (if ``out_dir``: a folder, or one claimed with
     :func:`~millimpact.results.output_folder.claim_output`) write a run (with ``reference``: also
     the reference files); returns the summary. Only rank 0 writes."""
-    target = out_dir
-    if out_dir is not None and not isinstance(out_dir, OutputFolder):
+    if out_dir is None or isinstance(out_dir, OutputFolder):
+        target = out_dir
+    else:
         target = claim_output(out_dir, "run", comm=comm)   # checked before computing
     t0 = time.perf_counter()
     out, plan = compute(scene, method, options, progress)

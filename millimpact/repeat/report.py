@@ -52,7 +52,8 @@ def read_impacts_csv(path: Path) -> list[ImpactOutcome]:
     out = []
     for ln in rows[1:]:
         vals = dict(zip(head, ln.split(",")))
-        out.append(ImpactOutcome(**{c: (int(vals[c]) if c == "impact" else float(vals[c])) for c in OUTCOME_COLUMNS}))
+        out.append(ImpactOutcome(impact=int(vals["impact"]),
+                                 **{c: float(vals[c]) for c in OUTCOME_COLUMNS if c != "impact"}))
     return out
 
 

@@ -48,12 +48,15 @@ import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
 from .verdict import Verdict, classify
 from ..scene.impact_direction import oblique_velocity
+
+if TYPE_CHECKING:
+    from ..fem.model import FEModel
 
 log = logging.getLogger(__name__)
 
@@ -340,6 +343,10 @@ class _Engine:
     the launch onto the deformed face and the outcome."""
 
     zone = None          #: the model's PlasticZone (None when nothing yields)
+    #: the sequence's full model and its contact candidates' radius (m; None: the plan's), set by
+    #: each engine once it has built them
+    model: FEModel
+    cand_radius: Optional[float]
 
     def __init__(self, design, method: str, options: dict, comm):
         from ..scene.plan import make_plan

@@ -46,7 +46,7 @@ class Verdict:
     numbers: dict = field(default_factory=dict)
 
 
-def decay_ratio(increments: Sequence[float]) -> float:
+def decay_ratio(increments: Sequence[float] | np.ndarray) -> float:
     """The geometric ratio q of the last FIT_IMPACTS positive increments (dD_k ~ c q^k, a
     log-linear least-squares fit); nan with fewer than two positive ones."""
     x = np.asarray(increments, dtype=float)[-FIT_IMPACTS:]

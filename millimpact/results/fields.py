@@ -10,7 +10,7 @@ from ..fem.model import FEModel
 
 
 def write_fields(model: FEModel, fields: list[tuple[float, np.ndarray]], path: Path,
-                 plastic_fields: Optional[list] = None) -> None:
+                 plastic_fields: Optional[list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = None) -> None:
     """XDMF of the displacement (m) at the recorded times, with cell tags (collective); for a
     plastic run also the cellwise (DG0) largest equivalent plastic strain and von Mises stress (Pa)
     of the contact zones' quadrature points (``plastic_fields``: one (cells, alpha, von Mises) per
@@ -43,7 +43,7 @@ def write_fields(model: FEModel, fields: list[tuple[float, np.ndarray]], path: P
             if out_fn is not u:
                 out_fn.interpolate(u)
             xdmf.write_function(out_fn, t)
-            if cellwise and i < len(plastic_fields):
+            if plastic_fields and i < len(plastic_fields):     # cellwise holds their two functions
                 cells, alpha, vm = plastic_fields[i]
                 for f, values in zip(cellwise, (alpha, vm)):
                     f.x.array[:] = 0.0

@@ -15,7 +15,7 @@ probe, the struck body's elastic constants, the initial gap); never the scene.
 from __future__ import annotations
 
 import math
-from typing import Any, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Optional, Protocol, Sequence
 
 import numpy as np
 
@@ -28,6 +28,18 @@ from ..scene.plan import ProbeSpec
 from .band_limit import gaussian_low_pass
 from .timeseries import TimeSeries
 
+if TYPE_CHECKING:
+    from petsc4py import PETSc
+
+
+class EnergyModel(Protocol):
+    """What the rows' energies read of a model (an :class:`FEModel`, or a reduced model's view):
+    the mass M and stiffness K (PETSc matrices) and the clamped dofs."""
+
+    M: PETSc.Mat
+    K: PETSc.Mat
+    fixed_dofs: np.ndarray
+
 
 class Recorder:
     """Observer of the time loop: turns each step's state into the run's time-series rows.
@@ -39,7 +51,8 @@ class Recorder:
 
     def __init__(self, model: FEModel, contact: ContactSet, probes: ProbeSpec, field_times: tuple[float, ...],
                  plastic=None):
-        self.model, self.contact = model, contact
+        self.model: EnergyModel = model
+        self.contact = contact
         #: the plastic zone (:class:`millimpact.fem.plastic_zone.PlasticZone`), None if elastic:
         #: strain energy with the plastic strain, plastic work and the largest plastic strain
         self.plastic = plastic
@@ -66,6 +79,7 @@ class Recorder:
         self.friction = contact.T is not None
         if self.friction:
             slide = probes.slide_direction
+            assert contact.tangents is not None, "friction rows come with their tangent directions"
             self.t_v = np.array(slide) if slide is not None else contact.tangents[0]
             self.c_t = model.M.createVecLeft()
             model.M.mult(model.ball_velocity(self.t_v), self.c_t)

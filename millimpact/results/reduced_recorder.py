@@ -24,6 +24,7 @@ from typing import Optional
 import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from ..fem.contact import ContactSet
 from ..fem.probes import PointProbe
@@ -47,6 +48,17 @@ def project_probe(probe: PointProbe, red: ReducedModel) -> PointProbe:
         full = sp.vstack(red.comm.allgather(local)).tocsc()
         mats.append(full[:, q0:q1].tocsr())
     return PointProbe(probe.comm, probe.n_points, mats[0], mats[1], probe.found)
+
+
+@dataclasses.dataclass
+class ProjectedModel:
+    """A projection's operators in the place of the full model's for the rows' energies: reduced
+    (or modal) mass M and stiffness K; no fixed coordinates (T is zero on clamped dofs)."""
+
+    M: PETSc.Mat
+    K: PETSc.Mat
+    fixed_dofs: np.ndarray
+    sym_factor: float
 
 
 class ReducedRecorder(Recorder):
@@ -78,8 +90,12 @@ class ReducedRecorder(Recorder):
             if D is not None:
                 self._md = (D[:P_val.shape[0]], D[P_val.shape[0]:])
         self.time_offset = 0.0
-        self.proj = None
-        self._maps: dict[int, tuple] = {}
+        self.proj: ReducedModel | ModalProjection = red
+        # per projection (its id): (T^T c, ball mask, two work vectors, probe P T, energy view)
+        self._maps: dict[int, tuple[PETSc.Vec, PETSc.Vec, PETSc.Vec, PETSc.Vec, PointProbe, ProjectedModel]] = {}
+        self._ma_maps: dict[int, Optional[PointProbe]] = {}     # per projection: mode-acceleration rows
+        self._dense: dict[int, SimpleNamespace] = {}            # per modal projection: _dense_maps()
+        self._offsets: dict[tuple[int, int], SimpleNamespace] = {}     # per plastic state: _offset_terms()
         self._ct_full = getattr(self, "c_t", None)     # friction: the ball's tangential row
         self._ct_maps: dict[int, object] = {}
         self._patch_full = self.c_patch                 # the contact point's patch row
@@ -93,8 +109,8 @@ class ReducedRecorder(Recorder):
         if key not in self._maps:
             mask = proj.create_vector()
             mask.array[proj.ball_coords] = 1.0
-            view = SimpleNamespace(M=proj.M, K=proj.K, fixed_dofs=np.zeros(0, dtype=np.int32),
-                                   sym_factor=proj.model.sym_factor)
+            view = ProjectedModel(M=proj.M, K=proj.K, fixed_dofs=np.zeros(0, dtype=np.int32),
+                                  sym_factor=proj.model.sym_factor)
             probe = project_probe(self._probe_full, proj)
             if self._md is not None:
                 d = self._rows_probe(self._md, proj)
@@ -102,9 +118,9 @@ class ReducedRecorder(Recorder):
                                    probe.found)
             self._maps[key] = (proj.restrict(self._c_full), mask, proj.create_vector(), proj.create_vector(),
                                probe, view)
-            self._maps[("ma", key)] = self._ma_probe(proj)
+            self._ma_maps[key] = self._ma_probe(proj)
         self.c_y, self.ball_mask, self.tmp, self.tmp2, self.probe, self.model = self._maps[key]
-        self.ma_probe = self._maps[("ma", key)]
+        self.ma_probe = self._ma_maps[key]
         if self._ct_full is not None:
             if key not in self._ct_maps:
                 self._ct_maps[key] = proj.restrict(self._ct_full)
@@ -153,23 +169,23 @@ class ReducedRecorder(Recorder):
         """Replicated dense maps of a modal projection (m modal coordinates, a few dozen): the
         ball's rows c and c_t, the probe rows (values, gradients), the scheme's mass, K_r and the
         ball mask, all m-column; built once per projection."""
-        key = ("dense", id(modal))
-        if key not in self._maps:
+        key = id(modal)
+        if key not in self._dense:
             comm = modal.comm
 
             def vec(v) -> np.ndarray:
                 return np.concatenate(comm.allgather(v.array_r.copy()))
 
             c_y, mask, _, _, probe, _ = self._maps[id(modal)]
-            ma = self._maps[("ma", id(modal))]
+            ma = self._ma_maps[id(modal)]
             cols = lambda P: sp.hstack(comm.allgather(P)).toarray()    # noqa: E731 (local columns)
-            self._maps[key] = SimpleNamespace(
+            self._dense[key] = SimpleNamespace(
                 c=vec(c_y), ct=vec(self._ct_maps[id(modal)]) if self._ct_full is not None else None,
                 cp=vec(self._patch_maps[id(modal)]) if self._patch_full is not None else None,
                 mask=vec(mask), Pv=cols(probe.P_val), Pg=cols(probe.P_grad), n_points=probe.n_points,
                 Cv=cols(ma.P_val) if ma is not None else None, Cg=cols(ma.P_grad) if ma is not None else None,
                 M=gather_aij_dense(modal.M_scheme, comm), K=gather_aij_dense(modal.K, comm))
-        return self._maps[key]
+        return self._dense[key]
 
     def _offset_terms(self, red, offset) -> SimpleNamespace:
         """What the residual state q_s of a plastic run (``offset``: :func:`millimpact.methods.
@@ -178,17 +194,17 @@ class ReducedRecorder(Recorder):
         elastic strain energy 1/2 q_s.K_r.q_s + the plastic correction (the motion about q_s adds
         1/2 eta.Lambda.eta: the cross term is eta.Phi^T (K_r q_s + f_frozen) = 0), and the model
         vector T q_s for the fields; cached per plastic state."""
-        key = ("offset", offset.version, id(offset.q))
-        if key not in self._maps:
+        key = (offset.version, id(offset.q))
+        if key not in self._offsets:
             c_y, _, _, _, probe, _ = self._maps[id(red)]
             arr = offset.q.array_r
             Kq = red.K.createVecLeft()
             red.K.mult(offset.q, Kq)
             se = 0.5 * Kq.dot(offset.q) + self.plastic.strain_energy_correction(offset.q)
             Kq.destroy()
-            self._maps[key] = SimpleNamespace(c=c_y.dot(offset.q), vals=probe.values(arr),
-                                              grads=probe.gradients(arr), se=se, u=red.expand(offset.q))
-        return self._maps[key]
+            self._offsets[key] = SimpleNamespace(c=c_y.dot(offset.q), vals=probe.values(arr),
+                                                 grads=probe.gradients(arr), se=se, u=red.expand(offset.q))
+        return self._offsets[key]
 
     def record_free(self, modal: ModalProjection, times: np.ndarray, eta: np.ndarray, etad: np.ndarray,
                     etadd: np.ndarray, offset=None) -> None:
@@ -207,7 +223,7 @@ class ReducedRecorder(Recorder):
         u_v, u_g = d.Pv @ eta, d.Pg @ eta
         if d.Cv is not None:            # mode-acceleration recovery
             u_v, u_g = u_v + d.Cv @ etadd, u_g + d.Cg @ etadd
-        vals = [np.moveaxis(x.reshape(np_, 3, n_t), -1, 0) for x in (u_v, d.Pv @ etad, d.Pv @ etadd)]
+        vals_u, vals_v, vals_a = (np.moveaxis(x.reshape(np_, 3, n_t), -1, 0) for x in (u_v, d.Pv @ etad, d.Pv @ etadd))
         grads = np.moveaxis(u_g.reshape(np_, 3, 3, n_t), -1, 0)               # (n_t, points, 3, 3)
         ke = 0.5 * np.einsum("it,it->t", etad, d.M @ etad)
         vb = d.mask[:, None] * etad
@@ -215,12 +231,12 @@ class ReducedRecorder(Recorder):
         se = 0.5 * np.einsum("it,it->t", eta, d.K @ eta)
         if off is not None:
             approach = approach - off.c
-            vals[0] = vals[0] + off.vals[None]
+            vals_u = vals_u + off.vals[None]
             grads = grads + off.grads[None]
             se = se + off.se
         zero = np.zeros(n_t)
         patch = (d.cp @ etad, d.cp @ etadd) if d.cp is not None else None
-        cols = [times, zero, approach, zero, vball, *self.probe_columns(*vals, grads, patch), self.sym * ke_ball,
+        cols = [times, zero, approach, zero, vball, *self.probe_columns(vals_u, vals_v, vals_a, grads, patch), self.sym * ke_ball,
                 self.sym * ke, self.sym * se, self.sym * (ke + se)]
         if self.friction:
             # no friction while apart: the cumulative work stays at its value (see __call__)

@@ -7,12 +7,23 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypedDict
 
 from ..errors import SceneError
 
 from ..theory.rubber import compression_modulus, sheet_shape_factor, shore_a_modulus
+from .liner_shape import vec3
 from .schema import Ball, Block, ContactOptions, Gauge, Impact, Liner, Material, Outputs, Scene, TimeSpan, Vec3, coerce_value
 from .toml_io import load_scene
+
+
+class _BlockSizes(TypedDict):
+    """A block's sizes (m) and support, the :class:`Block` fields a family of scenes shares."""
+
+    length: float
+    thickness: float
+    height: float
+    support: str
 
 
 # --- built-in scenes -------------------------------------------------------------------------
@@ -82,7 +93,7 @@ def _study_base() -> Scene:
 
 #: the mill-regime block scenes: a 125 mm ball, a liner-thick block backed by the shell
 MILL_BALL_RADIUS = 0.0625
-MILL_BLOCK = dict(length=0.250, thickness=0.075, height=0.250, support="back")
+MILL_BLOCK = _BlockSizes(length=0.250, thickness=0.075, height=0.250, support="back")
 
 
 def _mill_block(name: str, liner_material: str, what: str) -> Scene:
@@ -117,7 +128,7 @@ def _oblique_velocity(liner: Liner) -> Vec3:
     _, n = liner.face_point()
     up = (0.0, n[2], -n[1]) if n[2] > 0 else (0.0, -n[2], n[1])    # in-face, pointing away from the plate
     a = math.radians(LINER_IMPACT_ANGLE)
-    return tuple(round(LINER_IMPACT_SPEED * (-math.cos(a) * nc - math.sin(a) * uc), 12) + 0.0 for nc, uc in zip(n, up))
+    return vec3(round(LINER_IMPACT_SPEED * (-math.cos(a) * nc - math.sin(a) * uc), 12) + 0.0 for nc, uc in zip(n, up))
 
 
 def _liner_segment() -> Scene:
@@ -176,7 +187,7 @@ def _panel_gauges(liner: Liner) -> tuple[Gauge, ...]:
     bolt = Gauge("bolt", (x_g, R - r * math.cos(phi), 0.5 * w + r * math.sin(phi)), (0.0, math.sin(phi), math.cos(phi)))
     q, m = liner.lifter_face_point(liner.impact_lifter, liner.impact_face, 0.05, p[0])
     up = (0.0, m[2], -m[1]) if m[2] > 0 else (0.0, -m[2], m[1])
-    root = Gauge("root", tuple(qc - GAUGE_DEPTH * mc for qc, mc in zip(q, m)), up)
+    root = Gauge("root", vec3(qc - GAUGE_DEPTH * mc for qc, mc in zip(q, m)), up)
     return (bolt, root)
 
 
@@ -231,7 +242,7 @@ LEEB_D_ENERGY = 11.0e-3
 LEEB_D_SPEED = math.sqrt(2.0 * LEEB_D_ENERGY / LEEB_D_BODY_MASS)
 #: the test block: 25 mm thick (the D probe's least uncoupled sample thickness, Proceq Equotip 3
 #: manual 2012, 2.3), 40 x 40 mm, clamped at its back (a sample coupled to a solid base)
-LEEB_BLOCK = dict(length=0.040, thickness=0.025, height=0.040, support="back")
+LEEB_BLOCK = _BlockSizes(length=0.040, thickness=0.025, height=0.040, support="back")
 
 
 def _leeb_d() -> Scene:

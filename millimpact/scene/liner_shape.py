@@ -29,6 +29,14 @@ from ..errors import SceneError
 
 Vec3 = tuple[float, float, float]
 
+
+def vec3(values) -> Vec3:
+    """The three components of a point or vector (any sequence or array of three numbers) as
+    floats; a sequence of another length raises ValueError."""
+    x, y, z = values
+    return (float(x), float(y), float(z))
+
+
 #: where on a liner a ball can strike (the places of impacts.csv, millimpact.dem.impacts.PLACES)
 IMPACT_PLACES = ("lifter_face", "lifter_top", "plate")
 

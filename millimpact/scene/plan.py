@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import SceneError
 from ..theory.hertz import HertzImpact, effective_modulus, hertz_impact
 from ..theory.thornton import plastic_zone_radius
+from .liner_shape import vec3
 from .schema import Ball, Material, Scene, Vec3
 
 #: elements across the Hertz contact radius a_max: ~4 gives ~1 % on F_max (design.md section 3)
@@ -138,8 +139,9 @@ def predict_plastic_radius(h: HertzImpact, materials: tuple[Material, ...]) -> f
     largest of Johnson's expanding-cavity radius c over the plastic ``materials`` (each with its
     initial yield stress; :func:`millimpact.theory.thornton.plastic_zone_radius` on Thornton's
     contact radius); 0 when none yields."""
-    radii = [plastic_zone_radius(h.radius, h.mass, h.speed, h.e_star, m.initial_yield_stress, m.poisson)[1]
-             for m in materials if m.plastic]
+    # a material is plastic exactly when it has an initial yield stress
+    radii = [plastic_zone_radius(h.radius, h.mass, h.speed, h.e_star, y, m.poisson)[1]
+             for m in materials if (y := m.initial_yield_stress) is not None]
     return max(radii, default=0.0)
 
 
@@ -333,7 +335,7 @@ def slide_direction(velocity: Vec3, normal: Vec3) -> Optional[Vec3]:
     v, n = np.array(velocity), np.array(normal)
     vt = v - (v @ n) * n
     if np.linalg.norm(vt) > 1e-12 * np.linalg.norm(v):
-        return _vec3(vt / np.linalg.norm(vt))
+        return vec3(vt / np.linalg.norm(vt))
     return None
 
 
@@ -346,15 +348,11 @@ def make_probe_spec(scene: Scene, planes: tuple[str, ...], h_contact: float, gap
     gauges = []
     for g in scene.gauges:
         p, d = mirror_into_model(np.array(g.position), np.array(g.direction), planes, scene.impact_point)
-        gauges.append(GaugePlace(g.name, _vec3(inward_point(p, scene, planes, h_contact)),
-                                 _vec3(d / np.linalg.norm(d))))
-    return ProbeSpec(_vec3(contact_point), tuple(gauges), scene.target_material, scene.liner is not None,
+        gauges.append(GaugePlace(g.name, vec3(inward_point(p, scene, planes, h_contact)),
+                                 vec3(d / np.linalg.norm(d))))
+    return ProbeSpec(vec3(contact_point), tuple(gauges), scene.target_material, scene.liner is not None,
                      slide_direction(scene.impact.velocity, scene.contact_normal), gap, patch_radius,
                      band_limit_hz)
-
-
-def _vec3(x) -> Vec3:
-    return (float(x[0]), float(x[1]), float(x[2]))
 
 
 def make_plan(scene: Scene) -> Plan:
@@ -457,7 +455,7 @@ def make_plan(scene: Scene) -> Plan:
         raise SceneError("time.end", t.end, f"must exceed the contact step ({dt_c:g} s)")
     return Plan(h, sym, planes, h_c, h_far, zone, fine, gap, dt_c, dt_f, f_cut, m.degree,
                 ball=scene.ball, target=scene.target_material, impact_point=scene.impact_point,
-                contact_normal=scene.contact_normal, velocity=tuple(scene.impact.velocity),
+                contact_normal=scene.contact_normal, velocity=scene.impact.velocity,
                 friction=scene.contact.friction,
                 probes=make_probe_spec(scene, planes, h_c, gap, h.a_max, F_CUT_FACTOR / h.contact_time),
                 reasons=tuple(reasons.items()), plastic_radius=c_p,
@@ -525,6 +523,7 @@ def first_yield_notes(h: HertzImpact, ball: Material, target: Material, target_n
         if not m.plastic:
             continue
         y = m.initial_yield_stress
+        assert y is not None, "a plastic material has an initial yield stress"
         limit = FIRST_YIELD_PRESSURE_FACTOR * y
         if h.p0 > limit:
             notes.append(f"beyond the elastic limit: p0 = {h.p0 / 1e9:.3g} GPa exceeds the {body}'s first-yield "

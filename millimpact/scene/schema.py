@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any, Optional
 
 from ..errors import SceneError
-from .liner_shape import IMPACT_PLACES, LinerShape
+from .liner_shape import IMPACT_PLACES, LinerShape, vec3
 
 Vec3 = tuple[float, float, float]
 Vec2 = tuple[float, float]
@@ -375,7 +375,7 @@ class Scene:
         """Point of first contact on the struck face (m): on y = 0 for a block, on the lifter face
         for a liner."""
         if self.liner is not None:
-            return tuple(float(c) for c in self.liner.face_point()[0])
+            return vec3(self.liner.face_point()[0])
         if self.impact.point is None:
             return (0.0, 0.0, 0.5 * self.block.height)
         return (float(self.impact.point[0]), 0.0, float(self.impact.point[1]))
@@ -385,7 +385,7 @@ class Scene:
         """Outward unit normal of the struck face at the impact point: +y for a block, the lifter
         face's normal for a liner."""
         if self.liner is not None:
-            return tuple(float(c) for c in self.liner.face_point()[1])
+            return vec3(self.liner.face_point()[1])
         return (0.0, 1.0, 0.0)
 
     @property
@@ -405,7 +405,7 @@ class Scene:
         the contact normal."""
         if self.liner is not None:
             p, n = self.liner.face_point()
-            return tuple(float(pc + (self.ball.radius + gap) * nc) for pc, nc in zip(p, n))
+            return vec3(pc + (self.ball.radius + gap) * nc for pc, nc in zip(p, n))
         x, _, z = self.impact_point
         return (x, self.ball.radius + gap, z)
 
@@ -428,7 +428,7 @@ class Scene:
                              f"{MAX_IMPACT_SPEED:g} m/s (small-strain contact; mill impacts are below ~15 m/s)")
         self.contact.validate()
         if self.liner is not None:
-            self._validate_liner()
+            self._validate_liner(self.liner)
         elif imp.normal_speed <= 0.0:
             raise SceneError("impact.velocity", list(imp.velocity),
                              "its y component must be negative (towards the struck face y = 0)")
@@ -452,7 +452,7 @@ class Scene:
             names.add(g.name)
             if self.liner is not None:
                 # a gauge on a liner sits a hair under its surface (the probe needs a cell holding it)
-                if not self.liner.contains(tuple(float(c) for c in g.position), tol=1e-9):
+                if not self.liner.contains(vec3(g.position), tol=1e-9):
                     raise SceneError(f"{where}.position", list(g.position), "must lie in the liner (plate or a "
                                      "lifter, not in a bolt hole): place it a fraction of a mm under the surface")
                 if not math.sqrt(sum(c * c for c in g.direction)) > 0:
@@ -495,9 +495,10 @@ class Scene:
             if not (math.isfinite(ft) and ft >= 0.0):
                 raise SceneError(f"outputs.field_times[{i}]", ft, "must be >= 0 s (times after time.end are skipped)")
 
-    def _validate_liner(self) -> None:
-        """Liner scenes: the geometry, the placement, an approaching velocity, a ball clear of the plate."""
-        ln, imp = self.liner, self.impact
+    def _validate_liner(self, ln: Liner) -> None:
+        """Liner scenes (``ln`` the scene's liner): the geometry, the placement, an approaching
+        velocity, a ball clear of the plate."""
+        imp = self.impact
         ln.validate()
         if imp.point is not None:
             raise SceneError("impact.point", list(imp.point), "is not used with a liner: place the impact with "
@@ -510,7 +511,7 @@ class Scene:
                              f"({n[0]:.4g}, {n[1]:.4g}, {n[2]:.4g}))")
         c = self.ball_centre(0.0 if imp.gap is None else imp.gap)
         if ln.impact_place != "lifter_face":
-            self._check_ball_clear(c)
+            self._check_ball_clear(ln, c)
             return
         Rm = ln.mill_radius
         # clearance of the ball from the plate's inner face (y = 0, or the cylinder of radius Rm)
@@ -520,12 +521,11 @@ class Scene:
                              f"too low for a ball of radius {self.ball.radius:g} m: the ball would touch the "
                              f"plate ({-clear:.4g} m into it); choose a higher point")
 
-    def _check_ball_clear(self, centre: Vec3) -> None:
-        """Refuse a ball (at ``centre``, m) that would overlap the liner away from the impact point:
-        a lifter beside a plate impact, or the plate or lifter edge beside a top impact."""
-        hit = _ball_overlap(self.liner, self.ball.radius, tuple(float(c) for c in centre))
+    def _check_ball_clear(self, ln: Liner, centre: Vec3) -> None:
+        """Refuse a ball (at ``centre``, m) that would overlap the liner ``ln`` away from the impact
+        point: a lifter beside a plate impact, or the plate or lifter edge beside a top impact."""
+        hit = _ball_overlap(ln, self.ball.radius, vec3(centre))
         if hit is not None:
-            ln = self.liner
             raise SceneError("liner.impact_arc", ln.impact_arc,
                              f"a ball of radius {self.ball.radius:g} m striking the {ln.impact_place.replace('_', ' ')} "
                              f"here would touch the liner elsewhere (at (y, z) = ({hit[0]:.4g}, {hit[1]:.4g}) m); "
@@ -606,7 +606,7 @@ def _in_range(name: str, value: Any, bounds: tuple[float, float], unit: str) -> 
 
 
 def _replace_path(obj: Any, parts: list[str], value: Any, full: str) -> Any:
-    if not dataclasses.is_dataclass(obj):
+    if not dataclasses.is_dataclass(obj) or isinstance(obj, type):     # a field's value, never a class
         raise SceneError(full, value, "is not a scene field")
     if isinstance(obj, Material) and parts == ["name"]:   # block.material.name = "NAME": that material
         if not isinstance(value, str):
@@ -636,7 +636,7 @@ def coerce_value(tp: Any, value: Any, where: str) -> Any:
     if tp is Material and isinstance(value, dict) and "name" in value:   # name = "NAME" + overrides
         base = named_material(value["name"], f"{where}.name")
         return from_table(tp, {**base, **{k: v for k, v in value.items() if k != "name"}}, where)
-    if dataclasses.is_dataclass(tp):
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
             raise SceneError(where, value, f"must be a table of {tp.__name__} fields")
         return from_table(tp, value, where)

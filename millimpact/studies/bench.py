@@ -228,6 +228,7 @@ def score(run: RunResult, ref: RunResult, gauge: Optional[str]) -> dict[str, flo
         "err_impulse": m["impulse_N_s"] / r["impulse_N_s"] - 1.0,
     }
     s, sr = run.series, ref.series
+    assert s is not None and sr is not None, "a scored run and its reference carry their series"
     grid = np.arange(0.0, t0 + 2.0 * t_c, t_c / 400.0)
     out["err_force_L2"] = _l2_rel(s["time_s"], s["contact_force_N"], sr["time_s"], sr["contact_force_N"], grid)
     col = f"gauge_{gauge}_stress_Pa" if gauge else None
@@ -441,8 +442,8 @@ def main(args: argparse.Namespace) -> int:
     if MPI.COMM_WORLD.size > 1:
         raise InputError("millimpact bench runs its own processes: start it without mpirun")
     entries = [x.strip() for x in args.methods.split(",") if x.strip()]
-    bad = [x for x in entries if x not in ENTRIES]
-    if bad or not entries:
+    unknown = [x for x in entries if x not in ENTRIES]
+    if unknown or not entries:
         raise InputError(f"--methods {args.methods!r}: choose from {', '.join(ENTRIES)}")
     scene_name = args.scene or DEFAULT_SCENE
     scene = resolve_scene(scene_name)
@@ -483,8 +484,8 @@ def main(args: argparse.Namespace) -> int:
                            t_c_s=res.metrics["contact_duration_s"], impulse_N_s=res.metrics["impulse_N_s"],
                            **sc, note=f"energy drift {drift:.3g}" if bad else "")
                 say(f"  [{i + 1}/{len(specs)}] {spec.entry:12s} {spec.resolution:40s} {row['status']:8s} {res.wall_s:7.1f} s "
-                    f"{res.peak_rss_mb:6.0f} MB {res.dofs:7d} dofs  F_max {100 * row['err_F_max']:+6.2f} %  "
-                    f"force L2 {100 * row['err_force_L2']:6.2f} %  gauge L2 {100 * row['err_gauge_L2']:6.2f} %")
+                    f"{res.peak_rss_mb:6.0f} MB {res.dofs:7d} dofs  F_max {100 * sc['err_F_max']:+6.2f} %  "
+                    f"force L2 {100 * sc['err_force_L2']:6.2f} %  gauge L2 {100 * sc['err_gauge_L2']:6.2f} %")
             else:
                 row.update(status="failed", wall_s=math.nan, peak_rss_MB=math.nan, dofs=0, solved_dofs=0,
                            **{k: math.nan for k in ("F_max_N", "t_c_s", "impulse_N_s", "err_F_max", "err_t_c",

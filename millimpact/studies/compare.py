@@ -327,9 +327,9 @@ def compare_series(ref: TimeSeries, other: TimeSeries, max_shift: Optional[float
     """Score every column ``other`` shares with ``ref`` and models (:func:`not_modelled`), except
     those in ``skip``."""
     common, _ = match_columns(ref, other)
-    skip = set(not_modelled(ref, other, common)) | set(skip)
+    skipped = set(not_modelled(ref, other, common)) | set(skip)
     ms = default_max_shift(ref) if max_shift is None else max_shift
-    return [score(n, ref.time, ref[n], other.time, other[n], ms) for n in common if n not in skip]
+    return [score(n, ref.time, ref[n], other.time, other[n], ms) for n in common if n not in skipped]
 
 
 # --- output -------------------------------------------------------------------------------------
@@ -471,7 +471,7 @@ def main(args: argparse.Namespace) -> int:
     zero = not_modelled(ref.series, other, common)
     if zero:
         ignored["not modelled by the other: all zero"] = zero
-    differ = ()
+    differ: tuple[str, ...] = ()
     if kinematics_differ(method_of(ref.path, ref.meta), method_of(other_path, other_meta)):
         differ = tuple(n for n in KINEMATICS_COLUMNS if n in common)
         if differ:

@@ -66,6 +66,7 @@ def case_peaks(run: CaseRun) -> dict[str, float]:
     from ..results.timeseries import contact_metrics
 
     ts, s, scene = run.series, run.summary, run.case.scene
+    assert s is not None, "a finished case has its summary"
     m = contact_metrics(ts)
     t = ts.time
     t0 = m.get("contact_start_s", float(t[0]))
@@ -117,16 +118,16 @@ def case_peaks(run: CaseRun) -> dict[str, float]:
     return {k: (float(v) if v is not None else math.nan) for k, v in p.items()}
 
 
-def fit_exponent(x: Sequence[float], y: Sequence[float]) -> float:
+def fit_exponent(x: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray) -> float:
     """Least-squares slope of log|y| against log x (the k of y ~ x^k); nan if undefined."""
-    x, y = np.asarray(x, float), np.abs(np.asarray(y, float))
-    ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
-    if ok.sum() < 2 or np.ptp(np.log(x[ok])) == 0:
+    xs, ys = np.asarray(x, float), np.abs(np.asarray(y, float))
+    ok = np.isfinite(xs) & np.isfinite(ys) & (xs > 0) & (ys > 0)
+    if ok.sum() < 2 or np.ptp(np.log(xs[ok])) == 0:
         return math.nan
-    return float(np.polyfit(np.log(x[ok]), np.log(y[ok]), 1)[0])
+    return float(np.polyfit(np.log(xs[ok]), np.log(ys[ok]), 1)[0])
 
 
-def local_exponents(x: Sequence[float], y: Sequence[float]) -> list[float]:
+def local_exponents(x: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray) -> list[float]:
     """Slopes of log|y| against log x between neighbouring cases."""
     return [fit_exponent(x[i:i + 2], y[i:i + 2]) for i in range(len(x) - 1)]
 
@@ -214,12 +215,14 @@ def _trend_word(v: np.ndarray) -> str:
 
 def paper_checks(study: Study, a: StudyAnalysis) -> list[dict[str, str]]:
     """Each of the paper's statements of this study against our numbers: agrees / disagrees."""
+    assert study.paper is not None, "checked for a study of the paper's"
     out = []
     for key, expect, words in PAPER_CLAIMS.get(study.paper.name, []):
         v = a.values(key)
         d = np.diff(v)
         rel = float(v[-1] / v[0] - 1.0) if v[0] else math.nan
         ours = f"{QUANTITY_NAMES[key]}: {_fmt_values(key, v)}"
+        ok: bool | str       # "relative": agrees in relative terms only
         if expect in ("rises", "falls"):
             ok = bool(np.all(d > 0) and rel > TREND) if expect == "rises" else bool(np.all(d < 0) and rel < -TREND)
             found = f"{_trend_word(v)} ({100 * rel:+.1f} % over the range)"
@@ -291,8 +294,9 @@ PAIRS = {key: hkey for key, _, hkey, _ in FITTED}
 def _explain(study: Study, a: StudyAnalysis) -> list[str]:
     """Why our numbers go as they do (Hertz's laws and the rig's structure), per built-in study."""
     # the paper-specific reading needs the paper's three cases (not a reduced subset)
-    full = study.paper is not None and len(a.peaks) == len(study.paper.values)
-    name = study.paper.name if full else None
+    paper = study.paper
+    full = paper is not None and len(a.peaks) == len(paper.values)
+    name = paper.name if paper is not None and full else None
     fit = {f["quantity"]: f for f in a.fits}
     lines = []
 
@@ -416,6 +420,7 @@ def study_markdown(study: Study, runs: Sequence[CaseRun], a: StudyAnalysis, meth
                          f"| {f['law']} |")
         lines.append("")
     if a.paper_checks:
+        assert study.paper is not None, "only a study of the paper's is checked against it"
         lines += [f"## Against the paper's conclusion", "", f"> {study.paper.paper_conclusion}", ""]
         for c in a.paper_checks:
             lines.append(f"- Paper: {c['claim']}. Ours: {c['found']} -- **{c['verdict']}**. ({c['ours']})")

@@ -48,7 +48,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Optional
+from typing import TYPE_CHECKING, Any, Optional, TypedDict
 
 if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact --help` stays fast)
     import numpy as np
@@ -72,7 +72,18 @@ BAR_VELOCITIES = (0.01, 0.1, 1.0, 5.0, 20.0)
 SPHERE_DT = (0.5, 1.0, 2.0, 4.0, 8.0)          # x t_c / 100
 SPHERE_DT_EXPLICIT = (0.5, 0.7, 0.8, 0.9, 1.1)  # x dt_crit
 SPHERE_VELOCITIES = (0.1, 3.0, 20.0)
-QUICK = {"bar_courant": (0.5, 0.9, 1.1, 2.0), "bar_velocities": (0.01, 1.0, 20.0), "bar_n_el": 50,
+class SweepSettings(TypedDict, total=False):
+    """Settings of a sweep that differ from the full one's (the module constants)."""
+
+    bar_courant: tuple[float, ...]
+    bar_velocities: tuple[float, ...]
+    bar_n_el: int
+    sphere_dt: tuple[float, ...]
+    sphere_dt_explicit: tuple[float, ...]
+    sphere_velocities: tuple[float, ...]
+
+
+QUICK: SweepSettings = {"bar_courant": (0.5, 0.9, 1.1, 2.0), "bar_velocities": (0.01, 1.0, 20.0), "bar_n_el": 50,
          "sphere_dt": (1.0, 4.0), "sphere_dt_explicit": (0.7, 1.1), "sphere_velocities": (3.0,)}
 
 
@@ -117,7 +128,7 @@ def force_measures(force: np.ndarray) -> tuple[int, float]:
     breaks = int(np.count_nonzero(seg[1:] & ~seg[:-1]))
     f = np.asarray(force, float)
     dev = f - median_filter(f, size=5, mode="nearest")
-    return breaks, float(np.linalg.norm(dev) / max(np.linalg.norm(f), 1e-300))
+    return breaks, float(np.linalg.norm(dev) / max(float(np.linalg.norm(f)), 1e-300))
 
 
 def classify(c: Case) -> None:
@@ -333,7 +344,7 @@ def rescore_sphere(cases: list[Case]) -> None:
 def sweep(integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = False, scene=None,
           say=print) -> list[Case]:
     """Run the sweep; returns the cases in order."""
-    cfg = QUICK if quick else {}
+    cfg: SweepSettings = QUICK if quick else {}
     cases: list[Case] = []
     if "bar" in problems:
         courants = cfg.get("bar_courant", BAR_COURANT)

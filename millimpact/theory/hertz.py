@@ -11,7 +11,7 @@ stresses on the axis, eq. 3.45) and 11.4 (quasi-static impact). All quantities S
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 from scipy import integrate, optimize
@@ -115,6 +115,20 @@ class HertzHistory(NamedTuple):
     rebound_speed: float       #: m/s
 
 
+class FallingZeroEvent:
+    """A :func:`scipy.integrate.solve_ivp` event that ends the integration (``terminal``) where
+    ``fn(t, y)`` falls through 0 (``direction`` -1): scipy reads both attributes off the event."""
+
+    terminal = True
+    direction = -1
+
+    def __init__(self, fn: Callable[[float, np.ndarray], float]) -> None:
+        self.fn = fn
+
+    def __call__(self, t: float, y: np.ndarray) -> float:
+        return self.fn(t, y)
+
+
 def hertz_history(h: HertzImpact, n: int = 401, rtol: float = 1e-11) -> HertzHistory:
     """Integrate m x'' = -k x^(3/2), x(0) = 0, x'(0) = v, until x returns to 0 (scipy RK45/DOP853).
 
@@ -125,10 +139,7 @@ def hertz_history(h: HertzImpact, n: int = 401, rtol: float = 1e-11) -> HertzHis
     def rhs(_t: float, y: np.ndarray) -> list[float]:
         return [y[1], -c * max(y[0], 0.0) ** 1.5]
 
-    def separated(_t: float, y: np.ndarray) -> float:
-        return y[0]
-    separated.terminal = True
-    separated.direction = -1
+    separated = FallingZeroEvent(lambda _t, y: y[0])     # the approach x = y[0] back to 0
 
     t_guess = 1.5 * h.contact_time
     sol = integrate.solve_ivp(rhs, (0.0, t_guess), [0.0, h.speed], method="DOP853", rtol=rtol,
