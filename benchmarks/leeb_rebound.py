@@ -161,9 +161,8 @@ OTHER_PAIR = (385.5, 640.0)
 
 def plot(rows: list[dict], out: Path) -> None:
     """The figure: e of each run against HB, with HLD / 1000 and the gate."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from millimpact.results.plots import pyplot
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     for mesh, marker in (("h", "o"), ("h/1.5", "s")):
         sel = [r for r in rows if r["mesh"] == mesh]

@@ -262,9 +262,8 @@ def summarise(rows: list[dict], refines: list[float], fit_from: float) -> tuple[
 
 
 def plot(out: Path, rows: list[dict], refines: list[float], vy: float, hc: float, method: str = "full FE P1") -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from millimpact.results.plots import pyplot
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.8), constrained_layout=True)
     x = np.logspace(0, 3.1, 300)
     ax.loglog(x, restitution_thornton(x * vy, vy), "k--", label="Thornton 1997 (analytical, over-dissipates)")

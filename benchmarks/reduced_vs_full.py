@@ -139,9 +139,8 @@ def part_b(resolutions: list[float], comm, extra_traditional: tuple[float, ...] 
 def write(res: dict, out: Path, comm) -> None:
     if comm.rank != 0:
         return
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from millimpact.results.plots import pyplot
+    plt = pyplot()
 
     out.mkdir(parents=True, exist_ok=True)
     lines = [f"machine: {platform.node()}, {comm.size} rank(s); wall times are noisy on a shared machine "

@@ -20,11 +20,9 @@ from .fem.jit_cache import release_interrupted_compile, stale_jit_claim
 from .interrupts import command_signals
 from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
-from .scene.schema import parse_value
 
 EXIT_INPUT = 2
 EXIT_FAILURE = 1
-EXIT_NOT_AVAILABLE = 3
 
 DESCRIPTION = """\
 millimpact: 3D impact dynamics of a grinding ball on a SAG mill liner (DOLFINx).
@@ -178,10 +176,9 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
         from .integration.solvers import check_type_options
 
         check_type_options(petsc)   # -..._ksp_type nosuch: one line, not a PETSc error number later
-    from .scene.builtin import DEFAULT_SCENE, resolve_scene
+    from .scene.builtin import DEFAULT_SCENE
 
-    scene = resolve_scene(args.scene)
-    scene = _apply_sets(scene, args.set)
+    scene = command_scene(args)
     out = args.out if args.out is not None else default_out(scene.name if args.scene else DEFAULT_SCENE)
     target = claim_output(out, "run", force=args.force)   # before any computing: a typo costs a second
     comm = _comm()
@@ -224,23 +221,16 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
     return 0
 
 
-def _apply_sets(scene, sets: Optional[list[str]]):
-    """The scene with every ``--set FIELD=VALUE`` applied, validated together (their order does not
-    matter: :meth:`Scene.with_values`); a malformed one is one line."""
-    assignments = []
-    for assignment in sets or []:
-        key, eq, value = assignment.partition("=")
-        if not eq or not key.strip() or not value.strip():
-            raise InputError(f"--set {assignment}: expected FIELD=VALUE, e.g. --set ball.radius=0.02")
-        assignments.append((key.strip(), parse_value(value)))
-    return scene.with_values(assignments) if assignments else scene
+def command_scene(args: argparse.Namespace):
+    """The scene ``run`` and ``mesh`` compute: SCENE with its ``--set`` assignments, validated
+    together (:func:`millimpact.commandkit.settings.command_scene`)."""
+    from .commandkit.settings import command_scene as resolve
+
+    return resolve(args.scene, args.set)
 
 
 def cmd_mesh(args: argparse.Namespace) -> int:
-    from .scene.builtin import resolve_scene
-
-    scene = resolve_scene(args.scene)
-    scene = _apply_sets(scene, args.set)
+    scene = command_scene(args)
     from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf   # gmsh, DOLFINx: once the input is read
     from .scene.plan import make_plan
 
@@ -262,7 +252,7 @@ def cmd_mesh(args: argparse.Namespace) -> int:
 #: and main(args) -> exit status, and imports nothing heavy (dolfinx, petsc4py, gmsh) at its top
 EXTRA_COMMANDS = {
     "study": "millimpact.studies.study",
-    "table": "millimpact.studies.table",
+    "table": "millimpact.studies.table_command",
     "bench": "millimpact.studies.bench",
     "stability": "millimpact.studies.stability",
     "compare": "millimpact.studies.compare",
@@ -277,11 +267,6 @@ def _command_module(name: str):
     import importlib
 
     return importlib.import_module(EXTRA_COMMANDS[name])
-
-
-def cmd_not_yet(args: argparse.Namespace) -> int:
-    say(f"millimpact {args.command}: not available in this version yet.", file=sys.stderr)
-    return EXIT_NOT_AVAILABLE
 
 
 def _comm():
@@ -373,7 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
     for q in sub.choices.values():
         q.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
                        help="log progress details")
-    # commands that live in their own modules (millimpact/<name>.py): each module has
+    # commands that live in their own modules (EXTRA_COMMANDS): each module has
     # HELP (one line), add_arguments(parser) and main(args) -> exit status
     for name in EXTRA_COMMANDS:
         mod = _command_module(name)
@@ -545,9 +530,7 @@ def _main(argv: Optional[list[str]] = None) -> int:
             return cmd_scene(args)
         if args.command == "mesh":
             return cmd_mesh(args)
-        if args.command in EXTRA_COMMANDS:
-            return _command_module(args.command).main(args)
-        return cmd_not_yet(args)
+        return _command_module(args.command).main(args)
     except InputError as exc:
         if world_rank() == 0:
             print(f"millimpact: error: {exc}", file=sys.stderr)

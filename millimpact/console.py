@@ -23,6 +23,24 @@ def say(*args, **kw) -> None:
         print(*args, **kw)
 
 
+def sayer(quiet: bool = False, comm=None):
+    """A command's progress printer: ``print`` (flushed, so lines keep their order beside a
+    subprocess's) on rank 0 of ``comm`` (default MPI_COMM_WORLD), nothing on the other ranks or
+    when ``quiet``."""
+    rank = world_rank() if comm is None else comm.rank
+    if quiet or rank != 0:
+        return _silent
+    return _say_flushed
+
+
+def _silent(*args, **kw) -> None:
+    return None
+
+
+def _say_flushed(*args, **kw) -> None:
+    print(*args, **kw, flush=True)
+
+
 #: whether commands report their stages (set by the CLI: on unless -q)
 STAGES = {"enabled": False, "t0": None}
 

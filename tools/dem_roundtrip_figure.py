@@ -18,7 +18,7 @@ import numpy as np
 from millimpact.dem.export.files import fit_law, write_yade
 from millimpact.dem.export.roundtrip import constant_law_file, roundtrip_rows, run_roundtrip
 from millimpact.dem.export.table_input import read_table
-from millimpact.results.plots import _plt
+from millimpact.results.plots import pyplot
 
 
 def main(table_dir: str, png: str) -> None:
@@ -32,7 +32,7 @@ def main(table_dir: str, png: str) -> None:
         runs["Yade, constant law (LIGGGHTS, LAMMPS)"] = run_roundtrip(law, tmp / "const", "law",
                                                                       constant_law_file(law, tmp / "const" / "law.py"))
         runs["Yade, naive: en = mean e_n, default damping"] = run_roundtrip(law, tmp / "naive", "naive")
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.3), constrained_layout=True)
     vn = t.normal_speed.ravel()
     order = np.argsort(vn)

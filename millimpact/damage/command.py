@@ -120,17 +120,24 @@ def check_settings(args: argparse.Namespace) -> None:
         raise InputError(f"--ranks-per-case {args.ranks_per_case}: must be >= 1")
 
 
+def command_scene(args: argparse.Namespace):
+    """The liner scene of the map: SCENE with its ``--set`` assignments, validated together
+    (before the impacts are read or any bin computed); the bins set the impact velocity."""
+    from ..commandkit.settings import command_scene as resolve
+
+    return resolve(args.scene, args.set, {"impact.velocity": "the bins' speeds and angles (from IMPACTS)"})
+
+
 def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
+    from ..commandkit.settings import parse_options
     from ..dem.impacts import read_impacts
     from ..results.output_folder import claim_output, default_out
-    from ..scene.builtin import resolve_scene
-    from ..studies.sweep import apply_sets, parse_method_options
     from .damage_map import MapSettings, run_damage_map
 
     check_settings(args)
-    scene = apply_sets(resolve_scene(args.scene), args.set, "impact.velocity")
+    scene = command_scene(args)
     if scene.liner is None:
         raise InputError(f"scene {args.scene}: has no liner (the damage map needs a liner scene: liner-segment, "
                          "liner-panel or a TOML file with a [liner] table)")
@@ -139,7 +146,7 @@ def main(args: argparse.Namespace) -> int:
     settings = MapSettings(revolutions=revolutions_of(args, path), lifters=lifters_of(args, path),
                            slice_length_m=args.slice_length, max_bins=args.max_bins,
                            tolerance=args.restitution_tolerance, angle_bins=args.angle_bins, arc_bins=args.arc_bins,
-                           cell_m=args.cell, method=args.method, options=parse_method_options(args.option),
+                           cell_m=args.cell, method=args.method, options=parse_options(args.option),
                            repeat_impacts=args.repeat_impacts, ranks_per_case=args.ranks_per_case)
     world = MPI.COMM_WORLD
     if world.size % args.ranks_per_case or args.ranks_per_case > world.size:

@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import Callable, Optional, Sequence
 
 from .. import __version__
+from ..commandkit.store import PieceStore, kept_note
+from ..console import sayer
 from ..dem.impacts import Impact
 from ..results.output_folder import OutputFolder, claim_output
 from ..scene.schema import Scene
@@ -20,8 +22,7 @@ from .accumulate import accumulate, dent_trend, dominant_bin, place_extent, plac
 from .bins import choose_bins, describe, yield_onset_speed
 from .edges import fit_contacts
 from .places import place_scene
-from .responses import (BinCase, CaseRunner, compute_bin_rows, define_bin_cases, finite, run_repeat, sequence_api,
-                        table_runner)
+from .responses import BinCase, CaseRunner, compute_bin_rows, define_bin_cases, finite, run_repeat, table_runner
 
 #: a bin at or below V_y whose table case reports more plastic work than this fraction of its
 #: kinetic energy is flagged (the map counts no plastic work there: Thornton 1997)
@@ -66,7 +67,7 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
     out = target.open(KEPT, note=lambda: kept_bins_note(target))
     if comm is not None:
         comm.barrier()                     # the folder exists before any rank stores a bin
-    say = (lambda *a: None) if quiet or rank != 0 else (lambda *a: print(*a, flush=True))
+    say = sayer(quiet, comm)
     st = settings
     warnings: list[str] = []
 
@@ -122,8 +123,11 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
                 warn(f"bin {bc.bin.index} lies below V_y = {v_y:.3g} m/s but its case reports plastic work "
                      f"{r['plastic_dissipation_J']:.3g} J (counted as 0)")
     # the repeated-impact response of each place's dominant bin
-    seq, cls_real, _ = sequence_api()
-    run_seq = run_sequence or seq
+    if run_sequence is None or classify is None:
+        from ..repeat.sequence import run_sequence as real_sequence
+        from ..repeat.verdict import classify as real_classify
+
+        run_sequence, classify = run_sequence or real_sequence, classify or real_classify
     slice_length = st.slice_length_m or scene.liner.length
     repeats = {}
     for p, tot in places.items():
@@ -134,13 +138,8 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
         tot["dominant_angle_deg"] = bc.case.angle if bc else math.nan
         rep = None
         if bc is not None and st.repeat_impacts > 0:
-            if run_seq is None:
-                if not repeats:
-                    warn("millimpact.repeat.sequence is not available: no repeated-impact response (dent growth, "
-                         "shakedown, strain trend left NaN)")
-            else:
-                rep = run_repeat(bc, st.repeat_impacts, st.method, st.options, st.petsc_options, out / "repeat",
-                                 run_seq, classify or cls_real, comm, say)
+            rep = run_repeat(bc, st.repeat_impacts, st.method, st.options, st.petsc_options, out / "repeat",
+                             run_sequence, classify, comm, say)
         repeats[p] = rep
         tot.update(dent_trend(rep, tot["impacts_per_rev"], place_extent(scene.liner, p), slice_length))
         if tot["max_eq_plastic_strain_last"] >= 0.1:
@@ -188,7 +187,6 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
 
 def kept_bins_note(target: OutputFolder) -> str:
     """What an interrupted map leaves: its finished bins and sequences, reused by a rerun."""
-    bins = len(list((target.path / "cases").glob("*.json")))
-    seqs = len(list((target.path / "repeat").glob("*.json")))
-    return (f"{bins} finished bin(s) kept in {target.shown}/cases/ and {seqs} repeated-impact sequence(s) in "
-            f"{target.shown}/repeat/ (the map itself is not written); rerun the same command to continue")
+    return kept_note([(PieceStore(target.path / "cases").count(), "bin", f"{target.shown}/cases/"),
+                      (PieceStore(target.path / "repeat").count(), "repeated-impact sequence", f"{target.shown}/repeat/")],
+                     "the map itself is not written")

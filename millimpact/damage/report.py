@@ -11,13 +11,13 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from .. import __version__
+from ..commandkit.store import write_atomic
 from ..dem.impacts import PLACES, Impact
 
 #: where the model stops (design.md section 12): said in every file that shows its numbers
@@ -61,12 +61,6 @@ BIN_COLUMNS = ["bin", "place", "arc_low_m", "arc_high_m", "arc_used_m", "normal_
                "contact_margin_m", "edge_shift_m", "case_key", "status", "note"]
 
 
-def _atomic(path: Path, write) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    write(tmp)
-    os.replace(tmp, path)
-
-
 def _csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]], comments: Sequence[str] = ()) -> None:
     def write(tmp: Path) -> None:
         with open(tmp, "w", newline="") as fh:
@@ -76,7 +70,7 @@ def _csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]], comme
             w.writerow(header)
             for r in rows:
                 w.writerow([f"{x:.10g}" if isinstance(x, float) else x for x in r])
-    _atomic(path, write)
+    write_atomic(path, write)
 
 
 def write_outputs(out: Path, summary: dict, places: dict[str, dict], bin_rows: list[dict], profile: dict,
@@ -94,9 +88,9 @@ def write_outputs(out: Path, summary: dict, places: dict[str, dict], bin_rows: l
                  for s, wp, wa in zip(d["arc_m"], d["plastic_work_J_per_rev_m"], d["energy_absorbed_J_per_rev_m"])]
     _csv(out / "profile.csv", ["place", "arc_m", "plastic_work_J_per_rev_m", "energy_absorbed_J_per_rev_m"], prof_rows,
          head + ["arc_m: cell centre, from the lifter's centre line, positive towards its leading face"])
-    _atomic(out / "damage_map.png", lambda tmp: plot_map(tmp, profile, impacts, liner, revolutions, lifters, places))
+    write_atomic(out / "damage_map.png", lambda tmp: plot_map(tmp, profile, impacts, liner, revolutions, lifters, places))
     full = {**summary, "places": places, "bins": bin_rows, "model_limits": LIMITS, "complete": True}
-    _atomic(out / "damage.json", lambda tmp: tmp.write_text(json.dumps(full, indent=1, default=_jsonable)))
+    write_atomic(out / "damage.json", lambda tmp: tmp.write_text(json.dumps(full, indent=1, default=_jsonable)))
 
 
 def _jsonable(x: Any) -> Any:
@@ -125,10 +119,9 @@ def plot_map(path: Path, profile: dict, impacts: Sequence[Impact], liner, revolu
              places: dict) -> None:
     """The liner's profile coloured by plastic work per revolution per metre of arc (left) and the
     impact-energy spectrum, cumulative impacts per revolution against energy (right)."""
-    import matplotlib
+    from ..results.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.collections import LineCollection
     from matplotlib.colors import LogNorm, Normalize
 

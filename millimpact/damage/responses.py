@@ -17,17 +17,15 @@ hashes the case's scene, method, options and version), a repeated-impact sequenc
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import inspect
-import json
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
 from .. import __version__
+from ..commandkit.store import PieceStore, piece_key
 from ..errors import InputError, SceneError
+from ..repeat.sequence import ImpactSpec
 from ..scene.schema import Scene
 from ..scene.toml_io import dump_scene
 from ..studies.table import TableCase, define_cases
@@ -35,7 +33,7 @@ from .bins import Bin
 from .places import PlacedScene
 
 #: a case runner: computes ``todo`` (TableCases) and stores each row as ``folder/<key>.json`` as it
-#: finishes (:func:`store_row`); ``say`` prints progress on rank 0
+#: finishes (:class:`millimpact.commandkit.store.PieceStore`); ``say`` prints progress on rank 0
 CaseRunner = Callable[[list, Path, Callable], None]
 
 
@@ -99,19 +97,6 @@ def define_bin_cases(bins: Sequence[Bin], placed: dict[int, PlacedScene], method
     return [out[b.index] for b in bins]
 
 
-def store_row(folder: Path, key: str, row: dict) -> None:
-    """Write one finished result as ``folder/<key>.json`` (atomically: a temporary file renamed)."""
-    tmp = folder / f".{key}.{os.getpid()}.tmp"
-    tmp.write_text(json.dumps(row, indent=1, default=float))
-    os.replace(tmp, folder / f"{key}.json")
-
-
-def stored(folder: Path, key: str) -> Optional[dict]:
-    """A stored result, or None."""
-    path = folder / f"{key}.json"
-    return json.loads(path.read_text()) if path.is_file() else None
-
-
 def table_runner(method: str, options: dict, ranks_per_case: int = 1) -> CaseRunner:
     """The table engine as a case runner: MPI groups of ``ranks_per_case`` ranks take cases from a
     shared counter, a band's reduction is reused (:func:`millimpact.studies.table.compute_cases`)."""
@@ -138,7 +123,8 @@ def compute_bin_rows(bin_cases: Sequence[BinCase], folder: Path, runner: CaseRun
         folder.mkdir(parents=True, exist_ok=True)
     if comm is not None:
         comm.barrier()
-    todo = [bc.case for bc in have if stored(folder, bc.case.key) is None]
+    store = PieceStore(folder)
+    todo = [bc.case for bc in have if store.load(bc.case.key) is None]
     say(f"bins: {len(have)} to compute by the table engine, {len(have) - len(todo)} from {folder}, "
         f"{len(todo)} to run" + (f"; {len(bin_cases) - len(have)} refused" if len(have) < len(bin_cases) else ""))
     if todo:
@@ -147,7 +133,7 @@ def compute_bin_rows(bin_cases: Sequence[BinCase], folder: Path, runner: CaseRun
         comm.barrier()
     rows = {}
     for bc in have:
-        row = stored(folder, bc.case.key)
+        row = store.load(bc.case.key)
         if row is not None:
             rows[bc.bin.index] = row
     return rows
@@ -156,65 +142,37 @@ def compute_bin_rows(bin_cases: Sequence[BinCase], folder: Path, runner: CaseRun
 # --- repeated impacts ------------------------------------------------------------------------------
 def repeat_key(scene: Scene, speed: float, angle: float, n: int, method: str, options: dict) -> str:
     """The key of a stored sequence: its scene, impact, count, method, options and version."""
-    text = json.dumps({"scene": dump_scene(scene), "speed": speed, "angle": angle, "impacts": n, "method": method,
-                       "options": sorted(options.items()), "version": __version__}, sort_keys=True, default=str)
-    return hashlib.sha1(text.encode()).hexdigest()[:16]
-
-
-def sequence_api() -> tuple[Optional[Callable], Optional[Callable], Optional[type]]:
-    """(run_sequence, classify, ImpactSpec) of :mod:`millimpact.repeat.sequence`, or Nones before it exists."""
-    try:
-        from ..repeat import sequence
-    except ImportError:
-        return None, None, None
-    return sequence.run_sequence, sequence.classify, sequence.ImpactSpec
-
-
-@dataclass(frozen=True)
-class _Spec:
-    """An impact of a sequence when :mod:`millimpact.repeat.sequence` is not there (an injected runner)."""
-
-    speed_m_s: float
-    angle_deg: float = 0.0
-    offset_m: tuple[float, float] = (0.0, 0.0)
+    return piece_key({"scene": dump_scene(scene), "speed": speed, "angle": angle, "impacts": n, "method": method,
+                      "options": sorted(options.items()), "version": __version__})
 
 
 def run_repeat(bc: BinCase, n: int, method: str, options: dict, petsc_options: dict, folder: Path,
-               run_sequence: Callable, classify: Optional[Callable], comm, say: Callable) -> dict[str, Any]:
+               run_sequence: Callable, classify: Callable, comm, say: Callable) -> dict[str, Any]:
     """The repeated-impact response at the bin's place: ``n`` identical impacts at its representative
     speed and angle, each from the previous one's residual state; stored in ``folder`` as
     ``<key>.json`` ({"outcomes": [...], "verdict": {...}}) when done, or taken from there."""
     scene = bc.case.scene
     key = repeat_key(scene, bc.case.speed, bc.case.angle, n, method, options)
-    got = stored(folder, key)
+    store = PieceStore(folder)
+    got = store.load(key)
     if got is not None:
         say(f"  repeat at bin {bc.bin.index} ({bc.bin.place}): {n} impacts from {folder}")
         return {**got, "key": key}
-    _, real_classify, spec_type = sequence_api()
-    spec = (spec_type or _Spec)(speed_m_s=bc.case.speed, angle_deg=bc.case.angle)
+    spec = ImpactSpec(speed_m_s=bc.case.speed, angle_deg=bc.case.angle)
     say(f"  repeat at bin {bc.bin.index} ({bc.bin.place}, v = {bc.case.speed:.4g} m/s, angle {bc.case.angle:.3g} deg): "
         f"{n} impacts")
-    extra = {}
-    if "store_dir" in inspect.signature(run_sequence).parameters:
-        # the sequence keeps each finished impact and its plastic state: an interrupted sequence
-        # continues from its last impact
-        extra["store_dir"] = folder / f"{key}.impacts"
+    # the sequence keeps each finished impact and its plastic state: an interrupted sequence
+    # continues from its last impact
     outcomes = run_sequence(scene, [spec] * n, method=method, petsc_options=petsc_options, comm=comm,
-                            progress=say, **extra)
+                            progress=say, store_dir=folder / f"{key}.impacts")
     rows = [dataclasses.asdict(o) if dataclasses.is_dataclass(o) else dict(o) for o in outcomes]
-    cls = classify or real_classify
-    if cls is not None:
-        v = cls(outcomes)
-        verdict = {"kind": v.kind, "impacts_to_shakedown": v.impacts_to_shakedown,
-                   "numbers": {k: (float(x) if isinstance(x, (int, float)) else x) for k, x in dict(v.numbers).items()}}
-    else:
-        verdict = {"kind": "undecided", "impacts_to_shakedown": None, "numbers": {},
-                   "note": "millimpact.repeat.sequence.classify not available"}
+    v = classify(outcomes)
+    verdict = {"kind": v.kind, "impacts_to_shakedown": v.impacts_to_shakedown,
+               "numbers": {k: (float(x) if isinstance(x, (int, float)) else x) for k, x in dict(v.numbers).items()}}
     result = {"bin": bc.bin.index, "place": bc.bin.place, "speed_m_s": bc.case.speed, "angle_deg": bc.case.angle,
               "outcomes": rows, "verdict": verdict}
     if comm is None or comm.rank == 0:
-        folder.mkdir(parents=True, exist_ok=True)
-        store_row(folder, key, result)
+        store.save(key, result)
     return {**result, "key": key}
 
 

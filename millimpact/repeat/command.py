@@ -5,7 +5,7 @@ import argparse
 import json
 import math
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Optional
 
 from ..results.output_folder import FORCE_HELP, OUT_HELP
 
@@ -91,40 +91,21 @@ def build_impacts(scene, n: int, velocities: Optional[str], angles: Optional[str
     return [ImpactSpec(speeds[k], angs[k], shift if k % 2 else (0.0, 0.0)) for k in range(n)]
 
 
-def parse_options(items: Sequence[str]) -> dict:
-    from ..errors import InputError
-    from ..integration.solvers import check_type_options
-    from ..scene.schema import parse_value
+def command_scene(args: argparse.Namespace):
+    """The scene of the sequence: SCENE (default paper-rig-plastic) with its ``--set`` assignments,
+    validated together (before any impact is defined or computed)."""
+    from ..commandkit.settings import command_scene as resolve
 
-    options = {}
-    for o in items:
-        k, sep, v = o.partition("=")
-        if not sep or not k.strip():
-            raise InputError(f"--option {o!r}: expected KEY=VALUE (e.g. --option modes=20)")
-        options[k.strip()] = parse_value(v)
-    check_type_options(options)
-    return options
-
-
-def apply_sets(scene, sets: Sequence[str]):
-    from ..errors import InputError
-    from ..scene.schema import parse_value
-
-    for assignment in sets:
-        key, sep, value = assignment.partition("=")
-        if not sep or not key.strip():
-            raise InputError(f"--set {assignment!r}: expected FIELD=VALUE (e.g. --set model.h_far=0.008)")
-        scene = scene.with_value(key.strip(), parse_value(value))
-    return scene
+    return resolve(args.scene or "paper-rig-plastic", args.set)
 
 
 def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
+    from ..commandkit.settings import parse_options
     from ..console import say
     from ..errors import InputError
     from ..results.output_folder import claim_output, read_manifest
-    from ..scene.builtin import resolve_scene
     from .report import verdict_text, write_sequence
     from .sequence import check_impacts, run_sequence
     from .verdict import classify
@@ -132,7 +113,7 @@ def main(args: argparse.Namespace) -> int:
     comm = MPI.COMM_WORLD
     if args.method not in METHODS:
         raise InputError(f"--method {args.method}: choose one of {', '.join(METHODS)}")
-    scene = apply_sets(resolve_scene(args.scene or "paper-rig-plastic"), args.set)
+    scene = command_scene(args)
     impacts = build_impacts(scene, args.impacts, args.velocities, args.angles, args.offset)
     check_impacts(scene, impacts)
     options = parse_options(args.option)
@@ -175,6 +156,7 @@ def main(args: argparse.Namespace) -> int:
 
 def kept_impacts_note(target) -> str:
     """What an interrupted sequence leaves (the CLI's one line on Ctrl-C): its finished impacts."""
+    from ..commandkit.store import kept_note
+
     n = len(list((target.path / "impacts").glob("impact-*.json")))
-    return (f"{n} finished impact(s) kept in {target.shown}/impacts/; the same command continues the sequence; "
-            f"{target.shown}/ has no summary.json (incomplete)")
+    return kept_note([(n, "impact", f"{target.shown}/impacts/")], f"{target.shown}/ has no summary.json: incomplete")

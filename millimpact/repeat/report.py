@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
+from ..commandkit.store import write_atomic
 from .sequence import OUTCOME_COLUMNS, ImpactOutcome, ImpactSpec
 from .verdict import Verdict
 
@@ -59,10 +59,9 @@ def read_impacts_csv(path: Path) -> list[ImpactOutcome]:
 
 def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -> list[str]:
     """``restitution.png`` and ``dent.png`` (module docstring); returns their names."""
-    import matplotlib
+    from ..results.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.ticker import MaxNLocator
 
     k = np.array([o.impact for o in outcomes])
@@ -137,9 +136,7 @@ def write_sequence(folder: Path, scene, method: str, impacts: Sequence[ImpactSpe
                      f"{o.contact_duration_s * 1e6:7.4g} {o.plastic_dissipation_J * 1e3:8.4g} "
                      f"{o.residual_dent_depth_m * 1e6:8.4g} {o.max_equivalent_plastic_strain:6.3g}")
     (folder / "summary.txt").write_text("\n".join(lines) + "\n")
-    tmp = folder / f".summary.{os.getpid()}.json"
-    tmp.write_text(json.dumps(_jsonable(summary), indent=1) + "\n")
-    os.replace(tmp, folder / "summary.json")
+    write_atomic(folder / "summary.json", json.dumps(_jsonable(summary), indent=1) + "\n")
     return summary
 
 

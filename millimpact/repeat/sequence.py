@@ -40,11 +40,9 @@ again, as in Seifried, Schiehlen & Eberhard (2005)'s repeated-impact experiment.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -52,7 +50,6 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from .verdict import Verdict, classify
 from ..scene.impact_direction import oblique_velocity
 
 if TYPE_CHECKING:
@@ -60,7 +57,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ImpactSpec", "ImpactOutcome", "ImpactRecord", "Verdict", "classify", "run_sequence",
+__all__ = ["ImpactSpec", "ImpactOutcome", "ImpactRecord", "run_sequence",
            "impact_velocity", "sequence_scene", "check_impacts", "OUTCOME_COLUMNS"]
 
 #: each impact's time span: the flight over the gap plus this many Hertz contact times (the
@@ -272,11 +269,11 @@ def run_sequence(scene, impacts: Sequence[ImpactSpec], method: str = "improved",
 def sequence_key(design, method: str, options: Mapping, ranks: int) -> str:
     """A hash of what a stored state belongs to: the sequence's scene, method, options, ranks."""
     from .. import __version__
+    from ..commandkit.store import piece_key
     from ..scene.toml_io import dump_scene
 
-    text = json.dumps({"scene": dump_scene(design), "method": method, "options": sorted(options.items()),
-                       "ranks": ranks, "version": __version__}, sort_keys=True, default=str)
-    return hashlib.sha1(text.encode()).hexdigest()[:16]
+    return piece_key({"scene": dump_scene(design), "method": method, "options": sorted(options.items()),
+                      "ranks": ranks, "version": __version__})
 
 
 def _spec_json(spec: ImpactSpec) -> dict:
@@ -321,17 +318,20 @@ def store_finished(folder: Path, key: str, k: int, record: ImpactRecord, engine,
     if comm.rank == 0:
         folder.mkdir(parents=True, exist_ok=True)
     comm.barrier()
+    from ..commandkit.store import write_atomic
+
     state = engine.zone.get_state() if engine.zone is not None else {}
-    tmp = folder / f".impact-{k:03d}.rank{comm.rank}.{os.getpid()}.npz"
-    np.savez(tmp, **state)
-    os.replace(tmp, folder / f"impact-{k:03d}.rank{comm.rank}.npz")
+
+    def save_state(tmp: Path) -> None:
+        with open(tmp, "wb") as f:   # a file, not a name: np.savez would add ".npz" to the temporary one
+            np.savez(f, **state)
+
+    write_atomic(folder / f"impact-{k:03d}.rank{comm.rank}.npz", save_state)
     comm.barrier()
     if comm.rank == 0:
         data = {"key": key, "impact": k, "spec": _spec_json(record.spec), "outcome": asdict(record.outcome),
                 "details": {n: v for n, v in record.details.items() if n != "dent_profile"}}
-        tmp = folder / f".impact-{k:03d}.{os.getpid()}.json"
-        tmp.write_text(json.dumps(data, indent=1, default=float))
-        os.replace(tmp, folder / f"impact-{k:03d}.json")
+        write_atomic(folder / f"impact-{k:03d}.json", json.dumps(data, indent=1, default=float))
         if record.series is not None:
             record.series.write_csv(folder / f"impact-{k:03d}-timeseries.csv")
     comm.barrier()

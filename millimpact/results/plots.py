@@ -11,13 +11,20 @@ from ..theory.hertz import HertzHistory
 from .timeseries import TimeSeries
 
 
-def _plt():
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (files only, no display), the one every figure
+    of the package draws with; the backend is selected on the first call."""
     import matplotlib
 
-    matplotlib.use("Agg")
+    if not _BACKEND:
+        matplotlib.use("Agg")
+        _BACKEND.append("Agg")
     import matplotlib.pyplot as plt
 
     return plt
+
+
+_BACKEND: list[str] = []
 
 
 #: prefixes by power of ten, for axis units chosen by the data's span
@@ -64,7 +71,7 @@ def _contact_window(ts: TimeSeries, pad: float = 0.5) -> tuple[float, float]:
 
 def plot_force(ts: TimeSeries, path: Path, hertz: Optional[HertzHistory] = None, title: str = "") -> None:
     """Contact force against time, with the Hertz history shifted to the same first contact."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     t, f = ts.time, ts["contact_force_N"]
     lo, hi = _contact_window(ts)
@@ -97,7 +104,7 @@ def plot_contact_point(series: dict[str, TimeSeries], path: Path, title: str = "
                        window: Optional[tuple[float, float]] = None) -> None:
     """The paper's four panels (displacement, velocity, acceleration, stress of the liner's contact
     point, along the face normal) against time; one line per labelled series."""
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
     windows = {label: window or _contact_window(ts, pad=1.0) for label, ts in series.items()}
     span = max(hi - lo for lo, hi in windows.values())
@@ -130,7 +137,7 @@ def plot_gauges(ts: TimeSeries, path: Path, title: str = "") -> bool:
     cols = [c for c in ts.columns if c.startswith("gauge_") and c.endswith("_Pa")]
     if not cols:
         return False
-    plt = _plt()
+    plt = pyplot()
     lo, hi = _contact_window(ts, pad=3.0)
     t = ts.time
     # a second panel "around the impact" only when it shows something the whole run does not
@@ -163,7 +170,7 @@ def plot_energy(ts: TimeSeries, path: Path, title: str = "") -> bool:
     """Kinetic, strain and total energy (J) against time; False when the series has none."""
     if "total_energy_J" not in ts:
         return False
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     t = ts.time
     scale, unit = time_unit(float(t[-1] - t[0]))
@@ -195,7 +202,7 @@ def plot_energy(ts: TimeSeries, path: Path, title: str = "") -> bool:
 def plot_friction(ts: TimeSeries, path: Path, mu: float, title: str = "") -> None:
     """Friction of an oblique impact: normal and tangential contact forces with the Coulomb bounds
     +-mu F_n (kN), and the ball's tangential velocity (m/s), against time (us)."""
-    plt = _plt()
+    plt = pyplot()
     fig, (ax, bx) = plt.subplots(2, 1, figsize=(7, 6), sharex=True, constrained_layout=True)
     t, fn, ft = ts.time, ts["contact_force_N"], ts["tangential_force_N"]
     lo, hi = _contact_window(ts)
@@ -221,7 +228,7 @@ def plot_friction(ts: TimeSeries, path: Path, mu: float, title: str = "") -> Non
 def plot_force_approach(ts: TimeSeries, path: Path, title: str = "") -> None:
     """Contact force against approach over the first impact: loading and unloading (the loop a DEM
     contact law is fitted to; its area is the energy the contact kept: plastic work and waves)."""
-    plt = _plt()
+    plt = pyplot()
     f, d = ts["contact_force_N"], ts["approach_m"]
     on = np.nonzero(f > 0)[0]
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
@@ -244,7 +251,7 @@ def plot_force_approach(ts: TimeSeries, path: Path, title: str = "") -> None:
 def plot_dent(profile: dict, path: Path, depth: float, radius: float, title: str = "") -> None:
     """The residual dent: depth below the undeformed face against the distance from the contact
     point (``profile`` = {"r_m": [...], "depth_m": [...]}, the summary's residual_dent_profile)."""
-    plt = _plt()
+    plt = pyplot()
     r, d = np.asarray(profile["r_m"]), np.asarray(profile["depth_m"])
     fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
     rs, ru = value_unit("r_m", r)
@@ -269,7 +276,7 @@ def plot_plastic_section(section: dict, path: Path, title: str = "") -> None:
     contact radius a_max, the predicted plastic radius and the contact zone's boundary."""
     import matplotlib.tri as mtri
 
-    plt = _plt()
+    plt = pyplot()
     s, d, alpha = (np.asarray(section[k]) for k in ("s_m", "depth_m", "alpha"))
     zone = float(section["zone_radius_m"])
     fig, ax = plt.subplots(figsize=(7.5, 5.5), constrained_layout=True)

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .output_folder import hdf5_file, staged_output  # noqa: F401  (staged_output: its old home)
+from .output_folder import hdf5_file
 
 #: known time-series columns and their units (names end with the unit)
 UNITS = {

@@ -54,6 +54,7 @@ from typing import TYPE_CHECKING, Any, Optional
 if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact --help` stays fast)
     import numpy as np
 
+from ..console import sayer
 from ..errors import InputError
 from ..interrupts import children_signals
 from ..results.output_folder import FORCE_HELP, OUT_HELP
@@ -326,10 +327,9 @@ def plot_pareto(rows: list[dict], path: Path, title: str) -> None:
     """Log-log error against wall time, one line per method, a panel per error measure."""
     import numpy as np
 
-    import matplotlib
+    from ..results.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     methods = [m for m in ENTRIES if any(r["method"] == m and r["status"] == "ok" for r in rows)]
     fig, axes = plt.subplots(1, len(ERRORS), figsize=(5.2 * len(ERRORS), 4.6))
@@ -359,10 +359,9 @@ def plot_reference_convergence(levels: list[RunResult], path: Path, title: str) 
     with fitted rates; returns the numbers."""
     import numpy as np
 
-    import matplotlib
+    from ..results.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     ref = levels[-1]
     h = np.array([lv.spec.sets["model.h_contact"] for lv in levels[:-1]])
@@ -462,7 +461,7 @@ def main(args: argparse.Namespace) -> int:
     print(f"bench of scene '{scene.name}': {', '.join(entries)}; end {end * 1e6:.4g} us"
           + (" (quick)" if args.quick else "") + f" -> {out}/", flush=True)
     t_all = time.perf_counter()
-    say = lambda *a: print(*a, flush=True)  # noqa: E731
+    say = sayer()
     ref_levels = [cached_run(s, cache, say) for s in
                   reference_specs(scene_name, end, args.quick, base_far, h.a_max, h.contact_time)]
     ref = ref_levels[-1]

@@ -393,10 +393,9 @@ def compare_figure(ref: TimeSeries, other: TimeSeries, scores: list[Score], ref_
     """The figure of :func:`plot_compare`. Axes follow the run figures' unit rule
     (:func:`millimpact.results.plots.time_unit`, :func:`~millimpact.results.plots.value_unit`: µs
     or ms, kN, MPa, m/s², µm, ... in brackets) and carry no offset or exponent above the axis."""
-    import matplotlib
+    from ..results.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     import numpy as np
 
     from ..results.plots import time_unit, value_unit

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Any, Sequence
 
 import numpy as np
 
+from ..commandkit.store import write_atomic
 from .sweep import CaseRun, Study, describe_reuse
 
 
@@ -255,12 +255,6 @@ def paper_checks(study: Study, a: StudyAnalysis) -> list[dict[str, str]]:
 
 
 # --- reports ----------------------------------------------------------------------------------------
-def write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def peaks_table(study: Study, runs: Sequence[CaseRun], a: StudyAnalysis) -> tuple[str, str]:
     """(CSV text in SI units, markdown table in the shown units) of the peaks and timings."""
     ok = [r for r in runs if r.series is not None]
@@ -482,9 +476,9 @@ def write_study(study: Study, runs: Sequence[CaseRun], out: Path, method: str, m
             study_plots.plot_study_restitution(speeds, e, out / "restitution.png", f"{title}: restitution",
                                                thornton_curve(study.cases[0].scene))
     csv_text, md_table = peaks_table(study, runs, a)
-    write_text(out / "peaks.csv", csv_text)
-    write_text(out / "peaks.md", md_table)
-    write_text(out / "study.md", study_markdown(study, runs, a, method, method_note, md_table, wall))
+    write_atomic(out / "peaks.csv", csv_text)
+    write_atomic(out / "peaks.md", md_table)
+    write_atomic(out / "study.md", study_markdown(study, runs, a, method, method_note, md_table, wall))
     data = {"study": study.name, "param": study.param, "base": study.base, "method": method,
             "method_note": method_note, "wall_time_s": wall,
             "cases": [{"folder": r.case.folder, "label": r.case.label, "value": r.case.value, "x": r.case.x,
@@ -493,7 +487,7 @@ def write_study(study: Study, runs: Sequence[CaseRun], out: Path, method: str, m
                       for r in runs],
             "reuse": describe_reuse(runs)[0], "fits": a.fits, "paper_checks": a.paper_checks,
             "paper_conclusion": study.paper.paper_conclusion if study.paper else None}
-    write_text(out / "study.json", json.dumps(jsonable(data), indent=2) + "\n")
+    write_atomic(out / "study.json", json.dumps(jsonable(data), indent=2) + "\n")
     return a
 
 

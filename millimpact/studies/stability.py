@@ -53,6 +53,7 @@ from typing import TYPE_CHECKING, Any, Optional, TypedDict
 if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact --help` stays fast)
     import numpy as np
 
+from ..console import sayer
 from ..errors import InputError, MillimpactError
 from ..results.output_folder import FORCE_HELP, OUT_HELP
 
@@ -473,10 +474,9 @@ def plot_maps(cases: list[Case], folder: Path, crit: dict[str, Any]) -> list[str
     problem; cells are labelled with the energy drift (%)."""
     import numpy as np
 
-    import matplotlib
+    from ..results.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.patches import Patch
 
     names = []
@@ -545,7 +545,7 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"--problems {args.problems!r}: choose from bar, sphere")
     scene = resolve_scene(args.scene) if "sphere" in probs else None
     comm = MPI.COMM_WORLD
-    say = (lambda *a: print(*a, flush=True)) if comm.rank == 0 else (lambda *a: None)
+    say = sayer(comm=comm)
     target = claim_output(args.out if args.out is not None else "out/stability", "stability", force=args.force,
                           comm=comm)   # before the sweep
     out = target.shown

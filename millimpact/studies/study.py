@@ -26,12 +26,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Optional, Sequence
 
+from ..commandkit.settings import parse_options
+from ..commandkit.store import kept_note
+from ..console import sayer
 from ..errors import InputError, MillimpactError
 from ..scene.builtin import BUILTIN_STUDIES
 from ..methods.registry import method_entry
 from ..results.output_folder import claim_output, default_out, is_millimpact_output
-from .sweep import (StudyInterrupted, CaseRun, Study, define_study, describe_reuse, parse_method_options, run_cases,
-                    say_root)
+from .sweep import StudyInterrupted, CaseRun, Study, define_study, describe_reuse, run_cases, study_base
 
 if TYPE_CHECKING:   # the report imports numpy: loaded when a study reports (`millimpact --help` stays fast)
     from .report import StudyAnalysis
@@ -140,11 +142,13 @@ def run_study(name: Optional[str] = None, param: Optional[str] = None, base: Opt
                           comm=comm)
     out, shown = target.path, target.shown
     rank0 = comm is None or comm.rank == 0
-    say = (lambda *a: None) if quiet else (lambda *a: say_root(comm, *a))
+    say = sayer(quiet, comm)
     say(f"study {study.name}: {study.param} on {study.base}, {len(study.cases)} cases "
         f"({', '.join(c.label for c in study.cases)}) -> {shown}/")
     say(f"  method {chosen} ({method_note})")
-    target.open([c.folder for c in study.cases], note=f"{shown}/ keeps the finished cases; a rerun reuses them")
+    target.open([c.folder for c in study.cases],
+                note=lambda: kept_note([(sum((out / c.folder / "summary.json").is_file() for c in study.cases), "case",
+                                         f"{shown}/")], "study.md is not written"))
     from .report import write_study
 
     t0 = time.perf_counter()
@@ -178,6 +182,12 @@ def run_study(name: Optional[str] = None, param: Optional[str] = None, base: Opt
     return res
 
 
+def command_scene(args: argparse.Namespace):
+    """The scene the study's cases vary, with its ``--set`` assignments validated together
+    (before any case is defined or computed)."""
+    return study_base(args.name, args.param, args.base, args.set)
+
+
 def main(args: argparse.Namespace) -> int:
     size = int(os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1")))
     comm = None
@@ -185,7 +195,7 @@ def main(args: argparse.Namespace) -> int:
         from mpi4py import MPI
 
         comm = MPI.COMM_WORLD
-    options = parse_method_options(args.option)
+    options = parse_options(args.option)
     res = run_study(args.name, args.param, args.base, args.set, args.end, args.method, options, args.out,
                     args.jobs, args.force, not args.no_case_figures, args.quiet, comm=comm)
     if res.failed:

@@ -15,7 +15,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from ..theory.hertz import HertzHistory
-from ..results.plots import CONTACT_POINT_PANELS, _plt
+from ..results.plots import CONTACT_POINT_PANELS, pyplot
 from ..results.timeseries import TimeSeries
 
 
@@ -40,7 +40,7 @@ def plot_study_contact_point(cases: Sequence[tuple[str, TimeSeries, float, float
     axis is the time since each case's first contact (us), so the pulses line up; with
     ``whole_run`` it is the simulated time (ms) up to :data:`RUN_WINDOW`.
     """
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), constrained_layout=True)
     lo, hi = _case_window([c[1] for c in cases], [c[2] for c in cases], [c[3] for c in cases])
     smooth_peak = raw_peak = 0.0
@@ -90,7 +90,7 @@ def plot_study_contact_point(cases: Sequence[tuple[str, TimeSeries, float, float
 def plot_study_force(cases: Sequence[tuple[str, TimeSeries, float, HertzHistory]], path: Path, title: str) -> None:
     """Contact force (kN) of each case against the time since first contact (us), each with its Hertz
     curve (dashed, same colour)."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.8), constrained_layout=True)
     longest = max(h.contact_time for _, _, _, h in cases)
     for i, (label, ts, t0, hist) in enumerate(cases):
@@ -119,7 +119,7 @@ def plot_study_trends(x: np.ndarray, xlabel: str, quantities: Sequence[tuple[str
 
     ``quantities``: (name, simulated values, Hertz values or None).
     """
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 5), constrained_layout=True)
     for i, (name, sim, hz) in enumerate(quantities):
         color = f"C{i}"
@@ -157,7 +157,7 @@ def plot_study_restitution(speed: np.ndarray, e: np.ndarray, path: Path, title: 
     speed ``thornton = (V_y in m/s, label)`` (none for elastic materials) and the elastic e = 1."""
     from ..theory.thornton import restitution_thornton
 
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     ax.plot(speed, e, "o-", color="C0", label="millimpact")
     lo, hi = float(np.min(speed)), float(np.max(speed))

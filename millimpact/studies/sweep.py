@@ -6,7 +6,6 @@ or under ``mpirun`` on all ranks. :func:`run_cases` returns the cases' summaries
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import math
 import os
@@ -19,6 +18,9 @@ from typing import Any, Optional, Sequence
 
 
 from .. import share_blas_threads
+from ..commandkit.settings import apply_sets
+from ..commandkit.store import piece_key
+from ..console import sayer
 from ..errors import InputError, MillimpactError
 from ..scene.schema import Scene, parse_value
 from ..scene.builtin import BUILTIN_STUDIES, StudySpec, resolve_scene, study_scene
@@ -92,36 +94,21 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
     return field_, [parse_value(r) for r in raw]
 
 
-def parse_method_options(items: Sequence[str]) -> dict[str, Any]:
-    """``--option KEY=VALUE`` arguments as a dict of method options (values typed like scene
-    values); a malformed one is one line."""
-    options: dict[str, Any] = {}
-    for o in items:
-        k, sep, v = o.partition("=")
-        if not sep or not k.strip():
-            raise InputError(f"--option {o!r}: expected KEY=VALUE (e.g. --option modes=20)")
-        options[k.strip()] = parse_value(v)
-    # a PETSc type or a reduction setting out of range: one line before any case runs (as `run`);
-    # PETSc is imported only when there is an option to check
-    if options:
-        from ..integration.solvers import check_type_options
-
-        check_type_options(options)
-    return options
+def apply_study_sets(scene: Scene, sets: Sequence[str], param: str) -> Scene:
+    """``scene`` with every ``--set FIELD=VALUE``, validated together (order does not matter); the
+    study parameter ``param`` is the study's to set."""
+    return apply_sets(scene, sets, {param: f"the study parameter {param}"})
 
 
-def apply_sets(scene: Scene, sets: Sequence[str], param: str) -> Scene:
-    """``scene`` with every ``--set FIELD=VALUE``, validated together (order does not matter)."""
-    assignments = []
-    for assignment in sets:
-        key, sep, value = assignment.partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise InputError(f"--set {assignment!r}: expected FIELD=VALUE (e.g. --set model.h_far=0.008)")
-        if key == param or key.startswith(param + ".") or param.startswith(key + "."):
-            raise InputError(f"--set {key}: conflicts with the study parameter {param}")
-        assignments.append((key, parse_value(value)))
-    return scene.with_values(assignments) if assignments else scene
+def study_base(name: Optional[str], param: Optional[str], base: Optional[str], sets: Sequence[str]) -> Scene:
+    """The scene a study's cases vary, with the ``--set`` assignments: ``base`` (default
+    study-base) for a ``--param`` sweep, the built-in study ``name``'s own base otherwise."""
+    if param is not None:
+        return apply_study_sets(resolve_scene(base or "study-base"), sets, parse_param(param)[0])
+    spec = BUILTIN_STUDIES.get(name or "")
+    if spec is None:
+        define_study(name, param, base, sets)   # the one line saying what is wrong
+    return apply_study_sets(resolve_scene(spec.base), sets, spec.param)
 
 
 def with_param(base: Scene, param: str, value: Any) -> Scene:
@@ -153,7 +140,7 @@ def define_study(name: Optional[str], param: Optional[str] = None, base: Optiona
         symbol = spec.label.split()[0]
         entries = []
         for v, shown in zip(spec.values, spec.display):
-            scene = apply_sets(study_scene(spec, v), sets, spec.param)
+            scene = apply_study_sets(study_scene(spec, v), sets, spec.param)
             unit = f" {spec.unit}" if spec.unit else ""
             entries.append((v, float(shown), f"{symbol} = {shown:g}{unit}", safe_name(f"{symbol}{shown:g}{spec.unit}"), scene))
         xlabel = f"{spec.label}" + (f" [{spec.unit}]" if spec.unit else "")
@@ -161,7 +148,7 @@ def define_study(name: Optional[str], param: Optional[str] = None, base: Optiona
     else:
         field_, values = parse_param(param)
         base_name = base or "study-base"
-        base_scene = apply_sets(resolve_scene(base_name), sets, field_)
+        base_scene = study_base(name, param, base, sets)
         symbol = field_.split(".")[-1]
         if name is not None and name in BUILTIN_STUDIES:
             raise InputError(f"study name {name!r} is a built-in study; with --param give another name or none")
@@ -190,9 +177,9 @@ def define_study(name: Optional[str], param: Optional[str] = None, base: Optiona
 
 
 def case_key(scene: Scene, method: str, options: dict) -> str:
-    """Hash of what determines a case's result: the resolved scene (TOML), method and options."""
-    text = dump_scene(scene) + f"\nmethod = {method!r}\noptions = {json.dumps(options, sort_keys=True, default=str)}\n"
-    return hashlib.sha256(text.encode()).hexdigest()
+    """The key of what determines a case's result: the resolved scene (TOML), method and options
+    (:func:`millimpact.commandkit.store.piece_key`)."""
+    return piece_key({"scene": dump_scene(scene), "method": method, "options": options})
 
 
 def cached_summary(folder: Path, key: str) -> Optional[dict]:
@@ -224,7 +211,7 @@ def compute_case(task: CaseTask, comm=None) -> dict:
     """Compute one case and write its run folder (staged: complete or absent). Returns a small
     report: ``{"ok": True, "wall_time_s": ...}`` or ``{"ok": False, "error": ..., "input": bool}``
     (errors are returned, not raised, so they cross process boundaries intact)."""
-    from ..results.timeseries import staged_output
+    from ..results.output_folder import staged_output
     from ..methods.run import build_summary, compute, write_run
 
     try:
@@ -344,11 +331,6 @@ class StudyInterrupted(KeyboardInterrupt):
         self.exit_code = code
 
 
-def say_root(comm, *args, **kw) -> None:
-    if comm is None or comm.rank == 0:
-        print(*args, **kw, flush=True)
-
-
 def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1, progress: bool = True,
               force: bool = False, figures: bool = True, comm=None, quiet: bool = False) -> list[CaseRun]:
     """Run (or take from the cache) every case of ``study`` into ``out/<case>``; prints one line a
@@ -370,7 +352,7 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
         todo = comm.bcast(todo, root=0)
     t_start = time.perf_counter()
     done = 0
-    say = (lambda *a: None) if quiet else (lambda *a: say_root(comm, *a))
+    say = sayer(quiet, comm)
     for i, r in enumerate(runs):
         if r.status == "cached":
             done += 1

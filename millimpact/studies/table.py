@@ -1,4 +1,5 @@
-"""``millimpact table``: DEM contact tables, one impact per (speed, angle[, radius]), the reduction reused.
+"""The table engine: DEM contact tables, one impact per (speed, angle[, radius]), the reduction reused
+(its command line, ``millimpact table``, is :mod:`.table_command`).
 
 DEM codes describe a ball-liner contact by a few numbers: normal and tangential restitution against
 impact speed and angle, a force law, the energy the liner keeps. A table runs one impact per case
@@ -34,11 +35,7 @@ the progress.
 """
 from __future__ import annotations
 
-import argparse
-import hashlib
-import json
 import math
-import os
 import sys
 import time
 from dataclasses import dataclass
@@ -46,10 +43,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Optional, Sequence
 
 from .. import __version__
+from ..commandkit.settings import command_scene
+from ..commandkit.store import PieceStore, kept_note, piece_key
+from ..console import sayer
 from ..errors import InputError, MillimpactError
-from ..scene.builtin import resolve_scene
 from ..scene.schema import Scene
-from ..results.output_folder import FORCE_HELP, OUT_HELP, OutputFolder, claim_output, default_out
+from ..results.output_folder import OutputFolder, claim_output
 from ..scene.impact_direction import oblique_velocity
 from ..scene.toml_io import dump_scene
 
@@ -57,24 +56,6 @@ if TYPE_CHECKING:
     import numpy as np
 # numpy, the plan (scipy), the methods and PETSc are imported where a table computes, so that
 # building the command line (`millimpact --help`) imports none of them
-
-HELP = "DEM contact tables: restitution and force laws over impact speed x angle (x radius)"
-
-DESCRIPTION = """\
-Run one impact per (speed, angle[, radius]) of SCENE and write a DEM contact table: contact_table.csv
-(with units and definitions in its # header), contact_table.json, contact_table.h5, the fitted laws
-(contact_laws.json: e_n power law, Thornton's V_y, Hertz E*) and figures (e_n against speed, e_t
-against tan(angle)/mu, peak force against speed). The angle is measured from the face normal in the
-plane of the scene's impact vector. Each case runs the impact only. With improved, traditional and
-modal-p2, cases whose normal speeds lie within a factor 1.5 share one mesh, one reduction and its
-factorizations. Finished cases are kept in DIR/cases/ and a rerun computes only what is missing.
-Under mpirun, --ranks-per-case K makes groups of K ranks that take cases from a shared counter.
-
-Examples:
-  millimpact table paper-rig --velocity 0.5,1,2,4,8 --angle 0,15,30,45,60
-  millimpact table liner-segment --velocity 2,4,8 --angle 0,30,60 --out out/liner-table
-  mpirun -n 4 millimpact table paper-rig --velocity 1,3 --angle 0,30 --ranks-per-case 1
-"""
 
 #: cases whose normal speeds lie within this factor share a mesh and a reduction (a_max ~ v^(2/5):
 #: a factor 1.5 in speed is 1.18 in a_max, so the slowest case has 4 and the fastest 4.7 elements
@@ -104,26 +85,10 @@ class TableCase:
     band_scene: Optional[Scene] = None   #: the band's fastest case: its reduction serves the band
 
 
-# --- input --------------------------------------------------------------------------------------------
-def parse_list(text: Optional[str], option: str, low: float, high: float, low_open: bool, high_open: bool,
-               unit: str) -> list[float]:
-    """Comma-separated numbers of ``option``, each in the range; one :class:`InputError` line otherwise."""
-    rng = f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'} {unit}".rstrip()
-    if text is None or not text.strip():
-        raise InputError(f"{option}: give a comma-separated list of numbers in {rng}")
-    out = []
-    for part in text.split(","):
-        try:
-            v = float(part)
-        except ValueError:
-            raise InputError(f"{option} {text!r}: {part.strip()!r} is not a number (a comma-separated list in {rng})") from None
-        if not math.isfinite(v) or v < low or v > high or (low_open and v == low) or (high_open and v == high):
-            raise InputError(f"{option} {text!r}: {v:g} is outside {rng}")
-        if v in out:   # a repeated case would be a duplicate row, weighting the fitted laws
-            raise InputError(f"{option} {text!r}: {v:g} is repeated (each value once: a duplicate row would "
-                             "weight the fitted laws)")
-        out.append(v)
-    return out
+def table_scene(name: Optional[str], sets: Sequence[str] = ()) -> Scene:
+    """The scene a table starts from: ``name`` (None: the default scene) with the ``--set``
+    assignments, validated together; the cases set the impact velocity themselves."""
+    return command_scene(name, sets, {"impact.velocity": "the table's --velocity and --angle"})
 
 
 case_velocity = oblique_velocity   # the name the table and the damage map call it by
@@ -197,9 +162,9 @@ def _band_zone(fast: Scene, sets: dict, method: str) -> Optional[float]:
 
 
 def case_key(scene: Scene, method: str, options: dict) -> str:
-    text = json.dumps({"scene": dump_scene(scene), "method": method, "options": sorted(options.items()),
-                       "version": __version__}, sort_keys=True, default=str)
-    return hashlib.sha1(text.encode()).hexdigest()[:16]
+    """The key a finished case is stored under: its resolved scene, method, options and version."""
+    return piece_key({"scene": dump_scene(scene), "method": method, "options": sorted(options.items()),
+                      "version": __version__})
 
 
 # --- one case -----------------------------------------------------------------------------------------
@@ -263,7 +228,6 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
     from mpi4py import MPI
 
     from ..methods.registry import method_entry
-    from .sweep import apply_sets
     from .table_report import write_table
 
     world = MPI.COMM_WORLD
@@ -275,16 +239,16 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
         # full and hertz-modal run on MPI_COMM_WORLD, not on a group: cases cannot be spread
         raise InputError(f"--method {method} with {world.size // ranks_per_case} groups: this method runs on all "
                          f"ranks; use --ranks-per-case {world.size} (or a reduced method, or hertz)")
-    base = apply_sets(resolve_scene(scene_name), sets, "impact.velocity")
+    base = table_scene(scene_name, sets)
     cases = define_cases(base, speeds, angles, radii or [base.ball.radius], method, options)
     target = out if isinstance(out, OutputFolder) else claim_output(out, "table")
     folder = target.open(["cases"], note=lambda: kept_cases_note(target)) / "cases"
-    say = (lambda *a: None) if quiet or world.rank != 0 else (lambda *a: print(*a, flush=True))
+    say = sayer(quiet, world)
     if world.rank == 0:
         folder.mkdir(exist_ok=True)
     world.barrier()
-    done = {c.index: json.loads((folder / f"{c.key}.json").read_text()) for c in cases
-            if (folder / f"{c.key}.json").is_file()}
+    store = PieceStore(folder)
+    done = {c.index: row for c in cases if (row := store.load(c.key)) is not None}
     # computed band after band (a group keeps only its current band's reduction), listed by speed
     todo = sorted([c for c in cases if c.index not in done], key=lambda c: (c.band, c.index))
     n_bands = len({c.band for c in cases})
@@ -307,9 +271,8 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
 
 def kept_cases_note(target: OutputFolder) -> str:
     """What an interrupted table leaves: its finished cases, reused by a rerun."""
-    n = len(list((target.path / "cases").glob("*.json")))
-    return (f"{n} finished case(s) kept in {target.shown}/cases/ (the table itself is not written); rerun the same "
-            "command to compute the rest")
+    return kept_note([(PieceStore(target.path / "cases").count(), "case", f"{target.shown}/cases/")],
+                     "the table itself is not written")
 
 
 def next_case(state: np.ndarray, band_sizes: Sequence[int], current: Optional[int]) -> Optional[tuple[int, int]]:
@@ -433,9 +396,7 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
                           f"a solver method {method} does not have): {', '.join('-' + k for k in unused)}",
                           file=sys.stderr, flush=True)
             if group.rank == 0:
-                tmp = folder / f".{case.key}.{os.getpid()}.tmp"
-                tmp.write_text(json.dumps(row, indent=1, default=float))
-                os.replace(tmp, folder / f"{case.key}.json")
+                PieceStore(folder).save(case.key, row)
                 win.Lock(0)
                 win.Fetch_and_op(one, got, 0, 0, MPI.SUM)   # state[0]: cases done
                 win.Unlock(0)
@@ -450,42 +411,3 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
         world.barrier()
         win.Free()
     return rows
-
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
-    p.add_argument("--velocity", required=True, metavar="V1,V2,...", help="impact speeds, m/s (> 0, <= 100)")
-    p.add_argument("--angle", default="0", metavar="A1,A2,...",
-                   help="angles from the face normal, deg, in [0, 90) (default 0)")
-    p.add_argument("--radius", metavar="R1,R2,...", help="ball radii, m (default the scene's)")
-    p.add_argument("--method", default="improved", help="solution method (default improved; the reduced methods "
-                                                        "reuse one reduction per mesh band)")
-    p.add_argument("--out", help=OUT_HELP.format(default="out/table-SCENE") + "; finished cases in it are reused")
-    p.add_argument("--force", action="store_true", help=FORCE_HELP)
-    p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="override a scene field")
-    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
-    p.add_argument("--ranks-per-case", type=int, default=1, metavar="K",
-                   help="under mpirun: ranks per case (divides the rank count; default 1)")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-
-
-def main(args: argparse.Namespace) -> int:
-    speeds = parse_list(args.velocity, "--velocity", 0.0, 100.0, True, False, "m/s")
-    angles = parse_list(args.angle, "--angle", 0.0, 90.0, False, True, "deg")
-    radii = parse_list(args.radius, "--radius", 1e-4, 1.0, False, False, "m") if args.radius else None
-    from .sweep import parse_method_options
-
-    options = parse_method_options(args.option)
-    name = args.scene or "paper-rig"
-    target = claim_output(args.out if args.out is not None else default_out(Path(name).stem, prefix="table-"), "table",
-                          force=args.force)   # before any computing
-    out = target.shown
-    rows = run_table(args.scene, speeds, angles, radii, args.method, options, target, args.set,
-                     args.ranks_per_case, args.quiet)
-    failed = [r for r in rows if not str(r.get("status", "")).startswith("ok")]
-    if rows and not args.quiet:
-        print(f"  results in {out}/ (contact_table.csv, contact_table.json, contact_table.h5, contact_laws.json, "
-              f"e_n_speed.png, e_t_angle.png, force_speed.png){target.replaced_note()}", flush=True)
-    if failed:
-        raise MillimpactError(f"{len(failed)} of {len(rows)} case(s) failed; see the status column of {out}/contact_table.csv")
-    return 0

@@ -177,9 +177,9 @@ def write_table(out: Path, base: Scene, cases, rows: Sequence[dict], method: str
 
 
 def plot_table(out: Path, base: Scene, rows: Sequence[dict], laws: dict) -> None:
-    from ..results.plots import _plt
+    from ..results.plots import pyplot
 
-    plt = _plt()
+    plt = pyplot()
     ok = [r for r in rows if str(r.get("status", "")).startswith("ok")]
     if not ok:
         return

@@ -23,7 +23,7 @@ import pytest
 from conftest import ROOT, mpi_env, run_cli
 from millimpact.damage.bins import yield_onset_speed
 from millimpact.damage.damage_map import MapSettings, run_damage_map
-from millimpact.damage.responses import store_row
+from millimpact.commandkit.store import PieceStore
 from millimpact.dem.impacts import Impact, read_impacts, write_impacts
 from millimpact.repeat.sequence import ImpactOutcome as Outcome   # the fake sequence runner returns the real types
 from millimpact.repeat.verdict import Verdict
@@ -83,13 +83,13 @@ class FakeRunner:
         for c in todo:
             if self.stop_after is not None and len(self.done) >= self.stop_after:
                 raise KeyboardInterrupt
-            store_row(folder, c.key, fake_row(c, self.plastic_below_yield))
+            PieceStore(folder).save(c.key, fake_row(c, self.plastic_below_yield))
             self.done.append(c.key)
 
 
 
 
-def fake_sequence(scene, impacts, method="improved", petsc_options=None, comm=None, progress=None):
+def fake_sequence(scene, impacts, method="improved", petsc_options=None, comm=None, progress=None, store_dir=None):
     """Repeated impacts whose dent and plastic-strain increments halve each impact (a shakedown)."""
     out = []
     for k, spec in enumerate(impacts, start=1):
@@ -326,7 +326,8 @@ def test_one_bin_on_the_real_table_engine(tmp_path, capsys):
 def test_one_bin_on_the_real_repeated_impact_sequence(tmp_path):
     """The place's dominant bin repeated with millimpact.repeat.sequence: the map's dent and strain
     numbers are the sequence's."""
-    from millimpact.repeat.sequence import classify, run_sequence
+    from millimpact.repeat.sequence import run_sequence
+    from millimpact.repeat.verdict import classify
 
     imps = [_impact(3.0, 0.0)] * 2
     out = tmp_path / "m"

@@ -12,7 +12,8 @@ import pytest
 
 from conftest import ROOT, default_sigint, mpi_env, run_cli
 from millimpact.repeat.report import read_impacts_csv
-from millimpact.repeat.sequence import OUTCOME_COLUMNS, ImpactOutcome, classify
+from millimpact.repeat.sequence import OUTCOME_COLUMNS, ImpactOutcome
+from millimpact.repeat.verdict import classify
 
 COARSE = ["--set", "model.h_contact=8e-4", "--set", "model.h_far=0.012", "-q"]
 

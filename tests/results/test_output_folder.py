@@ -13,7 +13,7 @@ import pytest
 from conftest import ROOT, default_sigint, mpi_env, run_cli
 from millimpact.errors import InputError
 from millimpact.results.output_folder import MARKER, is_millimpact_output, prepare_output
-from millimpact.results.timeseries import staged_output
+from millimpact.results.output_folder import staged_output
 
 
 def test_refusals_name_the_path(tmp_path, monkeypatch):

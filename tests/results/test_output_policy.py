@@ -197,7 +197,7 @@ def test_second_writer_is_refused_and_a_killed_holder_blocks_nothing(tmp_path):
 # --- row 13: what a killed run leaves ---------------------------------------------------------------------------------
 def test_staging_left_by_a_killed_run_is_removed_and_said(tmp_path):
     out = tmp_path / "r"
-    code = ("import time; from pathlib import Path; from millimpact.results.timeseries import staged_output\n"
+    code = ("import time; from pathlib import Path; from millimpact.results.output_folder import staged_output\n"
             f"with staged_output(Path({str(out)!r})) as s:\n"
             "    (s / 'timeseries.csv').write_bytes(b'0' * 100000); print('writing', flush=True); time.sleep(600)\n")
     p = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=mpi_env(), stdout=subprocess.PIPE, text=True)

@@ -32,7 +32,7 @@ def _series(t_end):
 
 
 def test_gauge_figure_has_one_panel_on_a_short_run(tmp_path, monkeypatch):
-    plt = plots._plt()
+    plt = plots.pyplot()
     made, orig = [], plt.subplots
 
     def subplots(*a, **k):

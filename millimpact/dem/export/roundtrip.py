@@ -100,9 +100,9 @@ def write_roundtrip(folder: Path, t: ContactTable, rows: Sequence[dict], code: s
 
 
 def plot_roundtrip(path: Path, t: ContactTable, rows: Sequence[dict], code: str, runner: str = "Yade") -> None:
-    from ...results.plots import _plt
+    from ...results.plots import pyplot
 
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), constrained_layout=True)
     for j, a in enumerate(t.angles):
         rr = [r for r in rows if r["impact_angle_deg"] == a]

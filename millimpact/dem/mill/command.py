@@ -16,7 +16,6 @@ import sys
 from pathlib import Path
 
 from ...console import say
-from ...errors import InputError
 from ...results.output_folder import FORCE_HELP, OUT_HELP
 
 HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe"
@@ -78,17 +77,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-plots", action="store_true", help="skip spectrum.png and charge.png")
 
 
-def _scene(args: argparse.Namespace):
-    from ...scene.builtin import resolve_scene
-    from ...scene.schema import parse_value
+def command_scene(args: argparse.Namespace):
+    """The liner scene of the mill: SCENE with its ``--set`` assignments, validated together
+    (before the mill is planned or Yade runs)."""
+    from ...commandkit.settings import command_scene as resolve
 
-    scene = resolve_scene(args.scene)
-    for assignment in args.set or []:
-        key, sep, value = assignment.partition("=")
-        if not sep or not key.strip():
-            raise InputError(f"--set {assignment}: expected FIELD=VALUE, e.g. --set ball.radius=0.05")
-        scene = scene.with_value(key.strip(), parse_value(value))
-    return scene
+    return resolve(args.scene, args.set)
 
 
 def options_from_args(args: argparse.Namespace):
@@ -213,7 +207,7 @@ def main(args: argparse.Namespace) -> int:
 
     # every check before any folder is made: options, scene, the plan, Yade, then --out
     opts = options_from_args(args)
-    scene = _scene(args)
+    scene = command_scene(args)
     setup = plan_mill(scene, opts)
     yade_executable()
     out = args.out if args.out is not None else default_out(scene.name, prefix="mill-")

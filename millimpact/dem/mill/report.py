@@ -125,10 +125,9 @@ def write_spectrum_csv(path: Path, impacts: list[Impact], revolutions: float) ->
 
 def plot_spectrum(path: Path, impacts: list[Impact], revolutions: float, title: str) -> None:
     """spectrum.png: impact energy (J) against the cumulative number of impacts per revolution, log-log."""
-    import matplotlib
+    from ...results.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     for place, style in ((None, "k-"), ("lifter_face", "C0--"), ("lifter_top", "C1-."), ("plate", "C2:")):
@@ -149,10 +148,9 @@ def plot_spectrum(path: Path, impacts: list[Impact], revolutions: float, title: 
 def charge_figure(path: Path, snapshots: dict[str, np.ndarray], setup: MillSetup, angles: dict) -> None:
     """charge.png: the balls of the last snapshot in the mill's cross-section, the liner's profile at
     that time, and the shoulder and toe."""
-    import matplotlib
+    from ...results.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(figsize=(5.2, 5.2))
     last = snapshots["snapshot"] == snapshots["snapshot"].max()
