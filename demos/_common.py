@@ -58,10 +58,8 @@ def millimpact(*args: str) -> None:
 
 
 def figure_backend():
-    """matplotlib's pyplot on the file-only backend (the demos write PNGs, never open a window)."""
-    import matplotlib
+    """matplotlib's pyplot on the file-only backend the package's figures use (the demos write
+    PNGs, never open a window)."""
+    from millimpact.results.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return pyplot()
