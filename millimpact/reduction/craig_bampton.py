@@ -286,11 +286,12 @@ def _interior_couplings(req: ReductionRequest, name: str, idx: np.ndarray, I: PE
     # slab-wise Ritz basis instead of one factorization of K_ii (option <prefix>substructures)
     sub = (substructure_settings(prefix, req.opts, n_i)
            if req.f_cut is not None and req.n_modes is None and not req.augment else None)
-    patterns = bool(sub is not None and sub.zone_degree and len(qb))
+    zone_degree = sub.zone_degree if sub is not None else 0
+    patterns = bool(zone_degree and len(qb))
     # zone-interface patterns: the interior's static responses to a few smooth interface motions
     # replace the n_b constraint modes (K_iz W, M_iz W instead of C, D; K_ia and M_ia, a copy of
     # the interior's rows of K and M, freed at once: 2.2 GB at the plan's 1.2M DOFs)
-    CD_pat = zone_pattern_couplings(model, req.part, name, sub.zone_degree, K_ia, M_ia) if patterns else None
+    CD_pat = zone_pattern_couplings(model, req.part, name, zone_degree, K_ia, M_ia) if patterns else None
     K_ia.destroy()
     M_ia.destroy()
     return_freed_memory()
@@ -346,10 +347,12 @@ def _basis_from_slabs(req: ReductionRequest, c: InteriorCouplings, t0: float,
     """Strategy 2: the slab-wise Ritz basis of :func:`~.substructures.substructured_modes` (no
     factorization of the whole K_ii)."""
     model, qb, keep_away = req.model, c.qb, req.keep_away
+    # _interior_couplings sets slabs for a reduction to a cutoff only
+    assert c.sub is not None and req.f_cut is not None, "slabs without their settings or a cutoff"
     material = model.ball_material if c.name == "ball" else model.target_material
     node_xyz = model.V.tabulate_dof_coordinates()[c.idx // 3]
     zone_cd = (local_columns_csr(c.C, qb), local_columns_csr(c.D, qb))
-    C_s, D_s = c.CD_pat if c.patterns else zone_cd
+    C_s, D_s = c.CD_pat if c.CD_pat is not None else zone_cd
     probes = (probe_interior_rows(model, c.idx, keep_away) if c.patterns and c.name == "block"
               and keep_away is not None and len(keep_away) else None)
     res = substructured_modes(
@@ -412,6 +415,8 @@ def _basis_from_factorization(req: ReductionRequest, c: InteriorCouplings, t0: f
 def _constraint_modes(c: InteriorCouplings, ksp: PETSc.KSP, timings: dict[str, float]) -> tuple[PETSc.Mat, float]:
     """Psi = -K_ii^-1 C with the factored K_ii, and its relative residual (checked)."""
     t0 = time.perf_counter()
+    # rhs is the dense copy of C's interface columns, made for the one-factorization reduction
+    assert c.rhs is not None, f"constraint modes of the {c.name} without the dense right-hand sides"
     Psi = c.rhs.duplicate()
     ksp.getPC().getFactorMatrix().matSolve(c.rhs, Psi)
     Psi.scale(-1.0)
@@ -482,9 +487,9 @@ def _assemble_reduced_model(req: ReductionRequest, interiors: list[ReducedInteri
     # ball coordinates: zone coordinates of the ball and the ball's modes (zone coordinates sit
     # first in each rank's block, so their local index is unchanged)
     ball = [np.nonzero(zone.body == 0)[0]]
-    for b in bodies:
-        if b.name == "ball" and b.n_modes:
-            ball.append(b.modes[(b.modes >= num.lo) & (b.modes < num.lo + num.n_loc)] - num.lo)
+    for body in bodies:
+        if body.name == "ball" and body.n_modes:
+            ball.append(body.modes[(body.modes >= num.lo) & (body.modes < num.lo + num.n_loc)] - num.lo)
     ball_coords = np.unique(np.concatenate(ball)).astype(np.int32)
     timings["total"] = time.perf_counter() - t_start
     red = ReducedModel(req.model, zone, req.part, M_r, K_r, Gr, bodies, ball_coords, zone.n_global, timings)
@@ -500,7 +505,9 @@ def _body_blocks(b: ReducedInterior, num: ReducedNumbering, mode_start: int, f_c
     if b.n_i == 0:
         return BodyReduction(b.name, 0, b.I, None, np.zeros(0, np.int64), None, np.zeros(0, np.int64),
                              np.zeros(0), f_cut, math.nan, b.timings)
-    c, basis, Phi, Psi = b.couplings, b.basis, b.Phi, b.basis.Psi
+    c, basis, Phi = b.couplings, b.basis, b.Phi
+    assert c is not None and basis is not None, f"{b.name}: an interior without its couplings or basis"
+    Psi = basis.Psi
     K_ii, M_ii = (None, None) if basis.released else (c.K_ii, c.M_ii)
     Cb, Db = c.Cb, c.Db
     freq = basis.freq
@@ -508,6 +515,8 @@ def _body_blocks(b: ReducedInterior, num: ReducedNumbering, mode_start: int, f_c
     qb = num.of_zone(c.qb)
     M_ib = None
     if Psi is not None:
+        # constraint modes exist for interface columns (Cb, Db) and a kept interior (M_ii)
+        assert Cb is not None and Db is not None and M_ii is not None, f"{b.name}: Psi without Cb, Db or M_ii"
         Kbb = gather_rows(Cb.transposeMatMult(Psi), comm)
         Kbb = 0.5 * (Kbb + Kbb.T)
         MPsi = M_ii.matMult(Psi)
@@ -541,6 +550,8 @@ def _mode_blocks(basis: InteriorBasis, Phi: PETSc.Mat, Psi: Optional[PETSc.Mat],
     if basis.grams is not None:      # from the Ritz space: no n_i x m products
         Mmm, Kmm = basis.grams
     else:
+        # without the Ritz-space Grams the interior's blocks were kept (released only with patterns)
+        assert M_ii is not None and K_ii is not None, "mode blocks without K_ii, M_ii or their Grams"
         MPhi = M_ii.matMult(Phi)
         KPhi = K_ii.matMult(Phi)
         Mmm = gather_rows(Phi.transposeMatMult(MPhi), comm)
@@ -548,6 +559,8 @@ def _mode_blocks(basis: InteriorBasis, Phi: PETSc.Mat, Psi: Optional[PETSc.Mat],
     blocks_M.append((modes, modes, 0.5 * (Mmm + Mmm.T)))
     blocks_K.append((modes, modes, 0.5 * (Kmm + Kmm.T)))
     if Psi is not None:
+        # constraint modes exist for interface coordinates only, which come with their columns Cb, Db
+        assert Cb is not None and Db is not None, "constraint modes without the couplings' interface columns"
         Mbm = gather_rows(Db.transposeMatMult(Phi), comm) + gather_rows(Psi.transposeMatMult(MPhi), comm)
         blocks_M.append((qb, modes, Mbm))
         blocks_M.append((modes, qb, Mbm.T))
@@ -559,6 +572,7 @@ def _mode_blocks(basis: InteriorBasis, Phi: PETSc.Mat, Psi: Optional[PETSc.Mat],
     elif len(qb):
         # interface patterns instead of constraint modes: the zone's interface coordinates
         # couple to the interior's vectors through K_iz, M_iz only (C^T Phi, D^T Phi)
+        assert Cb is not None and Db is not None, "interface coordinates without the couplings' columns"
         Mbm = gather_rows(Db.transposeMatMult(Phi), comm)
         Kbm = gather_rows(Cb.transposeMatMult(Phi), comm)
         blocks_M += [(qb, modes, Mbm), (modes, qb, Mbm.T)]

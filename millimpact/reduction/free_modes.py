@@ -141,7 +141,7 @@ def compute_free_modes(red: ReducedModel, f_max: float, mass: Optional[PETSc.Mat
     is_ball[red.ball_coords] = True
     sigma = -(2 * math.pi * shift_hz) ** 2
     lam_max = (2 * math.pi * f_max) ** 2
-    per_body = []
+    per_body: list[tuple[np.ndarray, np.ndarray, list[PETSc.Vec]]] = []     # (local rows, lambda, modes)
     for b, local in ((0, np.nonzero(is_ball)[0]), (1, np.nonzero(~is_ball)[0])):
         IS = PETSc.IS().createGeneral((q_lo + local).astype(np.int32), comm=comm)
         n_b = comm.allreduce(len(local))
@@ -194,17 +194,17 @@ def compute_free_modes(red: ReducedModel, f_max: float, mass: Optional[PETSc.Mat
     Phi.setUp()
     arr = Phi.getDenseArray()
     arr[:] = 0.0
-    omega2, body = [], []
+    lam_all, body_all = [], []
     k = 0
     for b, (local, lam, vecs) in enumerate(per_body):
         for lam_k, v in zip(lam, vecs):
             arr[local, k] = v.getArray(readonly=True)
-            omega2.append(lam_k)
-            body.append(b)
+            lam_all.append(lam_k)
+            body_all.append(b)
             k += 1
     Phi.assemble()
-    omega2 = np.maximum(np.array(omega2), 0.0)   # rigid modes: rounding may give -1e-6 rad^2/s^2
-    body = np.array(body, dtype=np.int8)
+    omega2 = np.maximum(np.array(lam_all), 0.0)   # rigid modes: rounding may give -1e-6 rad^2/s^2
+    body = np.array(body_all, dtype=np.int8)
     c0, c1 = Phi.getOwnershipRangeColumn()
     mats = []
     for A in (red.M, red.K, mass):

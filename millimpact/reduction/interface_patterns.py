@@ -20,7 +20,8 @@ from petsc4py import PETSc
 
 from ..fem.model import FEModel
 from ..fem.probes import create_probe
-from .distributed import aij_from_local_csr, global_extent, local_columns_csr, orthonormal_columns, positions_in
+from .distributed import (aij_from_local_csr, global_extent, local_columns_csr, orthonormal_columns,
+                          ownership_offsets, positions_in)
 from .partition import BODIES, DofPartition
 
 
@@ -79,5 +80,5 @@ def probe_interior_rows(model: FEModel, idx: np.ndarray, points: np.ndarray) -> 
     r0 = model.K.getOwnershipRange()[0]
     mine = glob[(glob >= r0) & (glob < r0 + model.K.getLocalSize()[0])] - r0
     pos, hit = positions_in(idx, mine)
-    off = comm.exscan(len(idx)) or 0
+    off = int(ownership_offsets(comm, len(idx))[comm.rank])
     return np.unique(np.concatenate(comm.allgather((off + pos[hit]).astype(np.int64))))

@@ -39,6 +39,7 @@ from typing import Optional
 
 import basix
 import numpy as np
+from dolfinx.common import IndexMap
 from dolfinx.cpp.la.petsc import create_vector as _create_ghosted_vector
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -46,6 +47,7 @@ from petsc4py import PETSc
 from ..geometry import builders as G
 from ..errors import InputError
 from ..fem.model import FEModel
+from .distributed import ownership_offsets
 from .partition import DofPartition, ZoneBasis, partition_dofs, tagged_cells
 
 log = logging.getLogger(__name__)
@@ -83,7 +85,7 @@ class NMMZone:
         return q
 
 
-def _accumulate(imap, bs: int, values: np.ndarray, op: str = "add") -> np.ndarray:
+def _accumulate(imap: IndexMap, bs: int, values: np.ndarray, op: str = "add") -> np.ndarray:
     """Sum (``add``) node values over the ranks that hold the node, returned on owners and ghosts
     alike (reverse then forward ghost update). ``values``: (n_local_nodes_with_ghosts, bs)."""
     x = _create_ghosted_vector(imap, bs)
@@ -114,7 +116,7 @@ class _ZoneMesh:
     ``bs``, owned and local nodes), node coordinates ``X``, each zone edge as (midpoint, vertex i,
     vertex j), the zone cells' nodes ``cn`` and the fixed flags (node, component) of every local node."""
 
-    imap: object
+    imap: IndexMap
     bs: int
     n_own: int
     n_loc: int
@@ -154,7 +156,7 @@ def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
         keep[np.isin(gidx, anchors), 3:] = False
     n_drop = int(np.count_nonzero(~keep))
     n_q = int(np.count_nonzero(keep))
-    q0 = comm.exscan(n_q) or 0
+    q0 = int(ownership_offsets(comm, n_q)[comm.rank])
     index = np.full((len(own_v), SLOTS), -1, dtype=np.int64)
     index[keep] = q0 + np.arange(n_q)
     idx_all = np.full((zm.n_loc, SLOTS), -1.0)
@@ -195,9 +197,9 @@ def _zone_mesh(model: FEModel) -> _ZoneMesh:
     cn = cell_nodes[zone_cells]                                   # (nc, 10)
     E = np.stack([cn[:, ecol[:, 0]], cn[:, ecol[:, 1]], cn[:, ecol[:, 2]]], axis=-1).reshape(-1, 3)  # m, i, j
     # fixed flags on every local node
-    fixed = np.zeros(n_own * bs)
-    fixed[model.fixed_dofs] = 1.0
-    fixed = _accumulate(imap, bs, np.concatenate([fixed, np.zeros((n_loc - n_own) * bs)]).reshape(-1, bs),
+    fixed_owned = np.zeros(n_own * bs)
+    fixed_owned[model.fixed_dofs] = 1.0
+    fixed = _accumulate(imap, bs, np.concatenate([fixed_owned, np.zeros((n_loc - n_own) * bs)]).reshape(-1, bs),
                         op="forward") > 0.5
     return _ZoneMesh(imap, bs, n_own, n_loc, X, E, cn, vcol, ball_cells, cell_nodes, fixed)
 
@@ -258,15 +260,15 @@ def _prolongation(zm: _ZoneMesh, idx_all: np.ndarray, h: np.ndarray, n_q: int, c
             for k in range(3):
                 cols += [idx_all[i, 3 + 3 * c + k], idx_all[j, 3 + 3 * c + k]]
                 vals += [0.25 * dij[k] / h[i], -0.25 * dij[k] / h[j]]
-            cols, vals = np.array(cols), np.array(vals)
-            ok = (cols >= 0) & (vals != 0.0)
+            row_cols, row_vals = np.array(cols), np.array(vals)
+            ok = (row_cols >= 0) & (row_vals != 0.0)
             if np.any(ok):
-                P.setValues([int(gnode[m]) * bs + c], cols[ok].astype(np.int32), vals[ok], addv=INSERT)
+                P.setValues([int(gnode[m]) * bs + c], row_cols[ok].astype(np.int32), row_vals[ok], addv=INSERT)
     P.assemble()
     return P
 
 
-def _choose_anchors(comm: MPI.Comm, imap, nodes: np.ndarray, x: np.ndarray, ball: np.ndarray,
+def _choose_anchors(comm: MPI.Comm, imap: IndexMap, nodes: np.ndarray, x: np.ndarray, ball: np.ndarray,
                     model: FEModel) -> np.ndarray:
     """Global node indices of three interface vertices per zone, far apart and not collinear:
     A the farthest from the zone's contact point, B the farthest from A, C the farthest from the

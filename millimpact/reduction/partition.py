@@ -18,6 +18,7 @@ from petsc4py import PETSc
 
 from ..geometry import builders as G
 from ..fem.model import FEModel
+from .distributed import ownership_offsets
 
 log = logging.getLogger(__name__)
 
@@ -130,7 +131,7 @@ def create_nodal_zone_basis(model: FEModel, partition: Optional[DofPartition] = 
     part = partition or partition_dofs(model)
     comm = model.comm
     n_q = len(part.zone)
-    q0 = comm.exscan(n_q) or 0
+    q0 = int(ownership_offsets(comm, n_q)[comm.rank])
     indptr = np.zeros(part.n_owned + 1, dtype=np.int32)
     indptr[part.zone + 1] = 1
     indptr = np.cumsum(indptr).astype(np.int32)

@@ -15,6 +15,7 @@ took 9 s of a 43 s run (a Psi and a Phi product per Newton iteration), and they 
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 import numpy as np
 from petsc4py import PETSc
@@ -35,7 +36,7 @@ class ProjectedPlasticZone:
         self.zone, self.red = zone, red
         self._u = None                   # the zone's displacement G q (a Vec of the model's dofs)
         self._f = None                   # the zone's force correction, assembled in place
-        self._frozen = None              # (plastic state version, G^T f_frozen)
+        self._frozen: Optional[tuple[int, PETSc.Vec]] = None     # (plastic state version, G^T f_frozen)
 
     def _expand(self, q: PETSc.Vec) -> PETSc.Vec:
         """u = G q: exact on the zone's dofs (all the zone's cells read); zero in the interior."""

@@ -142,11 +142,11 @@ class ReducedModel:
         return q
 
     # maps -------------------------------------------------------------------------------------
-    def _scatter(self, body: BodyReduction, which: str, q: PETSc.Vec) -> tuple[PETSc.Scatter, PETSc.Vec]:
-        """Scatter from reduced vectors to the column layout of ``Psi`` / ``Phi`` of a body."""
+    def _scatter(self, body: BodyReduction, which: str, mat: PETSc.Mat,
+                 q: PETSc.Vec) -> tuple[PETSc.Scatter, PETSc.Vec]:
+        """Scatter from reduced vectors to the column layout of ``mat``, the ``Psi`` / ``Phi`` of a body."""
         key = (body.name, which)
         if key not in self._scatters:
-            mat = body.Psi if which == "psi" else body.Phi
             idx = body.qb if which == "psi" else body.modes
             x = mat.createVecRight()
             c0, c1 = x.getOwnershipRange()
@@ -166,7 +166,7 @@ class ReducedModel:
             for which, mat in (("psi", b.Psi), ("phi", b.Phi)):
                 if mat is None:
                     continue
-                sc, x = self._scatter(b, which, q)
+                sc, x = self._scatter(b, which, mat, q)
                 sc.scatter(q, x, addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
                 if y is None:
                     y = mat.createVecLeft()
@@ -190,7 +190,7 @@ class ReducedModel:
             for which, mat in (("psi", b.Psi), ("phi", b.Phi)):
                 if mat is None:
                     continue
-                sc, x = self._scatter(b, which, r)
+                sc, x = self._scatter(b, which, mat, r)
                 mat.multTranspose(fi, x)
                 sc.scatter(x, r, addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             f.restoreSubVector(b.I, fi)
@@ -321,6 +321,8 @@ class ReducedModel:
                 b.ksp = b.factor()      # Psi and Phi came from the cache: factor K_ii now, once
             if b.n_interior == 0 or b.ksp is None or b.M_ib is None or b.n_augmented:
                 continue
+            # M_ib is kept with the constraint modes only (craig_bampton._body_blocks)
+            assert b.Psi is not None, f"{b.name}: the mass coupling M_ib without constraint modes Psi"
             cols = PETSc.IS().createGeneral(b.I.getIndices(), comm=self.comm)
             rows = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
             AI = A.createSubMatrix(rows, cols)                       # k x n_i

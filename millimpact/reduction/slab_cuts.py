@@ -28,7 +28,7 @@ from mpi4py import MPI
 from numpy.polynomial import legendre
 from petsc4py import PETSc
 
-from .distributed import global_extent, orthonormal_columns, reduce_array
+from .distributed import global_extent, orthonormal_columns, ownership_offsets, reduce_array
 
 #: histogram bins for the quantile cuts
 QUANTILE_BINS = 4096
@@ -153,7 +153,7 @@ def interface_faces(labels: np.ndarray, nxt: np.ndarray, comm: MPI.Comm) -> tupl
     (piece, next piece) in order, numbered alike on every rank."""
     on = nxt >= 0
     pairs = np.unique(np.column_stack([labels[on], nxt[on]]), axis=0) if on.any() else np.zeros((0, 2), int)
-    faces = sorted({tuple(int(v) for v in p) for part in comm.allgather(pairs.tolist()) for p in part})
+    faces = sorted({(int(p[0]), int(p[1])) for part in comm.allgather(pairs.tolist()) for p in part})
     key = {f: k for k, f in enumerate(faces)}
     return np.array([key[(int(a), int(b))] for a, b in zip(labels[on], nxt[on])], dtype=np.int32), faces
 
@@ -170,7 +170,7 @@ def polynomial_traces(coords: np.ndarray, comps: np.ndarray, face: np.ndarray, n
         rows = np.nonzero(mine)[0]
         if density == 0:
             n_c = comm.allreduce(int(mine.sum()))
-            off = comm.exscan(int(mine.sum())) or 0
+            off = int(ownership_offsets(comm, int(mine.sum()))[comm.rank])
             blocks.append(sp.csr_matrix((np.ones(len(rows)), (rows, off + np.arange(len(rows)))),
                                         shape=(len(face), n_c)))
             continue

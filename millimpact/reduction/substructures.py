@@ -42,7 +42,7 @@ import logging
 import math
 import resource
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -210,7 +210,8 @@ class _Slab:
     n_own: int                     #: the slab's own columns (modes, second-order statics)
     first_blocks: Optional[tuple]  #: (B^T K_ss B, B^T M_ss B) of the first pass until projected (:func:`_slab_blocks`)
     stats: dict
-    cols: np.ndarray = None
+    #: the global Ritz index of each column of B (numbered by _first_projection)
+    cols: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     projected: int = 0             #: columns of B already in K_V, M_V (see _project_slab)
     n_new: int = 0                 #: columns the second pass added
 
@@ -223,9 +224,9 @@ class _Slab:
         self.K_ss = self.M_ss = self.K_sg = self.M_sg = None
 
     def release(self) -> None:
-        """Free the slab's matrices and basis rows (after the expansion)."""
+        """Free the slab's matrices and basis rows (after the expansion: B is left empty)."""
         self.release_matrices()
-        self.B = None
+        self.B = np.zeros((len(self.rows), 0))
 
 
 def _release_slab_matrices(slabs: list[_Slab]) -> None:
@@ -534,6 +535,7 @@ def _second_pass(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, settin
     joins the basis; ``system`` projected and solved again. A slab's rows of M_ii V couple its own
     rows and Gamma's only. The slabs' matrices are freed after the last projection."""
     n_b, ritz = lay.n_b, system.ritz
+    assert ritz is not None, "the second pass follows the first Rayleigh-Ritz"
     if not n_b + ritz["m"]:
         _release_slab_matrices(mine)   # the first projection was the last
         return
@@ -584,11 +586,14 @@ def _expand(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, patterns: b
     storage; each slab's rows sent to the ranks owning them. The dense Ritz matrices of ``system``
     are dropped before the rows travel."""
     ritz, KV, MV, T, t_idx, n_loc, n_b = system.ritz, system.KV, system.MV, lay.T, lay.t_idx, lay.n_loc, lay.n_b
+    assert ritz is not None, "the expansion follows the last Rayleigh-Ritz"
     m = ritz["m"]
     recovery = grams = None
     f_pat = np.zeros(0)
+    targets: tuple[np.ndarray, ...]           # the results' storage, and their Ritz coefficients
+    parts: tuple[np.ndarray, ...]
     if patterns:
-        f_pat, c_pat, grams = computed_on_root(comm, lambda: _patterns_and_grams(KV, MV, ritz))
+        f_pat, c_pat, grams = computed_on_root(comm, lambda: _patterns_and_grams(_on_root(KV), _on_root(MV), ritz))
         A = np.hstack([ritz["phi"], c_pat])
         if zone_couplings is not None:
             recovery = ritz_recovery(mine, lay.T_full, t_idx, lay.gamma_glob, ritz, MV, A,
@@ -652,7 +657,7 @@ def _slab_statistics(mine: list[_Slab], lay: SlabLayout, phase: dict[str, float]
 
 
 def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, gamma_glob: np.ndarray,
-                  ritz: dict, MV: np.ndarray, A: np.ndarray, CDz: sp.csr_matrix, rows: np.ndarray,
+                  ritz: dict, MV: Optional[np.ndarray], A: np.ndarray, CDz: sp.csr_matrix, rows: np.ndarray,
                   n_cols: int, comm: MPI.Comm) -> dict:
     """Output recovery without constraint modes, from the Ritz space V (replicated, small).
 
@@ -663,7 +668,8 @@ def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, 
     a u_i = (a V) [H_C q + H_D q'' + H_M x''], H_C = -H V^T C, H_D = -H V^T D, H_M = -H M_V A:
     mode acceleration for any interior basis (for Craig-Bampton it is Psi q + Phi eta - R A_b q''
     in the Ritz space). Returns ``rows`` (the global interior rows kept), ``V`` (those rows of the
-    basis), H_C, H_D and H_M. ``CDz``: [C | D], every rank's rows (global interior numbering)."""
+    basis), H_C, H_D and H_M. ``CDz``: [C | D], every rank's rows (global interior numbering);
+    ``MV`` rank 0's (None elsewhere)."""
     n_b = CDz.shape[1] // 2
     CV = np.zeros((n_cols, 2 * n_b))
     keep = np.zeros((len(rows), n_cols))
@@ -671,14 +677,15 @@ def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, 
         CV[sl.cols] += np.asarray((CDz[sl.rows].T @ sl.B).T)
         pos, hit = positions_in(sl.rows, rows)
         keep[np.ix_(np.nonzero(hit)[0], sl.cols)] = sl.B[pos[hit]]
-    CV, keep = _sum_on_root(CV, comm), reduce_array(keep, MPI.SUM, comm)
+    CV_sum, keep = _sum_on_root(CV, comm), reduce_array(keep, MPI.SUM, comm)
     pos, on_g = positions_in(gamma_glob, rows)          # gamma_glob: the ranks' sorted rows in rank order
     keep[np.ix_(np.nonzero(on_g)[0], t_idx)] = T_full[pos[on_g]].toarray()
 
     def images():                                         # K_V, M_V and the eigenpairs are rank 0's
-        CV[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()     # replicated data: no sum
+        CV_r = _on_root(CV_sum)
+        CV_r[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()     # replicated data: no sum
         H = ritz["solve"]                                 # K_V^+: the final Rayleigh-Ritz's factor
-        return -H(CV[:, :n_b]), -H(CV[:, n_b:]), -H(MV @ A)
+        return -H(CV_r[:, :n_b]), -H(CV_r[:, n_b:]), -H(_on_root(MV) @ A)
     H_C, H_D, H_M = computed_on_root(comm, images)
     return {"rows": rows, "V": keep, "H_C": H_C, "H_D": H_D, "H_M": H_M}
 
@@ -748,9 +755,10 @@ def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_fu
         CV[cn] += np.asarray((CD_full[sl.rows].T @ Bn).T)
         sl.projected = B.shape[1]
         sl.first_blocks = None
-    KV, MV, CV = (_sum_on_root(x, comm) for x in (KV, MV, CV))
+    sums = [_sum_on_root(x, comm) for x in (KV, MV, CV)]
     if comm.rank != 0:
         return None, None, None
+    KV, MV, CV = (_on_root(x) for x in sums)
     k = current[0].shape[0]
     KV[:k, :k] += current[0]
     MV[:k, :k] += current[1]
@@ -769,6 +777,12 @@ def _sum_on_root(a: np.ndarray, comm: MPI.Comm) -> Optional[np.ndarray]:
     out = np.empty_like(a) if comm.rank == 0 else None
     comm.Reduce(a, out, op=MPI.SUM, root=0)
     return out
+
+
+def _on_root(a: Optional[np.ndarray]) -> np.ndarray:
+    """``a``, an array rank 0 holds (a sum of :func:`_sum_on_root`, the dense Ritz matrices), on rank 0."""
+    assert a is not None, "an array that only rank 0 holds, read on another rank"
+    return a
 
 
 def _ritz_on_root(KV, MV, CV, n_b: int, f_cut: float, comm: MPI.Comm) -> dict:

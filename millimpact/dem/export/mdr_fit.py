@@ -88,7 +88,7 @@ def fit_mdr(law: ExportedLaw, workdir: Path, on_progress: Optional[Callable[[str
     t = law.table
     young = (1.0 - t.poisson**2) * t.e_star_materials
     target = np.minimum(t.e_n, 1.0)
-    best = None
+    best: Optional[tuple[float, tuple[float, float], np.ndarray]] = None     # (cost, (Y, eta_n0), e_n)
     ys = np.exp(np.linspace(math.log(Y_RANGE[0]), math.log(Y_RANGE[1]), 13))
     etas = np.array(ETA_GRID)
     for stage in range(3):
@@ -99,6 +99,7 @@ def fit_mdr(law: ExportedLaw, workdir: Path, on_progress: Optional[Callable[[str
             if best is None or cost < best[0]:
                 best = (cost, pair, e)
         shutil.rmtree(run_dir)
+        assert best is not None, "every pass's grid has at least one (Y, eta_n0) pair"
         (y0, eta0), e = best[1], best[2]
         if on_progress is not None:
             on_progress(f"mdr fit, pass {stage + 1}/3: Y {y0:.4g} Pa, eta_n0 {eta0:.3g}: "
@@ -107,6 +108,7 @@ def fit_mdr(law: ExportedLaw, workdir: Path, on_progress: Optional[Callable[[str
         ys = y0 * ratio ** np.linspace(-1, 1, 5)
         step = (etas[1] - etas[0]) / 2 if len(etas) > 1 else 0.01
         etas = np.maximum(eta0 + step * np.array([-1.0, 0.0, 1.0]), 0.0)
+    assert best is not None, "three passes ran"
     cost, (y, eta), e = best
     return MdrLaw(young, t.poisson, y, eta, t.friction, e, target, float(np.sqrt(np.mean((e - target) ** 2))),
                   float(np.max(np.abs(e - target))))

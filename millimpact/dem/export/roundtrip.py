@@ -59,8 +59,9 @@ def run_roundtrip(law: ExportedLaw, workdir: Path, mode: str = "law", law_file: 
     """Yade's e_n, e_t, F_max at every table point (``mode``: law | naive); rows in grid order."""
     t = law.table
     workdir.mkdir(parents=True, exist_ok=True)
+    results_file = workdir / f"yade_{mode}.json"
     inp = {"mode": mode, "radius_m": t.radius, "density_kg_m3": t.ball_density,
-           "results_file": str(workdir / f"yade_{mode}.json"),
+           "results_file": str(results_file),
            "law_file": str(law_file) if law_file else None,
            "naive": {"en": float(np.mean(np.minimum(t.e_n, 0.999))), "young_Pa": t.youngs_modulus,
                      "poisson": t.poisson, "friction": t.friction},
@@ -68,7 +69,7 @@ def run_roundtrip(law: ExportedLaw, workdir: Path, mode: str = "law", law_file: 
     path = workdir / f"yade_{mode}_input.json"
     path.write_text(json.dumps(inp, indent=1))
     run_yade(SCRIPT, workdir, [path.name], timeout=timeout, on_progress=on_progress)
-    return json.loads(Path(inp["results_file"]).read_text())["results"]
+    return json.loads(results_file.read_text())["results"]
 
 
 def roundtrip_rows(t: ContactTable, results: Sequence[dict]) -> list[dict]:

@@ -56,10 +56,7 @@ def read_table(folder: Path | str) -> ContactTable:
     from ...scene.toml_io import scene_from_dict
     from ...theory.hertz import effective_modulus
 
-    try:
-        import tomllib
-    except ModuleNotFoundError:            # Python < 3.11
-        import tomli as tomllib
+    import tomllib
 
     folder = Path(folder)
     if not folder.is_dir():

@@ -51,8 +51,8 @@ def case_script(k: int, n: int, case: dict, radius: float, density: float, setup
     """The commands of case ``k`` of ``n``: ``setup`` (atom style, newton, communication), ``law``
     (the pair style and its coefficients: the exported file included) and ``wall`` (the wall fix);
     ``halt`` (LAMMPS): the run stops once the ball has left the wall (checked every 20 steps)."""
-    halt = ('variable gone equal "v_vz > 0 && v_fz == 0"\n'
-            "fix stop all halt 20 v_gone > 0.5 error continue\n") if halt else ""
+    halt_lines = ('variable gone equal "v_vz > 0 && v_fz == 0"\n'
+                  "fix stop all halt 20 v_gone > 0.5 error continue\n") if halt else ""
     a = math.radians(case["angle_deg"])
     v = case["speed_m_s"]
     return f"""clear
@@ -78,7 +78,7 @@ compute spin all reduce sum c_omega
 variable wy equal c_spin
 variable fz equal fz[1]
 fix trace all print 1 "${{vx}} ${{vz}} ${{wy}} ${{fz}}" file trace_{k}.txt screen no
-{halt}thermo {case.get('steps', CASE_STEPS)}
+{halt_lines}thermo {case.get('steps', CASE_STEPS)}
 run {case.get('steps', CASE_STEPS)}
 print "{PROGRESS_PREFIX}case {k + 1}/{n}: v = {v:g} m/s, {case['angle_deg']:g} deg"
 """
