@@ -46,7 +46,7 @@ class FEModel:
     ``impact_point`` p (m) and ``contact_normal`` n (outward from the struck body) the place the
     mesh was built around (the ball touches the face at p); ``ball_cells`` and ``block_cells``
     the local cells (with ghosts) of each body, ``contact_facets`` the local facets of the ball's
-    contact surface (where :mod:`.contact` looks for slave nodes).
+    contact surface (where :mod:`millimpact.fem.contact` looks for slave nodes).
     """
 
     meshdata: MeshData

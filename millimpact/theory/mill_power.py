@@ -13,6 +13,7 @@ angle the mill runs report: degrees from the vertical below the axis, positive i
 rotation (shoulder ~ +135, toe ~ -40).
 
 Sources (the 1993 thesis and the 1996 papers themselves were not at hand; what was read is named):
+
 - S. Morrell, "Power draw of wet tumbling mills and its relationship to charge dynamics", Trans.
   IMM C105 (1996) 43-53 (Part 1, the continuum "C-model") and 54-62 (Part 2, the toe and shoulder
   correlations). Read: the Met Dynamics wiki ("Tumbling Mill (Power, Morrell Continuum)": the
@@ -24,6 +25,7 @@ Sources (the 1993 thesis and the 1996 papers themselves were not at hand; what w
 - L. G. Austin, "A mill power equation for SAG mills", Miner. Metall. Process. 7 (1990) 57-62.
   Read: the SAGMILLING.COM wiki ("Austin SAG model", A. Doll) and the XXXI IMPC 2024 proceedings
   (p. 3685), which agree on K = 10.6, A = 0.937, eps_B = 0.3, w_C = 0.8.
+
 Where the sources disagree or only one was read, the function's docstring says so.
 """
 from __future__ import annotations
@@ -139,7 +141,7 @@ def morrell_net_power(diameter: float, length: float, speed: float, fill: float,
                       cone_length: float = 0.0, trunnion_diameter: float = 0.0) -> MorrellPower:
     """Morrell's C-model (Morrell 1996 Part 1): the rate at which the shell lifts the charge from
     toe to shoulder and gives it kinetic energy, the charge's tangential speed falling linearly
-    from the shell's V_m = 2 pi N_m r_m to zero at radius z r_i (N_m = phi N_c, rev/s):
+    from the shell's V_m = 2 pi N_m r_m to zero at radius z r_i (N_m = phi N_c, rev/s)::
 
         P_cyl = pi g L N_m r_m / (3 (r_m - z r_i)) [2 r_m^3 - 3 z r_m^2 r_i + r_i^3 (3 z - 2)]
                 x [rho_c (sin theta_S - sin theta_T) + rho_p (sin theta_T - sin theta_TO)]
