@@ -44,7 +44,7 @@ from ..theory.hertz import effective_modulus
 from ..theory.thornton import plastic_zone_radius
 from .accumulate import place_extent
 from .bins import Bin
-from .places import PlacedScene, place_scene
+from .places import PlacedScene, liner_of, place_scene
 from .responses import BinCase, define_bin_cases
 
 #: the largest inward move of a bin's representative, as a share of its place's extent along the
@@ -63,7 +63,7 @@ def edge_room(scene: Scene) -> tuple[float, str]:
     """The distance (m) along the struck surface from the scene's impact point to its nearest free
     (convex) edge, and that edge: a lifter face's top corner, the top's edges, the plate's side
     edge of the segment, the segment's ends along the axis (the liner's length)."""
-    ln = scene.liner
+    ln = liner_of(scene)
     axial = (0.5 * ln.length - abs(ln.impact_x), "the segment's end (liner.length)")
     if ln.impact_place == "lifter_face":
         room = ((1.0 - ln.impact_height) * face_slant(ln), "the lifter's top corner")
@@ -84,6 +84,7 @@ def contact_margin(bc: BinCase, method: str, options: dict) -> float:
     from ..scene.plan import make_plan
 
     case = bc.case
+    assert case is not None    # a refused bin has no contact to fit
     if method in REDUCED_METHODS:
         band = case.band_scene or case.scene
         plan = make_plan(band)
@@ -98,7 +99,8 @@ def contact_margin(bc: BinCase, method: str, options: dict) -> float:
     sc = case.band_scene or case.scene
     m = sc.ball.mass
     e_star = effective_modulus(sc.ball.material, sc.target_material)
-    ys = [mat.initial_yield_stress for mat in (sc.ball.material, sc.target_material) if mat.plastic]
+    ys = [mat.initial_yield_stress for mat in (sc.ball.material, sc.target_material)
+          if mat.plastic and mat.initial_yield_stress is not None]
     a_p = plastic_zone_radius(sc.ball.radius, m, sc.normal_speed, e_star, min(ys))[0] if ys else 0.0
     return max(r_c, a_p) + EDGE_ELEMENTS * plan.h_contact
 
@@ -134,6 +136,7 @@ def fit_contacts(base: Scene, bins: Sequence[Bin], placed: dict[int, PlacedScene
     cache: dict[tuple, PlacedScene] = {}
     for idx, margin in need.items():
         b, old = by_index[idx], placed[idx]
+        assert old.scene is not None    # only placed bins need room
         room0, edge = edge_room(old.scene)
         key = (b.place, b.arc_m, margin)
         if key not in cache:

@@ -28,7 +28,7 @@ from typing import Optional
 
 from ..errors import SceneError
 from ..scene.schema import Impact as SceneImpact
-from ..scene.schema import Scene
+from ..scene.schema import Liner, Scene
 
 #: the step (a fraction of the ball radius) by which a place the scene cannot hold is moved
 STEP_FRACTION = 0.05
@@ -54,12 +54,20 @@ class PlacedScene:
     refused: str = ""            #: why the bin cannot be computed ("" if it can)
 
 
+def liner_of(scene: Scene) -> Liner:
+    """The liner of a liner scene: the damage map's places are a liner's (the command refuses a
+    block scene before any bin)."""
+    if scene.liner is None:
+        raise SceneError("liner", None, f"scene '{scene.name}' has no liner: the damage map needs a liner scene")
+    return scene.liner
+
+
 def _with_place(base: Scene, place: str, arc: float, face: str, height: float) -> Scene:
-    ln = dataclasses.replace(base.liner, impact_place=place, impact_arc=float(arc), impact_face=face,
+    ln = dataclasses.replace(liner_of(base), impact_place=place, impact_arc=float(arc), impact_face=face,
                              impact_height=float(height))
     # a normal unit velocity into the struck surface (the table gives each case its speed and angle)
     n = (ln.impact_site(place, ln.impact_lifter, face, height, ln.impact_x, arc)[1])
-    v = tuple(round(-c, 15) + 0.0 for c in n)
+    v = (round(-n[0], 15) + 0.0, round(-n[1], 15) + 0.0, round(-n[2], 15) + 0.0)
     return dataclasses.replace(base, liner=ln, impact=SceneImpact(velocity=v, point=None, gap=base.impact.gap))
 
 
@@ -67,7 +75,7 @@ def place_scene(base: Scene, place: str, arc: float, margin: float = 0.0) -> Pla
     """The scene ``base`` (a liner scene) with its impact at ``place`` and arc position ``arc`` (m)
     (module docstring); with ``margin`` (m) at least that far, along the struck surface, from its
     free edges (the contact's room: :mod:`millimpact.damage.edges`)."""
-    ln = base.liner
+    ln = liner_of(base)
     hb, ht = 0.5 * ln.lifter_base_width, 0.5 * ln.lifter_top_width
     step = STEP_FRACTION * base.ball.radius
     flip = {"+z": "-z", "-z": "+z"}

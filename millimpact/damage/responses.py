@@ -65,6 +65,7 @@ def define_bin_cases(bins: Sequence[Bin], placed: dict[int, PlacedScene], method
     offset = 0
     for members in groups.values():
         scene = placed[members[0].index].scene
+        assert scene is not None    # only placed bins were grouped
         try:
             cases = define_cases(scene, [], [], [scene.ball.radius], method, options,
                                  pairs=[(b.speed_m_s, b.angle_deg) for b in members])
@@ -118,13 +119,13 @@ def compute_bin_rows(bin_cases: Sequence[BinCase], folder: Path, runner: CaseRun
                      comm=None) -> dict[int, dict]:
     """Each computable bin's table row (bin index -> row), computing the missing ones with
     ``runner`` (stored in ``folder`` as they finish, so an interrupted map keeps them)."""
-    have = [bc for bc in bin_cases if bc.case is not None]
+    have = [(bc, bc.case) for bc in bin_cases if bc.case is not None]
     if comm is None or comm.rank == 0:
         folder.mkdir(parents=True, exist_ok=True)
     if comm is not None:
         comm.barrier()
     store = PieceStore(folder)
-    todo = [bc.case for bc in have if store.load(bc.case.key) is None]
+    todo = [case for _, case in have if store.load(case.key) is None]
     say(f"bins: {len(have)} to compute by the table engine, {len(have) - len(todo)} from {folder}, "
         f"{len(todo)} to run" + (f"; {len(bin_cases) - len(have)} refused" if len(have) < len(bin_cases) else ""))
     if todo:
@@ -132,8 +133,8 @@ def compute_bin_rows(bin_cases: Sequence[BinCase], folder: Path, runner: CaseRun
     if comm is not None:
         comm.barrier()
     rows = {}
-    for bc in have:
-        row = store.load(bc.case.key)
+    for bc, case in have:
+        row = store.load(case.key)
         if row is not None:
             rows[bc.bin.index] = row
     return rows
@@ -151,25 +152,28 @@ def run_repeat(bc: BinCase, n: int, method: str, options: dict, petsc_options: d
     """The repeated-impact response at the bin's place: ``n`` identical impacts at its representative
     speed and angle, each from the previous one's residual state; stored in ``folder`` as
     ``<key>.json`` ({"outcomes": [...], "verdict": {...}}) when done, or taken from there."""
-    scene = bc.case.scene
-    key = repeat_key(scene, bc.case.speed, bc.case.angle, n, method, options)
+    case = bc.case
+    assert case is not None    # a refused bin has no repeated impacts
+    scene = case.scene
+    key = repeat_key(scene, case.speed, case.angle, n, method, options)
     store = PieceStore(folder)
     got = store.load(key)
     if got is not None:
         say(f"  repeat at bin {bc.bin.index} ({bc.bin.place}): {n} impacts from {folder}")
         return {**got, "key": key}
-    spec = ImpactSpec(speed_m_s=bc.case.speed, angle_deg=bc.case.angle)
-    say(f"  repeat at bin {bc.bin.index} ({bc.bin.place}, v = {bc.case.speed:.4g} m/s, angle {bc.case.angle:.3g} deg): "
+    spec = ImpactSpec(speed_m_s=case.speed, angle_deg=case.angle)
+    say(f"  repeat at bin {bc.bin.index} ({bc.bin.place}, v = {case.speed:.4g} m/s, angle {case.angle:.3g} deg): "
         f"{n} impacts")
     # the sequence keeps each finished impact and its plastic state: an interrupted sequence
     # continues from its last impact
     outcomes = run_sequence(scene, [spec] * n, method=method, petsc_options=petsc_options, comm=comm,
                             progress=say, store_dir=folder / f"{key}.impacts")
-    rows = [dataclasses.asdict(o) if dataclasses.is_dataclass(o) else dict(o) for o in outcomes]
+    rows = [dataclasses.asdict(o) if dataclasses.is_dataclass(o) and not isinstance(o, type) else dict(o)
+            for o in outcomes]
     v = classify(outcomes)
     verdict = {"kind": v.kind, "impacts_to_shakedown": v.impacts_to_shakedown,
                "numbers": {k: (float(x) if isinstance(x, (int, float)) else x) for k, x in dict(v.numbers).items()}}
-    result = {"bin": bc.bin.index, "place": bc.bin.place, "speed_m_s": bc.case.speed, "angle_deg": bc.case.angle,
+    result = {"bin": bc.bin.index, "place": bc.bin.place, "speed_m_s": case.speed, "angle_deg": case.angle,
               "outcomes": rows, "verdict": verdict}
     if comm is None or comm.rank == 0:
         store.save(key, result)
