@@ -6,6 +6,7 @@ commands that never touch MPI (``--help``, ``scene list``) stay fast.
 from __future__ import annotations
 
 import os
+from typing import Any
 
 
 def world_rank() -> int:
@@ -42,7 +43,7 @@ def _say_flushed(*args, **kw) -> None:
 
 
 #: whether commands report their stages (set by the CLI: on unless -q)
-STAGES = {"enabled": False, "t0": None}
+STAGES: dict[str, Any] = {"enabled": False, "t0": None}
 
 
 def enable_stages(on: bool) -> None:

@@ -173,6 +173,7 @@ def run_study(name: Optional[str] = None, param: Optional[str] = None, base: Opt
             f"{len(res.failed)} failed; wall time {wall:.1f} s")
         if n_comp:
             say("  " + describe_reuse(runs)[1])
+        assert a is not None    # rank 0 wrote the report
         for f in a.fits[:3]:
             say(f"  {f['name']:<42s} ~ {study.symbol}^{f['k']:.3f}   (Hertz {study.symbol}^{f['k_hertz']:.3f})")
         for c in a.paper_checks:

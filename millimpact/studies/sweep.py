@@ -60,7 +60,9 @@ def safe_name(text: str) -> str:
 
 def split_values(text: str) -> list[str]:
     """Split ``v1,v2,...`` at the commas outside brackets and quotes (values may be TOML arrays)."""
-    parts, depth, quote, cur = [], 0, "", []
+    parts: list[str] = []
+    cur: list[str] = []
+    depth, quote = 0, ""
     for ch in text:
         if quote:
             quote = "" if ch == quote else quote
@@ -108,6 +110,7 @@ def study_base(name: Optional[str], param: Optional[str], base: Optional[str], s
     spec = BUILTIN_STUDIES.get(name or "")
     if spec is None:
         define_study(name, param, base, sets)   # the one line saying what is wrong
+        raise AssertionError(f"define_study accepted the unknown study {name!r}")
     return apply_study_sets(resolve_scene(spec.base), sets, spec.param)
 
 
@@ -309,11 +312,11 @@ def describe_reuse(runs: Sequence[CaseRun]) -> tuple[dict, str]:
     ``MILLIMPACT_REDUCTION_CACHE``: same matrices), from each case's ``summary.json``. Cases that
     move the impact place change the struck body's mesh and zone, so only the ball can be reused
     then. Returns (counts for ``study.json``, one line for the terminal)."""
-    computed = [r for r in runs if r.status == "computed" and r.summary]
-    mesh = sum(bool(r.summary.get("model", {}).get("mesh", {}).get("cached")) for r in computed)
+    computed = [r.summary for r in runs if r.status == "computed" and r.summary]
+    mesh = sum(bool(s.get("model", {}).get("mesh", {}).get("cached")) for s in computed)
     bodies: dict[str, int] = {}
-    for r in computed:
-        for name, b in (r.summary.get("model", {}).get("reduction", {}) or {}).get("bodies", {}).items():
+    for s in computed:
+        for name, b in (s.get("model", {}).get("reduction", {}) or {}).get("bodies", {}).items():
             bodies[name] = bodies.get(name, 0) + bool(b.get("from_cache"))
     counts = {"computed_cases": len(computed), "mesh_from_cache": mesh, "reduction_from_cache": bodies}
     parts = [f"the mesh in {mesh}"] + [f"the {name}'s reduction in {k}" for name, k in bodies.items()]

@@ -58,9 +58,7 @@ def scene_restitution(scene, speed: float) -> tuple[float, str]:
     from ...theory.thornton import restitution_thornton, yield_onset_velocity
 
     ball, liner = scene.ball.material, scene.liner.material
-    ys = [m.yield_stress if m.yield_stress is not None else (m.flow_curve[0][1] if m.flow_curve else None)
-          for m in (ball, liner)]
-    ys = [y for y in ys if y is not None]
+    ys = [y for y in (m.initial_yield_stress for m in (ball, liner)) if y is not None]
     if not ys:
         raise InputError(f"scene '{scene.name}': ball and liner are elastic (their restitution would be 1); "
                          "give --restitution E (0 < E < 1, e.g. 0.6 for steel balls on a steel liner)")

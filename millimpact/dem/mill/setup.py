@@ -223,8 +223,8 @@ def lattice_positions(profile: MillProfile, r: float, thickness: float, n: int, 
         raise InputError(f"--balls/--fill: {n} balls do not fit the starting lattice of this mill (at most "
                          f"{len(pts)}); give fewer")
     pts.sort()
-    j = 0.01 * r
-    return [(x + rng.uniform(-j, j), y + rng.uniform(-j, j), z) for y, _, x, z in pts[:n]]
+    jitter = 0.01 * r
+    return [(x + rng.uniform(-jitter, jitter), y + rng.uniform(-jitter, jitter), z) for y, _, x, z in pts[:n]]
 
 
 def plan_mill(scene, opts: MillOptions, restitution_source: Optional[str] = None) -> MillSetup:
