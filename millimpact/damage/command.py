@@ -118,6 +118,9 @@ def check_settings(args: argparse.Namespace) -> None:
         raise InputError(f"--repeat-impacts {args.repeat_impacts}: must be >= 0")
     if args.ranks_per_case < 1:
         raise InputError(f"--ranks-per-case {args.ranks_per_case}: must be >= 1")
+    from .damage_map import check_repeat_method
+
+    check_repeat_method(args.method, args.repeat_impacts)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -127,7 +130,7 @@ def main(args: argparse.Namespace) -> int:
     from ..results.output_folder import claim_output, default_out
     from ..scene.builtin import resolve_scene
     from ..studies.sweep import apply_sets, parse_method_options
-    from .damage_map import MapSettings, run_damage_map
+    from .damage_map import MapSettings, plan_map, run_damage_map
 
     check_settings(args)
     scene = apply_sets(resolve_scene(args.scene), args.set, "impact.velocity")
@@ -144,14 +147,14 @@ def main(args: argparse.Namespace) -> int:
     world = MPI.COMM_WORLD
     if world.size % args.ranks_per_case or args.ranks_per_case > world.size:
         raise InputError(f"--ranks-per-case {args.ranks_per_case}: must divide the number of ranks ({world.size})")
-    from .bins import choose_bins, yield_onset_speed
-
-    choose_bins(impacts, yield_onset_speed(scene), settings.max_bins, settings.tolerance)   # a bad budget: before any folder
+    say = (lambda *a: None) if args.quiet or world.rank != 0 else (lambda *a: print(*a, flush=True))
+    # bins, placed scenes, cases: a setting every bin hits is one line before any folder
+    prepared = plan_map(scene, impacts, settings, say)
     out = args.out if args.out is not None else default_out(Path(args.scene).stem, prefix="damage-")
     # before computing: checks, lock, leftovers (collective); an interruption's one line says which
     # finished bins and sequences are kept (damage_map.kept_bins_note)
     target = claim_output(out, "damage", force=args.force, comm=world)
-    run_damage_map(scene, impacts, target, settings, str(path), quiet=args.quiet, comm=world)
+    run_damage_map(scene, impacts, target, settings, str(path), quiet=args.quiet, comm=world, prepared=prepared)
     if not args.quiet and world.rank == 0:
         print(f"  results in {target.shown}/ (damage.csv, bins.csv, profile.csv, damage.json, damage_map.png)"
               + target.replaced_note(), flush=True)

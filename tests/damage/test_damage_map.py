@@ -277,6 +277,22 @@ def test_scene_without_a_liner_one_line_exit_2(tmp_path):
     assert r.returncode == 2 and "--revolutions" in r.stderr and not out.exists()
 
 
+@pytest.mark.parametrize("args, words", [
+    # a setting every bin hits: before, each bin was refused alone and an all-zero map published, exit 0
+    (["--set", "time.end=1e-12"], "no bin can be computed: time.end"),
+    # a method the repeated-impact stage cannot run: before, every bin was computed, then a
+    # KeyError traceback, exit 1, a folder left
+    (["--method", "hertz"], "--repeat-impacts 0"),
+])
+def test_an_error_every_bin_would_hit_is_one_line_before_any_bin(tmp_path, args, words):
+    path = _write(tmp_path / "impacts.csv", HEADER, [GOOD, GOOD[:5] + ["plate", "0.18"]])
+    out = tmp_path / "out"
+    r = run_cli("damage", "liner-segment", "--impacts", str(path), "--revolutions", "2", *args, "--out", str(out))
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and words in lines[0], r.stderr
+    assert "bins: " not in r.stdout and not out.exists()
+
+
 def test_the_impact_reader_refuses_what_the_map_would_misread(tmp_path):
     path = _write(tmp_path / "i.csv", HEADER, [GOOD[:5] + ["shell"] + GOOD[6:]])
     with pytest.raises(Exception, match="place 'shell'"):
