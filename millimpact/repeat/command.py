@@ -126,7 +126,7 @@ def main(args: argparse.Namespace) -> int:
     from ..results.output_folder import claim_output, read_manifest
     from ..scene.builtin import resolve_scene
     from .report import verdict_text, write_sequence
-    from .sequence import check_impacts, run_sequence
+    from .sequence import check_sequence, run_sequence
     from .verdict import classify
 
     comm = MPI.COMM_WORLD
@@ -134,8 +134,8 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"--method {args.method}: choose one of {', '.join(METHODS)}")
     scene = apply_sets(resolve_scene(args.scene or "paper-rig-plastic"), args.set)
     impacts = build_impacts(scene, args.impacts, args.velocities, args.angles, args.offset)
-    check_impacts(scene, impacts)
     options = parse_options(args.option)
+    check_sequence(scene, impacts, args.method)   # the plan's refusals: before the folder
     # before computing: checks, lock, leftovers (collective; docs/outputs.md)
     target = claim_output(args.out, "repeat", force=args.force, comm=comm)
     out = target.path

@@ -58,7 +58,7 @@ from ..scene.impact_direction import oblique_velocity
 log = logging.getLogger(__name__)
 
 __all__ = ["ImpactSpec", "ImpactOutcome", "ImpactRecord", "Verdict", "classify", "run_sequence",
-           "impact_velocity", "sequence_scene", "check_impacts", "OUTCOME_COLUMNS"]
+           "impact_velocity", "sequence_scene", "check_impacts", "check_sequence", "OUTCOME_COLUMNS"]
 
 #: each impact's time span: the flight over the gap plus this many Hertz contact times (the
 #: separation stop ends it ~1.1 t_c after contact for a plastic impact)
@@ -204,6 +204,22 @@ def sequence_scene(scene, impacts: Sequence[ImpactSpec], method: str):
             # paper-rig-plastic) stays far inside that zone (3.36 mm)
             ball = make_plan(design.with_value("model.zone_radius", single)).ball_zone
             design = design.with_value("model.ball_zone_radius", ball)
+    return design
+
+
+def check_sequence(scene, impacts: Sequence[ImpactSpec], method: str):
+    """The sequence's scene (:func:`sequence_scene`) and its plan, made as the engines make them:
+    an :class:`InputError` / :class:`SceneError` line for settings the plan refuses (a time.end
+    below the contact step, an h_contact too large for the zone) before any folder is touched."""
+    from ..scene.plan import make_plan
+
+    check_impacts(scene, impacts)
+    design = sequence_scene(scene, impacts, method)
+    plan = make_plan(design)
+    if method != "full":
+        from ..methods.reduced import reduced_plan
+
+        reduced_plan(design, plan)
     return design
 
 

@@ -25,6 +25,9 @@ COARSE = ["--set", "model.h_contact=8e-4", "--set", "model.h_far=0.012", "-q"]
     (["--impacts", "2", "--offset", "0.001"], "--offset"),
     (["--impacts", "2", "--velocities", "-1"], "speed"),
     (["--impacts", "2", "--method", "hertz"], "--method"),
+    # the plan's refusals: before, they came after --out was claimed and left its folder
+    (["--impacts", "2", "--set", "time.end=1e-9"], "time.end"),
+    (["--impacts", "2", "--set", "model.h_contact=0.01"], "model.h_contact"),
 ])
 def test_bad_input_is_one_line_exit_2_and_no_folder(tmp_path, args, words):
     out = tmp_path / "r"
