@@ -16,7 +16,8 @@ The policy:
   files and no manifest, is refused unless ``force``: then the new output is written beside what is
   there, and the entries it replaces are named.
 - The path is checked before computing (:func:`prepare_output`): a file, the current folder or one
-  of its parents, ``''``, or a place where no folder can be made are refused in one line.
+  of its parents, ``''``, or a place where no folder can be made are refused in one line. A
+  symbolic link is written through: its target is the output folder, the link stays.
 - Two writers of one folder exclude each other: the claim holds an advisory lock
   (``fcntl.flock``) on ``.NAME.lock`` beside the folder until the command ends. The kernel drops
   it when its holder dies, so a killed run never blocks the next; a second writer is refused in
@@ -125,6 +126,10 @@ def prepare_output(out: Path | str, option: str = "--out", force: bool = False) 
     if not raw.strip():
         raise InputError(f"{option} {raw!r}: is empty; give a folder (e.g. out/NAME)")
     out = Path(os.path.abspath(os.path.expanduser(raw)))
+    if out.is_symlink():
+        # the user's link: written through into its target, under the target's rules (the link
+        # itself is never renamed, replaced or removed)
+        out = Path(os.path.realpath(out))
     cwd = Path.cwd().resolve()
     if out == cwd or out in cwd.parents or out == Path(out.anchor) or out.resolve() == cwd:
         raise InputError(f"{option} {raw}: is the current folder or one of its parents; give a folder "

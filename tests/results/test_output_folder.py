@@ -144,3 +144,30 @@ def test_sigterm_reaches_the_command_while_a_library_holds_the_handler():
                        text=True, timeout=60)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split("\n")[:2] == ["child 0", "interrupted Terminated"], (r.stdout, r.stderr)
+
+
+def test_a_symlinked_out_writes_through_into_its_target(tmp_path):
+    """--out a link to an earlier output: the new output goes into the link's target under the
+    target's rules, and the user's link stays as it was (before: the link was renamed to a hidden
+    .NAME.old-PID and a real folder published in its place; the target kept the old results)."""
+    from millimpact.results.output_folder import claim_output
+
+    target = tmp_path / "target"
+    with staged_output(target) as stage:
+        (stage / "summary.json").write_text('{"old": 1}')
+    link = tmp_path / "link"
+    link.symlink_to(target, target_is_directory=True)
+    claim = claim_output(link, "run")
+    with claim.staged() as stage:
+        (stage / "summary.json").write_text('{"new": 1}')
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert (target / "summary.json").read_text() == '{"new": 1}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "target"]     # nothing hidden left
+    # a link to the user's own folder is refused as that folder is
+    user = tmp_path / "user"
+    user.mkdir()
+    (user / "thesis.tex").write_text("mine")
+    (tmp_path / "ulink").symlink_to(user)
+    with pytest.raises(InputError, match="did not write"):
+        claim_output(tmp_path / "ulink", "run")
+    assert (tmp_path / "ulink").is_symlink() and (user / "thesis.tex").read_text() == "mine"
