@@ -164,7 +164,9 @@ def sequence_scene(scene, impacts: Sequence[ImpactSpec], method: str):
     from ..scene.plan import (ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan,
                               scene_hertz)
 
-    scenes = [scene.with_value("impact.velocity", impact_velocity(scene, s)) for s in impacts]
+    # one scene per distinct impact (a long sequence repeats a few): its plan decides the symmetry
+    distinct = list(dict.fromkeys(ImpactSpec(i.speed_m_s, i.angle_deg) for i in impacts))
+    scenes = [scene.with_value("impact.velocity", impact_velocity(scene, s)) for s in distinct]
     slow = min(scenes, key=lambda s: s.normal_speed)
     fast = max(scenes, key=lambda s: s.normal_speed)
     hs, hf = scene_hertz(slow), scene_hertz(fast)

@@ -44,7 +44,9 @@ from typing import Callable, Iterable, Iterator, Optional
 from ..errors import InputError, OutputError
 from ..interrupts import raise_if_interrupted
 
-#: the manifest that marks a folder as a millimpact output: {"kind", "millimpact_version", "files"}
+#: the manifest that marks a folder as a millimpact output: {"kind", "millimpact_version", "files",
+#: "beside"}: the kind last written and its names, and the names of each other kind written there
+#: earlier (an output added with --force beside another: each command still owns its own entries)
 MARKER = ".millimpact-output"
 #: the hidden entries beside an output folder NAME that millimpact makes (stage, swap, probe, lock)
 HIDDEN = (".partial-", ".old-", ".probe-")
@@ -69,7 +71,9 @@ def read_manifest(folder: Path) -> Optional[dict]:
     folder = Path(folder)
     try:
         data = json.loads((folder / MARKER).read_text())
-        return {"kind": data.get("kind", "run"), "files": data.get("files")}
+        beside = data.get("beside") or {}
+        return {"kind": data.get("kind", "run"), "files": data.get("files"),
+                "beside": {str(k): list(v) for k, v in beside.items()} if isinstance(beside, dict) else {}}
     except (OSError, ValueError, AttributeError):
         pass
     version = "millimpact_version"
@@ -77,10 +81,31 @@ def read_manifest(folder: Path) -> Optional[dict]:
                             ("contact_table.json", "table", version), ("study.json", "study", "cases")):
         try:
             if key in json.loads((folder / name).read_text()):
-                return {"kind": kind, "files": None}
+                return {"kind": kind, "files": None, "beside": {}}
         except (OSError, ValueError, TypeError):
             continue
     return None
+
+
+def kinds_beside(manifest: Optional[dict], kind: str) -> dict:
+    """The other kinds' names a folder with ``manifest`` holds, when ``kind`` is written into it:
+    the earlier main kind's (unless it is ``kind``) and those already beside it (kind -> names)."""
+    if manifest is None:
+        return {}
+    others = {k: set(v) for k, v in manifest.get("beside", {}).items() if k != kind}
+    if manifest["kind"] != kind and manifest["files"]:
+        others[manifest["kind"]] = set(manifest["files"])
+    return others
+
+
+def owned_names(manifest: Optional[dict], kind: str) -> Optional[set]:
+    """The names ``kind`` wrote in a folder with ``manifest`` (None: an output of that kind written
+    before manifests named its files; empty set: none of that kind)."""
+    if manifest is None:
+        return set()
+    if manifest["kind"] == kind:
+        return None if manifest["files"] is None else set(manifest["files"])
+    return set(manifest.get("beside", {}).get(kind, []))
 
 
 def is_millimpact_output(folder: Path) -> bool:
@@ -88,15 +113,21 @@ def is_millimpact_output(folder: Path) -> bool:
     return read_manifest(folder) is not None
 
 
-def write_marker(folder: Path, kind: str, files: Optional[Iterable[str]] = None) -> None:
+def write_marker(folder: Path, kind: str, files: Optional[Iterable[str]] = None,
+                 beside: Optional[dict] = None) -> None:
     """Write the manifest of ``folder`` (atomically): ``kind`` and the names millimpact wrote there
-    (None: not known; a rerun then replaces only the names it writes again)."""
+    (None: not known; a rerun then replaces only the names it writes again); ``beside``: other
+    kinds' names in the same folder (kind -> names)."""
     from .. import __version__
 
     folder = Path(folder)
     names = None if files is None else sorted(set(files) - {MARKER})
+    data = {"kind": kind, "millimpact_version": __version__, "files": names}
+    others = {k: sorted(set(v) - {MARKER}) for k, v in (beside or {}).items() if k != kind and v}
+    if others:
+        data["beside"] = others
     tmp = folder / f"{MARKER}.tmp"
-    tmp.write_text(json.dumps({"kind": kind, "millimpact_version": __version__, "files": names}) + "\n")
+    tmp.write_text(json.dumps(data) + "\n")
     os.replace(tmp, folder / MARKER)
 
 
@@ -181,8 +212,8 @@ class OutputFolder:
         if self.rank0:
             self.path.mkdir(parents=True, exist_ok=True)
             old = read_manifest(self.path)
-            owned = set((old or {}).get("files") or []) if (old or {}).get("kind") == self.kind else set()
-            write_marker(self.path, self.kind, owned | set(keep))
+            owned = owned_names(old, self.kind) or set()
+            write_marker(self.path, self.kind, owned | set(keep), kinds_beside(old, self.kind))
         self.note = note or self.note
         return self.path
 
@@ -231,7 +262,7 @@ def claim_output(out: Path | str, kind: str, force: bool = False, option: str = 
                 raise OutputError(f"{option} {raw}: the disk is full (0 bytes free there); free some space first")
             leftovers = remove_leftovers(path)
             old = read_manifest(path) if path.is_dir() else None
-            if old is not None and old["kind"] != kind and not force:
+            if old is not None and old["kind"] != kind and kind not in old["beside"] and not force:
                 _unlock(path)
                 raise InputError(f"{option} {raw}: holds a millimpact {old['kind']} output, not a {kind}; give "
                                  f"a new folder, or add --force to write the {kind} beside it")
@@ -387,14 +418,15 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
     new = sorted(p.name for p in stage.iterdir())
     old = read_manifest(out) if out.is_dir() else None
     present = {p.name for p in out.iterdir()} - {MARKER} if out.is_dir() else set()
-    same = old is not None and old["kind"] == kind
     keep = set(keep) & present
-    if same and old["files"] is None:      # written before manifests: what this output writes again is its
+    owned = owned_names(old, kind)
+    if owned is None:                      # written before manifests: what this output writes again is its
         owned = present & set(new)
-    else:
-        owned = set(old["files"] or []) & present if same else set()
-    owned -= keep
-    foreign = present - owned - keep
+    owned = (owned & present) - keep
+    # the other kinds' entries (an output added beside another with --force): still theirs
+    others = {k: (v & present) - owned - keep for k, v in kinds_beside(old, kind).items()}
+    theirs = set().union(*others.values()) if others else set()
+    foreign = present - owned - keep - theirs
     write_marker(stage, kind, new)
     said = [f"replaced the earlier {kind}'s {len(owned)} {_entries(len(owned))}"] if owned else []
     if not present - owned:                 # nothing else there: swap the whole folder
@@ -404,9 +436,10 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
         stage.rename(out)
         shutil.rmtree(trash, ignore_errors=True)
         return said
-    write_marker(out, kind, (owned | keep | set(new)) - foreign)
+    clash = (foreign | theirs) & set(new)
+    others = {k: v - clash for k, v in others.items()}
+    write_marker(out, kind, (owned | keep | set(new)) - foreign - theirs, others)
     trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-    clash = foreign & set(new)
     for name in sorted(owned | clash):
         if name in clash and not force:
             os.rename(out / name, out / _free_name(out, f"{name}.yours"))
@@ -414,11 +447,14 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
             os.rename(out / name, trash / name)
     for name in new:
         os.rename(stage / name, out / name)
-    write_marker(out, kind, set(new) | keep)
+    write_marker(out, kind, set(new) | keep, others)
     shutil.rmtree(trash, ignore_errors=True)
     shutil.rmtree(stage, ignore_errors=True)
     if clash:
         said.append(f"{'replaced with --force' if force else 'kept yours as NAME.yours'}: {', '.join(sorted(clash))}")
+    for k, v in sorted(others.items()):
+        if v:
+            said.append(f"kept the {k}'s {len(v)} {_entries(len(v))}")
     if foreign - clash:
         rest = sorted(foreign - clash)
         said.append(f"kept {len(rest)} {_entries(len(rest))} millimpact did not write: {', '.join(rest[:5])}"

@@ -19,6 +19,8 @@ COARSE = ["--set", "model.h_contact=8e-4", "--set", "model.h_far=0.012", "-q"]
 
 @pytest.mark.parametrize("args, words", [
     (["--impacts", "0"], "--impacts 0"),
+    # no upper bound before: a spec per impact built first, ~250 MB/s, and Ctrl-C not honoured
+    (["--impacts", "1000000000"], "--impacts 1000000000: must lie in [1, 1000]"),
     (["--impacts", "3", "--velocities", "1,2"], "--velocities"),
     (["--impacts", "2", "--angles", "10,20,30"], "--angles"),
     (["--impacts", "2", "--offset", "0.05,0"], "leaves the face"),

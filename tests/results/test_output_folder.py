@@ -171,3 +171,27 @@ def test_a_symlinked_out_writes_through_into_its_target(tmp_path):
     with pytest.raises(InputError, match="did not write"):
         claim_output(tmp_path / "ulink", "run")
     assert (tmp_path / "ulink").is_symlink() and (user / "thesis.tex").read_text() == "mine"
+
+
+def test_an_output_forced_beside_another_kind_leaves_each_its_own(tmp_path):
+    """``export ... --out TABLE --force`` beside a table: the table's entries stay the table's, so
+    the next ``table`` into that folder is accepted and replaces only its own entries (before: the
+    table's files became "not written by millimpact" and the table was refused in its own folder)."""
+    from millimpact.results.output_folder import claim_output, read_manifest
+
+    out = tmp_path / "table"
+    with staged_output(out, kind="table") as stage:
+        (stage / "contact_table.csv").write_text("old table")
+    claim = claim_output(out, "export", force=True)
+    with claim.staged() as stage:
+        (stage / "yade_law.py").write_text("export")
+    assert read_manifest(out)["beside"] == {"table": ["contact_table.csv"]}
+    claim = claim_output(out, "table")                       # its own folder: no --force needed
+    with claim.staged() as stage:
+        (stage / "contact_table.csv").write_text("new table")
+    assert "kept the export's 1 entry" in claim.replaced_note() and "did not write" not in claim.replaced_note()
+    assert (out / "contact_table.csv").read_text() == "new table" and (out / "yade_law.py").read_text() == "export"
+    m = read_manifest(out)
+    assert m["kind"] == "table" and m["files"] == ["contact_table.csv"] and m["beside"] == {"export": ["yade_law.py"]}
+    with pytest.raises(InputError, match="not a run"):       # a third kind is still refused
+        claim_output(out, "run")
