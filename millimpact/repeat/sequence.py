@@ -70,7 +70,8 @@ IMPACT_SPAN_CONTACTS = 3.0
 #: reached the single impact's 3.36 mm zone (plastic strain 0.0015 at its boundary). The factor
 #: keeps a single impact's margin (its zone is 1.32x its plastic radius) over the grown region:
 #: 4.03 mm, boundary elastic in all ten. 1.3 (4.36 mm) cost 8 % more coordinates (14,833
-#: against 13,585) for the same verdict
+#: against 13,585) for the same verdict. A sequence of one impact has it too, so the first impact
+#: of a sequence does not depend on its length (a ``run`` of the same impact has the single zone)
 REPEAT_ZONE_FACTOR = 1.2
 
 #: the columns of impacts.csv, in order (ImpactOutcome's fields)
@@ -159,8 +160,8 @@ def check_impacts(scene, impacts: Sequence[ImpactSpec]) -> None:
 def sequence_scene(scene, impacts: Sequence[ImpactSpec], method: str):
     """The scene whose mesh serves every impact (module docstring): h_contact and gap of the
     slowest normal speed, cutoff and contact step of the fastest, the least symmetric model, the
-    zone of the fastest (REPEAT_ZONE_FACTOR times it for more than one impact) grown by the
-    largest offset."""
+    zone of the fastest (REPEAT_ZONE_FACTOR times it, whatever the number of impacts: a
+    sequence's first impact is the same for one impact or several) grown by the largest offset."""
     from ..scene.plan import (ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan,
                               scene_hertz)
 
@@ -194,10 +195,10 @@ def sequence_scene(scene, impacts: Sequence[ImpactSpec], method: str):
 
             zone = reduced_plan(design, plan)[1].zone_radius
         single = zone
-        if len(impacts) > 1:
-            from ..scene.plan import PLASTIC_ZONE_CAP, zone_radius_limit
+        # every sequence, one impact too: its first impact does not depend on how many follow
+        from ..scene.plan import PLASTIC_ZONE_CAP, zone_radius_limit
 
-            zone = max(zone, min(REPEAT_ZONE_FACTOR * zone, PLASTIC_ZONE_CAP * zone_radius_limit(design)))
+        zone = max(zone, min(REPEAT_ZONE_FACTOR * zone, PLASTIC_ZONE_CAP * zone_radius_limit(design)))
         zone += max(math.hypot(*i.offset_m) for i in impacts)
         design = design.with_value("model.zone_radius", zone)
         if zone > single and scene.model.ball_zone_radius is None:
