@@ -14,7 +14,10 @@ every thread it starts (MPI's progress thread, OpenMP's workers) inherits the ma
 keeps such a signal pending for the process. One thread waits for it (``sigwait``) and interrupts
 the main thread with it (``_thread.interrupt_main``): the Python handler
 :func:`on_interrupt_signal` runs in the main thread at its next bytecode, as for a delivered
-signal, and no library's handler ever sees one. Child processes are started with the signals
+signal, and no library's handler ever sees one. The waiter records the signal first and, while an
+import has the handler set to SIG_DFL (gmsh's module does, until millimpact.geometry puts it back),
+waits for it: ``interrupt_main`` does nothing for a signal Python does not handle, and a Ctrl-C
+during that import would be lost. Child processes are started with the signals
 unblocked (:func:`children_signals`), so Ctrl-C still reaches them.
 
 The handler also records the signal, and :func:`raise_if_interrupted` raises it again where a
@@ -26,6 +29,7 @@ from __future__ import annotations
 import _thread
 import signal
 import threading
+import time
 from contextlib import contextmanager
 from typing import Iterator
 
@@ -36,6 +40,9 @@ from .errors import Terminated
 _PENDING_SIGNALS: list[int] = []
 #: the signals the current command waits for (empty outside a command)
 _WAITED: set[int] = set()
+#: how long (s) a received signal waits for the command's handler to be back (a library import
+#: that set it to SIG_DFL for its length) before the main thread is interrupted anyway
+HANDLER_WAIT_S = 5.0
 
 
 def on_interrupt_signal(signum: int, frame) -> None:
@@ -63,6 +70,14 @@ def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
         signum = signal.sigwait(waited)
         if stop.is_set():
             return
+        # recorded here first: raise_if_interrupted sees it even if the handler never runs
+        _PENDING_SIGNALS.append(signum)
+        # interrupt_main does nothing while the signal's handler is SIG_DFL: gmsh's module sets
+        # SIGINT so during its import, until millimpact.geometry puts the handler back; wait
+        # for the handler (HANDLER_WAIT_S at most), then interrupt
+        deadline = time.monotonic() + HANDLER_WAIT_S
+        while signal.getsignal(signum) is not on_interrupt_signal and time.monotonic() < deadline:
+            time.sleep(0.01)
         _thread.interrupt_main(signum)   # runs on_interrupt_signal in the main thread
 
 
