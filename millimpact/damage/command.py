@@ -104,6 +104,28 @@ def lifters_of(args: argparse.Namespace, impacts_path: Path) -> int:
         return 1
 
 
+def check_log_liner(scene, impacts_path: Path) -> None:
+    """One line when the mill's summary.json beside the log names a mill other than the scene's
+    liner (its diameter, lifter count or lifter height): the log's places and arc positions belong
+    to that mill's liner. Nothing to check without a summary."""
+    mill = mill_summary(impacts_path).get("mill")
+    if not isinstance(mill, dict):
+        return
+    from ..dem.mill_geometry import build_profile
+
+    mine = build_profile(scene.liner, scene.ball.radius)
+    try:
+        theirs = (float(mill["diameter_m"]), int(mill["lifters"]), float(mill["lifter_height_m"]))
+    except (KeyError, TypeError, ValueError):
+        return
+    ours = (mine.diameter, mine.n_lifters, mine.lifter_height)
+    if theirs[1] != ours[1] or any(not math.isclose(a, b, rel_tol=1e-6) for a, b in zip(theirs[::2], ours[::2])):
+        logged = mill_summary(impacts_path).get("scene", "another scene")
+        raise InputError(f"--impacts {impacts_path}: logged by millimpact mill on {logged} (D {theirs[0]:g} m, "
+                         f"{theirs[1]} lifters {theirs[2]:g} m high), not on the liner of {scene.name} (D "
+                         f"{ours[0]:g} m, {ours[1]} lifters {ours[2]:g} m high); give the log of that scene's mill")
+
+
 def check_settings(args: argparse.Namespace) -> None:
     """One line for a setting out of range."""
     if args.lifters is not None and args.lifters < 1:
@@ -138,6 +160,7 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"scene {args.scene}: has no liner (the damage map needs a liner scene: liner-segment, "
                          "liner-panel or a TOML file with a [liner] table)")
     path = Path(args.impacts)
+    check_log_liner(scene, path)
     impacts = read_impacts(path)
     settings = MapSettings(revolutions=revolutions_of(args, path), lifters=lifters_of(args, path),
                            slice_length_m=args.slice_length, max_bins=args.max_bins,
