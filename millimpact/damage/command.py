@@ -161,16 +161,16 @@ def main(args: argparse.Namespace) -> int:
                          "liner-panel or a TOML file with a [liner] table)")
     path = Path(args.impacts)
     check_log_liner(scene, path)
-    impacts = read_impacts(path)
+    world = MPI.COMM_WORLD
+    say = (lambda *a: None) if args.quiet or world.rank != 0 else (lambda *a: print(*a, flush=True))
+    impacts = read_impacts(path, say)
     settings = MapSettings(revolutions=revolutions_of(args, path), lifters=lifters_of(args, path),
                            slice_length_m=args.slice_length, max_bins=args.max_bins,
                            tolerance=args.restitution_tolerance, angle_bins=args.angle_bins, arc_bins=args.arc_bins,
                            cell_m=args.cell, method=args.method, options=parse_method_options(args.option),
                            repeat_impacts=args.repeat_impacts, ranks_per_case=args.ranks_per_case)
-    world = MPI.COMM_WORLD
     if world.size % args.ranks_per_case or args.ranks_per_case > world.size:
         raise InputError(f"--ranks-per-case {args.ranks_per_case}: must divide the number of ranks ({world.size})")
-    say = (lambda *a: None) if args.quiet or world.rank != 0 else (lambda *a: print(*a, flush=True))
     # bins, placed scenes, cases: a setting every bin hits is one line before any folder
     prepared = plan_map(scene, impacts, settings, say)
     out = args.out if args.out is not None else default_out(Path(args.scene).stem, prefix="damage-")

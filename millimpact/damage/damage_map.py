@@ -11,8 +11,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
+import numpy as np
+
 from .. import __version__
-from ..dem.impacts import Impact
+from ..dem.impacts import Impact, impact_column
 from ..errors import InputError
 from ..interrupts import raise_if_interrupted
 from ..results.output_folder import OutputFolder, claim_output
@@ -92,9 +94,10 @@ def plan_map(scene: Scene, impacts: Sequence[Impact], settings: MapSettings, say
         f"revolution(s); {describe(choice)}")
     for n in choice.notes:
         warn(n)
-    off = [i for i in impacts if abs(i.ball_radius_m / scene.ball.radius - 1) > RADIUS_MISMATCH]
+    off = int(np.count_nonzero(np.abs(impact_column(impacts, "ball_radius_m") / scene.ball.radius - 1)
+                               > RADIUS_MISMATCH))
     if off:
-        warn(f"{len(off)} of {len(impacts)} impacts have a ball radius more than {RADIUS_MISMATCH:.0%} from the scene's "
+        warn(f"{off} of {len(impacts)} impacts have a ball radius more than {RADIUS_MISMATCH:.0%} from the scene's "
              f"{scene.ball.radius:g} m: their response is the scene ball's, their energies their own")
     placed, cache = {}, {}
     for b in choice.bins:
