@@ -223,13 +223,18 @@ class OutputFolder:
         when the block ends without an exception (:func:`publish`): the earlier output of this kind
         is replaced except ``keep`` (a cache from :meth:`open`), the user's entries stay. Collective
         when the claim has a communicator, unless not ``collective`` (rank 0 alone writes). A failed
-        write is one line (``OutputError``)."""
+        write is one line (``OutputError``) saying what is kept (:attr:`note`). On an exception
+        the lock is dropped but the claim stays current: the CLI's line on an interruption says what
+        the folder keeps (its finished cases), not that nothing was written."""
+        unwritten = self.note if callable(self.note) else None
         try:
             with staged_output(self.path, self.comm if collective else None, self.kind, force=self.force, keep=keep,
-                               said=self.said, what=f"{self.option} {self.shown}") as stage:
+                               said=self.said, what=f"{self.option} {self.shown}", unwritten=unwritten) as stage:
                 yield stage
-        finally:
-            self.release()
+        except BaseException:
+            _unlock(self.path)
+            raise
+        self.release()
 
     def replaced_note(self) -> str:
         """`` (replaced ...; kept ...)`` for the command's "results in" line, or ''."""
@@ -363,12 +368,14 @@ def _world():
 # --- staging and publishing ---------------------------------------------------------------------------
 @contextmanager
 def staged_output(out: Path, comm=None, kind: str = "run", force: bool = False, keep: Iterable[str] = (),
-                  said: Optional[list[str]] = None, what: str = "") -> Iterator[Path]:
+                  said: Optional[list[str]] = None, what: str = "",
+                  unwritten: Optional[Callable[[], str]] = None) -> Iterator[Path]:
     """Write an output's files into a hidden staging folder ``.NAME.partial-*`` and :func:`publish`
     it to ``out`` only on success. Collective when ``comm`` is given: rank 0 makes the folder and
     every rank gets its path (collective writers such as XDMF); only rank 0 publishes. An exception
     (an interruption too) leaves ``out`` untouched and removes the staging folder; a failed write
-    (full disk ...) becomes an ``OutputError`` naming ``what`` (default the path)."""
+    (full disk ...) becomes an ``OutputError`` naming ``what`` (default the path) and what is left
+    (``unwritten()``, default: nothing was written)."""
     rank = comm.rank if comm is not None else 0
     out = Path(os.path.abspath(out))
     what = what or str(out)
@@ -379,7 +386,7 @@ def staged_output(out: Path, comm=None, kind: str = "run", force: bool = False, 
             stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
             apply_umask(stage)
         except OSError as exc:
-            raise _write_error(exc, what) from None
+            raise _write_error(exc, what, unwritten) from None
     if comm is not None:
         stage = Path(comm.bcast(str(stage) if stage else None, root=0))
     try:
@@ -401,7 +408,7 @@ def staged_output(out: Path, comm=None, kind: str = "run", force: bool = False, 
     except BaseException as exc:
         if rank == 0:
             shutil.rmtree(stage, ignore_errors=True)
-        error = _write_error(exc, what) if isinstance(exc, (OSError, RuntimeError)) else None
+        error = _write_error(exc, what, unwritten) if isinstance(exc, (OSError, RuntimeError)) else None
         if error is not None:
             raise error from None
         raise
@@ -475,7 +482,7 @@ def _free_name(folder: Path, name: str) -> str:
 
 
 # --- failed writes ------------------------------------------------------------------------------------
-def _write_error(exc: BaseException, what: str) -> Optional[OutputError]:
+def _write_error(exc: BaseException, what: str, unwritten: Optional[Callable[[], str]] = None) -> Optional[OutputError]:
     """The one-line :class:`OutputError` of a failed write (an OSError with a write errno, or the
     RuntimeError HDF5 raises for one), else None (not a write failure: raised as it is)."""
     if isinstance(exc, OutputError):
@@ -487,8 +494,8 @@ def _write_error(exc: BaseException, what: str) -> Optional[OutputError]:
     if code not in WRITE_ERRNOS:
         return None
     name = Path(getattr(exc, "filename", None) or "").name
-    return OutputError(f"{what}: {os.strerror(code)}{f' writing {name}' if name else ''}; nothing was written "
-                       "(what was there before is unchanged)")
+    left = unwritten() if unwritten is not None else "nothing was written (what was there before is unchanged)"
+    return OutputError(f"{what}: {os.strerror(code)}{f' writing {name}' if name else ''}; {left}")
 
 
 @contextmanager
