@@ -17,8 +17,8 @@ from typing import Optional
 from .console import enable_stages, say, world_rank
 from .errors import InputError, MillimpactError, OutputError, Terminated
 from .fem.jit_cache import release_interrupted_compile, stale_jit_claim
-from .interrupts import command_signals
-from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note
+from .interrupts import ON_SIGNAL, command_signals
+from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note, release_locks
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
 from .scene.schema import parse_value
 
@@ -497,8 +497,12 @@ class _CheckedStdout:
 def main(argv: Optional[list[str]] = None) -> int:
     stdout = sys.stdout
     sys.stdout = _CheckedStdout(stdout)
+    _SAID_INTERRUPT.clear()
+    mpi_ranks = int(os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1")))
     try:
         with command_signals():   # Ctrl-C and SIGTERM seen whatever a library does (interrupts.py)
+            if mpi_ranks > 1:
+                ON_SIGNAL.append(_interrupted_under_mpirun)
             code = _main(argv)
         sys.stdout.flush()
         return code
@@ -507,7 +511,31 @@ def main(argv: Optional[list[str]] = None) -> int:
             print(f"millimpact: failed: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     finally:
+        if _interrupted_under_mpirun in ON_SIGNAL:
+            ON_SIGNAL.remove(_interrupted_under_mpirun)
         sys.stdout = stdout
+
+
+#: the interrupt line was said already (by :func:`_interrupted_under_mpirun`)
+_SAID_INTERRUPT: list[bool] = []
+
+
+def _interrupt_line(code: int, text: str = "") -> None:
+    """``millimpact: interrupted (SIGINT|SIGTERM): what is kept``, once, on rank 0."""
+    if world_rank() == 0 and not _SAID_INTERRUPT:
+        _SAID_INTERRUPT.append(True)
+        print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {text or interrupt_note()}",
+              file=sys.stderr, flush=True)
+
+
+def _interrupted_under_mpirun(signum: int) -> None:
+    """Under mpirun, at the signal (in the waiting thread): mpirun sends SIGTERM to every rank and
+    SIGKILL 1 s later, while the main thread may be inside a collective solve another rank has
+    left. Say the line and drop the output's lock now (:data:`millimpact.interrupts.ON_SIGNAL`)."""
+    import signal as _signal
+
+    _interrupt_line(143 if signum == _signal.SIGTERM else 130)
+    release_locks()
 
 
 def _main(argv: Optional[list[str]] = None) -> int:
@@ -563,9 +591,7 @@ def _main(argv: Optional[list[str]] = None) -> int:
     except KeyboardInterrupt as exc:
         release_interrupted_compile(exc)
         code = getattr(exc, "exit_code", 143 if isinstance(exc, Terminated) else 130)
-        if world_rank() == 0:
-            print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {str(exc) or interrupt_note()}",
-                  file=sys.stderr)
+        _interrupt_line(code, str(exc))
         return code
     except TimeoutError as exc:
         stale = stale_jit_claim(exc)

@@ -31,7 +31,7 @@ import signal
 import threading
 import time
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Callable, Iterator
 
 from .errors import Terminated
 
@@ -43,6 +43,11 @@ _WAITED: set[int] = set()
 #: how long (s) a received signal waits for the command's handler to be back (a library import
 #: that set it to SIG_DFL for its length) before the main thread is interrupted anyway
 HANDLER_WAIT_S = 5.0
+#: called in the waiting thread with the signal as soon as it arrives, before the main thread is
+#: interrupted: what cannot wait for the main thread (under mpirun, which follows its SIGTERM with
+#: SIGKILL 1 s later while a rank may sit in a collective solve: the CLI says its line and drops its
+#: lock there). A hook's exception is ignored.
+ON_SIGNAL: list[Callable[[int], None]] = []
 
 
 def on_interrupt_signal(signum: int, frame) -> None:
@@ -72,6 +77,11 @@ def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
             return
         # recorded here first: raise_if_interrupted sees it even if the handler never runs
         _PENDING_SIGNALS.append(signum)
+        for hook in list(ON_SIGNAL):
+            try:
+                hook(signum)
+            except Exception:      # noqa: BLE001 - the interruption itself must go on
+                pass
         # interrupt_main does nothing while the signal's handler is SIG_DFL: gmsh's module sets
         # SIGINT so during its import, until millimpact.geometry puts the handler back; wait
         # for the handler (HANDLER_WAIT_S at most), then interrupt

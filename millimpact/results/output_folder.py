@@ -356,6 +356,12 @@ def _unlock_all() -> None:
         _unlock(lock.parent / lock.name[1:-len(".lock")])
 
 
+def release_locks() -> None:
+    """Drop every output lock this process holds now (a process about to be killed: the kernel
+    would drop the locks, but their files would stay beside the folders)."""
+    _unlock_all()
+
+
 def _world():
     """MPI_COMM_WORLD under mpirun (more than one rank), else None (no MPI import)."""
     if int(os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1"))) > 1:

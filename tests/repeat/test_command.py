@@ -137,6 +137,35 @@ def test_mpi_sequence_equals_serial(tmp_path):
             assert (x != x and y != y) or x == pytest.approx(y, rel=1e-7, abs=1e-12), c
 
 
+@pytest.mark.slow
+@pytest.mark.mpi
+@pytest.mark.parametrize("phase", ["model", "impacts"])
+def test_mpi_sequence_interrupted_says_so_and_leaves_no_lock(tmp_path, phase):
+    """``mpirun -n 2 repeat`` and Ctrl-C (mpirun passes it on as SIGTERM) while the model is built
+    (the header line is out) or between impacts (the first impact's line is out): rank 0 prints the
+    interrupt line and every rank ends; no lock file is left beside the folder (before: no line,
+    exit 1 after 37 s, a stale .NAME.lock)."""
+    import shutil
+
+    if shutil.which("mpirun") is None:
+        pytest.skip("mpirun not installed")
+    out = tmp_path / "x"
+    cmd = ["mpirun", "-n", "2", sys.executable, "-m", "millimpact.cli", "repeat", "paper-rig-plastic", "--impacts",
+           "3", *COARSE[:-1], "--set", "time.end=3e-4", "--out", str(out)]
+    p = subprocess.Popen(cmd, cwd=ROOT, env=mpi_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=default_sigint)
+    cue = "repeat paper-rig-plastic" if phase == "model" else "[1/3]"
+    for line in p.stdout:
+        if cue in line:
+            break
+    assert p.poll() is None, p.communicate()[1][-2000:]
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode != 0 and "millimpact: interrupted" in err and "finished impact(s) kept" in err, err[-3000:]
+    assert "Traceback" not in err and not (out / "summary.json").exists()
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["x"]             # no .x.lock, no staging
+
+
 # --- the output policy (docs/outputs.md, issue 35) -------------------------------------------------
 def _fake_sequence(scene, impacts, method="improved", petsc_options=None, comm=None, progress=None, *,
                    store_dir=None, records=None):
