@@ -127,6 +127,18 @@ def test_run_help_lists_every_method():
     assert f"default {DEFAULT_METHOD}" in text and "when available" not in text
 
 
+def test_the_reference_is_the_converged_degree():
+    """``--method full`` at its default degree (the plan's P1) is ~3 % stiff on hertz-halfspace
+    (F_max +3.06 %, t_c -2.99 % against Hertz; P2 within 2 %: docs/methods.md): the method list
+    calls "the reference" only the P2 model (before: "full ...: the reference" at P1)."""
+    from millimpact.methods.registry import method_entry
+    from millimpact.scene.builtin import builtin_scene
+
+    assert builtin_scene("hertz-halfspace").model.degree == 1
+    summary = method_entry("full").summary
+    assert "reference" in summary and "--degree 2" in summary.split("reference", 1)[1][:20], summary
+
+
 def test_every_registered_method_resolves():
     """The registry's table is the only list of methods: each row names a real runner."""
     from millimpact.methods.registry import METHODS, method_runner
