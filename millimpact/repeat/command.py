@@ -126,7 +126,7 @@ def apply_sets(scene, sets: Sequence[str]):
 def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
-    from ..console import say
+    from ..console import enable_stages, say
     from ..errors import InputError
     from ..results.output_folder import claim_output, owned_names, read_manifest
     from ..scene.builtin import resolve_scene
@@ -135,6 +135,7 @@ def main(args: argparse.Namespace) -> int:
     from .verdict import classify
 
     comm = MPI.COMM_WORLD
+    enable_stages(not args.quiet)      # the model's stages (meshing, reduction) as they start and end
     if not 1 <= args.impacts <= MAX_IMPACTS:        # before the scene: a huge N is refused at once
         build_impacts(None, args.impacts, None, None, None)
     if args.method not in METHODS:
@@ -158,7 +159,7 @@ def main(args: argparse.Namespace) -> int:
     comm.barrier()
     done_before = len(list(store.glob("impact-*.json")))
     if not quiet:
-        say(f"repeat {scene.name}: {len(impacts)} impacts, method {args.method}"
+        say(f"repeat {scene.name}: {len(impacts)} impact{'' if len(impacts) == 1 else 's'}, method {args.method}"
             + (f"; {done_before} finished impact file(s) in {store}" if done_before else ""))
     outcomes = run_sequence(scene, impacts, args.method, options, comm,
                             progress=None if quiet else say, store_dir=store)

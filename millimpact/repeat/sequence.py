@@ -261,6 +261,8 @@ def run_sequence(scene, impacts: Sequence[ImpactSpec], method: str = "improved",
     if len(done) == len(impacts):
         return done
     engine = (_FullEngine if method == "full" else _ReducedEngine)(design, method, options, comm)
+    # the time loop's own progress inside each impact (a line per 10 % of its span, or a terminal bar)
+    engine.progress = progress is not None and comm.rank == 0
     if state is not None and engine.zone is not None:
         engine.zone.set_state(state)
     outcomes = list(done)
@@ -359,6 +361,7 @@ class _Engine:
     the launch onto the deformed face and the outcome."""
 
     zone = None          #: the model's PlasticZone (None when nothing yields)
+    progress = False     #: the time loop's progress inside an impact (rank 0)
 
     def __init__(self, design, method: str, options: dict, comm):
         from ..scene.plan import make_plan
@@ -501,7 +504,7 @@ class _ReducedEngine(_Engine):
         t_end = impact_t_end(plan)
         stop = impact_only_stop(plan)
         run = integrate_reduced(self.red, system, q0, qd0, contact, plan, t_end, rec, integrator=opt.integrator,
-                                options=dict(self.options), progress=False, free_phase=opt.free_phase,
+                                options=dict(self.options), progress=self.progress, free_phase=opt.free_phase,
                                 f_free=opt.free_factor * plan.f_cut, min_span=opt.min_span, stop=stop)
         ts = rec.series()
         results = impact_results(ts, plan.normal_speed, plan.probes.gauge_names, run["stats"], opt.integrator)
@@ -607,7 +610,7 @@ class _FullEngine(_Engine):
         stop = impact_only_stop(plan)
         sched = integrators.TimeSchedule(t_end, plan.dt_contact, plan.dt_contact)
         stats = integrators.integrate(system, u0, v0, sched, method=self.integrator, observer=rec,
-                                      options=dict(self.options), progress=False, stop=stop)
+                                      options=dict(self.options), progress=self.progress, stop=stop)
         ts = rec.series()
         results = impact_results(ts, plan.normal_speed, plan.probes.gauge_names, stats, self.integrator)
         rotation = self.zone.max_rotation(rec.q_peak) if (self.zone is not None and rec.q_peak is not None) else math.nan
