@@ -155,7 +155,11 @@ def cmd_scene(args: argparse.Namespace) -> int:
              f"direction ({', '.join(f'{c:g}' for c in g.direction)})")
     say(f"  time    end {scene.time.end*1e3:g} ms")
     say(f"plan of --method {args.method} (derived from the Hertz estimate; override in [model], [time], impact.gap):")
+    # an analytical model meshes nothing: only its flight gap and time step apply
+    analytical = args.method in method_names("analytical")
     for name, value, why in plan.table():
+        if analytical and name not in ("gap", "dt_contact"):
+            continue
         if name == "degree" and method_notes:
             value, why = method_notes[0].split(" ", 1)[0], "the method's"
         if name == "zone_radius" and method_notes:
@@ -313,13 +317,25 @@ class _LineFormatter(argparse.HelpFormatter):
         return lines
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with millimpact's one-line errors: ``millimpact: error: ...`` and exit status 2 for
+    every command (argparse's own: a usage block and a per-command prefix)."""
+
+    def error(self, message: str):
+        command = self.prog.split(" ", 1)[1] if " " in self.prog else ""
+        where = f"millimpact {command}".strip()
+        if world_rank() == 0:
+            print(f"millimpact: error: {command + ': ' if command else ''}{message}; see '{where} --help'",
+                  file=sys.stderr)
+        sys.exit(EXIT_INPUT)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="millimpact", description=DESCRIPTION,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _Parser(prog="millimpact", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     p.add_argument("--version", action=_VersionAction, nargs=0,
                    help="print millimpact's version and those of DOLFINx, PETSc, SLEPc and gmsh")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     r = sub.add_parser("run", help="simulate a scene and write summary, time series, fields and figures",
                        formatter_class=_LineFormatter,

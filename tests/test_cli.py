@@ -139,6 +139,27 @@ def test_the_reference_is_the_converged_degree():
     assert "reference" in summary and "--degree 2" in summary.split("reference", 1)[1][:20], summary
 
 
+def test_scene_show_of_the_hertz_model_shows_no_mesh(capsys):
+    """``scene show --method hertz``: a 1-DOF model, no contact zone and no P1 accuracy note (they
+    are the FE methods')."""
+    from output_lock import main_in_process
+
+    code, stdout, _ = main_in_process(capsys, ["scene", "show", "--method", "hertz"])
+    assert code == 0 and "dt_contact" in stdout and "gap" in stdout
+    assert "zone_radius" not in stdout and "P1 (default)" not in stdout and "h_contact" not in stdout
+
+
+@pytest.mark.parametrize("args", [("repeat", "--impacts", "x"), ("run", "--degree", "3"), ("damage",),
+                                  ("table", "--ranks-per-case", "y"), ("bogus",)])
+def test_argument_errors_are_one_line_with_one_prefix(args):
+    """argparse's errors as millimpact's own: one line ``millimpact: error: ...`` naming the
+    command and its --help, exit 2 (before: a usage block and a different prefix per command)."""
+    r = run_cli(*args)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and lines[0].startswith("millimpact: error: "), r.stderr
+    assert "--help'" in lines[0] and (args[0] == "bogus" or f"error: {args[0]}: " in lines[0])
+
+
 def test_every_registered_method_resolves():
     """The registry's table is the only list of methods: each row names a real runner."""
     from millimpact.methods.registry import METHODS, method_runner

@@ -269,7 +269,7 @@ def claim_output(out: Path | str, kind: str, force: bool = False, option: str = 
             old = read_manifest(path) if path.is_dir() else None
             if old is not None and old["kind"] != kind and kind not in old["beside"] and not force:
                 _unlock(path)
-                raise InputError(f"{option} {raw}: holds a millimpact {old['kind']} output, not a {kind}; give "
+                raise InputError(f"{option} {raw}: holds a millimpact {old['kind']} output, not {_a(kind)}; give "
                                  f"a new folder, or add --force to write the {kind} beside it")
             existed = path.is_dir() and any(p.name != MARKER for p in path.iterdir())
             result = (str(path), existed, leftovers)
@@ -473,6 +473,11 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
         said.append(f"kept {len(rest)} {_entries(len(rest))} millimpact did not write: {', '.join(rest[:5])}"
                     + (" ..." if len(rest) > 5 else ""))
     return said
+
+
+def _a(kind: str) -> str:
+    """``kind`` with its article: "a table", "an export"."""
+    return f"{'an' if kind[:1] in 'aeiou' else 'a'} {kind}"
 
 
 def _entries(n: int) -> str:

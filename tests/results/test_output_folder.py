@@ -195,3 +195,14 @@ def test_an_output_forced_beside_another_kind_leaves_each_its_own(tmp_path):
     assert m["kind"] == "table" and m["files"] == ["contact_table.csv"] and m["beside"] == {"export": ["yade_law.py"]}
     with pytest.raises(InputError, match="not a run"):       # a third kind is still refused
         claim_output(out, "run")
+
+
+def test_another_kinds_folder_is_refused_with_its_article(tmp_path):
+    """"not an export" (before: "not a export")."""
+    from millimpact.results.output_folder import claim_output
+
+    out = tmp_path / "t"
+    with staged_output(out, kind="table") as stage:
+        (stage / "contact_table.csv").write_text("t")
+    with pytest.raises(InputError, match="millimpact table output, not an export; "):
+        claim_output(out, "export")
