@@ -42,3 +42,13 @@ def test_without_yade_one_line_says_how_to_install_it(tmp_path):
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "apt-get install yade" in lines[0], res.stderr
     assert not list(tmp_path.iterdir())
+
+
+def test_a_centrifuging_charge_is_said_so():
+    """No shoulder or toe (a ring of balls on the shell, --speed-fraction 1.6): said in words, not
+    "shoulder None deg"."""
+    from millimpact.dem.mill import _charge_text
+
+    assert _charge_text({"shoulder_deg": None, "toe_deg": None, "centrifuged_fraction": 0.97}) == \
+        "no shoulder or toe: the charge centrifuges (97 % of the balls turn with the shell)"
+    assert _charge_text({"shoulder_deg": 41.25, "toe_deg": -35.0}) == "shoulder 41.25 deg, toe -35 deg"
