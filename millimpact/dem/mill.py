@@ -226,9 +226,14 @@ def main(args: argparse.Namespace) -> int:
         f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; "
         f"{_restitution_text(setup)}, mu {setup.friction:g}, moduli x {setup.stiffness_scale:g}; "
         f"{(setup.warmup_s + setup.run_s) / setup.dt:.3g} steps of {setup.dt:.3g} s", file=sys.stderr)
-    with target.staged(collective=False) as stage:
-        summary = run_mill(scene, opts, stage, plots=not args.no_plots, setup=setup, quiet=quiet)
-        write_summary(stage, summary)
+    from .yade import YadeError
+
+    try:
+        with target.staged(collective=False) as stage:
+            summary = run_mill(scene, opts, stage, plots=not args.no_plots, setup=setup, quiet=quiet)
+            write_summary(stage, summary)
+    except YadeError as exc:       # say what the folder keeps (nothing of this run is published)
+        raise YadeError(f"{exc}; {target.note}") from None
     if quiet:
         return 0
     n = summary["impacts_per_revolution"]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 from pathlib import Path
 from typing import Callable, Optional, Sequence
@@ -64,6 +65,14 @@ def run_yade(script: Path, workdir: Path, args: Sequence[str] = (), timeout: Opt
             proc.wait()
             raise
     out = "".join(lines)
+    if rc < 0:     # killed (SIGKILL: the kernel's out-of-memory killer, or a user): one line, not its log
+        try:
+            name = signal.Signals(-rc).name
+        except ValueError:
+            name = f"signal {-rc}"
+        last = next((ln.strip() for ln in reversed(lines) if ln.strip()), "")
+        raise YadeError(f"yade was killed by {name} running {Path(script).name}"
+                        + (f" (its last line: {last[:160]})" if last else ""))
     if rc != 0:
         tail = "".join(lines[-15:])
         raise YadeError(f"yade exited with status {rc} running {Path(script).name}:\n{tail}")

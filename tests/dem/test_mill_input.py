@@ -52,3 +52,28 @@ def test_a_centrifuging_charge_is_said_so():
     assert _charge_text({"shoulder_deg": None, "toe_deg": None, "centrifuged_fraction": 0.97}) == \
         "no shoulder or toe: the charge centrifuges (97 % of the balls turn with the shell)"
     assert _charge_text({"shoulder_deg": 41.25, "toe_deg": -35.0}) == "shoulder 41.25 deg, toe -35 deg"
+
+
+def test_a_killed_yade_is_one_line_saying_the_earlier_folder_is_kept(tmp_path):
+    """A Yade killed mid-run (SIGKILL: the out-of-memory killer): one line naming the signal and
+    saying the earlier output is kept (before: ~20 lines of Yade's log, nothing on the folder)."""
+    import subprocess
+    import sys
+
+    from conftest import ROOT, mpi_env
+
+    fake = tmp_path / "yade"
+    fake.write_text("#!/bin/sh\nfor i in $(seq 1 30); do echo \"yade log line $i\"; done\nkill -9 $$\n")
+    fake.chmod(0o755)
+    out = tmp_path / "mill"
+    out.mkdir()
+    (out / ".millimpact-output").write_text('{"kind": "mill", "files": ["summary.json"]}')
+    (out / "summary.json").write_text("{}")
+    env = {**mpi_env(), "MILLIMPACT_YADE": str(fake)}
+    res = subprocess.run([sys.executable, "-m", "millimpact.cli", "mill", "liner-panel", "--revolutions", "1",
+                          "--balls", "10", "--out", str(out)], capture_output=True, text=True, env=env, cwd=ROOT,
+                         timeout=300)
+    lines = res.stderr.strip().splitlines()
+    assert res.returncode == 1 and "yade was killed by SIGKILL" in lines[-1], res.stderr[-2000:]
+    assert "yade log line 29" not in res.stderr and "its earlier content is kept" in lines[-1]
+    assert sorted(p.name for p in out.iterdir()) == [".millimpact-output", "summary.json"]
