@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import _thread
 import signal
+import sys
 import threading
 import time
 from contextlib import contextmanager
@@ -68,6 +69,22 @@ def raise_if_interrupted() -> None:
 def clear_interrupts() -> None:
     """Forget recorded signals (a command's start and end)."""
     _PENDING_SIGNALS.clear()
+
+
+def _unraisable(hook):
+    """``sys.unraisablehook`` of a command: an interruption raised inside a ``__del__`` or a
+    finalizer (pyparsing's ``Forward.__del__`` while modules are imported at start-up) cannot
+    propagate, and Python would print "Exception ignored in ..." with a traceback and go on. The
+    signal is recorded; interrupt the main thread again, where the exception can propagate."""
+    def unraisable(info) -> None:
+        if info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt):
+            if _PENDING_SIGNALS:   # a moment later, from another thread: not inside this hook
+                timer = threading.Timer(0.05, _thread.interrupt_main, args=(_PENDING_SIGNALS[-1],))
+                timer.daemon = True
+                timer.start()
+            return
+        hook(info)
+    return unraisable
 
 
 def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
@@ -112,9 +129,12 @@ def command_signals() -> Iterator[None]:
                               daemon=True)
     waiter.start()
     _WAITED.update(waited)
+    unraisable_hook = sys.unraisablehook
+    sys.unraisablehook = _unraisable(unraisable_hook)
     try:
         yield
     finally:
+        sys.unraisablehook = unraisable_hook
         _WAITED.clear()
         clear_interrupts()   # the record lives as long as the command
         stop.set()

@@ -160,6 +160,40 @@ def test_argument_errors_are_one_line_with_one_prefix(args):
     assert "--help'" in lines[0] and (args[0] == "bogus" or f"error: {args[0]}: " in lines[0])
 
 
+#: a Ctrl-C that lands inside a ``__del__`` (pyparsing's ``Forward.__del__`` while the start-up
+#: imports run): Python cannot raise it there, prints "Exception ignored in ..." with a traceback
+#: and goes on; the command's hook interrupts the main thread again after the ``__del__``
+DEL_CHILD = """
+import os, signal, time
+from millimpact.interrupts import command_signals
+
+class Slow:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.5)
+
+try:
+    with command_signals():
+        Slow()
+        for _ in range(100):
+            time.sleep(0.02)
+        print("not interrupted")
+except KeyboardInterrupt:
+    print("interrupted")
+"""
+
+
+def test_a_ctrl_c_inside_a_finalizer_is_not_lost_nor_printed():
+    import subprocess
+    import sys
+
+    from conftest import ROOT, default_sigint, mpi_env
+
+    r = subprocess.run([sys.executable, "-c", DEL_CHILD], cwd=ROOT, env=mpi_env(), capture_output=True, text=True,
+                       timeout=120, preexec_fn=default_sigint)
+    assert r.stdout.strip() == "interrupted" and "Exception ignored" not in r.stderr, (r.stdout, r.stderr)
+
+
 def test_every_registered_method_resolves():
     """The registry's table is the only list of methods: each row names a real runner."""
     from millimpact.methods.registry import METHODS, method_runner
