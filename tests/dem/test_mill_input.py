@@ -77,3 +77,29 @@ def test_a_killed_yade_is_one_line_saying_the_earlier_folder_is_kept(tmp_path):
     assert res.returncode == 1 and "yade was killed by SIGKILL" in lines[-1], res.stderr[-2000:]
     assert "yade log line 29" not in res.stderr and "its earlier content is kept" in lines[-1]
     assert sorted(p.name for p in out.iterdir()) == [".millimpact-output", "summary.json"]
+
+
+def test_a_ctrl_c_during_the_dem_run_stops_yade_and_writes_nothing(tmp_path):
+    """Ctrl-C once the DEM run's progress line is out: Yade is stopped, one interrupt line, exit
+    130, no folder (a fake Yade that reports 10 % and then computes for a minute)."""
+    import signal
+    import subprocess
+    import sys
+
+    from conftest import ROOT, default_sigint, mpi_env
+
+    fake = tmp_path / "yade"
+    fake.write_text("#!/bin/sh\necho 'PROGRESS 0.10 warm-up'\nexec sleep 60\n")
+    fake.chmod(0o755)
+    out = tmp_path / "mill"
+    env = {**mpi_env(), "MILLIMPACT_YADE": str(fake)}
+    p = subprocess.Popen([sys.executable, "-m", "millimpact.cli", "mill", "liner-panel", "--revolutions", "1",
+                          "--balls", "10", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, env=env, cwd=ROOT, preexec_fn=default_sigint)
+    for line in p.stderr:
+        if "DEM " in line:
+            break
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and "millimpact: interrupted (SIGINT)" in err, (p.returncode, err[-2000:])
+    assert not out.exists()
