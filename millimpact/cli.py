@@ -17,8 +17,8 @@ from typing import Optional
 from .console import enable_stages, say, world_rank
 from .errors import InputError, MillimpactError, OutputError, Terminated
 from .fem.jit_cache import release_interrupted_compile, stale_jit_claim
-from .interrupts import command_signals
-from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note
+from .interrupts import ON_SIGNAL, command_signals
+from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note, release_locks
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
 
 EXIT_INPUT = 2
@@ -153,7 +153,11 @@ def cmd_scene(args: argparse.Namespace) -> int:
              f"direction ({', '.join(f'{c:g}' for c in g.direction)})")
     say(f"  time    end {scene.time.end*1e3:g} ms")
     say(f"plan of --method {args.method} (derived from the Hertz estimate; override in [model], [time], impact.gap):")
+    # an analytical model meshes nothing: only its flight gap and time step apply
+    analytical = args.method in method_names("analytical")
     for name, value, why in plan.table():
+        if analytical and name not in ("gap", "dt_contact"):
+            continue
         if name == "degree" and method_notes:
             value, why = method_notes[0].split(" ", 1)[0], "the method's"
         if name == "zone_radius" and method_notes:
@@ -298,13 +302,25 @@ class _LineFormatter(argparse.HelpFormatter):
         return lines
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with millimpact's one-line errors: ``millimpact: error: ...`` and exit status 2 for
+    every command (argparse's own: a usage block and a per-command prefix)."""
+
+    def error(self, message: str):
+        command = self.prog.split(" ", 1)[1] if " " in self.prog else ""
+        where = f"millimpact {command}".strip()
+        if world_rank() == 0:
+            print(f"millimpact: error: {command + ': ' if command else ''}{message}; see '{where} --help'",
+                  file=sys.stderr)
+        sys.exit(EXIT_INPUT)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="millimpact", description=DESCRIPTION,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _Parser(prog="millimpact", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     p.add_argument("--version", action=_VersionAction, nargs=0,
                    help="print millimpact's version and those of DOLFINx, PETSc, SLEPc and gmsh")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     r = sub.add_parser("run", help="simulate a scene and write summary, time series, fields and figures",
                        formatter_class=_LineFormatter,
@@ -482,8 +498,12 @@ class _CheckedStdout:
 def main(argv: Optional[list[str]] = None) -> int:
     stdout = sys.stdout
     sys.stdout = _CheckedStdout(stdout)
+    _SAID_INTERRUPT.clear()
+    mpi_ranks = int(os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1")))
     try:
         with command_signals():   # Ctrl-C and SIGTERM seen whatever a library does (interrupts.py)
+            if mpi_ranks > 1:
+                ON_SIGNAL.append(_interrupted_under_mpirun)
             code = _main(argv)
         sys.stdout.flush()
         return code
@@ -492,7 +512,31 @@ def main(argv: Optional[list[str]] = None) -> int:
             print(f"millimpact: failed: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     finally:
+        if _interrupted_under_mpirun in ON_SIGNAL:
+            ON_SIGNAL.remove(_interrupted_under_mpirun)
         sys.stdout = stdout
+
+
+#: the interrupt line was said already (by :func:`_interrupted_under_mpirun`)
+_SAID_INTERRUPT: list[bool] = []
+
+
+def _interrupt_line(code: int, text: str = "") -> None:
+    """``millimpact: interrupted (SIGINT|SIGTERM): what is kept``, once, on rank 0."""
+    if world_rank() == 0 and not _SAID_INTERRUPT:
+        _SAID_INTERRUPT.append(True)
+        print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {text or interrupt_note()}",
+              file=sys.stderr, flush=True)
+
+
+def _interrupted_under_mpirun(signum: int) -> None:
+    """Under mpirun, at the signal (in the waiting thread): mpirun sends SIGTERM to every rank and
+    SIGKILL 1 s later, while the main thread may be inside a collective solve another rank has
+    left. Say the line and drop the output's lock now (:data:`millimpact.interrupts.ON_SIGNAL`)."""
+    import signal as _signal
+
+    _interrupt_line(143 if signum == _signal.SIGTERM else 130)
+    release_locks()
 
 
 def _main(argv: Optional[list[str]] = None) -> int:
@@ -546,9 +590,7 @@ def _main(argv: Optional[list[str]] = None) -> int:
     except KeyboardInterrupt as exc:
         release_interrupted_compile(exc)
         code = getattr(exc, "exit_code", 143 if isinstance(exc, Terminated) else 130)
-        if world_rank() == 0:
-            print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {str(exc) or interrupt_note()}",
-                  file=sys.stderr)
+        _interrupt_line(code, str(exc))
         return code
     except TimeoutError as exc:
         stale = stale_jit_claim(exc)

@@ -14,7 +14,10 @@ every thread it starts (MPI's progress thread, OpenMP's workers) inherits the ma
 keeps such a signal pending for the process. One thread waits for it (``sigwait``) and interrupts
 the main thread with it (``_thread.interrupt_main``): the Python handler
 :func:`on_interrupt_signal` runs in the main thread at its next bytecode, as for a delivered
-signal, and no library's handler ever sees one. Child processes are started with the signals
+signal, and no library's handler ever sees one. The waiter records the signal first and, while an
+import has the handler set to SIG_DFL (gmsh's module does, until millimpact.geometry puts it back),
+waits for it: ``interrupt_main`` does nothing for a signal Python does not handle, and a Ctrl-C
+during that import would be lost. Child processes are started with the signals
 unblocked (:func:`children_signals`), so Ctrl-C still reaches them.
 
 The handler also records the signal, and :func:`raise_if_interrupted` raises it again where a
@@ -25,9 +28,11 @@ from __future__ import annotations
 
 import _thread
 import signal
+import sys
 import threading
+import time
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Callable, Iterator
 
 from .errors import Terminated
 
@@ -36,6 +41,14 @@ from .errors import Terminated
 _PENDING_SIGNALS: list[int] = []
 #: the signals the current command waits for (empty outside a command)
 _WAITED: set[int] = set()
+#: how long (s) a received signal waits for the command's handler to be back (a library import
+#: that set it to SIG_DFL for its length) before the main thread is interrupted anyway
+HANDLER_WAIT_S = 5.0
+#: called in the waiting thread with the signal as soon as it arrives, before the main thread is
+#: interrupted: what cannot wait for the main thread (under mpirun, which follows its SIGTERM with
+#: SIGKILL 1 s later while a rank may sit in a collective solve: the CLI says its line and drops its
+#: lock there). A hook's exception is ignored.
+ON_SIGNAL: list[Callable[[int], None]] = []
 
 
 def on_interrupt_signal(signum: int, frame) -> None:
@@ -58,11 +71,40 @@ def clear_interrupts() -> None:
     _PENDING_SIGNALS.clear()
 
 
+def _unraisable(hook):
+    """``sys.unraisablehook`` of a command: an interruption raised inside a ``__del__`` or a
+    finalizer (pyparsing's ``Forward.__del__`` while modules are imported at start-up) cannot
+    propagate, and Python would print "Exception ignored in ..." with a traceback and go on. The
+    signal is recorded; interrupt the main thread again, where the exception can propagate."""
+    def unraisable(info) -> None:
+        if info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt):
+            if _PENDING_SIGNALS:   # a moment later, from another thread: not inside this hook
+                timer = threading.Timer(0.05, _thread.interrupt_main, args=(_PENDING_SIGNALS[-1],))
+                timer.daemon = True
+                timer.start()
+            return
+        hook(info)
+    return unraisable
+
+
 def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
     while True:
         signum = signal.sigwait(waited)
         if stop.is_set():
             return
+        # recorded here first: raise_if_interrupted sees it even if the handler never runs
+        _PENDING_SIGNALS.append(signum)
+        for hook in list(ON_SIGNAL):
+            try:
+                hook(signum)
+            except Exception:      # noqa: BLE001 - the interruption itself must go on
+                pass
+        # interrupt_main does nothing while the signal's handler is SIG_DFL: gmsh's module sets
+        # SIGINT so during its import, until millimpact.geometry puts the handler back; wait
+        # for the handler (HANDLER_WAIT_S at most), then interrupt
+        deadline = time.monotonic() + HANDLER_WAIT_S
+        while signal.getsignal(signum) is not on_interrupt_signal and time.monotonic() < deadline:
+            time.sleep(0.01)
         _thread.interrupt_main(signum)   # runs on_interrupt_signal in the main thread
 
 
@@ -87,9 +129,12 @@ def command_signals() -> Iterator[None]:
                               daemon=True)
     waiter.start()
     _WAITED.update(waited)
+    unraisable_hook = sys.unraisablehook
+    sys.unraisablehook = _unraisable(unraisable_hook)
     try:
         yield
     finally:
+        sys.unraisablehook = unraisable_hook
         _WAITED.clear()
         clear_interrupts()   # the record lives as long as the command
         stop.set()

@@ -127,6 +127,73 @@ def test_run_help_lists_every_method():
     assert f"default {DEFAULT_METHOD}" in text and "when available" not in text
 
 
+def test_the_reference_is_the_converged_degree():
+    """``--method full`` at its default degree (the plan's P1) is ~3 % stiff on hertz-halfspace
+    (F_max +3.06 %, t_c -2.99 % against Hertz; P2 within 2 %: docs/methods.md): the method list
+    calls "the reference" only the P2 model (before: "full ...: the reference" at P1)."""
+    from millimpact.methods.registry import method_entry
+    from millimpact.scene.builtin import builtin_scene
+
+    assert builtin_scene("hertz-halfspace").model.degree == 1
+    summary = method_entry("full").summary
+    assert "reference" in summary and "--degree 2" in summary.split("reference", 1)[1][:20], summary
+
+
+def test_scene_show_of_the_hertz_model_shows_no_mesh(capsys):
+    """``scene show --method hertz``: a 1-DOF model, no contact zone and no P1 accuracy note (they
+    are the FE methods')."""
+    from output_lock import main_in_process
+
+    code, stdout, _ = main_in_process(capsys, ["scene", "show", "--method", "hertz"])
+    assert code == 0 and "dt_contact" in stdout and "gap" in stdout
+    assert "zone_radius" not in stdout and "P1 (default)" not in stdout and "h_contact" not in stdout
+
+
+@pytest.mark.parametrize("args", [("repeat", "--impacts", "x"), ("run", "--degree", "3"), ("damage",),
+                                  ("table", "--ranks-per-case", "y"), ("bogus",)])
+def test_argument_errors_are_one_line_with_one_prefix(args):
+    """argparse's errors as millimpact's own: one line ``millimpact: error: ...`` naming the
+    command and its --help, exit 2 (before: a usage block and a different prefix per command)."""
+    r = run_cli(*args)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and lines[0].startswith("millimpact: error: "), r.stderr
+    assert "--help'" in lines[0] and (args[0] == "bogus" or f"error: {args[0]}: " in lines[0])
+
+
+#: a Ctrl-C that lands inside a ``__del__`` (pyparsing's ``Forward.__del__`` while the start-up
+#: imports run): Python cannot raise it there, prints "Exception ignored in ..." with a traceback
+#: and goes on; the command's hook interrupts the main thread again after the ``__del__``
+DEL_CHILD = """
+import os, signal, time
+from millimpact.interrupts import command_signals
+
+class Slow:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.5)
+
+try:
+    with command_signals():
+        Slow()
+        for _ in range(100):
+            time.sleep(0.02)
+        print("not interrupted")
+except KeyboardInterrupt:
+    print("interrupted")
+"""
+
+
+def test_a_ctrl_c_inside_a_finalizer_is_not_lost_nor_printed():
+    import subprocess
+    import sys
+
+    from conftest import ROOT, default_sigint, mpi_env
+
+    r = subprocess.run([sys.executable, "-c", DEL_CHILD], cwd=ROOT, env=mpi_env(), capture_output=True, text=True,
+                       timeout=120, preexec_fn=default_sigint)
+    assert r.stdout.strip() == "interrupted" and "Exception ignored" not in r.stderr, (r.stdout, r.stderr)
+
+
 def test_every_registered_method_resolves():
     """The registry's table is the only list of methods: each row names a real runner."""
     from millimpact.methods.registry import METHODS, method_runner

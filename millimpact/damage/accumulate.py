@@ -42,7 +42,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..dem.impacts import PLACES, Impact
+from ..dem.impacts import PLACES, Impact, impact_column
 from .bins import Bin
 from .responses import finite
 
@@ -60,13 +60,22 @@ class ImpactDamage:
 
 def impact_damage(imp: Impact, row: dict, below_yield: bool, density: float, scene_ball_mass: float) -> ImpactDamage:
     """An impact's absorbed energy and plastic work from its bin's table ``row`` (module docstring)."""
-    m = 4.0 / 3.0 * math.pi * imp.ball_radius_m**3 * density
+    a, p = impacts_damage(np.array([imp.ball_radius_m]), np.array([imp.normal_speed_m_s]),
+                          np.array([imp.tangential_speed_m_s]), row, below_yield, density, scene_ball_mass)
+    return ImpactDamage(float(a[0]), float(p[0]))
+
+
+def impacts_damage(radius: np.ndarray, v_n: np.ndarray, v_t: np.ndarray, row: dict, below_yield: bool,
+                   density: float, scene_ball_mass: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`impact_damage` of a bin's impacts at once, from their ball radii (m) and normal and
+    tangential speeds (m/s): (energy absorbed, plastic work) per impact (J)."""
+    m = 4.0 / 3.0 * math.pi * radius**3 * density
     e_n = finite(row.get("restitution_normal"))
     e_t = finite(row.get("restitution_tangential"))
     vn, vt = finite(row.get("normal_velocity_in_m_s")), finite(row.get("tangential_velocity_in_m_s"))
     vt = 0.0 if math.isnan(vt) else vt
-    t_n = 0.5 * m * imp.normal_speed_m_s**2
-    t_t = 0.5 * m * imp.tangential_speed_m_s**2
+    t_n = 0.5 * m * v_n**2
+    t_t = 0.5 * m * v_t**2
     if not math.isnan(e_t):
         tangential = (1.0 - e_t**2) * 2.0 / 7.0 * t_t
     else:
@@ -76,14 +85,14 @@ def impact_damage(imp: Impact, row: dict, below_yield: bool, density: float, sce
         j_t = finite(row.get("tangential_impulse_N_s"))
         gain = 0.0 if math.isnan(j_t) else 7.0 * j_t**2 / (4.0 * scene_ball_mass)
         t_n_rep = 0.5 * scene_ball_mass * vn**2
-        tangential = -gain * t_n / t_n_rep if t_n_rep > 0 else 0.0
+        tangential = -gain * t_n / t_n_rep if t_n_rep > 0 else 0.0 * t_n
     absorbed = (1.0 - e_n**2) * t_n + tangential
     if below_yield:
-        return ImpactDamage(absorbed, 0.0)
+        return absorbed, np.zeros_like(absorbed)
     t_rep = 0.5 * scene_ball_mass * (vn**2 + vt**2)
     w_p = finite(row.get("plastic_dissipation_J"))
     frac = w_p / t_rep if t_rep > 0 and not math.isnan(w_p) else 0.0
-    return ImpactDamage(absorbed, frac * (t_n + t_t))
+    return absorbed, frac * (t_n + t_t)
 
 
 def place_extent(liner, place: str) -> float:
@@ -145,24 +154,26 @@ def dominant_bin(bins: Sequence[Bin], per_bin: dict[int, dict], place: str) -> O
 
 
 def accumulate(impacts: Sequence[Impact], bins: Sequence[Bin], rows: dict[int, dict], density: float,
-               scene_ball_mass: float, revolutions: float, lifters: int = 1) -> tuple[dict[int, dict], list[Optional[ImpactDamage]]]:
-    """Per-bin sums per revolution (bin index -> numbers) and each impact's share (None for an
-    impact of a bin without a response)."""
+               scene_ball_mass: float, revolutions: float, lifters: int = 1) -> tuple[dict[int, dict], dict]:
+    """Per-bin sums per revolution (bin index -> numbers) and each impact's share: arrays
+    ``energy_absorbed_J`` and ``plastic_work_J`` over the impacts (NaN for an impact of a bin
+    without a response)."""
     per_rev = 1.0 / (revolutions * lifters)
-    shares: list[Optional[ImpactDamage]] = [None] * len(impacts)
+    radius, v_n, v_t, energy = (impact_column(impacts, c) for c in ("ball_radius_m", "normal_speed_m_s",
+                                                                     "tangential_speed_m_s", "impact_energy_J"))
+    shares = {"energy_absorbed_J": np.full(len(impacts), math.nan), "plastic_work_J": np.full(len(impacts), math.nan)}
     per_bin = {}
     for b in bins:
         if b.index not in rows or not str(rows[b.index].get("status", "ok")).startswith("ok"):
             continue
-        e_in = a = p = 0.0
-        for i in b.impacts:
-            s = impact_damage(impacts[i], rows[b.index], b.below_yield, density, scene_ball_mass)
-            shares[i] = s
-            a += s.energy_absorbed_J
-            p += s.plastic_work_J
-            e_in += impacts[i].impact_energy_J
-        per_bin[b.index] = {"impacts_per_rev": len(b.impacts) * per_rev, "impact_energy_J_per_rev": e_in * per_rev,
-                            "energy_absorbed_J_per_rev": a * per_rev, "plastic_work_J_per_rev": p * per_rev}
+        i = np.asarray(b.impacts, dtype=np.int64)
+        a, p = impacts_damage(radius[i], v_n[i], v_t[i], rows[b.index], b.below_yield, density, scene_ball_mass)
+        shares["energy_absorbed_J"][i] = a
+        shares["plastic_work_J"][i] = p
+        per_bin[b.index] = {"impacts_per_rev": len(b.impacts) * per_rev,
+                            "impact_energy_J_per_rev": float(energy[i].sum()) * per_rev,
+                            "energy_absorbed_J_per_rev": float(a.sum()) * per_rev,
+                            "plastic_work_J_per_rev": float(p.sum()) * per_rev}
     return per_bin, shares
 
 
@@ -171,6 +182,7 @@ def place_totals(impacts: Sequence[Impact], bins: Sequence[Bin], per_bin: dict[i
     """Per place: impacts, impact energy, energy absorbed and plastic work per revolution, and the
     impacts left out (their bins refused or failed)."""
     per_rev = 1.0 / (revolutions * lifters)
+    energy = impact_column(impacts, "impact_energy_J")
     out = {}
     for p in PLACES:
         mine = [b for b in bins if b.place == p]
@@ -179,7 +191,8 @@ def place_totals(impacts: Sequence[Impact], bins: Sequence[Bin], per_bin: dict[i
         done = [b for b in mine if b.index in per_bin]
         n_all = sum(len(b.impacts) for b in mine)
         out[p] = {"impacts_per_rev": n_all * per_rev,
-                  "impact_energy_J_per_rev": sum(impacts[i].impact_energy_J for b in mine for i in b.impacts) * per_rev,
+                  "impact_energy_J_per_rev": sum(float(energy[np.asarray(b.impacts, dtype=np.int64)].sum())
+                                                 for b in mine) * per_rev,
                   "energy_absorbed_J_per_rev": sum(per_bin[b.index]["energy_absorbed_J_per_rev"] for b in done),
                   "plastic_work_J_per_rev": sum(per_bin[b.index]["plastic_work_J_per_rev"] for b in done),
                   "impacts_left_out_per_rev": (n_all - sum(len(b.impacts) for b in done)) * per_rev,
@@ -187,22 +200,24 @@ def place_totals(impacts: Sequence[Impact], bins: Sequence[Bin], per_bin: dict[i
     return out
 
 
-def profile_rates(impacts: Sequence[Impact], shares: Sequence[Optional[ImpactDamage]], cell_m: float,
+def profile_rates(impacts: Sequence[Impact], shares: dict, cell_m: float,
                   revolutions: float, lifters: int = 1) -> dict[str, dict]:
     """Per place, arc cells ``cell_m`` wide: the plastic work and the absorbed energy per revolution
-    per metre of arc (J/(rev m)) at each cell's centre."""
+    per metre of arc (J/(rev m)) at each cell's centre (``shares``: :func:`accumulate`'s)."""
     per_rev = 1.0 / (revolutions * lifters)
+    place, arc = impact_column(impacts, "place"), impact_column(impacts, "arc_position_m")
+    absorbed, plastic = shares["energy_absorbed_J"], shares["plastic_work_J"]
     out = {}
     for p in PLACES:
-        idx = [i for i, imp in enumerate(impacts) if imp.place == p and shares[i] is not None]
-        if not idx:
+        idx = np.flatnonzero((place == p) & ~np.isnan(absorbed))
+        if not idx.size:
             continue
-        s = np.array([impacts[i].arc_position_m for i in idx])
+        s = arc[idx]
         lo = math.floor(s.min() / cell_m) * cell_m
         n = max(1, int(math.ceil((s.max() - lo) / cell_m + 1e-9)))
         k = np.clip(((s - lo) / cell_m).astype(int), 0, n - 1)
-        wp = np.bincount(k, [shares[i].plastic_work_J for i in idx], n) * per_rev / cell_m
-        wa = np.bincount(k, [shares[i].energy_absorbed_J for i in idx], n) * per_rev / cell_m
+        wp = np.bincount(k, plastic[idx], n) * per_rev / cell_m
+        wa = np.bincount(k, absorbed[idx], n) * per_rev / cell_m
         out[p] = {"arc_m": (lo + cell_m * (np.arange(n) + 0.5)).tolist(), "plastic_work_J_per_rev_m": wp.tolist(),
                   "energy_absorbed_J_per_rev_m": wa.tolist()}
     return out

@@ -33,7 +33,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..dem.impacts import PLACES, Impact
+from ..dem.impacts import PLACES, Impact, impact_column
 from ..errors import InputError
 from ..theory.thornton import restitution_thornton
 
@@ -141,13 +141,12 @@ def _index(values: np.ndarray, edges: Sequence[float]) -> np.ndarray:
 
 
 def _make_bins(impacts: Sequence[Impact], v_y: float, tolerance: float, n_angle: int,
-               n_arc: int) -> tuple[list[Bin], dict, float]:
-    vn = np.array([i.normal_speed_m_s for i in impacts])
-    vt = np.array([i.tangential_speed_m_s for i in impacts])
-    ang = np.array([i.angle_deg for i in impacts])
-    arc = np.array([i.arc_position_m for i in impacts])
-    place = np.array([i.place for i in impacts])
-    bins: list[Bin] = []
+               n_arc: int, columns: Optional[dict] = None, count_only: bool = False) -> tuple[list[Bin], dict, float]:
+    """The occupied bins (as arrays: one key per impact, grouped by sorting); ``count_only``: the
+    bins' number alone (a list of that many Nones), for the budget's search."""
+    c = columns if columns is not None else _columns(impacts)
+    vn, vt, ang, arc, place = c["vn"], c["vt"], c["ang"], c["arc"], c["place"]
+    bins: list = []
     edges_of: dict = {}
     spread = 0.0
     for p in PLACES:
@@ -158,20 +157,34 @@ def _make_bins(impacts: Sequence[Impact], v_y: float, tolerance: float, n_angle:
         ae = _quantile_edges(ang[sel], n_angle)
         ce = _quantile_edges(arc[sel], n_arc)
         edges_of[p] = se
-        keys = np.stack([_index(arc[sel], ce), _index(vn[sel], se), _index(ang[sel], ae)], axis=1)
+        ci, si, ai = _index(arc[sel], ce), _index(vn[sel], se), _index(ang[sel], ae)
+        key = (ci * (len(se) - 1) + si) * (len(ae) - 1) + ai          # sorted as (arc, speed, angle)
+        keys, first, counts = np.unique(key, return_index=True, return_counts=True)
+        if count_only:
+            bins += [None] * len(keys)
+            continue
+        order = np.argsort(key, kind="stable")
+        groups = np.split(sel[order], np.cumsum(counts)[:-1])
         # one position per arc bin (its impacts' median), so the bins of an arc bin share a placed scene
-        arc_rep = {c: float(np.median(arc[sel][keys[:, 0] == c])) for c in set(keys[:, 0].tolist())}
-        for k in sorted({tuple(r) for r in keys.tolist()}):
-            members = sel[np.all(keys == k, axis=1)]
-            c, s, a = k
-            lo, hi = se[s], se[s + 1]
+        arc_rep = {int(k): float(np.median(arc[sel][ci == k])) for k in np.unique(ci)}
+        for j, members in zip(first, groups):
+            cj, sj, aj = int(ci[j]), int(si[j]), int(ai[j])
+            lo, hi = se[sj], se[sj + 1]
             below = math.isfinite(v_y) and hi <= v_y * (1 + 1e-12)
             if math.isfinite(v_y) and not below:
                 spread = max(spread, restitution_thornton(max(lo, v_y), v_y) - restitution_thornton(hi, v_y))
-            bins.append(Bin(len(bins), p, (ce[c], ce[c + 1]), (lo, hi), (ae[a], ae[a + 1]), tuple(int(i) for i in members),
-                            float(np.sqrt(np.mean(vn[members] ** 2))), float(np.sqrt(np.mean(vt[members] ** 2))),
-                            arc_rep[c], below))
+            bins.append(Bin(len(bins), p, (ce[cj], ce[cj + 1]), (lo, hi), (ae[aj], ae[aj + 1]),
+                            tuple(members.tolist()), float(np.sqrt(np.mean(vn[members] ** 2))),
+                            float(np.sqrt(np.mean(vt[members] ** 2))), arc_rep[cj], below))
     return bins, edges_of, spread
+
+
+def _columns(impacts: Sequence[Impact]) -> dict:
+    """The columns the bins are made of: normal and tangential speed, angle, arc position, place."""
+    vn = impact_column(impacts, "normal_speed_m_s")
+    vt = impact_column(impacts, "tangential_speed_m_s")
+    return {"vn": vn, "vt": vt, "ang": np.degrees(np.arctan2(vt, vn)),       # Impact.angle_deg
+            "arc": impact_column(impacts, "arc_position_m"), "place": impact_column(impacts, "place")}
 
 
 def choose_bins(impacts: Sequence[Impact], v_y: float, max_bins: int = 30, tolerance: float = DEFAULT_TOLERANCE,
@@ -184,11 +197,13 @@ def choose_bins(impacts: Sequence[Impact], v_y: float, max_bins: int = 30, toler
         raise InputError(f"--restitution-tolerance {tolerance:g}: must lie in (0, 1)")
     notes: list[str] = []
     tol = tolerance
+    columns = _columns(impacts)
     for _ in range(60):
         for na in range(angle_bins, 0, -1):
             for nc in range(arc_bins, 0, -1):
-                bins, edges, spread = _make_bins(impacts, v_y, tol, na, nc)
+                bins, _, _ = _make_bins(impacts, v_y, tol, na, nc, columns, count_only=True)
                 if len(bins) <= max_bins:
+                    bins, edges, spread = _make_bins(impacts, v_y, tol, na, nc, columns)
                     if na < angle_bins:
                         notes.append(f"angle bins cut from {angle_bins} to {na} to stay within {max_bins} bins")
                     if nc < arc_bins:

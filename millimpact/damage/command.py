@@ -104,6 +104,28 @@ def lifters_of(args: argparse.Namespace, impacts_path: Path) -> int:
         return 1
 
 
+def check_log_liner(scene, impacts_path: Path) -> None:
+    """One line when the mill's summary.json beside the log names a mill other than the scene's
+    liner (its diameter, lifter count or lifter height): the log's places and arc positions belong
+    to that mill's liner. Nothing to check without a summary."""
+    mill = mill_summary(impacts_path).get("mill")
+    if not isinstance(mill, dict):
+        return
+    from ..dem.mill_geometry import build_profile
+
+    mine = build_profile(scene.liner, scene.ball.radius)
+    try:
+        theirs = (float(mill["diameter_m"]), int(mill["lifters"]), float(mill["lifter_height_m"]))
+    except (KeyError, TypeError, ValueError):
+        return
+    ours = (mine.diameter, mine.n_lifters, mine.lifter_height)
+    if theirs[1] != ours[1] or any(not math.isclose(a, b, rel_tol=1e-6) for a, b in zip(theirs[::2], ours[::2])):
+        logged = mill_summary(impacts_path).get("scene", "another scene")
+        raise InputError(f"--impacts {impacts_path}: logged by millimpact mill on {logged} (D {theirs[0]:g} m, "
+                         f"{theirs[1]} lifters {theirs[2]:g} m high), not on the liner of {scene.name} (D "
+                         f"{ours[0]:g} m, {ours[1]} lifters {ours[2]:g} m high); give the log of that scene's mill")
+
+
 def check_settings(args: argparse.Namespace) -> None:
     """One line for a setting out of range."""
     if args.lifters is not None and args.lifters < 1:
@@ -118,6 +140,9 @@ def check_settings(args: argparse.Namespace) -> None:
         raise InputError(f"--repeat-impacts {args.repeat_impacts}: must be >= 0")
     if args.ranks_per_case < 1:
         raise InputError(f"--ranks-per-case {args.ranks_per_case}: must be >= 1")
+    from .damage_map import check_repeat_method
+
+    check_repeat_method(args.method, args.repeat_impacts)
 
 
 def command_scene(args: argparse.Namespace):
@@ -132,9 +157,10 @@ def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
     from ..commandkit.settings import parse_options
+    from ..console import sayer
     from ..dem.impacts import read_impacts
     from ..results.output_folder import claim_output, default_out
-    from .damage_map import MapSettings, run_damage_map
+    from .damage_map import MapSettings, plan_map, run_damage_map
 
     check_settings(args)
     scene = command_scene(args)
@@ -142,23 +168,24 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"scene {args.scene}: has no liner (the damage map needs a liner scene: liner-segment, "
                          "liner-panel or a TOML file with a [liner] table)")
     path = Path(args.impacts)
-    impacts = read_impacts(path)
+    check_log_liner(scene, path)
+    world = MPI.COMM_WORLD
+    say = sayer(args.quiet, world)
+    impacts = read_impacts(path, say)
     settings = MapSettings(revolutions=revolutions_of(args, path), lifters=lifters_of(args, path),
                            slice_length_m=args.slice_length, max_bins=args.max_bins,
                            tolerance=args.restitution_tolerance, angle_bins=args.angle_bins, arc_bins=args.arc_bins,
                            cell_m=args.cell, method=args.method, options=parse_options(args.option),
                            repeat_impacts=args.repeat_impacts, ranks_per_case=args.ranks_per_case)
-    world = MPI.COMM_WORLD
     if world.size % args.ranks_per_case or args.ranks_per_case > world.size:
         raise InputError(f"--ranks-per-case {args.ranks_per_case}: must divide the number of ranks ({world.size})")
-    from .bins import choose_bins, yield_onset_speed
-
-    choose_bins(impacts, yield_onset_speed(scene), settings.max_bins, settings.tolerance)   # a bad budget: before any folder
+    # bins, placed scenes, cases: a setting every bin hits is one line before any folder
+    prepared = plan_map(scene, impacts, settings, say)
     out = args.out if args.out is not None else default_out(Path(args.scene).stem, prefix="damage-")
     # before computing: checks, lock, leftovers (collective); an interruption's one line says which
     # finished bins and sequences are kept (damage_map.kept_bins_note)
     target = claim_output(out, "damage", force=args.force, comm=world)
-    run_damage_map(scene, impacts, target, settings, str(path), quiet=args.quiet, comm=world)
+    run_damage_map(scene, impacts, target, settings, str(path), quiet=args.quiet, comm=world, prepared=prepared)
     if not args.quiet and world.rank == 0:
         print(f"  results in {target.shown}/ (damage.csv, bins.csv, profile.csv, damage.json, damage_map.png)"
               + target.replaced_note(), flush=True)

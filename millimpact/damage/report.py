@@ -18,7 +18,7 @@ import numpy as np
 
 from .. import __version__
 from ..commandkit.store import write_atomic
-from ..dem.impacts import PLACES, Impact
+from ..dem.impacts import PLACES, Impact, impact_column
 
 #: where the model stops (design.md section 12): said in every file that shows its numbers
 LIMITS = ("small-strain J2 plasticity (equivalent plastic strain up to ~0.1); no wear: no material is "
@@ -115,6 +115,14 @@ def profile_points(liner, place: str, arc: np.ndarray) -> tuple[np.ndarray, np.n
     return a, f * h
 
 
+def _spectrum_points(n: int, most: int = 4000) -> np.ndarray:
+    """Indices of a sorted spectrum's points to draw: all of them up to ``most``, else ``most``
+    log-spaced ones (the count at each drawn point is exact; a figure shows no more)."""
+    if n <= most:
+        return np.arange(n)
+    return np.unique(np.geomspace(1, n, most).astype(np.int64)) - 1
+
+
 def plot_map(path: Path, profile: dict, impacts: Sequence[Impact], liner, revolutions: float, lifters: int,
              places: dict) -> None:
     """The liner's profile coloured by plastic work per revolution per metre of arc (left) and the
@@ -155,13 +163,15 @@ def plot_map(path: Path, profile: dict, impacts: Sequence[Impact], liner, revolu
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title("liner profile: damage rate (small strain; no wear, no cracking)", fontsize=9)
     per_rev = 1.0 / (revolutions * lifters)
+    energy, place = impact_column(impacts, "impact_energy_J"), impact_column(impacts, "place")
     for p in PLACES:
-        e = np.sort([i.impact_energy_J for i in impacts if i.place == p])[::-1]
+        e = np.sort(energy[place == p])[::-1]
         if e.size:
-            bx.step(np.maximum(e, 1e-12), np.arange(1, e.size + 1) * per_rev, where="post", label=p.replace("_", " "))
-    e_all = np.sort([i.impact_energy_J for i in impacts])[::-1]
-    bx.step(np.maximum(e_all, 1e-12), np.arange(1, e_all.size + 1) * per_rev, where="post", color="k", lw=1.5,
-            label="all")
+            k = _spectrum_points(e.size)
+            bx.step(np.maximum(e[k], 1e-12), (k + 1) * per_rev, where="post", label=p.replace("_", " "))
+    e_all = np.sort(energy)[::-1]
+    k = _spectrum_points(e_all.size)
+    bx.step(np.maximum(e_all[k], 1e-12), (k + 1) * per_rev, where="post", color="k", lw=1.5, label="all")
     bx.set_xscale("log")
     bx.set_yscale("log")
     bx.set_xlabel("impact energy (J)")

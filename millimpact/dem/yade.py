@@ -9,10 +9,13 @@ runs); everything else is kept for the error message if the run fails.
 from __future__ import annotations
 
 import os
+import queue
 import shutil
+import signal
 import subprocess
+import threading
 from pathlib import Path
-from typing import Callable, Optional, Sequence
+from typing import Callable, Iterator, Optional, Sequence
 
 from ..errors import InputError, MillimpactError
 from ..interrupts import children_signals
@@ -54,7 +57,7 @@ def run_yade(script: Path, workdir: Path, args: Sequence[str] = (), timeout: Opt
     with proc:
         try:
             assert proc.stdout is not None
-            for line in proc.stdout:
+            for line in _lines_of(proc.stdout):
                 if line.startswith(PROGRESS_PREFIX) and on_progress is not None:
                     on_progress(line[len(PROGRESS_PREFIX):].strip())
                 lines.append(line)
@@ -64,7 +67,37 @@ def run_yade(script: Path, workdir: Path, args: Sequence[str] = (), timeout: Opt
             proc.wait()
             raise
     out = "".join(lines)
+    if rc < 0:     # killed (SIGKILL: the kernel's out-of-memory killer, or a user): one line, not its log
+        try:
+            name = signal.Signals(-rc).name
+        except ValueError:
+            name = f"signal {-rc}"
+        last = next((ln.strip() for ln in reversed(lines) if ln.strip()), "")
+        raise YadeError(f"yade was killed by {name} running {Path(script).name}"
+                        + (f" (its last line: {last[:160]})" if last else ""))
     if rc != 0:
         tail = "".join(lines[-15:])
         raise YadeError(f"yade exited with status {rc} running {Path(script).name}:\n{tail}")
     return out
+
+
+def _lines_of(stream) -> Iterator[str]:
+    """The lines of a child's output, read by a helper thread: the main thread waits in short
+    steps, so a Ctrl-C (delivered to it by :mod:`millimpact.interrupts` at its next bytecode)
+    stops the wait at once, not at the child's next line."""
+    lines: queue.Queue = queue.Queue()
+
+    def pump() -> None:
+        for line in stream:
+            lines.put(line)
+        lines.put(None)
+
+    threading.Thread(target=pump, name="millimpact-yade-output", daemon=True).start()
+    while True:
+        try:
+            line = lines.get(timeout=0.2)
+        except queue.Empty:
+            continue
+        if line is None:
+            return
+        yield line

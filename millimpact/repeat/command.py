@@ -30,11 +30,15 @@ Examples:
 """
 
 METHODS = ("improved", "traditional", "modal-p2", "full")
+#: the most impacts of one sequence: each impact is a transient FE solve (~10 s on the coarse
+#: paper-rig-plastic, ~70 s at the plan's sizes), so 1000 are a day's computing; the impacts'
+#: files are numbered with three digits
+MAX_IMPACTS = 1000
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig-plastic)")
-    p.add_argument("--impacts", type=int, required=True, metavar="N", help="number of impacts (>= 1)")
+    p.add_argument("--impacts", type=int, required=True, metavar="N", help=f"number of impacts, 1 to {MAX_IMPACTS}")
     p.add_argument("--velocities", metavar="V1,...", help="impact speeds, m/s: one, or one per impact "
                                                           "(default the scene's speed)")
     p.add_argument("--angles", metavar="A1,...", help="angles from the face normal, deg in [0, 90): one, or one "
@@ -74,8 +78,9 @@ def build_impacts(scene, n: int, velocities: Optional[str], angles: Optional[str
     from ..errors import InputError
     from .sequence import ImpactSpec
 
-    if n < 1:
-        raise InputError(f"--impacts {n}: must be at least 1")
+    if not 1 <= n <= MAX_IMPACTS:
+        raise InputError(f"--impacts {n}: must lie in [1, {MAX_IMPACTS}] (each impact is a transient solve: "
+                         f"{MAX_IMPACTS} take about a day)")
     v = np.asarray(scene.impact.velocity, float)
     nrm = np.asarray(scene.contact_normal, float)
     v_n = -float(v @ nrm)
@@ -103,20 +108,23 @@ def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
     from ..commandkit.settings import parse_options
-    from ..console import say
+    from ..console import enable_stages, say
     from ..errors import InputError
-    from ..results.output_folder import claim_output, read_manifest
+    from ..results.output_folder import claim_output, owned_names, read_manifest
     from .report import verdict_text, write_sequence
-    from .sequence import check_impacts, run_sequence
+    from .sequence import check_sequence, run_sequence
     from .verdict import classify
 
     comm = MPI.COMM_WORLD
+    enable_stages(not args.quiet)      # the model's stages (meshing, reduction) as they start and end
+    if not 1 <= args.impacts <= MAX_IMPACTS:        # before the scene: a huge N is refused at once
+        build_impacts(None, args.impacts, None, None, None)
     if args.method not in METHODS:
         raise InputError(f"--method {args.method}: choose one of {', '.join(METHODS)}")
     scene = command_scene(args)
     impacts = build_impacts(scene, args.impacts, args.velocities, args.angles, args.offset)
-    check_impacts(scene, impacts)
     options = parse_options(args.option)
+    check_sequence(scene, impacts, args.method)   # the plan's refusals: before the folder
     # before computing: checks, lock, leftovers (collective; docs/outputs.md)
     target = claim_output(args.out, "repeat", force=args.force, comm=comm)
     out = target.path
@@ -125,13 +133,14 @@ def main(args: argparse.Namespace) -> int:
     quiet = args.quiet or comm.rank != 0
     if comm.rank == 0:
         store.mkdir(exist_ok=True)
-        if old is not None and old["kind"] == "repeat" and "summary.json" in (old["files"] or ["summary.json"]):
+        names = owned_names(old, "repeat")
+        if old is not None and (names is None or "summary.json" in names):
             # the earlier sequence's summary: complete again only when this sequence is
             (out / "summary.json").unlink(missing_ok=True)
     comm.barrier()
     done_before = len(list(store.glob("impact-*.json")))
     if not quiet:
-        say(f"repeat {scene.name}: {len(impacts)} impacts, method {args.method}"
+        say(f"repeat {scene.name}: {len(impacts)} impact{'' if len(impacts) == 1 else 's'}, method {args.method}"
             + (f"; {done_before} finished impact file(s) in {store}" if done_before else ""))
     outcomes = run_sequence(scene, impacts, args.method, options, comm,
                             progress=None if quiet else say, store_dir=store)

@@ -15,6 +15,7 @@ the radius where d first falls to 5 % of d(0) (the permanent indentation's edge)
 """
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -94,8 +95,9 @@ SMALL_STRAIN_LIMIT = 0.1
 def small_strain_note(max_plastic_strain: float, max_rotation: float, where: str = "of the residual state") -> str:
     """One note line: the largest equivalent plastic strain and rotation (rad), and whether the
     small-strain model holds (a warning past SMALL_STRAIN_LIMIT)."""
-    text = (f"small strain: largest equivalent plastic strain {max_plastic_strain:.3g}, largest rotation {where} "
-            f"{max_rotation:.3g} rad")
+    text = f"small strain: largest equivalent plastic strain {max_plastic_strain:.3g}"
+    if math.isfinite(max_rotation):    # not known when no impact state was kept at the peak force
+        text += f", largest rotation {where} {max_rotation:.3g} rad"
     if max_plastic_strain > SMALL_STRAIN_LIMIT:
         return (text + f"; WARNING: past {SMALL_STRAIN_LIMIT:g}, where the small-strain J2 model stops being a good "
                 "approximation (no change of geometry under the ball, no finite-strain stress measure): the dent, "

@@ -16,7 +16,8 @@ The policy:
   files and no manifest, is refused unless ``force``: then the new output is written beside what is
   there, and the entries it replaces are named.
 - The path is checked before computing (:func:`prepare_output`): a file, the current folder or one
-  of its parents, ``''``, or a place where no folder can be made are refused in one line.
+  of its parents, ``''``, or a place where no folder can be made are refused in one line. A
+  symbolic link is written through: its target is the output folder, the link stays.
 - Two writers of one folder exclude each other: the claim holds an advisory lock
   (``fcntl.flock``) on ``.NAME.lock`` beside the folder until the command ends. The kernel drops
   it when its holder dies, so a killed run never blocks the next; a second writer is refused in
@@ -43,7 +44,9 @@ from typing import Callable, Iterable, Iterator, Optional
 from ..errors import InputError, OutputError
 from ..interrupts import raise_if_interrupted
 
-#: the manifest that marks a folder as a millimpact output: {"kind", "millimpact_version", "files"}
+#: the manifest that marks a folder as a millimpact output: {"kind", "millimpact_version", "files",
+#: "beside"}: the kind last written and its names, and the names of each other kind written there
+#: earlier (an output added with --force beside another: each command still owns its own entries)
 MARKER = ".millimpact-output"
 #: the hidden entries beside an output folder NAME that millimpact makes (stage, swap, probe, lock)
 HIDDEN = (".partial-", ".old-", ".probe-")
@@ -68,7 +71,9 @@ def read_manifest(folder: Path) -> Optional[dict]:
     folder = Path(folder)
     try:
         data = json.loads((folder / MARKER).read_text())
-        return {"kind": data.get("kind", "run"), "files": data.get("files")}
+        beside = data.get("beside") or {}
+        return {"kind": data.get("kind", "run"), "files": data.get("files"),
+                "beside": {str(k): list(v) for k, v in beside.items()} if isinstance(beside, dict) else {}}
     except (OSError, ValueError, AttributeError):
         pass
     version = "millimpact_version"
@@ -76,10 +81,31 @@ def read_manifest(folder: Path) -> Optional[dict]:
                             ("contact_table.json", "table", version), ("study.json", "study", "cases")):
         try:
             if key in json.loads((folder / name).read_text()):
-                return {"kind": kind, "files": None}
+                return {"kind": kind, "files": None, "beside": {}}
         except (OSError, ValueError, TypeError):
             continue
     return None
+
+
+def kinds_beside(manifest: Optional[dict], kind: str) -> dict:
+    """The other kinds' names a folder with ``manifest`` holds, when ``kind`` is written into it:
+    the earlier main kind's (unless it is ``kind``) and those already beside it (kind -> names)."""
+    if manifest is None:
+        return {}
+    others = {k: set(v) for k, v in manifest.get("beside", {}).items() if k != kind}
+    if manifest["kind"] != kind and manifest["files"]:
+        others[manifest["kind"]] = set(manifest["files"])
+    return others
+
+
+def owned_names(manifest: Optional[dict], kind: str) -> Optional[set]:
+    """The names ``kind`` wrote in a folder with ``manifest`` (None: an output of that kind written
+    before manifests named its files; empty set: none of that kind)."""
+    if manifest is None:
+        return set()
+    if manifest["kind"] == kind:
+        return None if manifest["files"] is None else set(manifest["files"])
+    return set(manifest.get("beside", {}).get(kind, []))
 
 
 def is_millimpact_output(folder: Path) -> bool:
@@ -87,15 +113,21 @@ def is_millimpact_output(folder: Path) -> bool:
     return read_manifest(folder) is not None
 
 
-def write_marker(folder: Path, kind: str, files: Optional[Iterable[str]] = None) -> None:
+def write_marker(folder: Path, kind: str, files: Optional[Iterable[str]] = None,
+                 beside: Optional[dict] = None) -> None:
     """Write the manifest of ``folder`` (atomically): ``kind`` and the names millimpact wrote there
-    (None: not known; a rerun then replaces only the names it writes again)."""
+    (None: not known; a rerun then replaces only the names it writes again); ``beside``: other
+    kinds' names in the same folder (kind -> names)."""
     from .. import __version__
 
     folder = Path(folder)
     names = None if files is None else sorted(set(files) - {MARKER})
+    data = {"kind": kind, "millimpact_version": __version__, "files": names}
+    others = {k: sorted(set(v) - {MARKER}) for k, v in (beside or {}).items() if k != kind and v}
+    if others:
+        data["beside"] = others
     tmp = folder / f"{MARKER}.tmp"
-    tmp.write_text(json.dumps({"kind": kind, "millimpact_version": __version__, "files": names}) + "\n")
+    tmp.write_text(json.dumps(data) + "\n")
     os.replace(tmp, folder / MARKER)
 
 
@@ -125,6 +157,10 @@ def prepare_output(out: Path | str, option: str = "--out", force: bool = False) 
     if not raw.strip():
         raise InputError(f"{option} {raw!r}: is empty; give a folder (e.g. out/NAME)")
     out = Path(os.path.abspath(os.path.expanduser(raw)))
+    if out.is_symlink():
+        # the user's link: written through into its target, under the target's rules (the link
+        # itself is never renamed, replaced or removed)
+        out = Path(os.path.realpath(out))
     cwd = Path.cwd().resolve()
     if out == cwd or out in cwd.parents or out == Path(out.anchor) or out.resolve() == cwd:
         raise InputError(f"{option} {raw}: is the current folder or one of its parents; give a folder "
@@ -176,8 +212,8 @@ class OutputFolder:
         if self.rank0:
             self.path.mkdir(parents=True, exist_ok=True)
             old = read_manifest(self.path)
-            owned = set((old or {}).get("files") or []) if (old or {}).get("kind") == self.kind else set()
-            write_marker(self.path, self.kind, owned | set(keep))
+            owned = owned_names(old, self.kind) or set()
+            write_marker(self.path, self.kind, owned | set(keep), kinds_beside(old, self.kind))
         self.note = note or self.note
         return self.path
 
@@ -187,13 +223,18 @@ class OutputFolder:
         when the block ends without an exception (:func:`publish`): the earlier output of this kind
         is replaced except ``keep`` (a cache from :meth:`open`), the user's entries stay. Collective
         when the claim has a communicator, unless not ``collective`` (rank 0 alone writes). A failed
-        write is one line (``OutputError``)."""
+        write is one line (``OutputError``) saying what is kept (:attr:`note`). On an exception
+        the lock is dropped but the claim stays current: the CLI's line on an interruption says what
+        the folder keeps (its finished cases), not that nothing was written."""
+        unwritten = self.note if callable(self.note) else None
         try:
             with staged_output(self.path, self.comm if collective else None, self.kind, force=self.force, keep=keep,
-                               said=self.said, what=f"{self.option} {self.shown}") as stage:
+                               said=self.said, what=f"{self.option} {self.shown}", unwritten=unwritten) as stage:
                 yield stage
-        finally:
-            self.release()
+        except BaseException:
+            _unlock(self.path)
+            raise
+        self.release()
 
     def replaced_note(self) -> str:
         """`` (replaced ...; kept ...)`` for the command's "results in" line, or ''."""
@@ -226,9 +267,9 @@ def claim_output(out: Path | str, kind: str, force: bool = False, option: str = 
                 raise OutputError(f"{option} {raw}: the disk is full (0 bytes free there); free some space first")
             leftovers = remove_leftovers(path)
             old = read_manifest(path) if path.is_dir() else None
-            if old is not None and old["kind"] != kind and not force:
+            if old is not None and old["kind"] != kind and kind not in old["beside"] and not force:
                 _unlock(path)
-                raise InputError(f"{option} {raw}: holds a millimpact {old['kind']} output, not a {kind}; give "
+                raise InputError(f"{option} {raw}: holds a millimpact {old['kind']} output, not {_a(kind)}; give "
                                  f"a new folder, or add --force to write the {kind} beside it")
             existed = path.is_dir() and any(p.name != MARKER for p in path.iterdir())
             result = (str(path), existed, leftovers)
@@ -315,6 +356,12 @@ def _unlock_all() -> None:
         _unlock(lock.parent / lock.name[1:-len(".lock")])
 
 
+def release_locks() -> None:
+    """Drop every output lock this process holds now (a process about to be killed: the kernel
+    would drop the locks, but their files would stay beside the folders)."""
+    _unlock_all()
+
+
 def _world():
     """MPI_COMM_WORLD under mpirun (more than one rank), else None (no MPI import)."""
     if int(os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1"))) > 1:
@@ -327,12 +374,14 @@ def _world():
 # --- staging and publishing ---------------------------------------------------------------------------
 @contextmanager
 def staged_output(out: Path, comm=None, kind: str = "run", force: bool = False, keep: Iterable[str] = (),
-                  said: Optional[list[str]] = None, what: str = "") -> Iterator[Path]:
+                  said: Optional[list[str]] = None, what: str = "",
+                  unwritten: Optional[Callable[[], str]] = None) -> Iterator[Path]:
     """Write an output's files into a hidden staging folder ``.NAME.partial-*`` and :func:`publish`
     it to ``out`` only on success. Collective when ``comm`` is given: rank 0 makes the folder and
     every rank gets its path (collective writers such as XDMF); only rank 0 publishes. An exception
     (an interruption too) leaves ``out`` untouched and removes the staging folder; a failed write
-    (full disk ...) becomes an ``OutputError`` naming ``what`` (default the path)."""
+    (full disk ...) becomes an ``OutputError`` naming ``what`` (default the path) and what is left
+    (``unwritten()``, default: nothing was written)."""
     rank = comm.rank if comm is not None else 0
     out = Path(os.path.abspath(out))
     what = what or str(out)
@@ -343,7 +392,7 @@ def staged_output(out: Path, comm=None, kind: str = "run", force: bool = False, 
             stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
             apply_umask(stage)
         except OSError as exc:
-            raise _write_error(exc, what) from None
+            raise _write_error(exc, what, unwritten) from None
     if comm is not None:
         stage = Path(comm.bcast(str(stage) if stage else None, root=0))
     try:
@@ -365,7 +414,7 @@ def staged_output(out: Path, comm=None, kind: str = "run", force: bool = False, 
     except BaseException as exc:
         if rank == 0:
             shutil.rmtree(stage, ignore_errors=True)
-        error = _write_error(exc, what) if isinstance(exc, (OSError, RuntimeError)) else None
+        error = _write_error(exc, what, unwritten) if isinstance(exc, (OSError, RuntimeError)) else None
         if error is not None:
             raise error from None
         raise
@@ -382,14 +431,15 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
     new = sorted(p.name for p in stage.iterdir())
     old = read_manifest(out) if out.is_dir() else None
     present = {p.name for p in out.iterdir()} - {MARKER} if out.is_dir() else set()
-    same = old is not None and old["kind"] == kind
     keep = set(keep) & present
-    if same and old["files"] is None:      # written before manifests: what this output writes again is its
+    owned = owned_names(old, kind)
+    if owned is None:                      # written before manifests: what this output writes again is its
         owned = present & set(new)
-    else:
-        owned = set(old["files"] or []) & present if same else set()
-    owned -= keep
-    foreign = present - owned - keep
+    owned = (owned & present) - keep
+    # the other kinds' entries (an output added beside another with --force): still theirs
+    others = {k: (v & present) - owned - keep for k, v in kinds_beside(old, kind).items()}
+    theirs = set().union(*others.values()) if others else set()
+    foreign = present - owned - keep - theirs
     write_marker(stage, kind, new)
     said = [f"replaced the earlier {kind}'s {len(owned)} {_entries(len(owned))}"] if owned else []
     if not present - owned:                 # nothing else there: swap the whole folder
@@ -399,9 +449,10 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
         stage.rename(out)
         shutil.rmtree(trash, ignore_errors=True)
         return said
-    write_marker(out, kind, (owned | keep | set(new)) - foreign)
+    clash = (foreign | theirs) & set(new)
+    others = {k: v - clash for k, v in others.items()}
+    write_marker(out, kind, (owned | keep | set(new)) - foreign - theirs, others)
     trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-    clash = foreign & set(new)
     for name in sorted(owned | clash):
         if name in clash and not force:
             os.rename(out / name, out / _free_name(out, f"{name}.yours"))
@@ -409,16 +460,24 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
             os.rename(out / name, trash / name)
     for name in new:
         os.rename(stage / name, out / name)
-    write_marker(out, kind, set(new) | keep)
+    write_marker(out, kind, set(new) | keep, others)
     shutil.rmtree(trash, ignore_errors=True)
     shutil.rmtree(stage, ignore_errors=True)
     if clash:
         said.append(f"{'replaced with --force' if force else 'kept yours as NAME.yours'}: {', '.join(sorted(clash))}")
+    for k, v in sorted(others.items()):
+        if v:
+            said.append(f"kept the {k}'s {len(v)} {_entries(len(v))}")
     if foreign - clash:
         rest = sorted(foreign - clash)
         said.append(f"kept {len(rest)} {_entries(len(rest))} millimpact did not write: {', '.join(rest[:5])}"
                     + (" ..." if len(rest) > 5 else ""))
     return said
+
+
+def _a(kind: str) -> str:
+    """``kind`` with its article: "a table", "an export"."""
+    return f"{'an' if kind[:1] in 'aeiou' else 'a'} {kind}"
 
 
 def _entries(n: int) -> str:
@@ -434,7 +493,7 @@ def _free_name(folder: Path, name: str) -> str:
 
 
 # --- failed writes ------------------------------------------------------------------------------------
-def _write_error(exc: BaseException, what: str) -> Optional[OutputError]:
+def _write_error(exc: BaseException, what: str, unwritten: Optional[Callable[[], str]] = None) -> Optional[OutputError]:
     """The one-line :class:`OutputError` of a failed write (an OSError with a write errno, or the
     RuntimeError HDF5 raises for one), else None (not a write failure: raised as it is)."""
     if isinstance(exc, OutputError):
@@ -446,8 +505,8 @@ def _write_error(exc: BaseException, what: str) -> Optional[OutputError]:
     if code not in WRITE_ERRNOS:
         return None
     name = Path(getattr(exc, "filename", None) or "").name
-    return OutputError(f"{what}: {os.strerror(code)}{f' writing {name}' if name else ''}; nothing was written "
-                       "(what was there before is unchanged)")
+    left = unwritten() if unwritten is not None else "nothing was written (what was there before is unchanged)"
+    return OutputError(f"{what}: {os.strerror(code)}{f' writing {name}' if name else ''}; {left}")
 
 
 @contextmanager

@@ -676,6 +676,12 @@ def from_table(cls: type, data: dict, where: str) -> Any:
         if key not in names:
             raise SceneError(path, value, f"unknown key; allowed here: {', '.join(names)}")
         kwargs[key] = coerce_value(hints[key], value, path)
+    required = [f.name for f in dataclasses.fields(cls)
+                if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    missing = [n for n in required if n not in kwargs]
+    if missing:
+        raise SceneError(where or cls.__name__, data, f"incomplete: give {', '.join(missing)} (required here: "
+                                                      f"{', '.join(required)})")
     try:
         return cls(**kwargs)
     except TypeError as exc:  # a required field missing

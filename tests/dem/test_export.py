@@ -263,3 +263,13 @@ def test_export_rerun_keeps_the_users_file_and_a_second_writer_is_refused(table,
     with another_writer(out, "export") as pid:
         code, stdout, stderr = main_in_process(capsys, argv)
     assert_refused_by_the_lock(code, stderr, out, pid)
+
+
+def test_export_of_a_file_says_it_is_a_file(tmp_path):
+    """``export FILE``: a file, not a table's folder (before: "no such folder")."""
+    from conftest import run_cli
+
+    f = tmp_path / "contact_table.csv"
+    f.write_text("x")
+    r = run_cli("export", str(f), "--to", "yade", "--out", str(tmp_path / "e"))
+    assert r.returncode == 2 and "a file, not a table's folder" in r.stderr and "no such folder" not in r.stderr, r.stderr

@@ -20,12 +20,17 @@ COARSE = ["--set", "model.h_contact=8e-4", "--set", "model.h_far=0.012", "-q"]
 
 @pytest.mark.parametrize("args, words", [
     (["--impacts", "0"], "--impacts 0"),
+    # no upper bound before: a spec per impact built first, ~250 MB/s, and Ctrl-C not honoured
+    (["--impacts", "1000000000"], "--impacts 1000000000: must lie in [1, 1000]"),
     (["--impacts", "3", "--velocities", "1,2"], "--velocities"),
     (["--impacts", "2", "--angles", "10,20,30"], "--angles"),
     (["--impacts", "2", "--offset", "0.05,0"], "leaves the face"),
     (["--impacts", "2", "--offset", "0.001"], "--offset"),
     (["--impacts", "2", "--velocities", "-1"], "speed"),
     (["--impacts", "2", "--method", "hertz"], "--method"),
+    # the plan's refusals: before, they came after --out was claimed and left its folder
+    (["--impacts", "2", "--set", "time.end=1e-9"], "time.end"),
+    (["--impacts", "2", "--set", "model.h_contact=0.01"], "model.h_contact"),
 ])
 def test_bad_input_is_one_line_exit_2_and_no_folder(tmp_path, args, words):
     out = tmp_path / "r"
@@ -100,6 +105,27 @@ def test_interrupted_sequence_keeps_its_impacts_and_a_rerun_continues(tmp_path):
 
 
 @pytest.mark.slow
+def test_one_impact_is_the_first_of_several(tmp_path):
+    """``--impacts 1`` and ``--impacts 2`` give the same first impact (the same model and the same
+    deterministic solves: 1e-10 leaves only the last digits; before, 1 impact had a smaller zone:
+    e_n 0.7137 against 0.7114, plastic work -1.1 %). Without -q, the model's stages and the time
+    loop's progress inside the impact are said (before: nothing until the impact's end, ~70 s at
+    coarse settings)."""
+    rows = {}
+    for n in (1, 2):
+        out = tmp_path / f"n{n}"
+        r = run_cli("repeat", "paper-rig-plastic", "--impacts", str(n), *(COARSE if n > 1 else COARSE[:-1]),
+                    "--out", str(out))
+        assert r.returncode == 0, r.stderr[-3000:]
+        rows[n] = read_impacts_csv(out / "impacts.csv")[0]
+        if n == 1:
+            assert "reduction" in r.stderr and "% (" in r.stderr and "simulated" in r.stderr, r.stderr[-2000:]
+    for c in OUTCOME_COLUMNS[1:]:
+        x, y = getattr(rows[1], c), getattr(rows[2], c)
+        assert (x != x and y != y) or x == pytest.approx(y, rel=1e-10, abs=1e-300), c
+
+
+@pytest.mark.slow
 @pytest.mark.mpi
 def test_mpi_sequence_equals_serial(tmp_path):
     """Two impacts under mpirun -n 2 (each rank stores and reloads its own part of the plastic
@@ -115,6 +141,35 @@ def test_mpi_sequence_equals_serial(tmp_path):
         for c in OUTCOME_COLUMNS[1:]:
             x, y = getattr(a, c), getattr(b, c)
             assert (x != x and y != y) or x == pytest.approx(y, rel=1e-7, abs=1e-12), c
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+@pytest.mark.parametrize("phase", ["model", "impacts"])
+def test_mpi_sequence_interrupted_says_so_and_leaves_no_lock(tmp_path, phase):
+    """``mpirun -n 2 repeat`` and Ctrl-C (mpirun passes it on as SIGTERM) while the model is built
+    (the header line is out) or between impacts (the first impact's line is out): rank 0 prints the
+    interrupt line and every rank ends; no lock file is left beside the folder (before: no line,
+    exit 1 after 37 s, a stale .NAME.lock)."""
+    import shutil
+
+    if shutil.which("mpirun") is None:
+        pytest.skip("mpirun not installed")
+    out = tmp_path / "x"
+    cmd = ["mpirun", "-n", "2", sys.executable, "-m", "millimpact.cli", "repeat", "paper-rig-plastic", "--impacts",
+           "3", *COARSE[:-1], "--set", "time.end=3e-4", "--out", str(out)]
+    p = subprocess.Popen(cmd, cwd=ROOT, env=mpi_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=default_sigint)
+    cue = "repeat paper-rig-plastic" if phase == "model" else "[1/3]"
+    for line in p.stdout:
+        if cue in line:
+            break
+    assert p.poll() is None, p.communicate()[1][-2000:]
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode != 0 and "millimpact: interrupted" in err and "finished impact(s) kept" in err, err[-3000:]
+    assert "Traceback" not in err and not (out / "summary.json").exists()
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["x"]             # no .x.lock, no staging
 
 
 # --- the output policy (docs/outputs.md, issue 35) -------------------------------------------------
@@ -153,15 +208,21 @@ def test_repeat_rerun_keeps_the_users_file_and_a_second_writer_is_refused(tmp_pa
 
 
 def test_a_sequence_grows_the_liner_zone_and_keeps_the_balls():
-    """More than one impact: the struck body's zone is REPEAT_ZONE_FACTOR a single impact's (plus
-    the largest offset), the ball keeps a single impact's (model.ball_zone_radius; it is struck at
-    the same point of its own); one impact is a single impact's model."""
+    """A sequence: the struck body's zone is REPEAT_ZONE_FACTOR a single impact's (plus the largest
+    offset), the ball keeps a single impact's (model.ball_zone_radius; it is struck at the same
+    point of its own); a sequence of one impact has the same model as one of two (before, one
+    impact had the single zone and its first impact differed from a longer sequence's)."""
     from millimpact.repeat.sequence import REPEAT_ZONE_FACTOR, ImpactSpec, sequence_scene
     from millimpact.scene.builtin import resolve_scene
+    from millimpact.scene.plan import make_plan
+    from millimpact.scene.toml_io import dump_scene
+    from millimpact.methods.reduced import reduced_plan
 
     scene = resolve_scene("paper-rig-plastic")
-    one = sequence_scene(scene, [ImpactSpec(3.0)], "improved").model
-    assert one.ball_zone_radius is None
+    alone = sequence_scene(scene, [ImpactSpec(3.0)], "improved")
+    assert dump_scene(alone) == dump_scene(sequence_scene(scene, [ImpactSpec(3.0)] * 3, "improved"))
+    single = scene.with_value("impact.velocity", [0.0, -3.0, 0.0])
+    one = reduced_plan(single, make_plan(single))[1]        # a single impact's (``run``) zone
     two = sequence_scene(scene, [ImpactSpec(3.0)] * 2, "improved").model
     assert two.zone_radius == pytest.approx(REPEAT_ZONE_FACTOR * one.zone_radius, rel=1e-12)
     assert two.ball_zone_radius == pytest.approx(one.zone_radius, rel=1e-12)

@@ -144,3 +144,65 @@ def test_sigterm_reaches_the_command_while_a_library_holds_the_handler():
                        text=True, timeout=60)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split("\n")[:2] == ["child 0", "interrupted Terminated"], (r.stdout, r.stderr)
+
+
+def test_a_symlinked_out_writes_through_into_its_target(tmp_path):
+    """--out a link to an earlier output: the new output goes into the link's target under the
+    target's rules, and the user's link stays as it was (before: the link was renamed to a hidden
+    .NAME.old-PID and a real folder published in its place; the target kept the old results)."""
+    from millimpact.results.output_folder import claim_output
+
+    target = tmp_path / "target"
+    with staged_output(target) as stage:
+        (stage / "summary.json").write_text('{"old": 1}')
+    link = tmp_path / "link"
+    link.symlink_to(target, target_is_directory=True)
+    claim = claim_output(link, "run")
+    with claim.staged() as stage:
+        (stage / "summary.json").write_text('{"new": 1}')
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert (target / "summary.json").read_text() == '{"new": 1}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "target"]     # nothing hidden left
+    # a link to the user's own folder is refused as that folder is
+    user = tmp_path / "user"
+    user.mkdir()
+    (user / "thesis.tex").write_text("mine")
+    (tmp_path / "ulink").symlink_to(user)
+    with pytest.raises(InputError, match="did not write"):
+        claim_output(tmp_path / "ulink", "run")
+    assert (tmp_path / "ulink").is_symlink() and (user / "thesis.tex").read_text() == "mine"
+
+
+def test_an_output_forced_beside_another_kind_leaves_each_its_own(tmp_path):
+    """``export ... --out TABLE --force`` beside a table: the table's entries stay the table's, so
+    the next ``table`` into that folder is accepted and replaces only its own entries (before: the
+    table's files became "not written by millimpact" and the table was refused in its own folder)."""
+    from millimpact.results.output_folder import claim_output, read_manifest
+
+    out = tmp_path / "table"
+    with staged_output(out, kind="table") as stage:
+        (stage / "contact_table.csv").write_text("old table")
+    claim = claim_output(out, "export", force=True)
+    with claim.staged() as stage:
+        (stage / "yade_law.py").write_text("export")
+    assert read_manifest(out)["beside"] == {"table": ["contact_table.csv"]}
+    claim = claim_output(out, "table")                       # its own folder: no --force needed
+    with claim.staged() as stage:
+        (stage / "contact_table.csv").write_text("new table")
+    assert "kept the export's 1 entry" in claim.replaced_note() and "did not write" not in claim.replaced_note()
+    assert (out / "contact_table.csv").read_text() == "new table" and (out / "yade_law.py").read_text() == "export"
+    m = read_manifest(out)
+    assert m["kind"] == "table" and m["files"] == ["contact_table.csv"] and m["beside"] == {"export": ["yade_law.py"]}
+    with pytest.raises(InputError, match="not a run"):       # a third kind is still refused
+        claim_output(out, "run")
+
+
+def test_another_kinds_folder_is_refused_with_its_article(tmp_path):
+    """"not an export" (before: "not a export")."""
+    from millimpact.results.output_folder import claim_output
+
+    out = tmp_path / "t"
+    with staged_output(out, kind="table") as stage:
+        (stage / "contact_table.csv").write_text("t")
+    with pytest.raises(InputError, match="millimpact table output, not an export; "):
+        claim_output(out, "export")

@@ -105,3 +105,13 @@ def test_plan_follows_the_scene():
     with pytest.raises(SceneError, match="model.symmetry"):
         make_plan(rig.with_value("model.symmetry", "quarter"))
     assert dataclasses.replace(rig) == rig
+
+
+def test_an_incomplete_table_names_the_missing_field():
+    """A gauge without its position: the line names the field (before: "Gauge.__init__() missing
+    1 required positional argument: 'position'")."""
+    from millimpact.scene.schema import Gauge, SceneError, from_table
+
+    with pytest.raises(SceneError, match=r"gauges\[0\].*incomplete: give position \(required here: name, position\)") as exc:
+        from_table(Gauge, {"name": "A"}, "gauges[0]")
+    assert "__init__" not in str(exc.value)

@@ -244,3 +244,53 @@ def test_bands_and_cases_are_taken_dearest_first():
         speeds = [c.scene.normal_speed for c in g]
         assert speeds == sorted(speeds, reverse=True)
     assert sorted(c.index for g in groups for c in g) == list(range(len(cases)))
+
+
+def test_a_table_interrupted_while_written_says_its_cases_are_kept(tmp_path):
+    """Ctrl-C once the last case's line is out and the table's staging folder is there (its files
+    are being written, ~1 s of figures): the line names the finished cases kept in cases/ (before: "no output was written",
+    although they were kept and a rerun reused them)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from conftest import ROOT, default_sigint, mpi_env
+
+    out = tmp_path / "t"
+    p = subprocess.Popen([sys.executable, "-m", "millimpact.cli", "table", "--method", "hertz", "--velocity",
+                          "1,2,3,4,5,6,7,8", "--out", str(out)], cwd=ROOT, env=mpi_env(), stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
+    for line in p.stdout:
+        if "[8/8]" in line:
+            break
+    while not list(tmp_path.glob(".t.partial-*")) and p.poll() is None:   # the table's files are being staged
+        time.sleep(0.01)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130, (p.returncode, err[-2000:])
+    last = err.strip().splitlines()[-1]
+    assert "no output was written" not in last and f"8 finished case(s) kept in {out}/cases/" in last, last
+    assert not (out / "contact_table.csv").exists()
+
+
+def test_a_full_disk_while_the_table_is_written_says_what_is_kept(tmp_path):
+    """A 1 MB tmpfs with ~60 KB free: the finished case fits in cases/, the table's files do not.
+    One line, exit 1, saying the case is kept (before: "nothing was written", with the folder, its
+    case and its manifest left). Needs root for the mount; skipped otherwise."""
+    import subprocess
+
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(disk)], capture_output=True).returncode:
+        pytest.skip("cannot mount a tmpfs here (not root)")
+    try:
+        (disk / "fill").write_bytes(b"\0" * 1024 * (1024 - 60))
+        r = run_cli("table", "--method", "hertz", "--velocity", "1", "--out", str(disk / "t"))
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 1 and len(lines) == 1 and "No space left on device" in lines[0], r.stderr[-2000:]
+        assert "nothing was written" not in lines[0] and f"1 finished case(s) kept in {disk / 't'}/cases/" in lines[0]
+        assert len(list((disk / "t" / "cases").glob("*.json"))) == 1
+        assert not (disk / "t" / "contact_table.csv").exists()
+    finally:
+        subprocess.run(["umount", str(disk)], check=True)

@@ -60,7 +60,7 @@ def read_table(folder: Path | str) -> ContactTable:
 
     folder = Path(folder)
     if not folder.is_dir():
-        raise _not_a_table(folder, "no such folder")
+        raise _not_a_table(folder, "a file, not a table's folder" if folder.exists() else "no such folder")
     path = folder / "contact_table.json"
     if not path.is_file() or not (folder / "contact_table.csv").is_file():
         raise _not_a_table(folder, "no contact_table.json and contact_table.csv")

@@ -75,6 +75,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", help=OUT_HELP.format(default="out/mill-SCENE"))
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--no-plots", action="store_true", help="skip spectrum.png and charge.png")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
 def command_scene(args: argparse.Namespace):
@@ -134,7 +135,7 @@ def _contact_summary(setup) -> dict:
             "stiffness_scale": setup.stiffness_scale, "law_update_every_steps": setup.law_every}
 
 
-def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=None) -> dict:
+def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=None, quiet: bool = False) -> dict:
     """Plan, run and report one mill run into the folder ``stage``; returns the summary."""
     from ..impacts import write_impacts
     from .log import read_mill_run
@@ -151,7 +152,7 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
     if setup.law is not None:
         shutil.copy(setup.law.script, work / setup.law.script.name)
     (work / "input.json").write_text(json.dumps(setup.yade_input()) + "\n")
-    run_yade(work / SCRIPT.name, work, ["input.json"], timeout=timeout, on_progress=_Progress())
+    run_yade(work / SCRIPT.name, work, ["input.json"], timeout=timeout, on_progress=None if quiet else _Progress())
     run = read_mill_run(work, setup)
     write_impacts(stage / "impacts.csv", run.impacts)
     revs = setup.revolutions
@@ -212,17 +213,35 @@ def main(args: argparse.Namespace) -> int:
     yade_executable()
     out = args.out if args.out is not None else default_out(scene.name, prefix="mill-")
     target = claim_output(out, "mill", force=args.force)   # before the DEM run: checks, lock, leftovers
-    say(f"mill: scene '{scene.name}', D {setup.profile.diameter:g} m, {setup.profile.n_lifters} lifters, "
+    quiet = getattr(args, "quiet", False)
+    if not quiet:
+        say(f"mill: scene '{scene.name}', D {setup.profile.diameter:g} m, {setup.profile.n_lifters} lifters, "
         f"{setup.n_balls} balls of {2e3 * setup.ball_radius:g} mm in a {1e3 * setup.thickness:.0f} mm slice, "
         f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; "
         f"{_restitution_text(setup)}, mu {setup.friction:g}, moduli x {setup.stiffness_scale:g}; "
         f"{(setup.warmup_s + setup.run_s) / setup.dt:.3g} steps of {setup.dt:.3g} s", file=sys.stderr)
-    with target.staged(collective=False) as stage:
-        summary = run_mill(scene, opts, stage, plots=not args.no_plots, setup=setup)
-        write_summary(stage, summary)
+    from .yade import YadeError
+
+    try:
+        with target.staged(collective=False) as stage:
+            summary = run_mill(scene, opts, stage, plots=not args.no_plots, setup=setup, quiet=quiet)
+            write_summary(stage, summary)
+    except YadeError as exc:       # say what the folder keeps (nothing of this run is published)
+        raise YadeError(f"{exc}; {target.note}") from None
+    if quiet:
+        return 0
     n = summary["impacts_per_revolution"]
     say(f"impacts per revolution: {n['all']:.4g} (lifter faces {n['lifter_face']:.4g}, tops {n['lifter_top']:.4g}, "
-        f"plate {n['plate']:.4g}); shoulder {summary['shoulder_deg']} deg, toe {summary['toe_deg']} deg; "
+        f"plate {n['plate']:.4g}); {_charge_text(summary)}; "
         f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %")
     say(f"results in {target.shown}/" + target.replaced_note())
     return 0
+
+
+def _charge_text(summary: dict) -> str:
+    """Shoulder and toe, or that the charge centrifuges (no shoulder: the balls ring the shell)."""
+    if summary["shoulder_deg"] is None or summary["toe_deg"] is None:
+        share = summary.get("centrifuged_fraction")
+        return ("no shoulder or toe: the charge centrifuges"
+                + (f" ({100 * share:.0f} % of the balls turn with the shell)" if share is not None else ""))
+    return f"shoulder {summary['shoulder_deg']:.4g} deg, toe {summary['toe_deg']:.4g} deg"

@@ -169,7 +169,11 @@ def charge_figure(path: Path, snapshots: dict[str, np.ndarray], setup: MillSetup
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.legend(fontsize=8, loc="upper left")
+    if ax.get_legend_handles_labels()[1]:     # a centrifuging charge has no shoulder or toe to label
+        ax.legend(fontsize=8, loc="upper left")
+    else:
+        ax.text(0.02, 0.98, "no shoulder or toe: the charge centrifuges", transform=ax.transAxes, va="top",
+                fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
