@@ -15,6 +15,7 @@ pyproject.toml's import-linter contract checks this):
 - :mod:`millimpact.theory`       closed-form contact mechanics (Hertz, ...)
 - :mod:`millimpact.errors`, :mod:`millimpact.console`  exceptions and rank-0 printing
 """
+
 import os as _os
 
 __version__ = "0.1.0"
@@ -30,7 +31,7 @@ def _blas_threads(sharers: int = 1) -> int:
     local = _os.environ.get("OMPI_COMM_WORLD_LOCAL_SIZE") or _os.environ.get("MPI_LOCALNRANKS") or "1"
     try:
         cores = len(_os.sched_getaffinity(0))
-    except AttributeError:     # no affinity call (not Linux)
+    except AttributeError:  # no affinity call (not Linux)
         cores = _os.cpu_count() or 1
     return max(1, cores // max(1, int(local), sharers))
 
@@ -53,8 +54,7 @@ if "OPENBLAS_NUM_THREADS" not in _os.environ or _os.environ.get(_BLAS_AUTO) == "
     _os.environ[_BLAS_AUTO] = "1"
 
 #: the CPU features (/proc/cpuinfo flags) of OpenBLAS's kernel families, the widest first
-_BLAS_CORES = (("SkylakeX", {"avx512f", "avx512dq", "avx512cd", "avx512bw", "avx512vl"}),
-               ("Haswell", {"avx2", "fma"}))
+_BLAS_CORES = (("SkylakeX", {"avx512f", "avx512dq", "avx512cd", "avx512bw", "avx512vl"}), ("Haswell", {"avx2", "fma"}))
 
 
 def _blas_coretype(cpuinfo: str = "/proc/cpuinfo"):

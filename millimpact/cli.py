@@ -3,23 +3,23 @@
 Bad input ends in one line on stderr naming the field and its allowed range, and exit status 2.
 PETSc options (``-impact_ksp_type gmres`` ...) may follow any run command and reach PETSc.
 """
+
 from __future__ import annotations
 
 import argparse
 import faulthandler
-import re
 import logging
 import os
+import re
 import sys
 from pathlib import Path
-from typing import Optional
 
 from .console import enable_stages, say, world_rank
 from .errors import InputError, MillimpactError, OutputError, Terminated
 from .fem.jit_cache import release_interrupted_compile, stale_jit_claim
 from .interrupts import ON_SIGNAL, command_signals
-from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note, release_locks
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
+from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note, release_locks
 
 EXIT_INPUT = 2
 EXIT_FAILURE = 1
@@ -72,7 +72,7 @@ def cmd_hertz(args: argparse.Namespace) -> int:
     from .scene.builtin import resolve_scene
 
     scene = resolve_scene(args.scene)
-    from .scene.plan import scene_hertz   # numpy and scipy: after the input is read
+    from .scene.plan import scene_hertz  # numpy and scipy: after the input is read
 
     h = scene_hertz(scene)
     say(f"Hertz impact of scene '{scene.name}' (ball on a half-space of the block's material)")
@@ -80,8 +80,9 @@ def cmd_hertz(args: argparse.Namespace) -> int:
         say(f"  {name:<26s} {value:12.5g} {unit}")
     from .scene.plan import first_yield_notes
 
-    for note in first_yield_notes(h, scene.ball.material, scene.target_material,
-                                  "liner" if scene.liner is not None else "block"):
+    for note in first_yield_notes(
+        h, scene.ball.material, scene.target_material, "liner" if scene.liner is not None else "block"
+    ):
         say(f"  note: {note}")
     return 0
 
@@ -105,7 +106,7 @@ def cmd_scene(args: argparse.Namespace) -> int:
         return 0
     # show: resolved scene with units, and the plan of the method that will run
     method_entry(args.method)
-    from .scene.plan import make_plan   # numpy and scipy: after the input is read
+    from .scene.plan import make_plan  # numpy and scipy: after the input is read
 
     plan = make_plan(scene)
     method_notes: list[str] = []
@@ -116,42 +117,59 @@ def cmd_scene(args: argparse.Namespace) -> int:
         method_notes = [f"P{REDUCED_METHODS[args.method][0]} ({REDUCED_METHODS[args.method][1]} zone)"] + method_notes
     b, k, i = scene.ball, scene.block, scene.impact
     say(f"scene '{scene.name}': {scene.description}")
-    say(f"  ball    radius {b.radius*1e3:g} mm, mass {b.mass*1e3:.4g} g, rho {b.material.density:g} kg/m^3, "
-         f"G {b.material.shear_modulus/1e9:g} GPa, nu {b.material.poisson:g} (E {b.material.youngs_modulus/1e9:.4g} GPa)")
+    say(
+        f"  ball    radius {b.radius * 1e3:g} mm, mass {b.mass * 1e3:.4g} g, rho {b.material.density:g} kg/m^3, "
+        f"G {b.material.shear_modulus / 1e9:g} GPa, nu {b.material.poisson:g} (E {b.material.youngs_modulus / 1e9:.4g} GPa)"
+    )
     if scene.liner is not None:
         ln, p, n = scene.liner, scene.impact_point, scene.contact_normal
-        say(f"  liner   plate {ln.length*1e3:g} x {ln.width*1e3:g} x {ln.thickness*1e3:g} mm, {ln.n_lifters} lifter(s) "
-             f"{ln.lifter_height*1e3:g} mm high, top {ln.lifter_top_width*1e3:g} mm, face angle {ln.lifter_face_angle:g} deg, "
-             f"mill radius {ln.mill_radius:g} m; rho {ln.material.density:g} kg/m^3, G {ln.material.shear_modulus/1e9:g} "
-             f"GPa, nu {ln.material.poisson:g}")
+        say(
+            f"  liner   plate {ln.length * 1e3:g} x {ln.width * 1e3:g} x {ln.thickness * 1e3:g} mm, {ln.n_lifters} lifter(s) "
+            f"{ln.lifter_height * 1e3:g} mm high, top {ln.lifter_top_width * 1e3:g} mm, face angle {ln.lifter_face_angle:g} deg, "
+            f"mill radius {ln.mill_radius:g} m; rho {ln.material.density:g} kg/m^3, G {ln.material.shear_modulus / 1e9:g} "
+            f"GPa, nu {ln.material.poisson:g}"
+        )
         if ln.bolt_holes():
-            say(f"  bolts   {len(ln.bolt_holes())} holes of {ln.bolt_hole_diameter*1e3:g} mm (clamped) at x "
-                f"{', '.join(f'{x*1e3:g}' for x in ln.bolt_x)} mm x arc {', '.join(f'{a*1e3:g}' for a in ln.bolt_arc)} mm; "
-                + ("back face clamped" if ln.backing == "clamped" else
-                   f"back face on a rubber backing: E_c {ln.backing_modulus/1e9:.3g} GPa, {ln.backing_thickness*1e3:g} mm, "
-                   f"k_n {ln.backing_stiffness:.3g} Pa/m"))
-        say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, normal "
-             f"{scene.normal_speed:.4g} m/s; point ({', '.join(f'{c*1e3:.4g}' for c in p)}) mm on lifter "
-             f"{ln.impact_lifter} face {ln.impact_face}, normal ({', '.join(f'{c:.4g}' for c in n)})"
-            if ln.impact_place == "lifter_face" else
+            say(
+                f"  bolts   {len(ln.bolt_holes())} holes of {ln.bolt_hole_diameter * 1e3:g} mm (clamped) at x "
+                f"{', '.join(f'{x * 1e3:g}' for x in ln.bolt_x)} mm x arc {', '.join(f'{a * 1e3:g}' for a in ln.bolt_arc)} mm; "
+                + (
+                    "back face clamped"
+                    if ln.backing == "clamped"
+                    else f"back face on a rubber backing: E_c {ln.backing_modulus / 1e9:.3g} GPa, {ln.backing_thickness * 1e3:g} mm, "
+                    f"k_n {ln.backing_stiffness:.3g} Pa/m"
+                )
+            )
+        say(
             f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, normal "
-            f"{scene.normal_speed:.4g} m/s; point ({', '.join(f'{c*1e3:.4g}' for c in p)}) mm on the "
+            f"{scene.normal_speed:.4g} m/s; point ({', '.join(f'{c * 1e3:.4g}' for c in p)}) mm on lifter "
+            f"{ln.impact_lifter} face {ln.impact_face}, normal ({', '.join(f'{c:.4g}' for c in n)})"
+            if ln.impact_place == "lifter_face"
+            else f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, normal "
+            f"{scene.normal_speed:.4g} m/s; point ({', '.join(f'{c * 1e3:.4g}' for c in p)}) mm on the "
             f"{'top of lifter ' + str(ln.impact_lifter) if ln.impact_place == 'lifter_top' else 'plate'}, "
-            f"{ln.impact_arc*1e3:.4g} mm from lifter {ln.impact_lifter}'s centre line, normal "
-            f"({', '.join(f'{c:.4g}' for c in n)})")
+            f"{ln.impact_arc * 1e3:.4g} mm from lifter {ln.impact_lifter}'s centre line, normal "
+            f"({', '.join(f'{c:.4g}' for c in n)})"
+        )
     else:
-        say(f"  block   {k.length*1e3:g} x {k.thickness*1e3:g} x {k.height*1e3:g} mm (length x thickness x height), "
-             f"support '{k.support}', rho {k.material.density:g} kg/m^3, G {k.material.shear_modulus/1e9:g} GPa, "
-             f"nu {k.material.poisson:g}")
+        say(
+            f"  block   {k.length * 1e3:g} x {k.thickness * 1e3:g} x {k.height * 1e3:g} mm (length x thickness x height), "
+            f"support '{k.support}', rho {k.material.density:g} kg/m^3, G {k.material.shear_modulus / 1e9:g} GPa, "
+            f"nu {k.material.poisson:g}"
+        )
         x, _, z = scene.impact_point
-        say(f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, "
-             f"point (x {x*1e3:g} mm, z {z*1e3:g} mm) on face y = 0")
+        say(
+            f"  impact  velocity ({', '.join(f'{c:g}' for c in i.velocity)}) m/s, |v| {i.speed:g} m/s, "
+            f"point (x {x * 1e3:g} mm, z {z * 1e3:g} mm) on face y = 0"
+        )
     if scene.contact.friction > 0:
         say(f"  contact Coulomb friction mu = {scene.contact.friction:g}")
     for g in scene.gauges:
-        say(f"  gauge {g.name}  at ({', '.join(f'{c*1e3:g}' for c in g.position)}) mm, "
-             f"direction ({', '.join(f'{c:g}' for c in g.direction)})")
-    say(f"  time    end {scene.time.end*1e3:g} ms")
+        say(
+            f"  gauge {g.name}  at ({', '.join(f'{c * 1e3:g}' for c in g.position)}) mm, "
+            f"direction ({', '.join(f'{c:g}' for c in g.direction)})"
+        )
+    say(f"  time    end {scene.time.end * 1e3:g} ms")
     say(f"plan of --method {args.method} (derived from the Hertz estimate; override in [model], [time], impact.gap):")
     # an analytical model meshes nothing: only its flight gap and time step apply
     analytical = args.method in method_names("analytical")
@@ -169,22 +187,24 @@ def cmd_scene(args: argparse.Namespace) -> int:
         from .methods.memory import estimate_memory
 
         est = estimate_memory(scene, plan, args.method)
-        say(f"  size: ~{est.dofs:,} P{est.degree} DOFs, peak memory ~{est.per_rank / 1e9:.3g} GB at 1 rank "
-            "(estimated before meshing: millimpact/scene/sizing.py, methods/memory.py)")
+        say(
+            f"  size: ~{est.dofs:,} P{est.degree} DOFs, peak memory ~{est.per_rank / 1e9:.3g} GB at 1 rank "
+            "(estimated before meshing: millimpact/scene/sizing.py, methods/memory.py)"
+        )
     return 0
 
 
 def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
-    method_entry(args.method)   # an unknown method: one line listing them, before any work
+    method_entry(args.method)  # an unknown method: one line listing them, before any work
     if petsc:
         from .integration.solvers import check_type_options
 
-        check_type_options(petsc)   # -..._ksp_type nosuch: one line, not a PETSc error number later
+        check_type_options(petsc)  # -..._ksp_type nosuch: one line, not a PETSc error number later
     from .scene.builtin import DEFAULT_SCENE
 
     scene = command_scene(args)
     out = args.out if args.out is not None else default_out(scene.name if args.scene else DEFAULT_SCENE)
-    target = claim_output(out, "run", force=args.force)   # before any computing: a typo costs a second
+    target = claim_output(out, "run", force=args.force)  # before any computing: a typo costs a second
     comm = _comm()
     enable_stages(not args.quiet)
     if args.method == "hertz":
@@ -199,24 +219,34 @@ def cmd_run(args: argparse.Namespace, petsc: dict[str, str]) -> int:
             continue
         reduced = method_names("reduced")
         if args.method not in reduced:
-            raise InputError(f"{flag} {value:g}: applies to the reduced methods ({', '.join(reduced)}), "
-                             f"not --method {args.method}")
+            raise InputError(
+                f"{flag} {value:g}: applies to the reduced methods ({', '.join(reduced)}), not --method {args.method}"
+            )
         if not value > 0 and not (key == "modes" and value == 0):
-            raise InputError(f"{flag} {value:g}: must be > 0" + (" (or 0: constraint modes only)" if key == "modes" else " Hz"))
+            raise InputError(
+                f"{flag} {value:g}: must be > 0" + (" (or 0: constraint modes only)" if key == "modes" else " Hz")
+            )
         options[key] = value
-    from .methods.run import run_scene   # the computing stack: only once the input is accepted
+    from .methods.run import run_scene  # the computing stack: only once the input is accepted
 
-    summary = run_scene(scene, args.method, target, options=options, progress=not args.quiet, comm=comm,
-                        reference=args.reference)
+    summary = run_scene(
+        scene, args.method, target, options=options, progress=not args.quiet, comm=comm, reference=args.reference
+    )
     h = summary["hertz"]
     rel = summary["relative_to_hertz"]
     say(f"scene {scene.name}, method {args.method}: wall time {summary['wall_time_s']:.3g} s")
-    say(f"  peak contact force  {summary['peak_contact_force_N']/1e3:10.4g} kN   (Hertz {h['F_max_N']/1e3:.4g} kN, "
-         f"{100*rel['peak_contact_force']:+.2f} %)")
-    say(f"  contact duration    {summary['contact_duration_s']*1e6:10.4g} us   (Hertz {h['t_c_s']*1e6:.4g} us, "
-         f"{100*rel['contact_duration']:+.2f} %)")
+    say(
+        f"  peak contact force  {summary['peak_contact_force_N'] / 1e3:10.4g} kN   (Hertz {h['F_max_N'] / 1e3:.4g} kN, "
+        f"{100 * rel['peak_contact_force']:+.2f} %)"
+    )
+    say(
+        f"  contact duration    {summary['contact_duration_s'] * 1e6:10.4g} us   (Hertz {h['t_c_s'] * 1e6:.4g} us, "
+        f"{100 * rel['contact_duration']:+.2f} %)"
+    )
     if summary.get("max_approach_m"):
-        say(f"  max approach        {summary['max_approach_m']*1e6:10.4g} um   (Hertz {h['delta_max_m']*1e6:.4g} um)")
+        say(
+            f"  max approach        {summary['max_approach_m'] * 1e6:10.4g} um   (Hertz {h['delta_max_m'] * 1e6:.4g} um)"
+        )
     if summary.get("restitution") is not None:
         say(f"  restitution         {summary['restitution']:10.4f}")
     for note in summary.get("notes", []):
@@ -235,18 +265,20 @@ def command_scene(args: argparse.Namespace):
 
 def cmd_mesh(args: argparse.Namespace) -> int:
     scene = command_scene(args)
-    from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf   # gmsh, DOLFINx: once the input is read
+    from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf  # gmsh, DOLFINx: once the input is read
     from .scene.plan import make_plan
 
     plan = make_plan(scene)
     out = args.out if args.out is not None else default_out(scene.name, suffix="-mesh")
-    target = claim_output(out, "mesh", force=args.force)   # before meshing
+    target = claim_output(out, "mesh", force=args.force)  # before meshing
     with target.staged() as stage:
         md = create_mesh(scene, plan, _comm(), export=stage / "mesh.msh")
         write_mesh_xdmf(md, stage / "mesh.xdmf")
     out = target.shown
-    say(f"mesh of scene '{scene.name}' -> {out}/mesh.msh (gmsh, physical groups: meshes/README.md), {out}/mesh.xdmf"
-        + target.replaced_note())
+    say(
+        f"mesh of scene '{scene.name}' -> {out}/mesh.msh (gmsh, physical groups: meshes/README.md), {out}/mesh.xdmf"
+        + target.replaced_note()
+    )
     for name, value in mesh_report(md):
         say(f"  {name:<28s} {value}")
     return 0
@@ -310,79 +342,129 @@ class _Parser(argparse.ArgumentParser):
         command = self.prog.split(" ", 1)[1] if " " in self.prog else ""
         where = f"millimpact {command}".strip()
         if world_rank() == 0:
-            print(f"millimpact: error: {command + ': ' if command else ''}{message}; see '{where} --help'",
-                  file=sys.stderr)
+            print(
+                f"millimpact: error: {command + ': ' if command else ''}{message}; see '{where} --help'",
+                file=sys.stderr,
+            )
         sys.exit(EXIT_INPUT)
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="millimpact", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("-v", "--verbose", action="store_true", help="log progress details")
-    p.add_argument("--version", action=_VersionAction, nargs=0,
-                   help="print millimpact's version and those of DOLFINx, PETSc, SLEPc and gmsh")
+    p.add_argument(
+        "--version",
+        action=_VersionAction,
+        nargs=0,
+        help="print millimpact's version and those of DOLFINx, PETSc, SLEPc and gmsh",
+    )
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
-    r = sub.add_parser("run", help="simulate a scene and write summary, time series, fields and figures",
-                       formatter_class=_LineFormatter,
-                       description="Simulate SCENE (a built-in name or a .toml file; default paper-rig) and "
-                                   "write DIR/summary.json, timeseries.csv/.h5, scene.toml, figures and fields. "
-                                   "PETSc options such as -impact_ksp_type may follow.")
+    r = sub.add_parser(
+        "run",
+        help="simulate a scene and write summary, time series, fields and figures",
+        formatter_class=_LineFormatter,
+        description="Simulate SCENE (a built-in name or a .toml file; default paper-rig) and "
+        "write DIR/summary.json, timeseries.csv/.h5, scene.toml, figures and fields. "
+        "PETSc options such as -impact_ksp_type may follow.",
+    )
     r.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
-    r.add_argument("--method", default=DEFAULT_METHOD, metavar="METHOD",
-                   help=f"solution method (default {DEFAULT_METHOD}):\n{method_help()}")
+    r.add_argument(
+        "--method",
+        default=DEFAULT_METHOD,
+        metavar="METHOD",
+        help=f"solution method (default {DEFAULT_METHOD}):\n{method_help()}",
+    )
     r.add_argument("--out", help=OUT_HELP.format(default="out/SCENE"))
     r.add_argument("--force", action="store_true", help=FORCE_HELP)
-    r.add_argument("--set", action="append", metavar="FIELD=VALUE",
-                   help="override a scene field, e.g. --set ball.radius=0.02 --set model.h_contact=2e-4")
-    r.add_argument("--degree", type=int, choices=[1, 2],
-                   help="Lagrange degree of --method full (default the plan's, P1: F_max about +3 %%, P2 within "
-                        "~1 %%); the reduced methods have their own (improved, modal-p2: P2; traditional: P1)")
-    r.add_argument("--integrator", choices=["newmark-mr", "newmark", "central-penalty"],
-                   help="time integrator of FE methods: newmark-mr (default: Newmark average acceleration with "
-                        "mass redistribution), newmark (plain, chatters), central-penalty (explicit)")
-    r.add_argument("--modes", type=int, metavar="N",
-                   help="reduced methods: fixed-interface modes kept per body (wins over the cutoff)")
-    r.add_argument("--f-cut", type=float, metavar="HZ",
-                   help="reduced methods: modal cutoff of the reduction in Hz (default the plan's 4 / t_c; "
-                        "the output grid keeps the plan's)")
+    r.add_argument(
+        "--set",
+        action="append",
+        metavar="FIELD=VALUE",
+        help="override a scene field, e.g. --set ball.radius=0.02 --set model.h_contact=2e-4",
+    )
+    r.add_argument(
+        "--degree",
+        type=int,
+        choices=[1, 2],
+        help="Lagrange degree of --method full (default the plan's, P1: F_max about +3 %%, P2 within "
+        "~1 %%); the reduced methods have their own (improved, modal-p2: P2; traditional: P1)",
+    )
+    r.add_argument(
+        "--integrator",
+        choices=["newmark-mr", "newmark", "central-penalty"],
+        help="time integrator of FE methods: newmark-mr (default: Newmark average acceleration with "
+        "mass redistribution), newmark (plain, chatters), central-penalty (explicit)",
+    )
+    r.add_argument(
+        "--modes",
+        type=int,
+        metavar="N",
+        help="reduced methods: fixed-interface modes kept per body (wins over the cutoff)",
+    )
+    r.add_argument(
+        "--f-cut",
+        type=float,
+        metavar="HZ",
+        help="reduced methods: modal cutoff of the reduction in Hz (default the plan's 4 / t_c; "
+        "the output grid keeps the plan's)",
+    )
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    r.add_argument("--reference", action="store_true",
-                   help="also write reference.h5 / reference.csv (+ .json): a versioned reference file other "
-                        "implementations are scored against with 'millimpact compare'")
+    r.add_argument(
+        "--reference",
+        action="store_true",
+        help="also write reference.h5 / reference.csv (+ .json): a versioned reference file other "
+        "implementations are scored against with 'millimpact compare'",
+    )
 
-    h = sub.add_parser("hertz", help="print the Hertz impact values of a scene",
-                       description="Closed-form Hertz impact of the scene's ball on a half-space of the "
-                                   "block's material: delta_max, F_max, t_c, a_max, p0, max shear and depth.")
+    h = sub.add_parser(
+        "hertz",
+        help="print the Hertz impact values of a scene",
+        description="Closed-form Hertz impact of the scene's ball on a half-space of the "
+        "block's material: delta_max, F_max, t_c, a_max, p0, max shear and depth.",
+    )
     h.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
 
-    s = sub.add_parser("scene", help="list, show or export scenes",
-                       description="list: built-in scenes and studies; show NAME|FILE: the resolved scene "
-                                   "with units and the plan; export NAME|FILE: TOML to stdout, to edit.")
+    s = sub.add_parser(
+        "scene",
+        help="list, show or export scenes",
+        description="list: built-in scenes and studies; show NAME|FILE: the resolved scene "
+        "with units and the plan; export NAME|FILE: TOML to stdout, to edit.",
+    )
     s.add_argument("action", choices=["list", "show", "export"])
     s.add_argument("name", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
-    s.add_argument("--method", default=DEFAULT_METHOD, metavar="METHOD",
-                   help=f"show: the plan of this method (default {DEFAULT_METHOD}; the reduced methods shrink the zone)")
+    s.add_argument(
+        "--method",
+        default=DEFAULT_METHOD,
+        metavar="METHOD",
+        help=f"show: the plan of this method (default {DEFAULT_METHOD}; the reduced methods shrink the zone)",
+    )
 
-    m = sub.add_parser("mesh", help="mesh a scene (gmsh) and write it as XDMF with its tags",
-                       description="Build (or take from the cache in meshes/) the graded two-body mesh of "
-                                   "SCENE and write DIR/mesh.xdmf; prints element counts, h_c, zone sizes, quality.")
+    m = sub.add_parser(
+        "mesh",
+        help="mesh a scene (gmsh) and write it as XDMF with its tags",
+        description="Build (or take from the cache in meshes/) the graded two-body mesh of "
+        "SCENE and write DIR/mesh.xdmf; prints element counts, h_c, zone sizes, quality.",
+    )
     m.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
     m.add_argument("--out", help=OUT_HELP.format(default="out/SCENE-mesh"))
     m.add_argument("--force", action="store_true", help=FORCE_HELP)
     m.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
 
     for q in sub.choices.values():
-        q.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
-                       help="log progress details")
+        q.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help="log progress details")
     # commands that live in their own modules (EXTRA_COMMANDS): each module has
     # HELP (one line), add_arguments(parser) and main(args) -> exit status
     for name in EXTRA_COMMANDS:
         mod = _command_module(name)
-        q = sub.add_parser(name, help=mod.HELP, description=plain_text(getattr(mod, "DESCRIPTION", mod.HELP)),
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        q = sub.add_parser(
+            name,
+            help=mod.HELP,
+            description=plain_text(getattr(mod, "DESCRIPTION", mod.HELP)),
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
         mod.add_arguments(q)
-        q.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
-                       help="log progress details")
+        q.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help="log progress details")
     return p
 
 
@@ -412,8 +494,12 @@ class _VersionAction(argparse.Action):
 
 
 #: the stack ``--version`` reports: (name, Python module, its distribution's name or None)
-STACK = (("DOLFINx", "dolfinx", "fenics-dolfinx"), ("PETSc", "petsc4py", "petsc4py"),
-         ("SLEPc", "slepc4py", "slepc4py"), ("gmsh", "gmsh", None))
+STACK = (
+    ("DOLFINx", "dolfinx", "fenics-dolfinx"),
+    ("PETSc", "petsc4py", "petsc4py"),
+    ("SLEPc", "slepc4py", "slepc4py"),
+    ("gmsh", "gmsh", None),
+)
 
 
 def version_text() -> str:
@@ -450,15 +536,18 @@ def version_text() -> str:
                 pass
         if version is None and origin.suffix == ".py":
             try:
-                found = re.search(r'^(?:__version__|GMSH_API_VERSION)\s*=\s*["\']([^"\']+)["\']',
-                                  origin.read_text(errors="replace"), re.M)
+                found = re.search(
+                    r'^(?:__version__|GMSH_API_VERSION)\s*=\s*["\']([^"\']+)["\']',
+                    origin.read_text(errors="replace"),
+                    re.M,
+                )
                 version = found.group(1) if found else None
             except OSError:
                 pass
         if version is None:
             try:
                 version = importlib.import_module(module).__version__
-            except Exception:   # a broken install: say so rather than fail --version
+            except Exception:  # a broken install: say so rather than fail --version
                 version = "(version unknown)"
         parts.append(f"{name} {version}")
     return ", ".join(parts)
@@ -495,19 +584,19 @@ class _CheckedStdout:
         return getattr(self._stream, name)
 
 
-def main(argv: Optional[list[str]] = None) -> int:
+def main(argv: list[str] | None = None) -> int:
     stdout = sys.stdout
     sys.stdout = _CheckedStdout(stdout)
     _SAID_INTERRUPT.clear()
     mpi_ranks = int(os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1")))
     try:
-        with command_signals():   # Ctrl-C and SIGTERM seen whatever a library does (interrupts.py)
+        with command_signals():  # Ctrl-C and SIGTERM seen whatever a library does (interrupts.py)
             if mpi_ranks > 1:
                 ON_SIGNAL.append(_interrupted_under_mpirun)
             code = _main(argv)
         sys.stdout.flush()
         return code
-    except OutputError as exc:   # the last flush of standard output
+    except OutputError as exc:  # the last flush of standard output
         if world_rank() == 0:
             print(f"millimpact: failed: {exc}", file=sys.stderr)
         return EXIT_FAILURE
@@ -525,8 +614,11 @@ def _interrupt_line(code: int, text: str = "") -> None:
     """``millimpact: interrupted (SIGINT|SIGTERM): what is kept``, once, on rank 0."""
     if world_rank() == 0 and not _SAID_INTERRUPT:
         _SAID_INTERRUPT.append(True)
-        print(f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {text or interrupt_note()}",
-              file=sys.stderr, flush=True)
+        print(
+            f"millimpact: interrupted ({'SIGTERM' if code == 143 else 'SIGINT'}): {text or interrupt_note()}",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def _interrupted_under_mpirun(signum: int) -> None:
@@ -539,13 +631,13 @@ def _interrupted_under_mpirun(signum: int) -> None:
     release_locks()
 
 
-def _main(argv: Optional[list[str]] = None) -> int:
+def _main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     # a native crash (DOLFINx, gmsh; PETSc has its own handler) prints the Python stack on stderr
     # instead of ending the process without a word
     try:
         faulthandler.enable()
-    except (AttributeError, OSError, ValueError):     # stderr without a file descriptor (main() called in-process)
+    except (AttributeError, OSError, ValueError):  # stderr without a file descriptor (main() called in-process)
         pass
     try:
         parser = build_parser()
@@ -553,14 +645,16 @@ def _main(argv: Optional[list[str]] = None) -> int:
         args, rest = parser.parse_known_args(argv)
         # force: FFCx's __init__ calls logging.basicConfig() when it is imported, which made this
         # one a no-op (-v showed no INFO line of the package until 2026-11-26)
-        logging.basicConfig(level=logging.INFO if args.verbose and world_rank() == 0 else logging.WARNING,
-                            format="%(name)s: %(message)s", force=True)
+        logging.basicConfig(
+            level=logging.INFO if args.verbose and world_rank() == 0 else logging.WARNING,
+            format="%(name)s: %(message)s",
+            force=True,
+        )
         for handler in logging.getLogger().handlers:
             handler.addFilter(_CompilerChatter(args.verbose))
         if rest:
             where = f"'millimpact {args.command}'" if args.command else "'millimpact'"
-            raise InputError(f"unrecognised arguments {' '.join(rest)!r} for {where}: "
-                             f"see {where[:-1]} --help'")
+            raise InputError(f"unrecognised arguments {' '.join(rest)!r} for {where}: see {where[:-1]} --help'")
         if args.command is None:
             parser.print_help()
             return 0
@@ -596,10 +690,12 @@ def _main(argv: Optional[list[str]] = None) -> int:
         stale = stale_jit_claim(exc)
         if stale is None:
             raise
-        if world_rank() == 0:   # FFCx's claim of a module whose compile never finished
-            print(f"millimpact: failed: JIT compilation timed out waiting for {stale}, left by a compile that "
-                  f"did not finish (a run killed while compiling forms); remove that file and run again",
-                  file=sys.stderr)
+        if world_rank() == 0:  # FFCx's claim of a module whose compile never finished
+            print(
+                f"millimpact: failed: JIT compilation timed out waiting for {stale}, left by a compile that "
+                f"did not finish (a run killed while compiling forms); remove that file and run again",
+                file=sys.stderr,
+            )
         return EXIT_FAILURE
     except BrokenPipeError:
         # the reader went away (``millimpact ... | head``): not an error of ours, and no traceback

@@ -3,6 +3,7 @@
 The rank is read without initialising MPI when the process was not started by ``mpirun``, so
 commands that never touch MPI (``--help``, ``scene list``) stay fast.
 """
+
 from __future__ import annotations
 
 import os
@@ -76,6 +77,7 @@ class stage:
 
         if STAGES["enabled"] and exc_type is None and world_rank() == 0:
             now = time.perf_counter()
-            print(f"[{now - STAGES['t0']:7.1f} s] {self.what}: done in {now - self.t:.2f} s", file=sys.stderr,
-                  flush=True)
+            print(
+                f"[{now - STAGES['t0']:7.1f} s] {self.what}: done in {now - self.t:.2f} s", file=sys.stderr, flush=True
+            )
         return False

@@ -1,4 +1,5 @@
 """The package's own exceptions. The CLI turns :class:`InputError` into one line and exit status 2."""
+
 from __future__ import annotations
 
 from typing import Any

@@ -24,6 +24,7 @@ The handler also records the signal, and :func:`raise_if_interrupted` raises it 
 result is published and before each time step: an exception a library swallows (a bare
 ``except:`` between two bytecodes) cannot turn an interrupted run into a published one.
 """
+
 from __future__ import annotations
 
 import _thread
@@ -31,8 +32,8 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Callable, Iterator
 
 from .errors import Terminated
 
@@ -76,14 +77,16 @@ def _unraisable(hook):
     finalizer (pyparsing's ``Forward.__del__`` while modules are imported at start-up) cannot
     propagate, and Python would print "Exception ignored in ..." with a traceback and go on. The
     signal is recorded; interrupt the main thread again, where the exception can propagate."""
+
     def unraisable(info) -> None:
         if info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt):
-            if _PENDING_SIGNALS:   # a moment later, from another thread: not inside this hook
+            if _PENDING_SIGNALS:  # a moment later, from another thread: not inside this hook
                 timer = threading.Timer(0.05, _thread.interrupt_main, args=(_PENDING_SIGNALS[-1],))
                 timer.daemon = True
                 timer.start()
             return
         hook(info)
+
     return unraisable
 
 
@@ -97,7 +100,7 @@ def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
         for hook in list(ON_SIGNAL):
             try:
                 hook(signum)
-            except Exception:      # noqa: BLE001 - the interruption itself must go on
+            except Exception:  # noqa: BLE001 - the interruption itself must go on
                 pass
         # interrupt_main does nothing while the signal's handler is SIG_DFL: gmsh's module sets
         # SIGINT so during its import, until millimpact.geometry puts the handler back; wait
@@ -105,7 +108,7 @@ def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
         deadline = time.monotonic() + HANDLER_WAIT_S
         while signal.getsignal(signum) is not on_interrupt_signal and time.monotonic() < deadline:
             time.sleep(0.01)
-        _thread.interrupt_main(signum)   # runs on_interrupt_signal in the main thread
+        _thread.interrupt_main(signum)  # runs on_interrupt_signal in the main thread
 
 
 @contextmanager
@@ -125,8 +128,7 @@ def command_signals() -> Iterator[None]:
         signal.signal(s, on_interrupt_signal)
     mask = signal.pthread_sigmask(signal.SIG_BLOCK, waited)
     stop = threading.Event()
-    waiter = threading.Thread(target=_wait_and_interrupt, args=(waited, stop), name="millimpact-signals",
-                              daemon=True)
+    waiter = threading.Thread(target=_wait_and_interrupt, args=(waited, stop), name="millimpact-signals", daemon=True)
     waiter.start()
     _WAITED.update(waited)
     unraisable_hook = sys.unraisablehook
@@ -136,9 +138,9 @@ def command_signals() -> Iterator[None]:
     finally:
         sys.unraisablehook = unraisable_hook
         _WAITED.clear()
-        clear_interrupts()   # the record lives as long as the command
+        clear_interrupts()  # the record lives as long as the command
         stop.set()
-        signal.pthread_kill(waiter.ident, signal.SIGTERM)   # wakes its sigwait; it ends on `stop`
+        signal.pthread_kill(waiter.ident, signal.SIGTERM)  # wakes its sigwait; it ends on `stop`
         waiter.join(timeout=5.0)
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         for s, handler in handlers.items():

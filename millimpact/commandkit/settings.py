@@ -7,9 +7,11 @@ scene validated once (:meth:`~millimpact.scene.schema.Scene.with_values`), so tw
 against each other (``impact.gap`` at most ``ball.radius``) can be changed in either order. A
 malformed argument, a field the command sets itself, or a value out of range is one line naming it.
 """
+
 from __future__ import annotations
 
-from typing import Any, Mapping, Optional, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from ..errors import InputError
 from ..scene.schema import Scene, parse_value
@@ -18,7 +20,7 @@ from ..scene.schema import Scene, parse_value
 _FORMS = {"--set": ("FIELD", "ball.radius=0.02"), "--option": ("KEY", "modes=20")}
 
 
-def parse_assignments(items: Optional[Sequence[str]], flag: str) -> list[tuple[str, Any]]:
+def parse_assignments(items: Sequence[str] | None, flag: str) -> list[tuple[str, Any]]:
     """Each ``NAME=VALUE`` of ``items`` (the values of ``flag``: ``--set`` or ``--option``) as
     ``(NAME, value read as TOML)``, in order; one line for a malformed one."""
     name, example = _FORMS[flag]
@@ -31,7 +33,7 @@ def parse_assignments(items: Optional[Sequence[str]], flag: str) -> list[tuple[s
     return out
 
 
-def apply_sets(scene: Scene, sets: Optional[Sequence[str]], reserved: Optional[Mapping[str, str]] = None) -> Scene:
+def apply_sets(scene: Scene, sets: Sequence[str] | None, reserved: Mapping[str, str] | None = None) -> Scene:
     """``scene`` with every ``--set`` of ``sets`` applied together and validated once (their order
     does not matter). ``reserved``: fields the command sets itself -> what sets them; a ``--set`` of
     one (or of a part of it, or of a table holding it) is refused."""
@@ -43,8 +45,7 @@ def apply_sets(scene: Scene, sets: Optional[Sequence[str]], reserved: Optional[M
     return scene.with_values(assignments) if assignments else scene
 
 
-def command_scene(name: Optional[str], sets: Optional[Sequence[str]],
-                  reserved: Optional[Mapping[str, str]] = None) -> Scene:
+def command_scene(name: str | None, sets: Sequence[str] | None, reserved: Mapping[str, str] | None = None) -> Scene:
     """The scene a command runs: the built-in scene or TOML file ``name`` (None: the default
     scene), with its ``--set`` assignments (:func:`apply_sets`)."""
     from ..scene.builtin import resolve_scene
@@ -52,7 +53,7 @@ def command_scene(name: Optional[str], sets: Optional[Sequence[str]],
     return apply_sets(resolve_scene(name), sets, reserved)
 
 
-def parse_options(items: Optional[Sequence[str]]) -> dict[str, Any]:
+def parse_options(items: Sequence[str] | None) -> dict[str, Any]:
     """``--option KEY=VALUE`` arguments as a dict of method options (a later KEY wins); a
     malformed one, or a PETSc type or reduction setting out of range, is one line before any case
     runs. PETSc is imported only when there is an option to check."""

@@ -10,13 +10,15 @@ run again computes only what is missing.
 - The load (:meth:`PieceStore.load`): the stored piece, or None when it is missing or unreadable.
 - The note (:func:`kept_note`): the one line an interrupted command prints about what it kept.
 """
+
 from __future__ import annotations
 
 import hashlib
 import json
 import os
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Callable, Mapping, Optional, Sequence
+from typing import Any
 
 
 def piece_key(what: Mapping[str, Any]) -> str:
@@ -49,7 +51,7 @@ class PieceStore:
     def path(self, key: str) -> Path:
         return self.folder / f"{key}.json"
 
-    def load(self, key: str) -> Optional[dict]:
+    def load(self, key: str) -> dict | None:
         """The piece stored under ``key``, or None (missing, unreadable or not a JSON object)."""
         try:
             data = json.loads(self.path(key).read_text())

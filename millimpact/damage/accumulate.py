@@ -34,11 +34,12 @@ The dent grows at (d_n - d_n-1) N_spot a revolution at the sequence's end (0 aft
 eps_p reaches the small-strain limit EPS_SMALL_STRAIN after (0.1 - eps_n) / (eps_n - eps_n-1) more
 impacts at the end's increment (inf when it does not grow).
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -60,13 +61,27 @@ class ImpactDamage:
 
 def impact_damage(imp: Impact, row: dict, below_yield: bool, density: float, scene_ball_mass: float) -> ImpactDamage:
     """An impact's absorbed energy and plastic work from its bin's table ``row`` (module docstring)."""
-    a, p = impacts_damage(np.array([imp.ball_radius_m]), np.array([imp.normal_speed_m_s]),
-                          np.array([imp.tangential_speed_m_s]), row, below_yield, density, scene_ball_mass)
+    a, p = impacts_damage(
+        np.array([imp.ball_radius_m]),
+        np.array([imp.normal_speed_m_s]),
+        np.array([imp.tangential_speed_m_s]),
+        row,
+        below_yield,
+        density,
+        scene_ball_mass,
+    )
     return ImpactDamage(float(a[0]), float(p[0]))
 
 
-def impacts_damage(radius: np.ndarray, v_n: np.ndarray, v_t: np.ndarray, row: dict, below_yield: bool,
-                   density: float, scene_ball_mass: float) -> tuple[np.ndarray, np.ndarray]:
+def impacts_damage(
+    radius: np.ndarray,
+    v_n: np.ndarray,
+    v_t: np.ndarray,
+    row: dict,
+    below_yield: bool,
+    density: float,
+    scene_ball_mass: float,
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`impact_damage` of a bin's impacts at once, from their ball radii (m) and normal and
     tangential speeds (m/s): (energy absorbed, plastic work) per impact (J)."""
     m = 4.0 / 3.0 * math.pi * radius**3 * density
@@ -105,15 +120,25 @@ def place_extent(liner, place: str) -> float:
     return max(liner.lifter_spacing - liner.lifter_base_width, 1e-9)
 
 
-def dent_trend(repeat: Optional[dict], impacts_per_rev: float, extent_m: float, slice_length_m: float) -> dict:
+def dent_trend(repeat: dict | None, impacts_per_rev: float, extent_m: float, slice_length_m: float) -> dict:
     """Dent growth and plastic strain trend of a place from its repeated-impact sequence (module
     docstring); NaN when there is no sequence."""
     nan = math.nan
-    out = {"repeat_verdict": "not computed", "impacts_to_shakedown": nan, "repeat_impacts": 0,
-           "dent_depth_first_m": nan, "dent_depth_last_m": nan, "dent_growth_per_impact_m": nan,
-           "spot_impacts_per_rev": nan, "dent_growth_m_per_rev": nan, "revolutions_to_shakedown": nan,
-           "max_eq_plastic_strain_first": nan, "max_eq_plastic_strain_last": nan,
-           "max_eq_plastic_strain_growth_per_impact": nan, "revolutions_to_small_strain_limit": nan}
+    out = {
+        "repeat_verdict": "not computed",
+        "impacts_to_shakedown": nan,
+        "repeat_impacts": 0,
+        "dent_depth_first_m": nan,
+        "dent_depth_last_m": nan,
+        "dent_growth_per_impact_m": nan,
+        "spot_impacts_per_rev": nan,
+        "dent_growth_m_per_rev": nan,
+        "revolutions_to_shakedown": nan,
+        "max_eq_plastic_strain_first": nan,
+        "max_eq_plastic_strain_last": nan,
+        "max_eq_plastic_strain_growth_per_impact": nan,
+        "revolutions_to_small_strain_limit": nan,
+    }
     if not repeat or not repeat.get("outcomes"):
         return out
     oc = repeat["outcomes"]
@@ -133,34 +158,54 @@ def dent_trend(repeat: Optional[dict], impacts_per_rev: float, extent_m: float, 
         to_limit = ((EPS_SMALL_STRAIN - eps[-1]) / deps + len(eps)) / spot
     else:
         to_limit = math.inf
-    out.update({"repeat_verdict": kind, "impacts_to_shakedown": float(n_sd) if n_sd is not None else nan,
-                "repeat_impacts": len(oc), "dent_depth_first_m": float(d[0]), "dent_depth_last_m": float(d[-1]),
-                "dent_growth_per_impact_m": growth, "spot_impacts_per_rev": spot,
-                "dent_growth_m_per_rev": growth * spot if spot == spot else nan,
-                "revolutions_to_shakedown": (float(n_sd) / spot if n_sd is not None and spot > 0 else nan),
-                "max_eq_plastic_strain_first": float(eps[0]), "max_eq_plastic_strain_last": float(eps[-1]),
-                "max_eq_plastic_strain_growth_per_impact": deps, "revolutions_to_small_strain_limit": to_limit})
+    out.update(
+        {
+            "repeat_verdict": kind,
+            "impacts_to_shakedown": float(n_sd) if n_sd is not None else nan,
+            "repeat_impacts": len(oc),
+            "dent_depth_first_m": float(d[0]),
+            "dent_depth_last_m": float(d[-1]),
+            "dent_growth_per_impact_m": growth,
+            "spot_impacts_per_rev": spot,
+            "dent_growth_m_per_rev": growth * spot if spot == spot else nan,
+            "revolutions_to_shakedown": (float(n_sd) / spot if n_sd is not None and spot > 0 else nan),
+            "max_eq_plastic_strain_first": float(eps[0]),
+            "max_eq_plastic_strain_last": float(eps[-1]),
+            "max_eq_plastic_strain_growth_per_impact": deps,
+            "revolutions_to_small_strain_limit": to_limit,
+        }
+    )
     return out
 
 
-def dominant_bin(bins: Sequence[Bin], per_bin: dict[int, dict], place: str) -> Optional[int]:
+def dominant_bin(bins: Sequence[Bin], per_bin: dict[int, dict], place: str) -> int | None:
     """The bin of ``place`` with the largest plastic work per revolution (else the largest absorbed
     energy) among the computed ones, or None."""
     cand = [b for b in bins if b.place == place and b.index in per_bin]
     if not cand:
         return None
-    return max(cand, key=lambda b: (per_bin[b.index]["plastic_work_J_per_rev"],
-                                    per_bin[b.index]["energy_absorbed_J_per_rev"])).index
+    return max(
+        cand, key=lambda b: (per_bin[b.index]["plastic_work_J_per_rev"], per_bin[b.index]["energy_absorbed_J_per_rev"])
+    ).index
 
 
-def accumulate(impacts: Sequence[Impact], bins: Sequence[Bin], rows: dict[int, dict], density: float,
-               scene_ball_mass: float, revolutions: float, lifters: int = 1) -> tuple[dict[int, dict], dict]:
+def accumulate(
+    impacts: Sequence[Impact],
+    bins: Sequence[Bin],
+    rows: dict[int, dict],
+    density: float,
+    scene_ball_mass: float,
+    revolutions: float,
+    lifters: int = 1,
+) -> tuple[dict[int, dict], dict]:
     """Per-bin sums per revolution (bin index -> numbers) and each impact's share: arrays
     ``energy_absorbed_J`` and ``plastic_work_J`` over the impacts (NaN for an impact of a bin
     without a response)."""
     per_rev = 1.0 / (revolutions * lifters)
-    radius, v_n, v_t, energy = (impact_column(impacts, c) for c in ("ball_radius_m", "normal_speed_m_s",
-                                                                     "tangential_speed_m_s", "impact_energy_J"))
+    radius, v_n, v_t, energy = (
+        impact_column(impacts, c)
+        for c in ("ball_radius_m", "normal_speed_m_s", "tangential_speed_m_s", "impact_energy_J")
+    )
     shares = {"energy_absorbed_J": np.full(len(impacts), math.nan), "plastic_work_J": np.full(len(impacts), math.nan)}
     per_bin = {}
     for b in bins:
@@ -170,15 +215,18 @@ def accumulate(impacts: Sequence[Impact], bins: Sequence[Bin], rows: dict[int, d
         a, p = impacts_damage(radius[i], v_n[i], v_t[i], rows[b.index], b.below_yield, density, scene_ball_mass)
         shares["energy_absorbed_J"][i] = a
         shares["plastic_work_J"][i] = p
-        per_bin[b.index] = {"impacts_per_rev": len(b.impacts) * per_rev,
-                            "impact_energy_J_per_rev": float(energy[i].sum()) * per_rev,
-                            "energy_absorbed_J_per_rev": float(a.sum()) * per_rev,
-                            "plastic_work_J_per_rev": float(p.sum()) * per_rev}
+        per_bin[b.index] = {
+            "impacts_per_rev": len(b.impacts) * per_rev,
+            "impact_energy_J_per_rev": float(energy[i].sum()) * per_rev,
+            "energy_absorbed_J_per_rev": float(a.sum()) * per_rev,
+            "plastic_work_J_per_rev": float(p.sum()) * per_rev,
+        }
     return per_bin, shares
 
 
-def place_totals(impacts: Sequence[Impact], bins: Sequence[Bin], per_bin: dict[int, dict],
-                 revolutions: float, lifters: int = 1) -> dict[str, dict]:
+def place_totals(
+    impacts: Sequence[Impact], bins: Sequence[Bin], per_bin: dict[int, dict], revolutions: float, lifters: int = 1
+) -> dict[str, dict]:
     """Per place: impacts, impact energy, energy absorbed and plastic work per revolution, and the
     impacts left out (their bins refused or failed)."""
     per_rev = 1.0 / (revolutions * lifters)
@@ -190,18 +238,22 @@ def place_totals(impacts: Sequence[Impact], bins: Sequence[Bin], per_bin: dict[i
             continue
         done = [b for b in mine if b.index in per_bin]
         n_all = sum(len(b.impacts) for b in mine)
-        out[p] = {"impacts_per_rev": n_all * per_rev,
-                  "impact_energy_J_per_rev": sum(float(energy[np.asarray(b.impacts, dtype=np.int64)].sum())
-                                                 for b in mine) * per_rev,
-                  "energy_absorbed_J_per_rev": sum(per_bin[b.index]["energy_absorbed_J_per_rev"] for b in done),
-                  "plastic_work_J_per_rev": sum(per_bin[b.index]["plastic_work_J_per_rev"] for b in done),
-                  "impacts_left_out_per_rev": (n_all - sum(len(b.impacts) for b in done)) * per_rev,
-                  "bins": len(mine), "bins_computed": len(done)}
+        out[p] = {
+            "impacts_per_rev": n_all * per_rev,
+            "impact_energy_J_per_rev": sum(float(energy[np.asarray(b.impacts, dtype=np.int64)].sum()) for b in mine)
+            * per_rev,
+            "energy_absorbed_J_per_rev": sum(per_bin[b.index]["energy_absorbed_J_per_rev"] for b in done),
+            "plastic_work_J_per_rev": sum(per_bin[b.index]["plastic_work_J_per_rev"] for b in done),
+            "impacts_left_out_per_rev": (n_all - sum(len(b.impacts) for b in done)) * per_rev,
+            "bins": len(mine),
+            "bins_computed": len(done),
+        }
     return out
 
 
-def profile_rates(impacts: Sequence[Impact], shares: dict, cell_m: float,
-                  revolutions: float, lifters: int = 1) -> dict[str, dict]:
+def profile_rates(
+    impacts: Sequence[Impact], shares: dict, cell_m: float, revolutions: float, lifters: int = 1
+) -> dict[str, dict]:
     """Per place, arc cells ``cell_m`` wide: the plastic work and the absorbed energy per revolution
     per metre of arc (J/(rev m)) at each cell's centre (``shares``: :func:`accumulate`'s)."""
     per_rev = 1.0 / (revolutions * lifters)
@@ -218,6 +270,9 @@ def profile_rates(impacts: Sequence[Impact], shares: dict, cell_m: float,
         k = np.clip(((s - lo) / cell_m).astype(int), 0, n - 1)
         wp = np.bincount(k, plastic[idx], n) * per_rev / cell_m
         wa = np.bincount(k, absorbed[idx], n) * per_rev / cell_m
-        out[p] = {"arc_m": (lo + cell_m * (np.arange(n) + 0.5)).tolist(), "plastic_work_J_per_rev_m": wp.tolist(),
-                  "energy_absorbed_J_per_rev_m": wa.tolist()}
+        out[p] = {
+            "arc_m": (lo + cell_m * (np.arange(n) + 0.5)).tolist(),
+            "plastic_work_J_per_rev_m": wp.tolist(),
+            "energy_absorbed_J_per_rev_m": wa.tolist(),
+        }
     return out

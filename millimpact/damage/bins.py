@@ -25,11 +25,12 @@ Representative (per bin): the root-mean-square normal and tangential speeds of i
 and the median arc position of its arc bin (all the place's impacts in that arc range: the bins of
 an arc bin share one placed scene, hence one mesh).
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -55,10 +56,10 @@ class Bin:
     normal_speed_range_m_s: tuple[float, float]
     angle_range_deg: tuple[float, float]
     impacts: tuple[int, ...]
-    normal_speed_m_s: float        #: RMS normal speed of its impacts
-    tangential_speed_m_s: float    #: RMS tangential speed of its impacts
-    arc_m: float                   #: median arc position of its arc bin's impacts (m)
-    below_yield: bool              #: the bin's upper speed edge is at or below V_y
+    normal_speed_m_s: float  #: RMS normal speed of its impacts
+    tangential_speed_m_s: float  #: RMS tangential speed of its impacts
+    arc_m: float  #: median arc position of its arc bin's impacts (m)
+    below_yield: bool  #: the bin's upper speed edge is at or below V_y
 
     @property
     def speed_m_s(self) -> float:
@@ -76,24 +77,31 @@ class BinChoice:
     """The bins and how they were chosen."""
 
     bins: tuple[Bin, ...]
-    v_y_m_s: float                  #: Thornton's yield-onset speed (inf for an elastic liner)
-    tolerance: float                #: the restitution spread asked per bin
-    tolerance_used: float           #: the spread the speed edges were built for (>= tolerance on a tight budget)
-    widest_spread: float            #: the largest Thornton spread e(lo) - e(hi) over the occupied bins
+    v_y_m_s: float  #: Thornton's yield-onset speed (inf for an elastic liner)
+    tolerance: float  #: the restitution spread asked per bin
+    tolerance_used: float  #: the spread the speed edges were built for (>= tolerance on a tight budget)
+    widest_spread: float  #: the largest Thornton spread e(lo) - e(hi) over the occupied bins
     angle_bins: int
     arc_bins: int
     max_bins: int
-    speed_edges: dict = field(default_factory=dict)   #: place -> edges (m/s)
+    speed_edges: dict = field(default_factory=dict)  #: place -> edges (m/s)
     notes: tuple[str, ...] = ()
 
     def report(self) -> dict:
         """The choice as JSON-able data (written to the summary)."""
-        return {"bins": len(self.bins), "max_bins": self.max_bins, "yield_onset_speed_m_s": self.v_y_m_s,
-                "restitution_tolerance": self.tolerance, "restitution_tolerance_used": self.tolerance_used,
-                "widest_thornton_restitution_spread": self.widest_spread, "angle_bins": self.angle_bins,
-                "arc_bins": self.arc_bins,
-                "speed_edges_m_s": {p: list(e) for p, e in self.speed_edges.items()},
-                "resolved": self.widest_spread <= self.tolerance * (1 + 1e-9), "notes": list(self.notes)}
+        return {
+            "bins": len(self.bins),
+            "max_bins": self.max_bins,
+            "yield_onset_speed_m_s": self.v_y_m_s,
+            "restitution_tolerance": self.tolerance,
+            "restitution_tolerance_used": self.tolerance_used,
+            "widest_thornton_restitution_spread": self.widest_spread,
+            "angle_bins": self.angle_bins,
+            "arc_bins": self.arc_bins,
+            "speed_edges_m_s": {p: list(e) for p, e in self.speed_edges.items()},
+            "resolved": self.widest_spread <= self.tolerance * (1 + 1e-9),
+            "notes": list(self.notes),
+        }
 
 
 def speed_edges(v_lo: float, v_hi: float, v_y: float, tolerance: float) -> list[float]:
@@ -116,7 +124,7 @@ def speed_edges(v_lo: float, v_hi: float, v_y: float, tolerance: float) -> list[
             edges.append(hi)
             break
         a, b = math.log(max(cur, v_y)), math.log(hi)
-        for _ in range(60):   # bisection on ln V: e is monotone decreasing above V_y
+        for _ in range(60):  # bisection on ln V: e is monotone decreasing above V_y
             m = 0.5 * (a + b)
             a, b = (m, b) if restitution_thornton(math.exp(m), v_y) > target else (a, m)
         cur = math.exp(b)
@@ -140,8 +148,15 @@ def _index(values: np.ndarray, edges: Sequence[float]) -> np.ndarray:
     return np.clip(np.searchsorted(np.asarray(edges), values, side="right") - 1, 0, len(edges) - 2)
 
 
-def _make_bins(impacts: Sequence[Impact], v_y: float, tolerance: float, n_angle: int,
-               n_arc: int, columns: Optional[dict] = None, count_only: bool = False) -> tuple[list[Bin], dict, float]:
+def _make_bins(
+    impacts: Sequence[Impact],
+    v_y: float,
+    tolerance: float,
+    n_angle: int,
+    n_arc: int,
+    columns: dict | None = None,
+    count_only: bool = False,
+) -> tuple[list[Bin], dict, float]:
     """The occupied bins (as arrays: one key per impact, grouped by sorting); ``count_only``: the
     bins' number alone (a list of that many Nones), for the budget's search."""
     c = columns if columns is not None else _columns(impacts)
@@ -158,7 +173,7 @@ def _make_bins(impacts: Sequence[Impact], v_y: float, tolerance: float, n_angle:
         ce = _quantile_edges(arc[sel], n_arc)
         edges_of[p] = se
         ci, si, ai = _index(arc[sel], ce), _index(vn[sel], se), _index(ang[sel], ae)
-        key = (ci * (len(se) - 1) + si) * (len(ae) - 1) + ai          # sorted as (arc, speed, angle)
+        key = (ci * (len(se) - 1) + si) * (len(ae) - 1) + ai  # sorted as (arc, speed, angle)
         keys, first, counts = np.unique(key, return_index=True, return_counts=True)
         if count_only:
             bins += [None] * len(keys)
@@ -173,9 +188,20 @@ def _make_bins(impacts: Sequence[Impact], v_y: float, tolerance: float, n_angle:
             below = math.isfinite(v_y) and hi <= v_y * (1 + 1e-12)
             if math.isfinite(v_y) and not below:
                 spread = max(spread, restitution_thornton(max(lo, v_y), v_y) - restitution_thornton(hi, v_y))
-            bins.append(Bin(len(bins), p, (ce[cj], ce[cj + 1]), (lo, hi), (ae[aj], ae[aj + 1]),
-                            tuple(members.tolist()), float(np.sqrt(np.mean(vn[members] ** 2))),
-                            float(np.sqrt(np.mean(vt[members] ** 2))), arc_rep[cj], below))
+            bins.append(
+                Bin(
+                    len(bins),
+                    p,
+                    (ce[cj], ce[cj + 1]),
+                    (lo, hi),
+                    (ae[aj], ae[aj + 1]),
+                    tuple(members.tolist()),
+                    float(np.sqrt(np.mean(vn[members] ** 2))),
+                    float(np.sqrt(np.mean(vt[members] ** 2))),
+                    arc_rep[cj],
+                    below,
+                )
+            )
     return bins, edges_of, spread
 
 
@@ -183,12 +209,23 @@ def _columns(impacts: Sequence[Impact]) -> dict:
     """The columns the bins are made of: normal and tangential speed, angle, arc position, place."""
     vn = impact_column(impacts, "normal_speed_m_s")
     vt = impact_column(impacts, "tangential_speed_m_s")
-    return {"vn": vn, "vt": vt, "ang": np.degrees(np.arctan2(vt, vn)),       # Impact.angle_deg
-            "arc": impact_column(impacts, "arc_position_m"), "place": impact_column(impacts, "place")}
+    return {
+        "vn": vn,
+        "vt": vt,
+        "ang": np.degrees(np.arctan2(vt, vn)),  # Impact.angle_deg
+        "arc": impact_column(impacts, "arc_position_m"),
+        "place": impact_column(impacts, "place"),
+    }
 
 
-def choose_bins(impacts: Sequence[Impact], v_y: float, max_bins: int = 30, tolerance: float = DEFAULT_TOLERANCE,
-                angle_bins: int = 2, arc_bins: int = 1) -> BinChoice:
+def choose_bins(
+    impacts: Sequence[Impact],
+    v_y: float,
+    max_bins: int = 30,
+    tolerance: float = DEFAULT_TOLERANCE,
+    angle_bins: int = 2,
+    arc_bins: int = 1,
+) -> BinChoice:
     """The bins of ``impacts`` (module docstring); ``v_y`` Thornton's yield-onset speed (m/s, inf
     for an elastic liner). InputError when even the coarsest choice needs more than ``max_bins``."""
     if max_bins < 1:
@@ -209,14 +246,18 @@ def choose_bins(impacts: Sequence[Impact], v_y: float, max_bins: int = 30, toler
                     if nc < arc_bins:
                         notes.append(f"arc bins cut from {arc_bins} to {nc} to stay within {max_bins} bins")
                     if tol > tolerance:
-                        notes.append(f"restitution tolerance widened from {tolerance:g} to {tol:.3g} to stay "
-                                     f"within {max_bins} bins")
+                        notes.append(
+                            f"restitution tolerance widened from {tolerance:g} to {tol:.3g} to stay "
+                            f"within {max_bins} bins"
+                        )
                     return BinChoice(tuple(bins), v_y, tolerance, tol, spread, na, nc, max_bins, edges, tuple(notes))
         if tol >= 1.0:
             break
         tol = min(1.0, tol * 1.25)
-    raise InputError(f"--max-bins {max_bins}: the impacts need at least {len(bins)} bins (one per place and "
-                     "speed range either side of the yield-onset speed)")
+    raise InputError(
+        f"--max-bins {max_bins}: the impacts need at least {len(bins)} bins (one per place and "
+        "speed range either side of the yield-onset speed)"
+    )
 
 
 def yield_onset_speed(scene) -> float:
@@ -233,9 +274,11 @@ def yield_onset_speed(scene) -> float:
     return yield_onset_velocity(min(ys), e_star, scene.ball.effective_density)
 
 
-def describe(choice: BinChoice, counts: Optional[dict] = None) -> str:
+def describe(choice: BinChoice, counts: dict | None = None) -> str:
     """One line saying how the bins were chosen."""
     vy = "none (elastic)" if not math.isfinite(choice.v_y_m_s) else f"{choice.v_y_m_s:.3g} m/s"
-    return (f"{len(choice.bins)} bins (at most {choice.max_bins}): V_y {vy}; speed edges for a Thornton restitution "
-            f"spread <= {choice.tolerance_used:.3g} (widest {choice.widest_spread:.3g}); {choice.angle_bins} angle and "
-            f"{choice.arc_bins} arc bin(s) per place")
+    return (
+        f"{len(choice.bins)} bins (at most {choice.max_bins}): V_y {vy}; speed edges for a Thornton restitution "
+        f"spread <= {choice.tolerance_used:.3g} (widest {choice.widest_spread:.3g}); {choice.angle_bins} angle and "
+        f"{choice.arc_bins} arc bin(s) per place"
+    )

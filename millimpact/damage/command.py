@@ -7,6 +7,7 @@ place's dominant bin, and writes per place and revolution the energy absorbed, t
 the dent growth and the plastic strain's trend (:mod:`millimpact.damage.damage_map`). Finished bins and sequences
 are kept in DIR/cases and DIR/repeat: an interrupted map continues where it stopped.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,29 +43,61 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", help="a liner scene: built-in name (liner-segment, liner-panel) or TOML file")
     p.add_argument("--impacts", required=True, metavar="CSV", help="the impact log (impacts.csv of millimpact mill)")
     p.add_argument("--out", help=OUT_HELP.format(default="out/damage-SCENE") + "; finished bins in it are reused")
-    p.add_argument("--revolutions", type=float, metavar="N",
-                   help="mill revolutions the log covers (default: those of the millimpact mill summary.json "
-                        "beside the log)")
-    p.add_argument("--lifters", type=int, metavar="N",
-                   help="lifters the log's impacts are folded from (rates per lifter; default: the mill's, from the "
-                        "summary.json beside the log, else 1: the whole log)")
-    p.add_argument("--slice-length", type=float, metavar="M",
-                   help="axial length of the DEM slice, m (spreads a place's impacts; default the liner's length)")
+    p.add_argument(
+        "--revolutions",
+        type=float,
+        metavar="N",
+        help="mill revolutions the log covers (default: those of the millimpact mill summary.json beside the log)",
+    )
+    p.add_argument(
+        "--lifters",
+        type=int,
+        metavar="N",
+        help="lifters the log's impacts are folded from (rates per lifter; default: the mill's, from the "
+        "summary.json beside the log, else 1: the whole log)",
+    )
+    p.add_argument(
+        "--slice-length",
+        type=float,
+        metavar="M",
+        help="axial length of the DEM slice, m (spreads a place's impacts; default the liner's length)",
+    )
     p.add_argument("--max-bins", type=int, default=30, metavar="N", help="at most this many bins (default 30)")
-    p.add_argument("--restitution-tolerance", type=float, default=0.02, metavar="DE",
-                   help="largest spread of Thornton's restitution across a speed bin (default 0.02)")
+    p.add_argument(
+        "--restitution-tolerance",
+        type=float,
+        default=0.02,
+        metavar="DE",
+        help="largest spread of Thornton's restitution across a speed bin (default 0.02)",
+    )
     p.add_argument("--angle-bins", type=int, default=2, metavar="N", help="angle bins per place (default 2)")
-    p.add_argument("--arc-bins", type=int, default=1, metavar="N",
-                   help="arc-position bins per place, each its own placed scene (default 1)")
-    p.add_argument("--cell", type=float, default=0.01, metavar="M",
-                   help="width of the profile's arc cells, m (default 0.01)")
-    p.add_argument("--repeat-impacts", type=int, default=6, metavar="N",
-                   help="impacts of each place's repeated-impact sequence (default 6; 0: none)")
+    p.add_argument(
+        "--arc-bins",
+        type=int,
+        default=1,
+        metavar="N",
+        help="arc-position bins per place, each its own placed scene (default 1)",
+    )
+    p.add_argument(
+        "--cell", type=float, default=0.01, metavar="M", help="width of the profile's arc cells, m (default 0.01)"
+    )
+    p.add_argument(
+        "--repeat-impacts",
+        type=int,
+        default=6,
+        metavar="N",
+        help="impacts of each place's repeated-impact sequence (default 6; 0: none)",
+    )
     p.add_argument("--method", default="improved", help="solution method of the bins (default improved)")
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="override a scene field")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
-    p.add_argument("--ranks-per-case", type=int, default=1, metavar="K",
-                   help="under mpirun: ranks per bin (divides the rank count; default 1)")
+    p.add_argument(
+        "--ranks-per-case",
+        type=int,
+        default=1,
+        metavar="K",
+        help="under mpirun: ranks per bin (divides the rank count; default 1)",
+    )
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
@@ -87,8 +120,10 @@ def revolutions_of(args: argparse.Namespace, impacts_path: Path) -> float:
         try:
             rev = float(summary["revolutions"] if "revolutions" in summary else summary["clock"]["revolutions"])
         except (KeyError, ValueError, TypeError):
-            raise InputError(f"--revolutions: give the number of mill revolutions {impacts_path} covers (no "
-                             f"revolutions in {impacts_path.parent / 'summary.json'})") from None
+            raise InputError(
+                f"--revolutions: give the number of mill revolutions {impacts_path} covers (no "
+                f"revolutions in {impacts_path.parent / 'summary.json'})"
+            ) from None
     if not (math.isfinite(rev) and rev > 0):
         raise InputError(f"--revolutions {rev:g}: must be > 0")
     return rev
@@ -121,9 +156,11 @@ def check_log_liner(scene, impacts_path: Path) -> None:
     ours = (mine.diameter, mine.n_lifters, mine.lifter_height)
     if theirs[1] != ours[1] or any(not math.isclose(a, b, rel_tol=1e-6) for a, b in zip(theirs[::2], ours[::2])):
         logged = mill_summary(impacts_path).get("scene", "another scene")
-        raise InputError(f"--impacts {impacts_path}: logged by millimpact mill on {logged} (D {theirs[0]:g} m, "
-                         f"{theirs[1]} lifters {theirs[2]:g} m high), not on the liner of {scene.name} (D "
-                         f"{ours[0]:g} m, {ours[1]} lifters {ours[2]:g} m high); give the log of that scene's mill")
+        raise InputError(
+            f"--impacts {impacts_path}: logged by millimpact mill on {logged} (D {theirs[0]:g} m, "
+            f"{theirs[1]} lifters {theirs[2]:g} m high), not on the liner of {scene.name} (D "
+            f"{ours[0]:g} m, {ours[1]} lifters {ours[2]:g} m high); give the log of that scene's mill"
+        )
 
 
 def check_settings(args: argparse.Namespace) -> None:
@@ -133,7 +170,7 @@ def check_settings(args: argparse.Namespace) -> None:
     if args.slice_length is not None and not (math.isfinite(args.slice_length) and args.slice_length > 0):
         raise InputError(f"--slice-length {args.slice_length:g}: must be > 0 m")
     if args.angle_bins < 1 or args.arc_bins < 1:
-        raise InputError(f"--angle-bins / --arc-bins: must be >= 1")
+        raise InputError("--angle-bins / --arc-bins: must be >= 1")
     if not (math.isfinite(args.cell) and args.cell > 0):
         raise InputError(f"--cell {args.cell:g}: must be > 0 m")
     if args.repeat_impacts < 0:
@@ -165,18 +202,29 @@ def main(args: argparse.Namespace) -> int:
     check_settings(args)
     scene = command_scene(args)
     if scene.liner is None:
-        raise InputError(f"scene {args.scene}: has no liner (the damage map needs a liner scene: liner-segment, "
-                         "liner-panel or a TOML file with a [liner] table)")
+        raise InputError(
+            f"scene {args.scene}: has no liner (the damage map needs a liner scene: liner-segment, "
+            "liner-panel or a TOML file with a [liner] table)"
+        )
     path = Path(args.impacts)
     check_log_liner(scene, path)
     world = MPI.COMM_WORLD
     say = sayer(args.quiet, world)
     impacts = read_impacts(path, say)
-    settings = MapSettings(revolutions=revolutions_of(args, path), lifters=lifters_of(args, path),
-                           slice_length_m=args.slice_length, max_bins=args.max_bins,
-                           tolerance=args.restitution_tolerance, angle_bins=args.angle_bins, arc_bins=args.arc_bins,
-                           cell_m=args.cell, method=args.method, options=parse_options(args.option),
-                           repeat_impacts=args.repeat_impacts, ranks_per_case=args.ranks_per_case)
+    settings = MapSettings(
+        revolutions=revolutions_of(args, path),
+        lifters=lifters_of(args, path),
+        slice_length_m=args.slice_length,
+        max_bins=args.max_bins,
+        tolerance=args.restitution_tolerance,
+        angle_bins=args.angle_bins,
+        arc_bins=args.arc_bins,
+        cell_m=args.cell,
+        method=args.method,
+        options=parse_options(args.option),
+        repeat_impacts=args.repeat_impacts,
+        ranks_per_case=args.ranks_per_case,
+    )
     if world.size % args.ranks_per_case or args.ranks_per_case > world.size:
         raise InputError(f"--ranks-per-case {args.ranks_per_case}: must divide the number of ranks ({world.size})")
     # bins, placed scenes, cases: a setting every bin hits is one line before any folder
@@ -187,6 +235,9 @@ def main(args: argparse.Namespace) -> int:
     target = claim_output(out, "damage", force=args.force, comm=world)
     run_damage_map(scene, impacts, target, settings, str(path), quiet=args.quiet, comm=world, prepared=prepared)
     if not args.quiet and world.rank == 0:
-        print(f"  results in {target.shown}/ (damage.csv, bins.csv, profile.csv, damage.json, damage_map.png)"
-              + target.replaced_note(), flush=True)
+        print(
+            f"  results in {target.shown}/ (damage.csv, bins.csv, profile.csv, damage.json, damage_map.png)"
+            + target.replaced_note(),
+            flush=True,
+        )
     return 0

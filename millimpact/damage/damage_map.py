@@ -4,12 +4,14 @@
 (:mod:`millimpact.damage.accumulate`) -> files (:mod:`millimpact.damage.report`). Rank 0 writes
 and prints.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Optional, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -43,7 +45,7 @@ class MapSettings:
 
     revolutions: float
     lifters: int = 1
-    slice_length_m: Optional[float] = None
+    slice_length_m: float | None = None
     max_bins: int = 30
     tolerance: float = 0.02
     angle_bins: int = 2
@@ -74,11 +76,15 @@ def check_repeat_method(method: str, repeat_impacts: int) -> None:
     from ..repeat.command import METHODS
 
     if repeat_impacts > 0 and method not in METHODS:
-        raise InputError(f"--method {method}: the repeated-impact stage runs {', '.join(METHODS)} only; add "
-                         f"--repeat-impacts 0 for a map without it, or choose one of those methods")
+        raise InputError(
+            f"--method {method}: the repeated-impact stage runs {', '.join(METHODS)} only; add "
+            f"--repeat-impacts 0 for a map without it, or choose one of those methods"
+        )
 
 
-def plan_map(scene: Scene, impacts: Sequence[Impact], settings: MapSettings, say: Callable = lambda *a: None) -> MapPlan:
+def plan_map(
+    scene: Scene, impacts: Sequence[Impact], settings: MapSettings, say: Callable = lambda *a: None
+) -> MapPlan:
     """Bin ``impacts``, place each bin's scene, define its table case and fit its contact on its
     place (:mod:`millimpact.damage.edges`), saying each bin; InputError (one line) when no bin can
     be computed (a setting every bin hits, such as a time.end below the contact step)."""
@@ -91,15 +97,20 @@ def plan_map(scene: Scene, impacts: Sequence[Impact], settings: MapSettings, say
 
     v_y = yield_onset_speed(scene)
     choice = choose_bins(impacts, v_y, st.max_bins, st.tolerance, st.angle_bins, st.arc_bins)
-    say(f"damage map of {scene.name}: {len(impacts)} {_impacts(len(impacts))} over {st.revolutions:g} "
-        f"revolution(s); {describe(choice)}")
+    say(
+        f"damage map of {scene.name}: {len(impacts)} {_impacts(len(impacts))} over {st.revolutions:g} "
+        f"revolution(s); {describe(choice)}"
+    )
     for n in choice.notes:
         warn(n)
-    off = int(np.count_nonzero(np.abs(impact_column(impacts, "ball_radius_m") / scene.ball.radius - 1)
-                               > RADIUS_MISMATCH))
+    off = int(
+        np.count_nonzero(np.abs(impact_column(impacts, "ball_radius_m") / scene.ball.radius - 1) > RADIUS_MISMATCH)
+    )
     if off:
-        warn(f"{off} of {len(impacts)} impacts have a ball radius more than {RADIUS_MISMATCH:.0%} from the scene's "
-             f"{scene.ball.radius:g} m: their response is the scene ball's, their energies their own")
+        warn(
+            f"{off} of {len(impacts)} impacts have a ball radius more than {RADIUS_MISMATCH:.0%} from the scene's "
+            f"{scene.ball.radius:g} m: their response is the scene ball's, their energies their own"
+        )
     placed, cache = {}, {}
     for b in choice.bins:
         raise_if_interrupted()
@@ -118,16 +129,26 @@ def plan_map(scene: Scene, impacts: Sequence[Impact], settings: MapSettings, say
     raise_if_interrupted()
     if bcs and all(bc.case is None for bc in bcs):
         reasons = {bc.refused for bc in bcs}
-        raise InputError(f"no bin can be computed: {bcs[0].refused}" + (
-            f" (all {len(bcs)} bins)" if len(reasons) == 1 else f" (bin {bcs[0].bin.index}; the other "
-                                                               f"{len(bcs) - 1} refused too)"))
+        raise InputError(
+            f"no bin can be computed: {bcs[0].refused}"
+            + (
+                f" (all {len(bcs)} bins)"
+                if len(reasons) == 1
+                else f" (bin {bcs[0].bin.index}; the other {len(bcs) - 1} refused too)"
+            )
+        )
     for bc in bcs:
-        say(f"  bin {bc.bin.index}: {bc.bin.place}, arc {bc.placed.arc_used_m * 1e3:.0f} mm, v_n "
+        say(
+            f"  bin {bc.bin.index}: {bc.bin.place}, arc {bc.placed.arc_used_m * 1e3:.0f} mm, v_n "
             f"{bc.bin.normal_speed_range_m_s[0]:.3g}-{bc.bin.normal_speed_range_m_s[1]:.3g} m/s, angle "
             f"{bc.bin.angle_range_deg[0]:.0f}-{bc.bin.angle_range_deg[1]:.0f} deg: {len(bc.bin.impacts)} "
             f"{_impacts(len(bc.bin.impacts))}, "
-            + (f"refused ({bc.refused})" if bc.case is None else
-               f"v = {bc.case.speed:.4g} m/s at {bc.case.angle:.3g} deg{' (below V_y)' if bc.bin.below_yield else ''}"))
+            + (
+                f"refused ({bc.refused})"
+                if bc.case is None
+                else f"v = {bc.case.speed:.4g} m/s at {bc.case.angle:.3g} deg{' (below V_y)' if bc.bin.below_yield else ''}"
+            )
+        )
     return MapPlan(choice, v_y, bcs, edges, warnings)
 
 
@@ -135,11 +156,19 @@ def _impacts(n: int) -> str:
     return "impact" if n == 1 else "impacts"
 
 
-def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFolder, settings: MapSettings,
-                   impacts_file: str = "",
-                   case_runner: Optional[CaseRunner] = None, run_sequence: Optional[Callable] = None,
-                   classify: Optional[Callable] = None, quiet: bool = False, comm=None,
-                   prepared: Optional[MapPlan] = None) -> dict:
+def run_damage_map(
+    scene: Scene,
+    impacts: Sequence[Impact],
+    out: Path | OutputFolder,
+    settings: MapSettings,
+    impacts_file: str = "",
+    case_runner: CaseRunner | None = None,
+    run_sequence: Callable | None = None,
+    classify: Callable | None = None,
+    quiet: bool = False,
+    comm=None,
+    prepared: MapPlan | None = None,
+) -> dict:
     """Compute the damage map of ``impacts`` on the liner ``scene`` into ``out``, a folder or one
     claimed with :func:`~millimpact.results.output_folder.claim_output` (docs/outputs.md); returns
     the summary. Finished bins and sequences are kept in ``out/cases`` and ``out/repeat`` as they
@@ -156,7 +185,7 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
     target = out if isinstance(out, OutputFolder) else claim_output(out, "damage", comm=comm)
     out = target.open(KEPT, note=lambda: kept_bins_note(target))
     if comm is not None:
-        comm.barrier()                     # the folder exists before any rank stores a bin
+        comm.barrier()  # the folder exists before any rank stores a bin
     warnings = list(plan.warnings)
 
     def warn(text: str) -> None:
@@ -166,8 +195,9 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
     choice, bcs, edges = plan.choice, plan.bin_cases, plan.edges
     runner = case_runner or table_runner(st.method, st.options, st.ranks_per_case)
     rows = compute_bin_rows(bcs, out / "cases", runner, say, comm)
-    per_bin, shares = accumulate(impacts, choice.bins, rows, scene.ball.material.density, scene.ball.mass,
-                                 st.revolutions, st.lifters)
+    per_bin, shares = accumulate(
+        impacts, choice.bins, rows, scene.ball.material.density, scene.ball.mass, st.revolutions, st.lifters
+    )
     places = place_totals(impacts, choice.bins, per_bin, st.revolutions, st.lifters)
     per_rev = 1.0 / (st.revolutions * st.lifters)
     for p, tot in places.items():
@@ -181,18 +211,32 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
         if r is not None and bc.bin.below_yield:
             t = 0.5 * scene.ball.mass * bc.case.speed**2
             if finite(r.get("plastic_dissipation_J")) > SUBYIELD_PLASTIC_FLAG * t:
-                warn(f"bin {bc.bin.index} lies below V_y = {plan.v_y:.3g} m/s but its case reports plastic work "
-                     f"{r['plastic_dissipation_J']:.3g} J (counted as 0)")
+                warn(
+                    f"bin {bc.bin.index} lies below V_y = {plan.v_y:.3g} m/s but its case reports plastic work "
+                    f"{r['plastic_dissipation_J']:.3g} J (counted as 0)"
+                )
     slice_length = st.slice_length_m or scene.liner.length
-    repeats = _repeat_responses(scene, choice, bcs, per_bin, places, st, out, slice_length, run_sequence, classify,
-                                comm, say, warn)
+    repeats = _repeat_responses(
+        scene, choice, bcs, per_bin, places, st, out, slice_length, run_sequence, classify, comm, say, warn
+    )
     profile = profile_rates(impacts, shares, st.cell_m, st.revolutions, st.lifters)
     bin_rows = [_bin_row(bc, rows.get(bc.bin.index, {}), per_bin.get(bc.bin.index, {}), edges) for bc in bcs]
-    summary = {"millimpact_version": __version__, "scene": scene.name, "impacts_file": impacts_file,
-               "impacts": len(impacts), "revolutions": st.revolutions, "lifters": st.lifters,
-               "slice_length_m": slice_length, "method": st.method, "options": st.options,
-               "repeat_impacts": st.repeat_impacts, "binning": choice.report(), "warnings": warnings,
-               "repeats": {p: r for p, r in repeats.items()}, "base_scene": scene_to_dict(scene)}
+    summary = {
+        "millimpact_version": __version__,
+        "scene": scene.name,
+        "impacts_file": impacts_file,
+        "impacts": len(impacts),
+        "revolutions": st.revolutions,
+        "lifters": st.lifters,
+        "slice_length_m": slice_length,
+        "method": st.method,
+        "options": st.options,
+        "repeat_impacts": st.repeat_impacts,
+        "binning": choice.report(),
+        "warnings": warnings,
+        "repeats": {p: r for p, r in repeats.items()},
+        "base_scene": scene_to_dict(scene),
+    }
     if rank == 0:
         from .report import write_outputs
 
@@ -200,14 +244,29 @@ def run_damage_map(scene: Scene, impacts: Sequence[Impact], out: Path | OutputFo
             write_outputs(stage, summary, places, bin_rows, profile, impacts, scene.liner, st.revolutions, st.lifters)
     for p, t in places.items():
         growth = t["dent_growth_m_per_rev"]
-        say(f"  {p}: {t['impacts_per_rev']:.4g} impacts/rev, absorbed {t['energy_absorbed_J_per_rev']:.4g} J/rev, "
+        say(
+            f"  {p}: {t['impacts_per_rev']:.4g} impacts/rev, absorbed {t['energy_absorbed_J_per_rev']:.4g} J/rev, "
             f"plastic work {t['plastic_work_J_per_rev']:.4g} J/rev; repeat: {t['repeat_verdict']}"
-            + (f", dent growth {growth:.3g} m/rev at a spot" if math.isfinite(growth) else ""))
+            + (f", dent growth {growth:.3g} m/rev at a spot" if math.isfinite(growth) else "")
+        )
     return {**summary, "places": places, "bins": bin_rows}
 
 
-def _repeat_responses(scene, choice, bcs, per_bin, places, st: MapSettings, out: Path, slice_length: float,
-                      run_sequence, classify, comm, say, warn) -> dict:
+def _repeat_responses(
+    scene,
+    choice,
+    bcs,
+    per_bin,
+    places,
+    st: MapSettings,
+    out: Path,
+    slice_length: float,
+    run_sequence,
+    classify,
+    comm,
+    say,
+    warn,
+) -> dict:
     """The repeated-impact response of each place's dominant bin (place -> sequence or None); the
     place's dent growth and strain trend added to ``places``."""
     if run_sequence is None or classify is None:
@@ -224,42 +283,68 @@ def _repeat_responses(scene, choice, bcs, per_bin, places, st: MapSettings, out:
         tot["dominant_angle_deg"] = bc.case.angle if bc else math.nan
         rep = None
         if bc is not None and st.repeat_impacts > 0:
-            rep = run_repeat(bc, st.repeat_impacts, st.method, st.options, st.petsc_options, out / "repeat",
-                             run_sequence, classify, comm, say)
+            rep = run_repeat(
+                bc,
+                st.repeat_impacts,
+                st.method,
+                st.options,
+                st.petsc_options,
+                out / "repeat",
+                run_sequence,
+                classify,
+                comm,
+                say,
+            )
         repeats[p] = rep
         tot.update(dent_trend(rep, tot["impacts_per_rev"], place_extent(scene.liner, p), slice_length))
         if tot["max_eq_plastic_strain_last"] >= 0.1:
-            warn(f"{p}: the largest equivalent plastic strain {tot['max_eq_plastic_strain_last']:.3g} passes the "
-                 "small-strain limit 0.1: the numbers there are beyond the model")
+            warn(
+                f"{p}: the largest equivalent plastic strain {tot['max_eq_plastic_strain_last']:.3g} passes the "
+                "small-strain limit 0.1: the numbers there are beyond the model"
+            )
     return repeats
 
 
 def _bin_row(bc: BinCase, r: dict, pb: dict, edges: dict) -> dict:
     """A bin's row of bins.csv: its edges, representative, table case and sums per revolution."""
     b = bc.bin
-    return {"bin": b.index, "place": b.place, "arc_low_m": b.arc_range_m[0], "arc_high_m": b.arc_range_m[1],
-            "arc_used_m": bc.placed.arc_used_m,
-            "normal_speed_low_m_s": b.normal_speed_range_m_s[0], "normal_speed_high_m_s": b.normal_speed_range_m_s[1],
-            "angle_low_deg": b.angle_range_deg[0], "angle_high_deg": b.angle_range_deg[1],
-            "impacts": len(b.impacts), "normal_speed_m_s": b.normal_speed_m_s,
-            "tangential_speed_m_s": b.tangential_speed_m_s, "speed_m_s": b.speed_m_s, "angle_deg": b.angle_deg,
-            "below_yield": b.below_yield,
-            "restitution_normal": finite(r.get("restitution_normal")),
-            "restitution_tangential": finite(r.get("restitution_tangential")),
-            "table_plastic_dissipation_J": finite(r.get("plastic_dissipation_J")),
-            "residual_dent_depth_m": finite(r.get("residual_dent_depth_m")),
-            "impacts_per_rev": pb.get("impacts_per_rev", math.nan),
-            "energy_absorbed_J_per_rev": pb.get("energy_absorbed_J_per_rev", math.nan),
-            "plastic_work_J_per_rev": pb.get("plastic_work_J_per_rev", math.nan),
-            "contact_margin_m": edges.get(b.index, {}).get("contact_margin_m", math.nan),
-            "edge_shift_m": edges.get(b.index, {}).get("edge_shift_m", math.nan),
-            "case_key": bc.case.key if bc.case else "",
-            "status": (r.get("status", "not computed") if bc.case else "refused"),
-            "note": bc.refused or bc.placed.note}
+    return {
+        "bin": b.index,
+        "place": b.place,
+        "arc_low_m": b.arc_range_m[0],
+        "arc_high_m": b.arc_range_m[1],
+        "arc_used_m": bc.placed.arc_used_m,
+        "normal_speed_low_m_s": b.normal_speed_range_m_s[0],
+        "normal_speed_high_m_s": b.normal_speed_range_m_s[1],
+        "angle_low_deg": b.angle_range_deg[0],
+        "angle_high_deg": b.angle_range_deg[1],
+        "impacts": len(b.impacts),
+        "normal_speed_m_s": b.normal_speed_m_s,
+        "tangential_speed_m_s": b.tangential_speed_m_s,
+        "speed_m_s": b.speed_m_s,
+        "angle_deg": b.angle_deg,
+        "below_yield": b.below_yield,
+        "restitution_normal": finite(r.get("restitution_normal")),
+        "restitution_tangential": finite(r.get("restitution_tangential")),
+        "table_plastic_dissipation_J": finite(r.get("plastic_dissipation_J")),
+        "residual_dent_depth_m": finite(r.get("residual_dent_depth_m")),
+        "impacts_per_rev": pb.get("impacts_per_rev", math.nan),
+        "energy_absorbed_J_per_rev": pb.get("energy_absorbed_J_per_rev", math.nan),
+        "plastic_work_J_per_rev": pb.get("plastic_work_J_per_rev", math.nan),
+        "contact_margin_m": edges.get(b.index, {}).get("contact_margin_m", math.nan),
+        "edge_shift_m": edges.get(b.index, {}).get("edge_shift_m", math.nan),
+        "case_key": bc.case.key if bc.case else "",
+        "status": (r.get("status", "not computed") if bc.case else "refused"),
+        "note": bc.refused or bc.placed.note,
+    }
 
 
 def kept_bins_note(target: OutputFolder) -> str:
     """What an interrupted map leaves: its finished bins and sequences, reused by a rerun."""
-    return kept_note([(PieceStore(target.path / "cases").count(), "bin", f"{target.shown}/cases/"),
-                      (PieceStore(target.path / "repeat").count(), "repeated-impact sequence", f"{target.shown}/repeat/")],
-                     "the map itself is not written")
+    return kept_note(
+        [
+            (PieceStore(target.path / "cases").count(), "bin", f"{target.shown}/cases/"),
+            (PieceStore(target.path / "repeat").count(), "repeated-impact sequence", f"{target.shown}/repeat/"),
+        ],
+        "the map itself is not written",
+    )

@@ -32,11 +32,12 @@ per place (damage.csv). A larger move, or a place narrower than two margins (a f
 narrow top), would compute a different impact than the bin's: the bin is refused with the reason,
 and its impacts are counted in ``impacts_left_out_per_rev`` (the sums are then lower bounds).
 """
+
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 from ..errors import InputError, SceneError
 from ..scene.schema import Scene
@@ -84,7 +85,7 @@ def contact_margin(bc: BinCase, method: str, options: dict) -> float:
     from ..scene.plan import make_plan
 
     case = bc.case
-    assert case is not None    # a refused bin has no contact to fit
+    assert case is not None  # a refused bin has no contact to fit
     if method in REDUCED_METHODS:
         band = case.band_scene or case.scene
         plan = make_plan(band)
@@ -92,22 +93,34 @@ def contact_margin(bc: BinCase, method: str, options: dict) -> float:
     else:
         plan = make_plan(case.scene)
         given = peek(options, "candidate_radius")
-        r_c = float(given) if given not in (None, "") else min(CANDIDATE_RADIUS_FACTOR * plan.hertz.a_max,
-                                                               0.95 * plan.zone_radius)
+        r_c = (
+            float(given)
+            if given not in (None, "")
+            else min(CANDIDATE_RADIUS_FACTOR * plan.hertz.a_max, 0.95 * plan.zone_radius)
+        )
     # the band's fastest case (a_p grows with the speed): every bin of a band gets one margin, so a
     # band moved off an edge stays one placed scene, one mesh and one reduction
     sc = case.band_scene or case.scene
     m = sc.ball.mass
     e_star = effective_modulus(sc.ball.material, sc.target_material)
-    ys = [mat.initial_yield_stress for mat in (sc.ball.material, sc.target_material)
-          if mat.plastic and mat.initial_yield_stress is not None]
+    ys = [
+        mat.initial_yield_stress
+        for mat in (sc.ball.material, sc.target_material)
+        if mat.plastic and mat.initial_yield_stress is not None
+    ]
     a_p = plastic_zone_radius(sc.ball.radius, m, sc.normal_speed, e_star, min(ys))[0] if ys else 0.0
     return max(r_c, a_p) + EDGE_ELEMENTS * plan.h_contact
 
 
-def fit_contacts(base: Scene, bins: Sequence[Bin], placed: dict[int, PlacedScene], bcs: list[BinCase],
-                 method: str, options: dict, warn: Callable[[str], None]
-                 ) -> tuple[dict[int, PlacedScene], list[BinCase], dict[int, dict]]:
+def fit_contacts(
+    base: Scene,
+    bins: Sequence[Bin],
+    placed: dict[int, PlacedScene],
+    bcs: list[BinCase],
+    method: str,
+    options: dict,
+    warn: Callable[[str], None],
+) -> tuple[dict[int, PlacedScene], list[BinCase], dict[int, dict]]:
     """Check every computable bin's contact against its place's edges and clamp or refuse the ones
     that do not fit (module docstring). Returns the placed scenes, the bin cases (redefined where
     a place moved) and per bin {"contact_margin_m", "edge_room_m", "edge_shift_m"}."""
@@ -136,25 +149,40 @@ def fit_contacts(base: Scene, bins: Sequence[Bin], placed: dict[int, PlacedScene
     cache: dict[tuple, PlacedScene] = {}
     for idx, margin in need.items():
         b, old = by_index[idx], placed[idx]
-        assert old.scene is not None    # only placed bins need room
+        assert old.scene is not None  # only placed bins need room
         room0, edge = edge_room(old.scene)
         key = (b.place, b.arc_m, margin)
         if key not in cache:
             extent = place_extent(base.liner, b.place)
             new = place_scene(base, b.place, b.arc_m, margin=margin)
             shift = edge_room(new.scene)[0] - room0 if new.scene is not None else math.inf
-            what = (f"its contact (radius + one element: {margin * 1e3:.3g} mm) needs that room from {edge}, "
-                    f"which is {room0 * 1e3:.3g} mm away")
+            what = (
+                f"its contact (radius + one element: {margin * 1e3:.3g} mm) needs that room from {edge}, "
+                f"which is {room0 * 1e3:.3g} mm away"
+            )
             if new.scene is None:
-                new = dataclasses.replace(old, scene=None, refused=f"edge impact: {what}, and no position on the "
-                                          f"{b.place.replace('_', ' ')} gives it ({new.refused})")
+                new = dataclasses.replace(
+                    old,
+                    scene=None,
+                    refused=f"edge impact: {what}, and no position on the "
+                    f"{b.place.replace('_', ' ')} gives it ({new.refused})",
+                )
             elif shift > MAX_EDGE_SHIFT_SHARE * extent:
-                new = dataclasses.replace(old, scene=None, refused=(
-                    f"edge impact: {what}; the nearest position that gives it is {shift * 1e3:.3g} mm inward, more "
-                    f"than {MAX_EDGE_SHIFT_SHARE:g} of the place's extent {extent * 1e3:.3g} mm"))
+                new = dataclasses.replace(
+                    old,
+                    scene=None,
+                    refused=(
+                        f"edge impact: {what}; the nearest position that gives it is {shift * 1e3:.3g} mm inward, more "
+                        f"than {MAX_EDGE_SHIFT_SHARE:g} of the place's extent {extent * 1e3:.3g} mm"
+                    ),
+                )
             else:
-                new = dataclasses.replace(new, note=(f"moved {shift * 1e3:.3g} mm inward from {edge}: {what}"
-                                                     + (f"; {new.note}" if new.note else "")))
+                new = dataclasses.replace(
+                    new,
+                    note=(
+                        f"moved {shift * 1e3:.3g} mm inward from {edge}: {what}" + (f"; {new.note}" if new.note else "")
+                    ),
+                )
             cache[key] = new
             if new.refused:
                 warn(f"{b.place} at arc {b.arc_m:.4g} m refused: {new.refused}")
@@ -175,7 +203,9 @@ def fit_contacts(base: Scene, bins: Sequence[Bin], placed: dict[int, PlacedScene
         room, edge = edge_room(bc.case.scene)
         info[i] = {"contact_margin_m": margin, "edge_room_m": room, "edge_shift_m": room - info[i]["edge_room_m"]}
         if room < margin * (1 - 1e-9):
-            why = f"edge impact: its contact needs {margin * 1e3:.3g} mm from {edge}, {room * 1e3:.3g} mm after the move"
+            why = (
+                f"edge impact: its contact needs {margin * 1e3:.3g} mm from {edge}, {room * 1e3:.3g} mm after the move"
+            )
             bcs = [BinCase(c.bin, c.placed, None, why) if c.bin.index == i else c for c in bcs]
             info.pop(i, None)
             warn(f"bin {i} refused: {why}")

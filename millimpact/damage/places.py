@@ -19,12 +19,12 @@ reported (``extrapolated``); if no position is found the bin is refused with the
 With a ``margin`` the position also keeps that distance from the place's free edges along the
 surface (the room a bin's contact needs: :mod:`millimpact.damage.edges`).
 """
+
 from __future__ import annotations
 
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Optional
 
 from ..errors import SceneError
 from ..scene.schema import Impact as SceneImpact
@@ -46,12 +46,12 @@ class PlacedScene:
     """The liner scene with its impact at a bin's place (a normal unit velocity: the table sets
     the speed and angle), the position used and what was changed."""
 
-    scene: Optional[Scene]
+    scene: Scene | None
     place: str
-    arc_m: float                 #: the arc position asked (m)
-    arc_used_m: float            #: the arc position of the scene's impact (m)
-    note: str = ""               #: why the position was moved ("" if not)
-    refused: str = ""            #: why the bin cannot be computed ("" if it can)
+    arc_m: float  #: the arc position asked (m)
+    arc_used_m: float  #: the arc position of the scene's impact (m)
+    note: str = ""  #: why the position was moved ("" if not)
+    refused: str = ""  #: why the bin cannot be computed ("" if it can)
 
 
 def liner_of(scene: Scene) -> Liner:
@@ -63,10 +63,11 @@ def liner_of(scene: Scene) -> Liner:
 
 
 def _with_place(base: Scene, place: str, arc: float, face: str, height: float) -> Scene:
-    ln = dataclasses.replace(liner_of(base), impact_place=place, impact_arc=float(arc), impact_face=face,
-                             impact_height=float(height))
+    ln = dataclasses.replace(
+        liner_of(base), impact_place=place, impact_arc=float(arc), impact_face=face, impact_height=float(height)
+    )
     # a normal unit velocity into the struck surface (the table gives each case its speed and angle)
-    n = (ln.impact_site(place, ln.impact_lifter, face, height, ln.impact_x, arc)[1])
+    n = ln.impact_site(place, ln.impact_lifter, face, height, ln.impact_x, arc)[1]
     v = (round(-n[0], 15) + 0.0, round(-n[1], 15) + 0.0, round(-n[2], 15) + 0.0)
     return dataclasses.replace(base, liner=ln, impact=SceneImpact(velocity=v, point=None, gap=base.impact.gap))
 
@@ -80,8 +81,14 @@ def place_scene(base: Scene, place: str, arc: float, margin: float = 0.0) -> Pla
     step = STEP_FRACTION * base.ball.radius
     flip = {"+z": "-z", "-z": "+z"}
     if margin >= 0.5 * ln.length - abs(ln.impact_x):
-        return PlacedScene(None, place, arc, arc, refused=f"the segment is {ln.length * 1e3:.4g} mm long "
-                           f"(liner.length), less than twice the contact's {margin * 1e3:.3g} mm")
+        return PlacedScene(
+            None,
+            place,
+            arc,
+            arc,
+            refused=f"the segment is {ln.length * 1e3:.4g} mm long "
+            f"(liner.length), less than twice the contact's {margin * 1e3:.3g} mm",
+        )
     if place == "lifter_face":
         face = ln.impact_face if arc >= 0 else flip[ln.impact_face]
         if abs(hb - ht) > 1e-9 * ln.lifter_height:
@@ -94,29 +101,43 @@ def place_scene(base: Scene, place: str, arc: float, margin: float = 0.0) -> Pla
             hi = 1.0 - margin / math.hypot(ln.lifter_height, hb - ht)
             kept = f"the contact's {margin * 1e3:.3g} mm from the top corner"
         if hi < lo:
-            return PlacedScene(None, place, arc, arc, refused=f"the face is shorter than the contact's "
-                               f"{margin * 1e3:.3g} mm from its top corner")
+            return PlacedScene(
+                None,
+                place,
+                arc,
+                arc,
+                refused=f"the face is shorter than the contact's {margin * 1e3:.3g} mm from its top corner",
+            )
         tries = [min(max(f, lo), hi)]
         h_step = step / ln.lifter_height
         tries += [tries[0] + k * h_step for k in range(1, int((hi - tries[0]) / h_step) + 1)]
         tries += [tries[0] - k * h_step for k in range(1, int((tries[0] - lo) / h_step) + 1)]
         reason = ""
-        for k, fh in enumerate(tries):
+        for fh in tries:
             try:
                 sc = _with_place(base, place, 0.0, face, fh)
             except SceneError as exc:
                 reason = reason or str(exc)
                 continue
             s_used = math.copysign(hb - fh * (hb - ht), arc if arc != 0 else 1.0)
-            note = "" if abs(fh - f) < 1e-12 else (f"face height {f:.3g} of the lifter height moved to {fh:.3g} "
-                                                    f"({reason or kept})")
+            note = (
+                ""
+                if abs(fh - f) < 1e-12
+                else (f"face height {f:.3g} of the lifter height moved to {fh:.3g} ({reason or kept})")
+            )
             return PlacedScene(sc, place, arc, s_used, note)
         return PlacedScene(None, place, arc, arc, refused=reason or "no face height holds the ball")
     if place == "lifter_top":
         lim = min((1.0 - TOP_EDGE_MARGIN) * ht, ht - margin)
         if lim < 0:
-            return PlacedScene(None, place, arc, arc, refused=f"the top is {2 * ht * 1e3:.4g} mm wide, narrower than "
-                               f"twice the contact's {margin * 1e3:.3g} mm")
+            return PlacedScene(
+                None,
+                place,
+                arc,
+                arc,
+                refused=f"the top is {2 * ht * 1e3:.4g} mm wide, narrower than "
+                f"twice the contact's {margin * 1e3:.3g} mm",
+            )
         a0 = min(max(arc, -lim), lim)
         sign = -1.0 if a0 > 0 else 1.0
         tries = [a0] + [a0 + sign * k * step for k in range(1, int(2 * lim / step) + 1)]
@@ -124,11 +145,12 @@ def place_scene(base: Scene, place: str, arc: float, margin: float = 0.0) -> Pla
         # away from the nearest lifter, towards the middle of the plate between lifters
         sign = 1.0 if arc >= 0 else -1.0
         c = ln.lifter_centres()[ln.impact_lifter]
-        edge = (ln.width - c if (sign > 0) == (ln.impact_face == "+z") else c) - max(PLATE_EDGE_MARGIN * ln.thickness,
-                                                                                    margin)
-        a0 = sign * min(abs(arc), edge)     # a segment narrower than the mill's lifter spacing: its far plate
+        edge = (ln.width - c if (sign > 0) == (ln.impact_face == "+z") else c) - max(
+            PLATE_EDGE_MARGIN * ln.thickness, margin
+        )
+        a0 = sign * min(abs(arc), edge)  # a segment narrower than the mill's lifter spacing: its far plate
         if abs(a0) < abs(arc):
-            sign = -sign                    # then move back towards the lifter if needed
+            sign = -sign  # then move back towards the lifter if needed
         tries = [a0] + [a0 + sign * k * step for k in range(1, int(ln.width / step) + 1)]
     else:
         return PlacedScene(None, place, arc, arc, refused=f"unknown place '{place}'")

@@ -6,13 +6,15 @@ coloured by plastic work per revolution beside the impact-energy spectrum).
 Each file is written to a temporary name and renamed; ``damage.json`` comes last and says
 ``"complete": true``, so an interrupted map never leaves a summary that looks complete.
 """
+
 from __future__ import annotations
 
 import csv
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -21,8 +23,10 @@ from ..commandkit.store import write_atomic
 from ..dem.impacts import PLACES, Impact, impact_column
 
 #: where the model stops (design.md section 12): said in every file that shows its numbers
-LIMITS = ("small-strain J2 plasticity (equivalent plastic strain up to ~0.1); no wear: no material is "
-          "removed; no fatigue cracking; impacts at one spot repeat the place's dominant bin only")
+LIMITS = (
+    "small-strain J2 plasticity (equivalent plastic strain up to ~0.1); no wear: no material is "
+    "removed; no fatigue cracking; impacts at one spot repeat the place's dominant bin only"
+)
 
 #: damage.csv's columns: (name, definition); units are in the names
 PLACE_COLUMNS = [
@@ -31,10 +35,15 @@ PLACE_COLUMNS = [
     ("impact_energy_J_per_rev", "the impacts' kinetic energy per revolution"),
     ("energy_absorbed_J_per_rev", "sum of (1 - e_n^2) m v_n^2/2 + (1 - e_t^2) m v_t^2/7 per revolution"),
     ("plastic_work_J_per_rev", "plastic work in the liner and ball per revolution"),
-    ("impacts_left_out_per_rev", "impacts of refused or failed bins per revolution (not in the sums: when > 0 "
-                                 "the sums are lower bounds)"),
-    ("impacts_edge_clamped_per_rev", "impacts of bins computed away from an edge so that their contact fits "
-                                     "on the place (docs/damage.md, edge impacts)"),
+    (
+        "impacts_left_out_per_rev",
+        "impacts of refused or failed bins per revolution (not in the sums: when > 0 the sums are lower bounds)",
+    ),
+    (
+        "impacts_edge_clamped_per_rev",
+        "impacts of bins computed away from an edge so that their contact fits "
+        "on the place (docs/damage.md, edge impacts)",
+    ),
     ("largest_edge_shift_m", "the largest such move of a bin's representative, along the surface"),
     ("dominant_bin", "the bin with the largest plastic work (else absorbed energy) per revolution"),
     ("dominant_normal_speed_m_s", "its representative normal speed"),
@@ -54,11 +63,35 @@ PLACE_COLUMNS = [
     ("revolutions_to_small_strain_limit", "revolutions until it reaches 0.1 at that increase (inf: never)"),
 ]
 
-BIN_COLUMNS = ["bin", "place", "arc_low_m", "arc_high_m", "arc_used_m", "normal_speed_low_m_s", "normal_speed_high_m_s",
-               "angle_low_deg", "angle_high_deg", "impacts", "normal_speed_m_s", "tangential_speed_m_s", "speed_m_s",
-               "angle_deg", "below_yield", "restitution_normal", "restitution_tangential", "table_plastic_dissipation_J",
-               "residual_dent_depth_m", "impacts_per_rev", "energy_absorbed_J_per_rev", "plastic_work_J_per_rev",
-               "contact_margin_m", "edge_shift_m", "case_key", "status", "note"]
+BIN_COLUMNS = [
+    "bin",
+    "place",
+    "arc_low_m",
+    "arc_high_m",
+    "arc_used_m",
+    "normal_speed_low_m_s",
+    "normal_speed_high_m_s",
+    "angle_low_deg",
+    "angle_high_deg",
+    "impacts",
+    "normal_speed_m_s",
+    "tangential_speed_m_s",
+    "speed_m_s",
+    "angle_deg",
+    "below_yield",
+    "restitution_normal",
+    "restitution_tangential",
+    "table_plastic_dissipation_J",
+    "residual_dent_depth_m",
+    "impacts_per_rev",
+    "energy_absorbed_J_per_rev",
+    "plastic_work_J_per_rev",
+    "contact_margin_m",
+    "edge_shift_m",
+    "case_key",
+    "status",
+    "note",
+]
 
 
 def _csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]], comments: Sequence[str] = ()) -> None:
@@ -70,25 +103,49 @@ def _csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]], comme
             w.writerow(header)
             for r in rows:
                 w.writerow([f"{x:.10g}" if isinstance(x, float) else x for x in r])
+
     write_atomic(path, write)
 
 
-def write_outputs(out: Path, summary: dict, places: dict[str, dict], bin_rows: list[dict], profile: dict,
-                  impacts: Sequence[Impact], liner, revolutions: float, lifters: int) -> None:
+def write_outputs(
+    out: Path,
+    summary: dict,
+    places: dict[str, dict],
+    bin_rows: list[dict],
+    profile: dict,
+    impacts: Sequence[Impact],
+    liner,
+    revolutions: float,
+    lifters: int,
+) -> None:
     """Write the map's files into ``out`` (module docstring); ``damage.json`` last."""
     out = Path(out)
-    head = [f"millimpact {__version__} damage map of scene '{summary['scene']}' from {summary['impacts_file']}",
-            f"per revolution: {summary['impacts']} impacts over {revolutions:g} revolutions and {lifters} lifter(s)",
-            f"model limits: {LIMITS}"]
-    _csv(out / "damage.csv", [c for c, _ in PLACE_COLUMNS],
-         [[p] + [places[p].get(c, math.nan) for c, _ in PLACE_COLUMNS[1:]] for p in PLACES if p in places],
-         head + [f"{c}: {d}" for c, d in PLACE_COLUMNS])
+    head = [
+        f"millimpact {__version__} damage map of scene '{summary['scene']}' from {summary['impacts_file']}",
+        f"per revolution: {summary['impacts']} impacts over {revolutions:g} revolutions and {lifters} lifter(s)",
+        f"model limits: {LIMITS}",
+    ]
+    _csv(
+        out / "damage.csv",
+        [c for c, _ in PLACE_COLUMNS],
+        [[p] + [places[p].get(c, math.nan) for c, _ in PLACE_COLUMNS[1:]] for p in PLACES if p in places],
+        head + [f"{c}: {d}" for c, d in PLACE_COLUMNS],
+    )
     _csv(out / "bins.csv", BIN_COLUMNS, [[r.get(c, "") for c in BIN_COLUMNS] for r in bin_rows], head)
-    prof_rows = [[p, s, wp, wa] for p, d in profile.items()
-                 for s, wp, wa in zip(d["arc_m"], d["plastic_work_J_per_rev_m"], d["energy_absorbed_J_per_rev_m"])]
-    _csv(out / "profile.csv", ["place", "arc_m", "plastic_work_J_per_rev_m", "energy_absorbed_J_per_rev_m"], prof_rows,
-         head + ["arc_m: cell centre, from the lifter's centre line, positive towards its leading face"])
-    write_atomic(out / "damage_map.png", lambda tmp: plot_map(tmp, profile, impacts, liner, revolutions, lifters, places))
+    prof_rows = [
+        [p, s, wp, wa]
+        for p, d in profile.items()
+        for s, wp, wa in zip(d["arc_m"], d["plastic_work_J_per_rev_m"], d["energy_absorbed_J_per_rev_m"])
+    ]
+    _csv(
+        out / "profile.csv",
+        ["place", "arc_m", "plastic_work_J_per_rev_m", "energy_absorbed_J_per_rev_m"],
+        prof_rows,
+        head + ["arc_m: cell centre, from the lifter's centre line, positive towards its leading face"],
+    )
+    write_atomic(
+        out / "damage_map.png", lambda tmp: plot_map(tmp, profile, impacts, liner, revolutions, lifters, places)
+    )
     full = {**summary, "places": places, "bins": bin_rows, "model_limits": LIMITS, "complete": True}
     write_atomic(out / "damage.json", lambda tmp: tmp.write_text(json.dumps(full, indent=1, default=_jsonable)))
 
@@ -123,8 +180,9 @@ def _spectrum_points(n: int, most: int = 4000) -> np.ndarray:
     return np.unique(np.geomspace(1, n, most).astype(np.int64)) - 1
 
 
-def plot_map(path: Path, profile: dict, impacts: Sequence[Impact], liner, revolutions: float, lifters: int,
-             places: dict) -> None:
+def plot_map(
+    path: Path, profile: dict, impacts: Sequence[Impact], liner, revolutions: float, lifters: int, places: dict
+) -> None:
     """The liner's profile coloured by plastic work per revolution per metre of arc (left) and the
     impact-energy spectrum, cumulative impacts per revolution against energy (right)."""
     from ..results.plots import pyplot
@@ -153,7 +211,11 @@ def plot_map(path: Path, profile: dict, impacts: Sequence[Impact], liner, revolu
     vals = np.asarray(vals, float)
     if segs:
         pos = vals[vals > 0]
-        norm = LogNorm(pos.min(), pos.max()) if pos.size and pos.max() > pos.min() else Normalize(0, max(vals.max(), 1e-30))
+        norm = (
+            LogNorm(pos.min(), pos.max())
+            if pos.size and pos.max() > pos.min()
+            else Normalize(0, max(vals.max(), 1e-30))
+        )
         lc = LineCollection(segs, cmap="inferno_r", norm=norm, linewidths=6, zorder=2)
         lc.set_array(np.where(vals > 0, vals, norm.vmin if isinstance(norm, LogNorm) else 0.0))
         ax.add_collection(lc)

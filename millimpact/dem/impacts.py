@@ -21,24 +21,32 @@ number that is NaN, infinite or negative where it must not be, and an unknown pl
 columns with numpy's parser and checks them as arrays (a log of 1e6 rows, 113 MB: 8.4 s and 206 MB
 peak on 2 shared cores; ``millimpact damage`` says the reading), and returns an :class:`ImpactLog`: a sequence of :class:`Impact` over those columns.
 """
+
 from __future__ import annotations
 
 import csv
 import math
 import time
 import warnings
+from collections.abc import Callable, Iterable, Sequence
 from collections.abc import Sequence as SequenceABC
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Optional, Sequence
 
 import numpy as np
 
 from ..errors import InputError
 
 #: the columns of impacts.csv, in order
-IMPACT_COLUMNS = ("time_s", "ball_radius_m", "normal_speed_m_s", "tangential_speed_m_s",
-                  "impact_energy_J", "place", "arc_position_m")
+IMPACT_COLUMNS = (
+    "time_s",
+    "ball_radius_m",
+    "normal_speed_m_s",
+    "tangential_speed_m_s",
+    "impact_energy_J",
+    "place",
+    "arc_position_m",
+)
 #: the places of the liner an impact can strike
 PLACES = ("lifter_face", "lifter_top", "plate")
 #: numeric columns that must be >= 0 (arc_position_m is signed)
@@ -83,9 +91,15 @@ class ImpactLog(SequenceABC):
             return [self[i] for i in range(*k.indices(len(self)))]
         k = range(len(self))[k]
         c = self._columns
-        return Impact(float(c["time_s"][k]), float(c["ball_radius_m"][k]), float(c["normal_speed_m_s"][k]),
-                      float(c["tangential_speed_m_s"][k]), float(c["impact_energy_J"][k]), PLACES[self._codes[k]],
-                      float(c["arc_position_m"][k]))
+        return Impact(
+            float(c["time_s"][k]),
+            float(c["ball_radius_m"][k]),
+            float(c["normal_speed_m_s"][k]),
+            float(c["tangential_speed_m_s"][k]),
+            float(c["impact_energy_J"][k]),
+            PLACES[self._codes[k]],
+            float(c["arc_position_m"][k]),
+        )
 
     def __eq__(self, other) -> bool:
         return isinstance(other, SequenceABC) and len(other) == len(self) and list(self) == list(other)
@@ -123,7 +137,7 @@ def _missing_column_hint(header: Sequence[str], column: str) -> str:
 SAY_READING_BYTES = 10_000_000
 
 
-def read_impacts(path: Path | str, say: Optional[Callable] = None) -> Sequence[Impact]:
+def read_impacts(path: Path | str, say: Callable | None = None) -> Sequence[Impact]:
     """The impacts of an impacts.csv, checked (InputError naming the column and the row): numpy's
     parser and array checks (:class:`ImpactLog`); a file they refuse is read again row by row for
     the line that names the first bad cell. ``say`` gets a line before and after a large log."""
@@ -141,20 +155,25 @@ def read_impacts(path: Path | str, say: Optional[Callable] = None) -> Sequence[I
     return log
 
 
-def _read_columns(path: Path) -> Optional[ImpactLog]:
+def _read_columns(path: Path) -> ImpactLog | None:
     """The log read and checked as columns, or None when anything is off (:func:`_read_rows` then
     names it)."""
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh, warnings.catch_warnings():
-            warnings.simplefilter("ignore")          # numpy's "no data": said by the row reader
+            warnings.simplefilter("ignore")  # numpy's "no data": said by the row reader
             header = [h.strip() for h in next(csv.reader([fh.readline()]))]
             if any(c not in header for c in IMPACT_COLUMNS):
                 return None
             idx = {c: header.index(c) for c in IMPACT_COLUMNS}
             numeric = [c for c in IMPACT_COLUMNS if c != "place"]
             kw = dict(delimiter=",", comments=None, quotechar='"', ndmin=1)
-            values = np.loadtxt(fh, usecols=[idx[c] for c in numeric], dtype=float, ndmin=2,
-                                **{k: v for k, v in kw.items() if k != "ndmin"})
+            values = np.loadtxt(
+                fh,
+                usecols=[idx[c] for c in numeric],
+                dtype=float,
+                ndmin=2,
+                **{k: v for k, v in kw.items() if k != "ndmin"},
+            )
             fh.seek(0)
             fh.readline()
             places = np.char.strip(np.loadtxt(fh, usecols=[idx["place"]], dtype="U16", **kw))
@@ -188,13 +207,17 @@ def _read_rows(path: Path) -> list[Impact]:
         try:
             header = [h.strip() for h in next(reader)]
         except StopIteration:
-            raise InputError(f"--impacts {path}: empty file (expected the columns {', '.join(IMPACT_COLUMNS)})") from None
+            raise InputError(
+                f"--impacts {path}: empty file (expected the columns {', '.join(IMPACT_COLUMNS)})"
+            ) from None
         except (csv.Error, UnicodeDecodeError) as exc:
             raise InputError(f"--impacts {path}: not a CSV file ({exc})") from None
         for column in IMPACT_COLUMNS:
             if column not in header:
-                raise InputError(f"--impacts {path}: missing column '{column}'"
-                                 f"{_missing_column_hint(header, column)}; expected {', '.join(IMPACT_COLUMNS)}")
+                raise InputError(
+                    f"--impacts {path}: missing column '{column}'"
+                    f"{_missing_column_hint(header, column)}; expected {', '.join(IMPACT_COLUMNS)}"
+                )
         idx = {c: header.index(c) for c in IMPACT_COLUMNS}
         impacts: list[Impact] = []
         try:
@@ -206,8 +229,9 @@ def _read_rows(path: Path) -> list[Impact]:
                     cell = row[idx[column]].strip() if idx[column] < len(row) else ""
                     if column == "place":
                         if cell not in PLACES:
-                            raise InputError(f"--impacts {path}: row {row_no}: place '{cell}' is not one of "
-                                             f"{', '.join(PLACES)}")
+                            raise InputError(
+                                f"--impacts {path}: row {row_no}: place '{cell}' is not one of {', '.join(PLACES)}"
+                            )
                         values[column] = cell
                         continue
                     try:
@@ -215,12 +239,16 @@ def _read_rows(path: Path) -> list[Impact]:
                     except ValueError:
                         raise InputError(f"--impacts {path}: row {row_no}: {column} '{cell}' is not a number") from None
                     if not math.isfinite(x):
-                        raise InputError(f"--impacts {path}: row {row_no}: {column} is {cell} (must be a finite number)")
+                        raise InputError(
+                            f"--impacts {path}: row {row_no}: {column} is {cell} (must be a finite number)"
+                        )
                     if column in _NON_NEGATIVE and x < 0:
                         raise InputError(f"--impacts {path}: row {row_no}: {column} {x:g} is negative (must be >= 0)")
                     if x > _UPPER.get(column, math.inf):
-                        raise InputError(f"--impacts {path}: row {row_no}: {column} {x:g} is above {_UPPER[column]:g} "
-                                         "(SI units expected: m, m/s)")
+                        raise InputError(
+                            f"--impacts {path}: row {row_no}: {column} {x:g} is above {_UPPER[column]:g} "
+                            "(SI units expected: m, m/s)"
+                        )
                     values[column] = x
                 impacts.append(Impact(**values))
         except (csv.Error, UnicodeDecodeError) as exc:

@@ -6,6 +6,7 @@ the script ends), and leaves its results as files in that folder. Lines the scri
 start with :data:`PROGRESS_PREFIX` are handed to a callback as they arrive (progress of long DEM
 runs); everything else is kept for the error message if the run fails.
 """
+
 from __future__ import annotations
 
 import os
@@ -14,8 +15,8 @@ import shutil
 import signal
 import subprocess
 import threading
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Callable, Iterator, Optional, Sequence
 
 from ..errors import InputError, MillimpactError
 from ..interrupts import children_signals
@@ -38,8 +39,13 @@ def yade_executable() -> str:
     return exe
 
 
-def run_yade(script: Path, workdir: Path, args: Sequence[str] = (), timeout: Optional[float] = None,
-             on_progress: Optional[Callable[[str], None]] = None) -> str:
+def run_yade(
+    script: Path,
+    workdir: Path,
+    args: Sequence[str] = (),
+    timeout: float | None = None,
+    on_progress: Callable[[str], None] | None = None,
+) -> str:
     """Run ``yade -n -x script [args]`` in ``workdir``; returns its standard output.
 
     Raises :class:`YadeError` with the last lines of its output when Yade exits non-zero or
@@ -51,15 +57,22 @@ def run_yade(script: Path, workdir: Path, args: Sequence[str] = (), timeout: Opt
     cmd = [exe, "-n", "-j", threads, "-x", str(script), *map(str, args)]
     env = {**os.environ, "OMP_NUM_THREADS": threads}
     lines: list[str] = []
-    with children_signals():   # Ctrl-C reaches Yade as well (millimpact.interrupts)
-        proc = subprocess.Popen(cmd, cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, text=True, env=env)
+    with children_signals():  # Ctrl-C reaches Yade as well (millimpact.interrupts)
+        proc = subprocess.Popen(
+            cmd,
+            cwd=workdir,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            text=True,
+            env=env,
+        )
     with proc:
         try:
             assert proc.stdout is not None
             for line in _lines_of(proc.stdout):
                 if line.startswith(PROGRESS_PREFIX) and on_progress is not None:
-                    on_progress(line[len(PROGRESS_PREFIX):].strip())
+                    on_progress(line[len(PROGRESS_PREFIX) :].strip())
                 lines.append(line)
             rc = proc.wait(timeout=timeout)
         except BaseException:
@@ -67,14 +80,16 @@ def run_yade(script: Path, workdir: Path, args: Sequence[str] = (), timeout: Opt
             proc.wait()
             raise
     out = "".join(lines)
-    if rc < 0:     # killed (SIGKILL: the kernel's out-of-memory killer, or a user): one line, not its log
+    if rc < 0:  # killed (SIGKILL: the kernel's out-of-memory killer, or a user): one line, not its log
         try:
             name = signal.Signals(-rc).name
         except ValueError:
             name = f"signal {-rc}"
         last = next((ln.strip() for ln in reversed(lines) if ln.strip()), "")
-        raise YadeError(f"yade was killed by {name} running {Path(script).name}"
-                        + (f" (its last line: {last[:160]})" if last else ""))
+        raise YadeError(
+            f"yade was killed by {name} running {Path(script).name}"
+            + (f" (its last line: {last[:160]})" if last else "")
+        )
     if rc != 0:
         tail = "".join(lines[-15:])
         raise YadeError(f"yade exited with status {rc} running {Path(script).name}:\n{tail}")

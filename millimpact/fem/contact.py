@@ -19,11 +19,11 @@ tangent basis (t1, t2) of the face; their multipliers are the tangential nodal f
 (:mod:`millimpact.integration.friction`). The master points stay fixed (small sliding): valid while the
 slip distance stays small against the contact radius.
 """
+
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 from dolfinx import fem
@@ -56,10 +56,10 @@ class ContactSet:
     g0: np.ndarray
     contact_dofs: np.ndarray
     radius: float
-    point: np.ndarray                       #: p, the impact point: the contact axis is p + s n
-    normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))   #: n, outward from the block
-    tangents: Optional[np.ndarray] = None   #: (2, 3) t1, t2 (friction only)
-    T: Optional[PETSc.Mat] = None           #: (2 n_c x n) tangential rows [t1 rows; t2 rows] (friction only)
+    point: np.ndarray  #: p, the impact point: the contact axis is p + s n
+    normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))  #: n, outward from the block
+    tangents: np.ndarray | None = None  #: (2, 3) t1, t2 (friction only)
+    T: PETSc.Mat | None = None  #: (2 n_c x n) tangential rows [t1 rows; t2 rows] (friction only)
 
     @property
     def n(self) -> int:
@@ -76,8 +76,9 @@ def tangent_basis(n: np.ndarray) -> np.ndarray:
     return np.array([t1, np.cross(n, t1)])
 
 
-def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
-                   friction: Optional[bool] = None, ball_offset=None) -> ContactSet:
+def create_contact(
+    model: FEModel, plan: Plan, radius: float | None = None, friction: bool | None = None, ball_offset=None
+) -> ContactSet:
     """Build the contact constraint rows of a model (collective) at its impact point and contact
     normal; candidates within ``radius`` (m; default 2.5 a_max, inside the plan's zone) of the
     contact axis; with ``friction`` (default: the plan's coefficient > 0) also the tangential
@@ -102,7 +103,7 @@ def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
     nodes = nodes[nodes < n_owned_nodes]
     coords = V.tabulate_dof_coordinates()[nodes]
     d = coords - p
-    r = np.linalg.norm(d - np.outer(d @ n, n), axis=1)   # distance from the contact axis p + s n
+    r = np.linalg.norm(d - np.outer(d @ n, n), axis=1)  # distance from the contact axis p + s n
     keep = r < radius
     nodes, coords = nodes[keep], coords[keep]
     order = np.lexsort((coords[:, 2], coords[:, 0], coords[:, 1]))  # deterministic order
@@ -110,7 +111,7 @@ def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
 
     # global numbering of rows: rank order
     counts = comm.allgather(len(nodes))
-    offset = sum(counts[:comm.rank])
+    offset = sum(counts[: comm.rank])
     n_c = sum(counts)
     points = np.concatenate(comm.allgather(coords)) if n_c else np.zeros((0, 3))
     g0 = (points - p) @ n
@@ -140,15 +141,16 @@ def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
         for i, gn in enumerate(glob_nodes):
             for comp in range(3):
                 if e[comp] != 0.0:
-                    mat.setValue(roff + offset + i, int(gn) * bs + comp, float(e[comp]),
-                                 addv=PETSc.InsertMode.ADD_VALUES)
+                    mat.setValue(
+                        roff + offset + i, int(gn) * bs + comp, float(e[comp]), addv=PETSc.InsertMode.ADD_VALUES
+                    )
 
     # master side: the block's face point below each slave node, found on whichever rank owns it
-    proj = points - np.outer(g0, n)                      # on the face
+    proj = points - np.outer(g0, n)  # on the face
     if ball_offset is not None:
         d_t = np.asarray(ball_offset, dtype=float)
         proj = proj + (d_t - (d_t @ n) * n)[None, :]
-    face_points = proj - 1e-9 * plan.h_contact * n       # just inside the block
+    face_points = proj - 1e-9 * plan.h_contact * n  # just inside the block
     cells = locate_points(V, face_points, model.block_cells)
     block_face_dofs = []
     element = scalar_element(V) if np.any(cells >= 0) else None
@@ -163,8 +165,12 @@ def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
                 for (mat, roff), e in zip(targets, dirs):
                     for comp in range(3):
                         if e[comp] != 0.0:
-                            mat.setValue(roff + i, int(gn) * bs + comp, -float(w) * float(e[comp]),
-                                         addv=PETSc.InsertMode.ADD_VALUES)
+                            mat.setValue(
+                                roff + i,
+                                int(gn) * bs + comp,
+                                -float(w) * float(e[comp]),
+                                addv=PETSc.InsertMode.ADD_VALUES,
+                            )
                 block_face_dofs.append(int(gn))
     found = comm.allreduce((cells >= 0).astype(np.int32), op=MPI.SUM)
     if np.any(found == 0):
@@ -179,6 +185,10 @@ def create_contact(model: FEModel, plan: Plan, radius: float | None = None,
     contact_nodes = np.unique(np.concatenate([nodes.astype(np.int64), face_local]))
     contact_dofs = (contact_nodes[:, None] * bs + np.arange(bs)[None, :]).ravel().astype(np.int32)
     contact_dofs = np.setdiff1d(contact_dofs, model.fixed_dofs).astype(np.int32)
-    log.info("contact: %d slave nodes within %.3g mm of the axis%s", n_c, radius * 1e3,
-             ", with friction rows" if friction else "")
+    log.info(
+        "contact: %d slave nodes within %.3g mm of the axis%s",
+        n_c,
+        radius * 1e3,
+        ", with friction rows" if friction else "",
+    )
     return ContactSet(points, B, g0, contact_dofs, radius, p, n, tangent_basis(n) if friction else None, T)

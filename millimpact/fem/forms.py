@@ -1,4 +1,5 @@
 """UFL form factories: small-strain linear elasticity and inertia. Imports UFL and dolfinx.fem only."""
+
 from __future__ import annotations
 
 import ufl

@@ -16,23 +16,23 @@ module this process was compiling only (read from the interrupted frames); a mod
 process is compiling, which this one was waiting for, is left alone. A claim left by a killed run
 is named by :func:`stale_jit_claim`, for the CLI's one line.
 """
+
 from __future__ import annotations
 
 import os
 import re
 from pathlib import Path
 from types import TracebackType
-from typing import Optional
 
 #: FFCx's functions that claim a module (create its .c) before compiling it
 _COMPILERS = ("compile_elements", "compile_forms", "compile_expressions")
 
 
-def release_interrupted_compile(exc: BaseException) -> Optional[Path]:
+def release_interrupted_compile(exc: BaseException) -> Path | None:
     """After the interrupt ``exc``: the module this process was compiling, released as FFCx
     releases a failed one (:func:`_release_claim`), looking through the exceptions ``exc``
     replaced (a study re-raises the interrupt as its own); returns the renamed claim, or None."""
-    current: Optional[BaseException] = exc
+    current: BaseException | None = exc
     seen = 0
     while current is not None and seen < 8:
         claim = _release_claim(current.__traceback__)
@@ -42,14 +42,14 @@ def release_interrupted_compile(exc: BaseException) -> Optional[Path]:
     return None
 
 
-def stale_jit_claim(exc: BaseException) -> Optional[str]:
+def stale_jit_claim(exc: BaseException) -> str | None:
     """The ``.c`` file FFCx names when it gives up waiting for a module (its ``TimeoutError``), or
     None for any other error."""
     found = re.search(r"remove (\S+\.c)\)", str(exc))
     return found.group(1) if found and "JIT compilation timed out" in str(exc) else None
 
 
-def _release_claim(tb: Optional[TracebackType]) -> Optional[Path]:
+def _release_claim(tb: TracebackType | None) -> Path | None:
     """If the traceback ``tb`` of an interrupt passes through an FFCx compile this process
     claimed (not its wait for another process), rename the claim ``MODULE.c`` to
     ``MODULE.c.failed`` as FFCx does for a failed compile; returns the renamed file, or None."""
@@ -58,7 +58,7 @@ def _release_claim(tb: Optional[TracebackType]) -> Optional[Path]:
         code = tb.tb_frame.f_code
         if code.co_filename.endswith(os.path.join("ffcx", "codegeneration", "jit.py")):
             if code.co_name == "get_cached_module":
-                return None            # waiting for (or claiming) a module: not compiled here yet
+                return None  # waiting for (or claiming) a module: not compiled here yet
             if code.co_name in _COMPILERS:
                 local = tb.tb_frame.f_locals
                 if local.get("cache_dir") is not None and local.get("module_name"):

@@ -6,11 +6,12 @@ one vector Lagrange space holds them; the ball is free, the block is clamped on 
 and symmetry planes carry u . n = 0. Takes the mesh and the plan (materials, ball radius,
 symmetry planes, degree); the model keeps what it was built from, not the scene.
 """
+
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING
 
 import numpy as np
 import ufl
@@ -18,11 +19,11 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 
-from . import forms
 from ..geometry import builders as G
 from ..geometry.mesh import MeshData, facet_indices, locate_cells
 from ..scene.plan import Plan
 from ..scene.schema import Material, Vec3
+from . import forms
 
 if TYPE_CHECKING:
     from petsc4py import PETSc
@@ -82,7 +83,7 @@ class FEModel:
         f.name = name
         return f
 
-    def ball_velocity(self, velocity) -> "PETSc.Vec":
+    def ball_velocity(self, velocity) -> PETSc.Vec:
         """The velocity field (m/s): the ball moving rigidly with ``velocity``, the block at rest,
         zero on clamped and symmetry dofs (no normal velocity on a symmetry plane)."""
         v = self.M.createVecRight()
@@ -93,7 +94,9 @@ class FEModel:
         return v
 
 
-def _cellwise(V0: fem.FunctionSpace, ball: np.ndarray, ball_value: float, block_value: float, name: str) -> fem.Function:
+def _cellwise(
+    V0: fem.FunctionSpace, ball: np.ndarray, ball_value: float, block_value: float, name: str
+) -> fem.Function:
     f = fem.Function(V0)
     f.name = name
     f.x.array[:] = block_value
@@ -102,7 +105,7 @@ def _cellwise(V0: fem.FunctionSpace, ball: np.ndarray, ball_value: float, block_
     return f
 
 
-def create_fe_model(md: MeshData, plan: Plan, degree: Optional[int] = None) -> FEModel:
+def create_fe_model(md: MeshData, plan: Plan, degree: int | None = None) -> FEModel:
     """Spaces, materials, M and K (PETSc), supports and symmetry conditions for a meshed scene and
     its plan (the Lagrange degree ``degree``, default the plan's)."""
     degree = degree or plan.degree
@@ -111,8 +114,11 @@ def create_fe_model(md: MeshData, plan: Plan, degree: Optional[int] = None) -> F
     # the mesh's tags are read here, once: the rest of fem works on the model
     ball_cells, block_cells = locate_cells(md, BALL_CELLS), locate_cells(md, BLOCK_CELLS)
     support = facet_indices(md, G.SUPPORT)
-    sym_facets = {plane: facet_indices(md, tag) for plane, tag in (("x", G.SYM_X), ("z", G.SYM_Z))
-                  if plane in plan.symmetry_planes}
+    sym_facets = {
+        plane: facet_indices(md, tag)
+        for plane, tag in (("x", G.SYM_X), ("z", G.SYM_Z))
+        if plane in plan.symmetry_planes
+    }
     contact_facets = facet_indices(md, G.BALL_CONTACT)
 
     sym_factor = float(2 ** len(plan.symmetry_planes))
@@ -123,13 +129,36 @@ def create_fe_model(md: MeshData, plan: Plan, degree: Optional[int] = None) -> F
     fixed_dofs, ball_dofs, block_dofs = _dof_sets(V, bcs, ball_cells)
     n_global = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
     log.info("FE model: P%d, %d dofs, symmetry factor %g", degree, n_global, sym_factor)
-    return FEModel(md, V, degree, M, K, bcs, fixed_dofs, ball_dofs, block_dofs, ball_cells, block_cells,
-                   contact_facets, sym_factor, tuple(plan.symmetry_planes), plan.ball.material, plan.target,
-                   plan.impact_point, plan.contact_normal, mu, lmbda, rho, n_global, extra=extra)
+    return FEModel(
+        md,
+        V,
+        degree,
+        M,
+        K,
+        bcs,
+        fixed_dofs,
+        ball_dofs,
+        block_dofs,
+        ball_cells,
+        block_cells,
+        contact_facets,
+        sym_factor,
+        tuple(plan.symmetry_planes),
+        plan.ball.material,
+        plan.target,
+        plan.impact_point,
+        plan.contact_normal,
+        mu,
+        lmbda,
+        rho,
+        n_global,
+        extra=extra,
+    )
 
 
-def _assign_materials(V: fem.FunctionSpace, ball_cells: np.ndarray, plan: Plan,
-                      sym_factor: float) -> tuple[fem.Function, fem.Function, fem.Function, dict]:
+def _assign_materials(
+    V: fem.FunctionSpace, ball_cells: np.ndarray, plan: Plan, sym_factor: float
+) -> tuple[fem.Function, fem.Function, fem.Function, dict]:
     """Cellwise (DG0) shear modulus, Lame lambda and density of the two bodies; the ball's density
     scaled to the sphere's mass (``extra``: the scale and the meshed ball's volume)."""
     mesh = V.mesh
@@ -144,7 +173,7 @@ def _assign_materials(V: fem.FunctionSpace, ball_cells: np.ndarray, plan: Plan,
     vol = mesh.comm.allreduce(fem.assemble_scalar(fem.form(ball_indicator * ufl.dx(domain=mesh))), op=MPI.SUM)
     ball_volume_exact = 4.0 / 3.0 * np.pi * plan.ball.radius**3
     density_scale = ball_volume_exact / (sym_factor * vol)
-    if plan.ball.body_mass is not None:   # the tip of a heavier body carries its mass (scene.schema.Ball)
+    if plan.ball.body_mass is not None:  # the tip of a heavier body carries its mass (scene.schema.Ball)
         density_scale *= plan.ball.body_mass / plan.ball.sphere_mass
     rho = _cellwise(V0, ball_cells, mb.density * density_scale, mk.density, "rho")
     return mu, lmbda, rho, {"ball_density_scale": density_scale, "ball_volume_mesh_m3": sym_factor * vol}
@@ -166,8 +195,14 @@ def _clamp_and_symmetry(V: fem.FunctionSpace, support: np.ndarray, sym_facets: d
     return bcs
 
 
-def _assemble(V: fem.FunctionSpace, mu: fem.Function, lmbda: fem.Function, rho: fem.Function, bcs: list,
-              backing: Optional[tuple] = None):
+def _assemble(
+    V: fem.FunctionSpace,
+    mu: fem.Function,
+    lmbda: fem.Function,
+    rho: fem.Function,
+    bcs: list,
+    backing: tuple | None = None,
+):
     """Stiffness K (unit diagonal on constrained rows) and consistent mass M (zero diagonal there).
     ``backing`` = (facet tags, k_n Pa/m): K also holds the Winkler layer int_BACKING k_n (u.n)(v.n) ds
     (:func:`forms.winkler_foundation`), linear, so the region's modes stay those of a linear model."""

@@ -20,10 +20,12 @@ Plastic state per quadrature point: plastic strain (Mandel, 6) and equivalent pl
 alpha. :meth:`PlasticZone.evaluate` computes the trial state of a displacement without changing
 the committed one; :meth:`PlasticZone.commit` accepts it at the end of a converged step. Units SI.
 """
+
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, Optional, Sequence, Union
+from typing import TYPE_CHECKING, Literal
 
 import basix
 import numpy as np
@@ -65,7 +67,7 @@ class PlasticZone:
     """
 
     #: the committed stress per zone (None for an empty zone), set by commit() and set_state()
-    _stress: list[Optional[np.ndarray]]
+    _stress: list[np.ndarray | None]
 
     def __init__(self, V: fem.FunctionSpace, cell_tags, zones: Sequence[ZoneMaterial], bcs: Sequence = ()):
         mesh = V.mesh
@@ -76,27 +78,30 @@ class PlasticZone:
         points, _ = basix.make_quadrature(basix.CellType.tetrahedron, self.q_degree)
         self.n_q = points.shape[0]
         n_owned = mesh.topology.index_map(mesh.topology.dim).size_local
-        self.cells = [np.sort(cell_tags.find(z.cell_tag)[cell_tags.find(z.cell_tag) < n_owned]).astype(np.int32)
-                      for z in self.zones]
+        self.cells = [
+            np.sort(cell_tags.find(z.cell_tag)[cell_tags.find(z.cell_tag) < n_owned]).astype(np.int32)
+            for z in self.zones
+        ]
         self.u = fem.Function(V)
         self._strain = fem.Expression(mandel_strain(self.u), points)
         cell = mesh.ufl_cell()
         quad = {"quadrature_degree": self.q_degree, "quadrature_scheme": "default"}
         Q6 = fem.FunctionSpace(mesh, ufl.VectorElement("Quadrature", cell, self.q_degree, dim=6, quad_scheme="default"))
-        Q66 = fem.FunctionSpace(mesh, ufl.TensorElement("Quadrature", cell, self.q_degree, shape=(6, 6),
-                                                        quad_scheme="default"))
+        Q66 = fem.FunctionSpace(
+            mesh, ufl.TensorElement("Quadrature", cell, self.q_degree, shape=(6, 6), quad_scheme="default")
+        )
         Q1 = fem.FunctionSpace(mesh, ufl.FiniteElement("Quadrature", cell, self.q_degree, quad_scheme="default"))
-        self.stress_correction = fem.Function(Q6)     # sigma - C eps, Pa
-        self.tangent_correction = fem.Function(Q66)   # C_t - C, Pa
-        self.density = fem.Function(Q1)               # a scalar density to integrate over the zones
+        self.stress_correction = fem.Function(Q6)  # sigma - C eps, Pa
+        self.tangent_correction = fem.Function(Q66)  # C_t - C, Pa
+        self.density = fem.Function(Q1)  # a scalar density to integrate over the zones
         dx = ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags, metadata=quad)
         dxz = dx(tuple(z.cell_tag for z in self.zones))
         v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
         self._f_form = fem.form(ufl.inner(self.stress_correction, mandel_strain(v)) * dxz)
         self._v = v
         # select_candidates(): per zone the positions (in its cell list) of the candidate cells
-        self._candidates: Optional[list[np.ndarray]] = None
-        self._candidate_form: Optional[fem.FormMetaClass] = None
+        self._candidates: list[np.ndarray] | None = None
+        self._candidate_form: fem.FormMetaClass | None = None
         self._restricted = False
         self._k_integrand = ufl.inner(ufl.dot(self.tangent_correction, mandel_strain(du)), mandel_strain(v))
         self._quad = quad
@@ -105,17 +110,17 @@ class PlasticZone:
         n = [len(c) * self.n_q for c in self.cells]
         self.plastic_strain = [np.zeros((k, 6)) for k in n]
         self.alpha = [np.zeros(k) for k in n]
-        self._trial: Optional[list[Optional[ReturnMapResult]]] = None
+        self._trial: list[ReturnMapResult | None] | None = None
         self._elastic = [z.material.elastic_matrix() for z in self.zones]
-        self._slots = [self._points_of(c) for c in self.cells]     # each zone's quadrature slots
+        self._slots = [self._points_of(c) for c in self.cells]  # each zone's quadrature slots
         # (version, per zone (eps_p, alpha, slots) of the candidates)
-        self._picked: Optional[tuple[int, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]] = None
-        self.version = 0          #: bumped by commit() when the plastic state changed
+        self._picked: tuple[int, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] | None = None
+        self.version = 0  #: bumped by commit() when the plastic state changed
         self._cache: dict = {}
         #: evaluations without the tangent by the compiled pass (:mod:`.return_map_kernel`); False: numpy
         self.compiled = True
-        self._kernel: Union[CompiledPass, Literal[False], None] = None     # False: tried, none here
-        self._compiled_force: Optional[np.ndarray] = None
+        self._kernel: CompiledPass | Literal[False] | None = None  # False: tried, none here
+        self._compiled_force: np.ndarray | None = None
 
     # --- state --------------------------------------------------------------------------------
     def _set_displacement(self, u_vec) -> None:
@@ -145,13 +150,13 @@ class PlasticZone:
             return self._evaluate_compiled(u_vec, restricted)
         self._compiled_force = None
         if restricted:
-            self._frozen_force()      # kept before the stress correction is written below
+            self._frozen_force()  # kept before the stress correction is written below
         self._set_displacement(u_vec)
         sc = self.stress_correction.x.array.reshape(-1, 6)
         tc = self.tangent_correction.x.array.reshape(-1, 6, 6)
         # only the zones' slots are ever written (the Quadrature spaces span the whole mesh: zeroing
         # all of C_t - C was 8 ms of a 19 ms evaluation on the plastic rig)
-        trial: list[Optional[ReturnMapResult]] = []
+        trial: list[ReturnMapResult | None] = []
         n_yield, yielding_cells = 0, []
         picked = self._candidate_state() if restricted else []
         for k, zone in enumerate(self.zones):
@@ -188,8 +193,7 @@ class PlasticZone:
         self._trial = None if restricted else trial
         self._restricted = restricted
         # without the tangent, stiffness_correction() is zero (no stale C_t - C is assembled)
-        self._yielding_cells = (np.unique(np.concatenate(yielding_cells)) if yielding_cells
-                                else np.zeros(0, np.int32))
+        self._yielding_cells = np.unique(np.concatenate(yielding_cells)) if yielding_cells else np.zeros(0, np.int32)
         return n_yield
 
     def _compiled(self):
@@ -198,8 +202,11 @@ class PlasticZone:
         if self._kernel is None:
             from .return_map_kernel import CompiledPass
 
-            self._kernel = (CompiledPass.build(self.V, self.cells, [z.material for z in self.zones], self.q_degree)
-                            if self.compiled else None) or False
+            self._kernel = (
+                CompiledPass.build(self.V, self.cells, [z.material for z in self.zones], self.q_degree)
+                if self.compiled
+                else None
+            ) or False
         return self._kernel or None
 
     def _evaluate_compiled(self, u_vec, restricted: bool) -> int:
@@ -208,7 +215,7 @@ class PlasticZone:
         loop, kept for :meth:`force_correction`; the stress correction is not written. Over the
         candidates (``restricted``: no trial state kept) or every zone cell (the trial state kept,
         as numpy's :func:`return_map` gives it)."""
-        self._frozen_force()      # assembled (if not kept) before this evaluation marks itself restricted
+        self._frozen_force()  # assembled (if not kept) before this evaluation marks itself restricted
         self._set_displacement(u_vec)
         u = self.u.x.array
         f = self._compiled_force
@@ -217,8 +224,9 @@ class PlasticZone:
         else:
             f[:] = 0.0
         positions = self._candidates if restricted else [np.arange(len(c)) for c in self.cells]
-        n_yield, trial = self._compiled().evaluate(u, positions, self.plastic_strain, self.alpha, f,
-                                                   keep_state=not restricted)
+        n_yield, trial = self._compiled().evaluate(
+            u, positions, self.plastic_strain, self.alpha, f, keep_state=not restricted
+        )
         self._compiled_force = f
         self._trial = None if restricted else trial
         self._restricted = restricted
@@ -233,8 +241,9 @@ class PlasticZone:
             picked = []
             for k, pos in enumerate(self._candidates):
                 points = self._points_of(pos)
-                picked.append((self.plastic_strain[k][points], self.alpha[k][points],
-                               self._points_of(self.cells[k][pos])))
+                picked.append(
+                    (self.plastic_strain[k][points], self.alpha[k][points], self._points_of(self.cells[k][pos]))
+                )
             self._picked = (self.version, picked)
         return self._picked[1]
 
@@ -254,15 +263,16 @@ class PlasticZone:
             if res is None:
                 picked.append(np.zeros(0, np.int64))
                 continue
-            hot = res.yielding | (von_mises(res.stress) >= stress_fraction
-                                  * self.zones[k].material.flow.flow_stress(res.alpha))
+            hot = res.yielding | (
+                von_mises(res.stress) >= stress_fraction * self.zones[k].material.flow.flow_stress(res.alpha)
+            )
             pos = np.flatnonzero(hot.reshape(len(self.cells[k]), self.n_q).any(axis=1))
             picked.append(pos)
             mesh_cells.append(self.cells[k][pos])
         self._candidates = picked
         self._picked = None
         cells = np.unique(np.concatenate(mesh_cells)).astype(np.int32) if mesh_cells else np.zeros(0, np.int32)
-        self._candidate_cells, self._candidate_form = cells, None     # the form when numpy's path asks
+        self._candidate_cells, self._candidate_form = cells, None  # the form when numpy's path asks
         return len(cells)
 
     def _candidates_form(self):
@@ -320,12 +330,14 @@ class PlasticZone:
         for k in range(len(self.zones)):
             ep, a = np.asarray(state[f"plastic_strain_{k}"], float), np.asarray(state[f"alpha_{k}"], float)
             if ep.shape != self.plastic_strain[k].shape or a.shape != self.alpha[k].shape:
-                raise ValueError(f"plastic state of zone {k}: shapes {ep.shape}, {a.shape} do not fit the zone's "
-                                 f"{self.plastic_strain[k].shape}, {self.alpha[k].shape} (another mesh or rank count)")
+                raise ValueError(
+                    f"plastic state of zone {k}: shapes {ep.shape}, {a.shape} do not fit the zone's "
+                    f"{self.plastic_strain[k].shape}, {self.alpha[k].shape} (another mesh or rank count)"
+                )
             self.plastic_strain[k], self.alpha[k] = ep.copy(), a.copy()
         self._trial = None
         self._restricted = False
-        self._candidates = self._candidate_form = None     # another state: chosen again
+        self._candidates = self._candidate_form = None  # another state: chosen again
         self._stress = [None] * len(self.zones)
         self.version += 1
         self._prune_cache()
@@ -379,7 +391,7 @@ class PlasticZone:
                 sc[self.quadrature_slots(k)] = -self.zones[k].material.elastic_stress(self.plastic_strain[k])
         self.stress_correction.x.scatter_forward()
         self._trial = None
-        self._restricted, self._compiled_force = False, None     # the form over every zone cell
+        self._restricted, self._compiled_force = False, None  # the form over every zone cell
         return self.force_correction()
 
     def stiffness_correction(self):
@@ -419,8 +431,9 @@ class PlasticZone:
         :meth:`strain_energy_correction` that does not depend on u (kept per plastic state)."""
         key = ("energy", self.version)
         if key not in self._cache:
-            const = self.integrate([0.5 * np.einsum("pi,pi->p", ep, ep @ C)
-                                    for ep, C in zip(self.plastic_strain, self._elastic)])
+            const = self.integrate(
+                [0.5 * np.einsum("pi,pi->p", ep, ep @ C) for ep, C in zip(self.plastic_strain, self._elastic)]
+            )
             self._cache[key] = const
         return self._cache[key]
 
@@ -440,8 +453,9 @@ class PlasticZone:
         """The physical coordinates (m) of each zone's quadrature points on this rank, (n, 3) arrays
         in the order of :meth:`trial`'s values."""
         if not hasattr(self, "_qp_xyz"):
-            X = fem.Expression(ufl.SpatialCoordinate(self.V.mesh), basix.make_quadrature(
-                basix.CellType.tetrahedron, self.q_degree)[0])
+            X = fem.Expression(
+                ufl.SpatialCoordinate(self.V.mesh), basix.make_quadrature(basix.CellType.tetrahedron, self.q_degree)[0]
+            )
             self._qp_xyz = [X.eval(c).reshape(-1, 3) if len(c) else np.zeros((0, 3)) for c in self.cells]
         return self._qp_xyz
 
@@ -563,7 +577,7 @@ class PlasticZone:
         return self._cache[key]
 
 
-def create_plastic_zone(model, zone_materials) -> "PlasticZone | None":
+def create_plastic_zone(model, zone_materials) -> PlasticZone | None:
     """The plastic zone of a model: ``zone_materials`` pairs (cell tag of a body's contact zone,
     its scene material); bodies whose material is elastic are left out; None if none yields."""
     zones = []

@@ -29,11 +29,13 @@ time integrator books as plastic dissipation (it includes the cold work stored b
 which the rebound cannot recover either); :meth:`FlowCurve.stored_energy` gives the hardening
 part int_0^alpha (sigma_y - sigma_y0) d alpha.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, Optional, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -61,8 +63,14 @@ def from_mandel(v: np.ndarray) -> np.ndarray:
     """(n, 6) Mandel vectors -> (n, 3, 3) symmetric tensors."""
     v = np.asarray(v, dtype=float)
     s = v[:, 3:] / _S2
-    return np.stack([np.stack([v[:, 0], s[:, 2], s[:, 1]], 1), np.stack([s[:, 2], v[:, 1], s[:, 0]], 1),
-                     np.stack([s[:, 1], s[:, 0], v[:, 2]], 1)], axis=1)
+    return np.stack(
+        [
+            np.stack([v[:, 0], s[:, 2], s[:, 1]], 1),
+            np.stack([s[:, 2], v[:, 1], s[:, 0]], 1),
+            np.stack([s[:, 1], s[:, 0], v[:, 2]], 1),
+        ],
+        axis=1,
+    )
 
 
 def deviator(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -99,7 +107,7 @@ class FlowCurve:
 
     yield_stress: float
     hardening_modulus: float = 0.0
-    points: Optional[tuple[tuple[float, float], ...]] = None
+    points: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self) -> None:
         if self.points is not None:
@@ -197,7 +205,7 @@ class ReturnMapResult(NamedTuple):
     stress: np.ndarray
     plastic_strain: np.ndarray
     alpha: np.ndarray
-    tangent: Optional[np.ndarray]
+    tangent: np.ndarray | None
     yielding: np.ndarray
     dissipation_increment: np.ndarray
     plastic_increment: np.ndarray
@@ -220,8 +228,9 @@ def _consistency(flow: FlowCurve, q_tr: np.ndarray, alpha: np.ndarray, G: float)
     raise PlasticityError(f"return map: the consistency equation did not converge at {bad} point(s)")
 
 
-def return_map(material: J2Material, strain: np.ndarray, plastic_strain: np.ndarray,
-               alpha: np.ndarray, tangent: bool = True) -> ReturnMapResult:
+def return_map(
+    material: J2Material, strain: np.ndarray, plastic_strain: np.ndarray, alpha: np.ndarray, tangent: bool = True
+) -> ReturnMapResult:
     """Radial return of total strains ``strain`` (n, 6) from the committed state (plastic strain
     (n, 6), alpha (n,)); see the module docstring for the equations. ``tangent=False`` leaves the
     consistent tangent out (``None``): an iteration on the elastic operator needs none."""
@@ -241,17 +250,17 @@ def return_map(material: J2Material, strain: np.ndarray, plastic_strain: np.ndar
     deps_p = np.zeros_like(eps_p)
     C_t = np.repeat(material.elastic_matrix()[None], len(strain), axis=0) if tangent else None
     work = np.zeros(len(strain))
-    y = np.flatnonzero(yielding)          # integer rows: a boolean mask gathers 10x slower when few yield
+    y = np.flatnonzero(yielding)  # integer rows: a boolean mask gathers 10x slower when few yield
     if y.size:
         dg = _consistency(flow, q_tr[y], alpha[y], G)
         d = dev[y]
-        d.T[...] *= np.sqrt(1.5) * dg / dev_norm[y]      # sqrt(3/2) dg n, n = dev / |dev| (unit Mandel normal)
+        d.T[...] *= np.sqrt(1.5) * dg / dev_norm[y]  # sqrt(3/2) dg n, n = dev / |dev| (unit Mandel normal)
         deps_p[y] = d
         stress_y = stress[y] - 2.0 * G * d
         stress[y] = stress_y
         eps_p[y] = eps_p[y] + d
         alpha_new[y] += dg
-        if C_t is not None:                  # the tangent asked for
+        if C_t is not None:  # the tangent asked for
             n = dev[y] / dev_norm[y, None]
             C = material.elastic_matrix()
             H = flow.slope(alpha_new[y])
@@ -262,8 +271,9 @@ def return_map(material: J2Material, strain: np.ndarray, plastic_strain: np.ndar
     return ReturnMapResult(stress, eps_p, alpha_new, C_t, yielding, work, deps_p)
 
 
-def flow_curve_from_fields(yield_stress: Optional[float], hardening_modulus: float = 0.0,
-                           points: Optional[Sequence[Sequence[float]]] = None) -> Optional[FlowCurve]:
+def flow_curve_from_fields(
+    yield_stress: float | None, hardening_modulus: float = 0.0, points: Sequence[Sequence[float]] | None = None
+) -> FlowCurve | None:
     """The flow curve of a material's scene fields (None: elastic)."""
     if points is not None:
         return FlowCurve(float(points[0][1]), 0.0, tuple((float(a), float(s)) for a, s in points))

@@ -6,6 +6,7 @@ Each probe is a pair of sparse matrices built once from the basis functions of t
 the points; applying them is a sparse product and an MPI sum, so the time loop records a probe for
 the cost of a matrix-vector product. Stresses follow from the gradients by Hooke's law.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -29,9 +30,9 @@ class PointProbe:
 
     comm: MPI.Comm
     n_points: int
-    P_val: sp.csr_matrix     # (3 n_points) x n_local
-    P_grad: sp.csr_matrix    # (9 n_points) x n_local
-    found: np.ndarray        # bool per point (globally)
+    P_val: sp.csr_matrix  # (3 n_points) x n_local
+    P_grad: sp.csr_matrix  # (9 n_points) x n_local
+    found: np.ndarray  # bool per point (globally)
 
     def values(self, u_local: np.ndarray) -> np.ndarray:
         loc = self.P_val @ u_local
@@ -102,21 +103,22 @@ def scalar_element(V: fem.FunctionSpace):
     return element.basix_element
 
 
-def tabulate_at(V: fem.FunctionSpace, cell: int, x: np.ndarray,
-                element=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def tabulate_at(
+    V: fem.FunctionSpace, cell: int, x: np.ndarray, element=None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Scalar basis values (ndofs,) and physical gradients (ndofs, 3) of V's element at point x in
     ``cell`` (affine tetrahedron), and the cell's node (block) dof indices. ``element``: V's
     :func:`scalar_element`, when the caller tabulates many points."""
     mesh = V.mesh
     gnodes = mesh.geometry.dofmap.links(cell)
     xg = mesh.geometry.x[gnodes, :3]
-    J = (xg[1:4] - xg[0]).T           # x = x0 + J X on the reference tetrahedron
+    J = (xg[1:4] - xg[0]).T  # x = x0 + J X on the reference tetrahedron
     X = np.linalg.solve(J, x - xg[0])
     elem = scalar_element(V) if element is None else element
     tab = elem.tabulate(1, X.reshape(1, 3))  # (4, 1, ndofs, 1)
     N = tab[0, 0, :, 0]
-    dNdX = tab[1:4, 0, :, 0]                  # (3, ndofs)
-    grad = np.linalg.solve(J.T, dNdX).T       # (ndofs, 3): J^-T dN/dX
+    dNdX = tab[1:4, 0, :, 0]  # (3, ndofs)
+    grad = np.linalg.solve(J.T, dNdX).T  # (ndofs, 3): J^-T dN/dX
     return N, grad, V.dofmap.cell_dofs(cell)
 
 
@@ -134,9 +136,13 @@ def create_probe(V: fem.FunctionSpace, points: np.ndarray, cells_allowed: np.nda
         N, grad, nodes = tabulate_at(V, int(c), x, element)
         for comp in range(bs):
             dofs = nodes * bs + comp
-            rv += [3 * i + comp] * len(dofs); cv += dofs.tolist(); vv += N.tolist()
+            rv += [3 * i + comp] * len(dofs)
+            cv += dofs.tolist()
+            vv += N.tolist()
             for j in range(3):
-                rg += [9 * i + 3 * comp + j] * len(dofs); cg += dofs.tolist(); vg += grad[:, j].tolist()
+                rg += [9 * i + 3 * comp + j] * len(dofs)
+                cg += dofs.tolist()
+                vg += grad[:, j].tolist()
     P_val = sp.csr_matrix((vv, (rv, cv)), shape=(3 * len(points), n_local))
     P_grad = sp.csr_matrix((vg, (rg, cg)), shape=(9 * len(points), n_local))
     found = V.mesh.comm.allreduce((cells >= 0).astype(np.int32), op=MPI.SUM) > 0
@@ -156,8 +162,9 @@ def von_mises(s: np.ndarray) -> np.ndarray:
     return np.sqrt(1.5 * np.sum(dev * dev, axis=(-2, -1)))
 
 
-def patch_indicator(V: fem.FunctionSpace, M, body_dofs: np.ndarray, point: np.ndarray, direction: np.ndarray,
-                    radius: float):
+def patch_indicator(
+    V: fem.FunctionSpace, M, body_dofs: np.ndarray, point: np.ndarray, direction: np.ndarray, radius: float
+):
     """The nodal indicator chi of a patch, directed: chi_(i,k) = d_k for the nodes i of a body
     (``body_dofs``) within ``radius`` of ``point``, 0 elsewhere; and the uniform field e_(i,k) = d_k
     (vectors of ``M``'s layout). The radius grows by sqrt(2) until at least four nodes are inside

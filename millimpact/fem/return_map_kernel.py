@@ -30,6 +30,7 @@ written under a temporary name and renamed into place, so processes that compile
 ranks of a run, a study's workers) never load a half-written file. :func:`load_kernel` returns
 None when no compiler is found; the zone then keeps the numpy path.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -38,8 +39,8 @@ import importlib.util
 import logging
 import os
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -241,17 +242,18 @@ class ZoneKernelData:
 
         mesh = V.mesh
         degree = V.ufl_element().degree()
-        element = basix.create_element(basix.ElementFamily.P, basix.CellType.tetrahedron, degree,
-                                       basix.LagrangeVariant.equispaced)
-        tab = element.tabulate(1, points)              # (4, n_q, n_nodes, 1)
-        self.ref_grad = np.ascontiguousarray(np.moveaxis(tab[1:4, :, :, 0], 0, -1))   # (n_q, n_nodes, 3)
+        element = basix.create_element(
+            basix.ElementFamily.P, basix.CellType.tetrahedron, degree, basix.LagrangeVariant.equispaced
+        )
+        tab = element.tabulate(1, points)  # (4, n_q, n_nodes, 1)
+        self.ref_grad = np.ascontiguousarray(np.moveaxis(tab[1:4, :, :, 0], 0, -1))  # (n_q, n_nodes, 3)
         self.n_q, self.n_nodes = self.ref_grad.shape[0], self.ref_grad.shape[1]
         self.weights = np.ascontiguousarray(weights, dtype=float)
         n_dofs = V.dofmap.list.array.size // max(1, V.dofmap.list.num_nodes)
         self.dofs = np.ascontiguousarray(V.dofmap.list.array.reshape(-1, n_dofs)[cells], dtype=np.int32)
         gdofs = mesh.geometry.dofmap.array.reshape(-1, 4)[cells]
-        x = mesh.geometry.x[gdofs]                     # (cells, 4, 3)
-        J = np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0], x[:, 3] - x[:, 0]], axis=-1)   # dx_i / dX_j
+        x = mesh.geometry.x[gdofs]  # (cells, 4, 3)
+        J = np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0], x[:, 3] - x[:, 0]], axis=-1)  # dx_i / dX_j
         self.jinv = np.ascontiguousarray(np.linalg.inv(J)) if len(cells) else np.zeros((0, 3, 3))
         self.det = np.ascontiguousarray(np.abs(np.linalg.det(J))) if len(cells) else np.zeros(0)
 
@@ -259,13 +261,28 @@ class ZoneKernelData:
     def supports(V) -> bool:
         """Whether the kernel handles this space: vector Lagrange P1/P2 on affine tetrahedra."""
         mesh = V.mesh
-        return (mesh.topology.cell_type.name == "tetrahedron" and mesh.geometry.cmap.degree == 1
-                and V.ufl_element().degree() in (1, 2) and V.dofmap.bs == 3)
+        return (
+            mesh.topology.cell_type.name == "tetrahedron"
+            and mesh.geometry.cmap.degree == 1
+            and V.ufl_element().degree() in (1, 2)
+            and V.dofmap.bs == 3
+        )
 
 
-def zone_force(module, data: ZoneKernelData, pos: np.ndarray, u: np.ndarray, plastic_strain: np.ndarray,
-               alpha: np.ndarray, material, table, tol: float,
-               max_iterations: int, f: np.ndarray, state: Optional[tuple] = None) -> int:
+def zone_force(
+    module,
+    data: ZoneKernelData,
+    pos: np.ndarray,
+    u: np.ndarray,
+    plastic_strain: np.ndarray,
+    alpha: np.ndarray,
+    material,
+    table,
+    tol: float,
+    max_iterations: int,
+    f: np.ndarray,
+    state: tuple | None = None,
+) -> int:
     """Add the cells' (``pos``, positions in the zone's cells) force correction beyond the frozen
     one, -int B^T C d eps_p dV, to ``f`` (the local array, ghosts included) for the displacement
     ``u`` (local array); returns the number of yielding points, or -1 - (a point's index) where
@@ -280,14 +297,38 @@ def zone_force(module, data: ZoneKernelData, pos: np.ndarray, u: np.ndarray, pla
     def ptr(arr, kind="double *"):
         return ffi.cast(kind, arr.ctypes.data)
 
-    outputs = (ffi.NULL,) * 4 if state is None else (ptr(state[0]), ptr(state[1]), ptr(state[2]),
-                                                     ptr(state[3], "unsigned char *"))
+    outputs = (
+        (ffi.NULL,) * 4
+        if state is None
+        else (ptr(state[0]), ptr(state[1]), ptr(state[2]), ptr(state[3], "unsigned char *"))
+    )
 
-    return int(lib.zone_force(len(pos), ptr(pos, "int *"), data.n_nodes, data.n_q, ptr(data.ref_grad),
-                              ptr(data.weights), ptr(data.dofs, "int *"), ptr(data.jinv), ptr(data.det),
-                              ptr(u), ptr(plastic_strain), ptr(alpha),
-                              material.shear_modulus, material.bulk_modulus, len(a), ptr(a), ptr(s), ptr(k),
-                              tol, max_iterations, ptr(f), *outputs))
+    return int(
+        lib.zone_force(
+            len(pos),
+            ptr(pos, "int *"),
+            data.n_nodes,
+            data.n_q,
+            ptr(data.ref_grad),
+            ptr(data.weights),
+            ptr(data.dofs, "int *"),
+            ptr(data.jinv),
+            ptr(data.det),
+            ptr(u),
+            ptr(plastic_strain),
+            ptr(alpha),
+            material.shear_modulus,
+            material.bulk_modulus,
+            len(a),
+            ptr(a),
+            ptr(s),
+            ptr(k),
+            tol,
+            max_iterations,
+            ptr(f),
+            *outputs,
+        )
+    )
 
 
 class CompiledPass:
@@ -300,43 +341,73 @@ class CompiledPass:
         points, weights = basix.make_quadrature(basix.CellType.tetrahedron, q_degree)
         self.module, self.materials = module, list(materials)
         self.data = [ZoneKernelData(V, c, points, weights) for c in cells]
-        self.tables = [tuple(np.ascontiguousarray(x, dtype=float) for x in m.flow.segments())
-                       for m in self.materials]
+        self.tables = [tuple(np.ascontiguousarray(x, dtype=float) for x in m.flow.segments()) for m in self.materials]
 
     @classmethod
-    def build(cls, V, cells: Sequence[np.ndarray], materials: Sequence, q_degree: int) -> "Optional[CompiledPass]":
+    def build(cls, V, cells: Sequence[np.ndarray], materials: Sequence, q_degree: int) -> CompiledPass | None:
         """The pass for these zones, or None where the space is not one the kernel handles or the
         kernel cannot be built here."""
         module = load_kernel() if ZoneKernelData.supports(V) else None
         return None if module is None else cls(module, V, cells, materials, q_degree)
 
-    def evaluate(self, u: np.ndarray, positions: Sequence[np.ndarray], plastic_strain: Sequence[np.ndarray],
-                 alpha: Sequence[np.ndarray], f: np.ndarray, keep_state: bool
-                 ) -> tuple[int, list[Optional[ReturnMapResult]]]:
+    def evaluate(
+        self,
+        u: np.ndarray,
+        positions: Sequence[np.ndarray],
+        plastic_strain: Sequence[np.ndarray],
+        alpha: Sequence[np.ndarray],
+        f: np.ndarray,
+        keep_state: bool,
+    ) -> tuple[int, list[ReturnMapResult | None]]:
         """Per body, return-map the points of the cells at ``positions`` (in its cell list) from the
         committed (``plastic_strain``, ``alpha``) and add their force correction beyond the frozen
         one to ``f``; returns (the yielding points, per body its :class:`ReturnMapResult` without
         tangent when ``keep_state``, else None)."""
         n_yield = 0
-        trial: list[Optional[ReturnMapResult]] = []
+        trial: list[ReturnMapResult | None] = []
         for k, (pos, material) in enumerate(zip(positions, self.materials)):
             if not len(pos):
                 trial.append(None)
                 continue
             n_points = len(pos) * self.data[k].n_q
-            state = (np.empty((n_points, 6)), np.empty((n_points, 6)), np.empty(n_points),
-                     np.empty(n_points, dtype=bool)) if keep_state else None
+            state = (
+                (np.empty((n_points, 6)), np.empty((n_points, 6)), np.empty(n_points), np.empty(n_points, dtype=bool))
+                if keep_state
+                else None
+            )
             tol = CONSISTENCY_RTOL * material.flow.yield_stress
-            n = zone_force(self.module, self.data[k], pos, u, plastic_strain[k], alpha[k], material, self.tables[k],
-                           tol, CONSISTENCY_MAX_ITERATIONS, f, state)
+            n = zone_force(
+                self.module,
+                self.data[k],
+                pos,
+                u,
+                plastic_strain[k],
+                alpha[k],
+                material,
+                self.tables[k],
+                tol,
+                CONSISTENCY_MAX_ITERATIONS,
+                f,
+                state,
+            )
             if n < 0:
-                raise PlasticityError(f"return map: the consistency equation did not converge at point {-1 - n} of zone {k}")
+                raise PlasticityError(
+                    f"return map: the consistency equation did not converge at point {-1 - n} of zone {k}"
+                )
             n_yield += n
             if state is not None:
                 stress, deps, dg, yielding = state
-                trial.append(ReturnMapResult(stress, plastic_strain[k] + deps, alpha[k] + dg, None, yielding,
-                                             np.einsum("pi,pi->p", stress, deps), deps))
+                trial.append(
+                    ReturnMapResult(
+                        stress,
+                        plastic_strain[k] + deps,
+                        alpha[k] + dg,
+                        None,
+                        yielding,
+                        np.einsum("pi,pi->p", stress, deps),
+                        deps,
+                    )
+                )
             else:
                 trial.append(None)
         return n_yield, trial
-

@@ -5,6 +5,7 @@ Takes a scene and its plan (sizes), gives :class:`.mesh.MeshData` (mesh, cell ta
 info). The physical groups it writes are the mesh contract (meshes/README.md). Imports the scene
 stage and below.
 """
+
 import signal as _signal
 import threading as _threading
 

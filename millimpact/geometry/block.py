@@ -1,6 +1,7 @@
 """The impact model of the lab rig: the ball above a rectangular block (the liner sample), each split into its
 contact zone and region, with the symmetry cuts the plan allows; gmsh OpenCASCADE, meshed on rank 0.
 """
+
 from __future__ import annotations
 
 import logging
@@ -10,10 +11,26 @@ import gmsh
 from ..errors import MeshError
 from ..scene.plan import Plan
 from ..scene.schema import Scene
+from .builders import (
+    BALL_CONTACT,
+    BALL_SURFACE,
+    BLOCK_CONTACT,
+    BLOCK_SURFACE,
+    SUPPORT,
+    MeshSizes,
+    ModelInfo,
+    check_zone_fits,
+    generate_mesh,
+    keep_box,
+    on_plane,
+    run_gmsh,
+    size_field,
+    split_body,
+    symmetry_tag,
+    tag_groups,
+)
 
 logger = logging.getLogger(__name__)
-
-from .builders import (BALL_CONTACT, BALL_SURFACE, BLOCK_CONTACT, BLOCK_SURFACE, SUPPORT, MeshSizes, ModelInfo, on_plane, symmetry_tag, check_zone_fits, generate_mesh, keep_box, run_gmsh, size_field, split_body, tag_groups)
 
 
 # --- the impact model ------------------------------------------------------------------------------
@@ -40,9 +57,12 @@ def build_impact_model(scene: Scene, plan: Plan, *, generate: bool = True) -> Mo
     check_zone_fits("block", sizes.zone_radius, min(blk.length, blk.thickness, blk.height))
     clearance = min(0.5 * blk.length - abs(x_p), blk.thickness, z_p, blk.height - z_p)
     if clearance < sizes.zone_radius:
-        logger.warning("the contact zone (radius %.3g m) reaches another face of the block (%.3g m from the "
-                       "impact point): those faces are tagged as usual (support / block surface)",
-                       sizes.zone_radius, clearance)
+        logger.warning(
+            "the contact zone (radius %.3g m) reaches another face of the block (%.3g m from the "
+            "impact point): those faces are tagged as usual (support / block surface)",
+            sizes.zone_radius,
+            clearance,
+        )
     check_zone_fits("ball", sizes.ball_zone, R)
     return run_gmsh(lambda: _impact(blk, R, centre, contact_block, contact_ball, planes, sizes, generate))
 
@@ -54,15 +74,17 @@ def _impact(blk, R, centre, contact_block, contact_ball, planes, sizes, generate
     box = occ.addBox(-0.5 * L, -b, 0.0, L, b, H)
     ball = occ.addSphere(*centre, R)
     scale = max(L, b, H, 2 * R)
-    lo, hi = (-L, -b - scale, -scale), (L, centre[1] + 2 * R + scale, H + scale)   # holds both bodies
-    block_zone, block_region, v_block = split_body(box, contact_block, sizes.zone_radius,
-                                                    keep_box(planes, x_p, z_p, scale, lo, hi), "block")
-    ball_zone, ball_region, v_ball = split_body(ball, contact_ball, sizes.ball_zone,
-                                                 keep_box(planes, x_p, z_p, scale, lo, hi), "ball")
+    lo, hi = (-L, -b - scale, -scale), (L, centre[1] + 2 * R + scale, H + scale)  # holds both bodies
+    block_zone, block_region, v_block = split_body(
+        box, contact_block, sizes.zone_radius, keep_box(planes, x_p, z_p, scale, lo, hi), "block"
+    )
+    ball_zone, ball_region, v_ball = split_body(
+        ball, contact_ball, sizes.ball_zone, keep_box(planes, x_p, z_p, scale, lo, hi), "ball"
+    )
     occ.synchronize()
 
     tol = 1e-9 * scale
-    support_plane: tuple[int, float] = (2, 0.0) if blk.support == "base" else (1, -b)   # (axis, value m)
+    support_plane: tuple[int, float] = (2, 0.0) if blk.support == "base" else (1, -b)  # (axis, value m)
 
     def block_facet(s: int, in_zone: bool) -> int:
         sym = symmetry_tag(s, planes, x_p, z_p, tol)
@@ -78,12 +100,17 @@ def _impact(blk, R, centre, contact_block, contact_ball, planes, sizes, generate
         return symmetry_tag(s, planes, x_p, z_p, tol) or (BALL_CONTACT if in_zone else BALL_SURFACE)
 
     volumes = tag_groups(block_zone, block_region, ball_zone, ball_region, block_facet, ball_facet)
-    info = ModelInfo(contact_block=contact_block, contact_ball=contact_ball, volumes=volumes,
-                     symmetry_planes=planes, sizes=sizes, contact_vertices=(v_block, v_ball),
-                     block_volumes=tuple(block_zone + block_region), ball_volumes=tuple(ball_zone + ball_region))
+    info = ModelInfo(
+        contact_block=contact_block,
+        contact_ball=contact_ball,
+        volumes=volumes,
+        symmetry_planes=planes,
+        sizes=sizes,
+        contact_vertices=(v_block, v_ball),
+        block_volumes=tuple(block_zone + block_region),
+        ball_volumes=tuple(ball_zone + ball_region),
+    )
     size_field([v_block, v_ball], sizes, ball=(centre, R))
     if generate:
         info = generate_mesh(info)
     return info
-
-

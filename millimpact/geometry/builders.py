@@ -40,6 +40,7 @@ facets
                              clamped it is ``SUPPORT``); a liner's bolt holes are ``SUPPORT``
 =====================  ====  ==================================================================
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -47,22 +48,21 @@ import dataclasses
 import logging
 import math
 import time
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Callable, Iterator, Optional, Sequence
 
 import gmsh
 import numpy as np
 
 from ..errors import MeshError
-from ..scene.plan import SIZE_GROWTH_ZONE_RADII, Plan, size_growth_distance
+from ..scene.plan import Plan, size_growth_distance
 from ..scene.schema import Vec3
 
 logger = logging.getLogger(__name__)
 
 
-
 #: bump when the builders change what they produce: part of the mesh cache key
-BUILDER_VERSION = 3   # 2: a liner's zone spheres on a plate or lifter top have their poles on the normal;
+BUILDER_VERSION = 3  # 2: a liner's zone spheres on a plate or lifter top have their poles on the normal;
 # 3: the growth to h_far capped at MAX_SIZE_GROWTH, a small ball's own far size h_ball
 
 BALL_ZONE, BALL_REGION, BLOCK_ZONE, BLOCK_REGION = 1, 2, 3, 4
@@ -71,12 +71,22 @@ SUPPORT, SYM_X, SYM_Z, BALL_SURFACE, BLOCK_SURFACE = 15, 16, 17, 18, 19
 BACKING = 20
 
 CELL_TAG_NAMES: dict[int, str] = {
-    BALL_ZONE: "ball_zone", BALL_REGION: "ball_region", BLOCK_ZONE: "block_zone", BLOCK_REGION: "block_region",
+    BALL_ZONE: "ball_zone",
+    BALL_REGION: "ball_region",
+    BLOCK_ZONE: "block_zone",
+    BLOCK_REGION: "block_region",
 }
 FACET_TAG_NAMES: dict[int, str] = {
-    BALL_CONTACT: "ball_contact", BLOCK_CONTACT: "block_contact", BALL_INTERFACE: "ball_interface",
-    BLOCK_INTERFACE: "block_interface", SUPPORT: "support", SYM_X: "sym_x", SYM_Z: "sym_z",
-    BALL_SURFACE: "ball_surface", BLOCK_SURFACE: "block_surface", BACKING: "backing",
+    BALL_CONTACT: "ball_contact",
+    BLOCK_CONTACT: "block_contact",
+    BALL_INTERFACE: "ball_interface",
+    BLOCK_INTERFACE: "block_interface",
+    SUPPORT: "support",
+    SYM_X: "sym_x",
+    SYM_Z: "sym_z",
+    BALL_SURFACE: "ball_surface",
+    BLOCK_SURFACE: "block_surface",
+    BACKING: "backing",
 }
 
 #: the size reaches h_far SIZE_GROWTH_ZONE_RADII zone radii beyond fine_radius (a growth rate
@@ -97,11 +107,11 @@ class MeshSizes:
     h_far: float
     zone_radius: float
     fine_radius: float
-    h_ball: float = 0.0     #: the ball's far size when smaller than h_far (a small ball); 0: h_far
-    ball_zone_radius: float = 0.0   #: the zone's radius in the ball when smaller (a small ball); 0: zone_radius
+    h_ball: float = 0.0  #: the ball's far size when smaller than h_far (a small ball); 0: h_far
+    ball_zone_radius: float = 0.0  #: the zone's radius in the ball when smaller (a small ball); 0: zone_radius
 
     @classmethod
-    def from_plan(cls, plan: Plan) -> "MeshSizes":
+    def from_plan(cls, plan: Plan) -> MeshSizes:
         """The sizes a plan chose."""
         return cls(plan.h_contact, plan.h_far, plan.zone_radius, plan.fine_radius, plan.h_ball, plan.ball_zone_radius)
 
@@ -119,11 +129,15 @@ class MeshSizes:
         if self.h_far < self.h_contact:
             raise MeshError(f"mesh size h_far = {self.h_far:g} m: must be >= h_contact = {self.h_contact:g} m")
         if self.h_ball != 0 and not (self.h_contact <= self.h_ball <= self.h_far):
-            raise MeshError(f"mesh size h_ball = {self.h_ball!r}: must be 0 (h_far) or between h_contact "
-                            f"= {self.h_contact:g} m and h_far = {self.h_far:g} m")
+            raise MeshError(
+                f"mesh size h_ball = {self.h_ball!r}: must be 0 (h_far) or between h_contact "
+                f"= {self.h_contact:g} m and h_far = {self.h_far:g} m"
+            )
         if self.zone_radius < 2.0 * self.h_contact:
-            raise MeshError(f"zone_radius = {self.zone_radius:g} m: must be at least 2 h_contact "
-                            f"= {2 * self.h_contact:g} m (two elements across the zone)")
+            raise MeshError(
+                f"zone_radius = {self.zone_radius:g} m: must be at least 2 h_contact "
+                f"= {2 * self.h_contact:g} m (two elements across the zone)"
+            )
 
 
 @dataclass(frozen=True)
@@ -132,14 +146,14 @@ class ModelInfo:
     the symmetry planes and the element sizes."""
 
     contact_block: Vec3
-    contact_ball: Optional[Vec3]
+    contact_ball: Vec3 | None
     volumes: dict[int, float]
     symmetry_planes: tuple[str, ...]
     sizes: MeshSizes
-    contact_vertices: tuple[int, ...] = ()   #: gmsh point tags at the contact points
-    block_volumes: tuple[int, ...] = ()      #: gmsh volume tags of the block (liner)
+    contact_vertices: tuple[int, ...] = ()  #: gmsh point tags at the contact points
+    block_volumes: tuple[int, ...] = ()  #: gmsh volume tags of the block (liner)
     ball_volumes: tuple[int, ...] = ()
-    mesh_time: float = 0.0                   #: gmsh generate time, s (0 if not meshed)
+    mesh_time: float = 0.0  #: gmsh generate time, s (0 if not meshed)
 
 
 # --- gmsh instance ---------------------------------------------------------------------------------
@@ -163,7 +177,7 @@ def gmsh_session(name: str = "millimpact") -> Iterator[None]:
     """
     owned = _open_sessions[0] == 0
     if owned:
-        gmsh.initialize(readConfigFiles=False)   # no user gmshrc: meshes depend on our options only
+        gmsh.initialize(readConfigFiles=False)  # no user gmshrc: meshes depend on our options only
     _open_sessions[0] += 1
     try:
         previous = gmsh.model.getCurrent()
@@ -194,8 +208,10 @@ def positive_size(name: str, v: object) -> None:
 def check_zone_fits(body: str, zone_radius: float, size: float) -> None:
     # the plan keeps the zone below 0.45 of the smallest size; refuse only what cannot be built
     if zone_radius >= 0.5 * size:
-        raise MeshError(f"zone_radius = {zone_radius:g} m: the contact zone is larger than the {body} "
-                        f"(must be below half its smallest size, {0.5 * size:g} m)")
+        raise MeshError(
+            f"zone_radius = {zone_radius:g} m: the contact zone is larger than the {body} "
+            f"(must be below half its smallest size, {0.5 * size:g} m)"
+        )
 
 
 def run_gmsh(build: Callable[[], ModelInfo]) -> ModelInfo:
@@ -216,8 +232,9 @@ def polygon_face(points: Sequence[tuple[float, float, float]], x0: float) -> int
     return occ.addPlaneSurface([occ.addCurveLoop(lines)])
 
 
-def keep_box(planes: Sequence[str], x_p: float, z_p: float, scale: float, lo: Sequence[float],
-              hi: Sequence[float]) -> Optional[int]:
+def keep_box(
+    planes: Sequence[str], x_p: float, z_p: float, scale: float, lo: Sequence[float], hi: Sequence[float]
+) -> int | None:
     """A box holding the kept side of the symmetry planes (x >= x_p, z >= z_p), None if no plane."""
     if not planes:
         return None
@@ -233,7 +250,7 @@ def keep_box(planes: Sequence[str], x_p: float, z_p: float, scale: float, lo: Se
 ZONE_POLE_MIN_ANGLE = 45.0
 
 
-def zone_axis(normal: Vec3) -> Optional[Vec3]:
+def zone_axis(normal: Vec3) -> Vec3 | None:
     """The polar axis for a zone sphere on a surface of unit outward ``normal``: None (OCC's z) if
     the z poles are at least :data:`ZONE_POLE_MIN_ANGLE` from the tangent plane (asin |n_z|),
     else the normal (the poles 90 deg from it: :func:`orient_poles`)."""
@@ -266,12 +283,13 @@ def orient_poles(sphere: int, centre: Vec3, axis: Vec3) -> None:
     if math.hypot(kx, ky) < 1e-12:
         if ez > 0:
             return
-        kx, ky = 1.0, 0.0            # the axis is -z: half a turn about x (the poles swap)
+        kx, ky = 1.0, 0.0  # the axis is -z: half a turn about x (the poles swap)
     gmsh.model.occ.rotate([(3, sphere)], *centre, kx, ky, 0.0, angle)
 
 
-def split_body(body: int, point: Vec3, zone_radius: float, keep: Optional[int],
-                name: str, axis: Optional[Vec3] = None) -> tuple[list[int], list[int], int]:
+def split_body(
+    body: int, point: Vec3, zone_radius: float, keep: int | None, name: str, axis: Vec3 | None = None
+) -> tuple[list[int], list[int], int]:
     """Cut ``body`` by the symmetry box ``keep``, then fragment it with the zone sphere (radius m,
     centred at the contact ``point``) and the point itself. Returns (zone volumes, region volumes,
     the point's gmsh tag). Pieces are identified through OCC's fragment history (which input each
@@ -314,8 +332,9 @@ def split_body(body: int, point: Vec3, zone_radius: float, keep: Optional[int],
 def surface_samples(s: int) -> np.ndarray:
     """Points on the underlying surface of gmsh surface ``s`` (a 3 x 3 grid in its parameters)."""
     lo, hi = gmsh.model.getParametrizationBounds(2, s)
-    uv = [lo[i] + f * (hi[i] - lo[i]) for fu in (0.2, 0.5, 0.8) for fv in (0.2, 0.5, 0.8)
-          for i, f in ((0, fu), (1, fv))]
+    uv = [
+        lo[i] + f * (hi[i] - lo[i]) for fu in (0.2, 0.5, 0.8) for fv in (0.2, 0.5, 0.8) for i, f in ((0, fu), (1, fv))
+    ]
     return np.asarray(gmsh.model.getValue(2, s, uv)).reshape(-1, 3)
 
 
@@ -334,8 +353,14 @@ def symmetry_tag(s: int, planes: Sequence[str], x_p: float, z_p: float, tol: flo
     return 0
 
 
-def tag_groups(block_zone: list[int], block_region: list[int], ball_zone: list[int], ball_region: list[int],
-                block_facet: Callable[[int, bool], int], ball_facet: Callable[[int, bool], int]) -> dict[int, float]:
+def tag_groups(
+    block_zone: list[int],
+    block_region: list[int],
+    ball_zone: list[int],
+    ball_region: list[int],
+    block_facet: Callable[[int, bool], int],
+    ball_facet: Callable[[int, bool], int],
+) -> dict[int, float]:
     """Add the physical groups. Interfaces are surfaces bounding a zone and a region volume; each
     exterior surface is classified by the body's ``*_facet(surface, in_zone)``. Returns the OCC
     volume (m^3) of each cell group."""
@@ -380,8 +405,12 @@ def hole_size(diameter: float, h_far: float) -> float:
     return min(h_far, math.pi * diameter / HOLE_ELEMENTS_AROUND)
 
 
-def size_field(points: Sequence[int], sizes: MeshSizes, holes: Sequence[tuple[int, float]] = (),
-               ball: Optional[tuple[Vec3, float]] = None) -> None:
+def size_field(
+    points: Sequence[int],
+    sizes: MeshSizes,
+    holes: Sequence[tuple[int, float]] = (),
+    ball: tuple[Vec3, float] | None = None,
+) -> None:
     """h = h_contact within fine_radius of the contact points, linear growth to h_far at
     fine_radius + :func:`size_growth_distance`, capped at h_far; first-order tets.
     ``holes``: (gmsh curve tag, hole diameter m) of the bolt holes' edges: h = :func:`hole_size` on
@@ -395,8 +424,12 @@ def size_field(points: Sequence[int], sizes: MeshSizes, holes: Sequence[tuple[in
     f.setNumber(thr, "SizeMin", sizes.h_contact)
     f.setNumber(thr, "SizeMax", sizes.h_far)
     f.setNumber(thr, "DistMin", sizes.fine_radius)
-    f.setNumber(thr, "DistMax", sizes.fine_radius + size_growth_distance(
-        sizes.h_contact, sizes.h_far, sizes.zone_radius, small_ball=sizes.h_ball > 0))
+    f.setNumber(
+        thr,
+        "DistMax",
+        sizes.fine_radius
+        + size_growth_distance(sizes.h_contact, sizes.h_far, sizes.zone_radius, small_ball=sizes.h_ball > 0),
+    )
     background = thr
     fields = [thr]
     if ball is not None and 0 < sizes.h_ball < sizes.h_far:
@@ -404,7 +437,7 @@ def size_field(points: Sequence[int], sizes: MeshSizes, holes: Sequence[tuple[in
         cap = f.add("Ball")
         for key, value in zip(("XCenter", "YCenter", "ZCenter"), centre):
             f.setNumber(cap, key, value)
-        f.setNumber(cap, "Radius", radius * 1.01)   # the sphere's faceted surface inside
+        f.setNumber(cap, "Radius", radius * 1.01)  # the sphere's faceted surface inside
         f.setNumber(cap, "VIn", sizes.h_ball)
         f.setNumber(cap, "VOut", sizes.h_far)
         fields.append(cap)
@@ -443,10 +476,15 @@ def generate_mesh(info: ModelInfo) -> ModelInfo:
     gmsh.model.mesh.renumberElements()
     elapsed = time.perf_counter() - t0
     for dim, tag in gmsh.model.getPhysicalGroups(3):
-        n = sum(len(e) for v in gmsh.model.getEntitiesForPhysicalGroup(dim, tag)
-                for e in gmsh.model.mesh.getElements(3, v)[1])
+        n = sum(
+            len(e)
+            for v in gmsh.model.getEntitiesForPhysicalGroup(dim, tag)
+            for e in gmsh.model.mesh.getElements(3, v)[1]
+        )
         if n == 0:
-            raise MeshError(f"gmsh produced an empty mesh for {CELL_TAG_NAMES.get(tag, tag)} "
-                            "(element sizes too large for the body?)")
+            raise MeshError(
+                f"gmsh produced an empty mesh for {CELL_TAG_NAMES.get(tag, tag)} "
+                "(element sizes too large for the body?)"
+            )
     logger.info("gmsh meshed the model in %.2f s", elapsed)
     return dataclasses.replace(info, mesh_time=elapsed)

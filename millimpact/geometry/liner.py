@@ -1,11 +1,12 @@
 """The liner model: a shell plate with lifter bars (:class:`millimpact.scene.liner_shape.LinerShape`), its
 contact zone on a lifter face, optionally the ball; gmsh OpenCASCADE, meshed on rank 0.
 """
+
 from __future__ import annotations
 
 import logging
 import math
-from typing import Optional, Sequence
+from collections.abc import Sequence
 
 import gmsh
 import numpy as np
@@ -13,17 +14,50 @@ import numpy as np
 from ..errors import MeshError
 from ..scene.liner_shape import LinerShape
 from ..scene.schema import Vec3
+from .builders import (
+    BACKING,
+    BALL_CONTACT,
+    BALL_SURFACE,
+    BLOCK_CONTACT,
+    BLOCK_SURFACE,
+    SUPPORT,
+    SYM_X,
+    MeshSizes,
+    ModelInfo,
+    check_zone_fits,
+    generate_mesh,
+    keep_box,
+    on_plane,
+    polygon_face,
+    positive_size,
+    run_gmsh,
+    size_field,
+    split_body,
+    surface_samples,
+    symmetry_tag,
+    tag_groups,
+    zone_axis,
+)
 
 logger = logging.getLogger(__name__)
 
-from .builders import (BACKING, BALL_CONTACT, BALL_SURFACE, BLOCK_CONTACT, BLOCK_SURFACE, SUPPORT, SYM_X, MeshSizes, ModelInfo, on_plane, surface_samples, symmetry_tag, check_zone_fits, generate_mesh, keep_box, polygon_face, positive_size, run_gmsh, size_field, split_body, tag_groups, zone_axis)
-
 
 # --- the liner model -----------------------------------------------------------------------------
-def build_liner_model(liner: LinerShape, sizes: MeshSizes, *, lifter: int = 0, face: str = "+z",
-                      height_fraction: float = 0.5, x: float = 0.0, ball_radius: Optional[float] = None,
-                      gap: float = 0.0, symmetry_planes: Sequence[str] = (), generate: bool = True,
-                      place: str = "lifter_face", arc: float = 0.0) -> ModelInfo:
+def build_liner_model(
+    liner: LinerShape,
+    sizes: MeshSizes,
+    *,
+    lifter: int = 0,
+    face: str = "+z",
+    height_fraction: float = 0.5,
+    x: float = 0.0,
+    ball_radius: float | None = None,
+    gap: float = 0.0,
+    symmetry_planes: Sequence[str] = (),
+    generate: bool = True,
+    place: str = "lifter_face",
+    arc: float = 0.0,
+) -> ModelInfo:
     """Build a liner segment (tagged as the block) with a contact zone on a lifter face, optionally
     with a ball (radius ``ball_radius``, m) a ``gap`` (m) off the face along its normal, and mesh it.
 
@@ -47,8 +81,11 @@ def build_liner_model(liner: LinerShape, sizes: MeshSizes, *, lifter: int = 0, f
         if not (math.isfinite(gap) and gap >= 0):
             raise MeshError(f"gap = {gap!r} m: must be >= 0")
         check_zone_fits("ball", sizes.ball_zone, ball_radius)
-        ball = (ball_radius, tuple(p + (ball_radius + gap) * n for p, n in zip(point, normal)),
-                tuple(p + gap * n for p, n in zip(point, normal)))
+        ball = (
+            ball_radius,
+            tuple(p + (ball_radius + gap) * n for p, n in zip(point, normal)),
+            tuple(p + gap * n for p, n in zip(point, normal)),
+        )
     return run_gmsh(lambda: _liner(liner, sizes, point, normal, ball, planes, generate))
 
 
@@ -64,18 +101,23 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, normal: Vec3, ball,
 
         def on(r: float, phi: float) -> tuple[float, float]:
             return R - r * math.cos(phi), 0.5 * w + r * math.sin(phi)
+
         pts = [on(R + t, -alpha), on(R + t, alpha), on(R, alpha), on(R, -alpha)]
         tags = [occ.addPoint(x0, y, z) for y, z in pts]
         ctr = occ.addPoint(x0, R, 0.5 * w)
-        curves = [occ.addCircleArc(tags[0], ctr, tags[1]), occ.addLine(tags[1], tags[2]),
-                  occ.addCircleArc(tags[2], ctr, tags[3]), occ.addLine(tags[3], tags[0])]
+        curves = [
+            occ.addCircleArc(tags[0], ctr, tags[1]),
+            occ.addLine(tags[1], tags[2]),
+            occ.addCircleArc(tags[2], ctr, tags[3]),
+            occ.addLine(tags[3], tags[0]),
+        ]
         plate = occ.addPlaneSurface([occ.addCurveLoop(curves)])
         occ.remove([(0, ctr)])
     sections = [(2, plate)]
     hb, ht, h = 0.5 * liner.lifter_base_width, 0.5 * liner.lifter_top_width, liner.lifter_height
     d = liner.foot_depth
     for c in liner.lifter_centres():
-        local = [(-hb, -d), (hb, -d), (hb, 0.0), (ht, h), (-ht, h), (-hb, 0.0)]   # (zeta, eta); foot overlaps the plate
+        local = [(-hb, -d), (hb, -d), (hb, 0.0), (ht, h), (-ht, h), (-hb, 0.0)]  # (zeta, eta); foot overlaps the plate
         sections.append((2, polygon_face([(0.0, *liner.lifter_to_global(c, zt, et)) for zt, et in local], x0)))
     if len(sections) > 1:
         sections, _ = occ.fuse(sections[:1], sections[1:])
@@ -100,20 +142,23 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, normal: Vec3, ball,
         if overlap:
             occ.remove(overlap, recursive=True)
         if common > 1e-9 * rb**3:
-            raise MeshError(f"ball_radius = {rb:g} m: the ball overlaps the liner at this contact point "
-                            "(choose a smaller ball, a larger gap or a point higher on the lifter face)")
+            raise MeshError(
+                f"ball_radius = {rb:g} m: the ball overlaps the liner at this contact point "
+                "(choose a smaller ball, a larger gap or a point higher on the lifter face)"
+            )
     # the zone spheres' poles on the contact normal where OCC's z axis would put one next to the
     # surface (a plate or lifter top, whose normal is ~ y: builders.zone_axis, orient_poles)
     axis = zone_axis(normal)
-    zone, region, v_liner = split_body(body, point, sizes.zone_radius, keep_box(planes, point[0], 0.0, scale, lo, hi),
-                                        "liner", axis=axis)
+    zone, region, v_liner = split_body(
+        body, point, sizes.zone_radius, keep_box(planes, point[0], 0.0, scale, lo, hi), "liner", axis=axis
+    )
     ball_zone: list[int] = []
     ball_region: list[int] = []
-    v_ball: Optional[int] = None
+    v_ball: int | None = None
     if ball is not None:
-        ball_zone, ball_region, v_ball = split_body(sphere, ball[2], sizes.ball_zone,
-                                                     keep_box(planes, point[0], 0.0, scale, lo, hi), "ball",
-                                                     axis=axis)
+        ball_zone, ball_region, v_ball = split_body(
+            sphere, ball[2], sizes.ball_zone, keep_box(planes, point[0], 0.0, scale, lo, hi), "ball", axis=axis
+        )
     occ.synchronize()
     tol = 1e-9 * scale
 
@@ -150,18 +195,27 @@ def _liner(liner: LinerShape, sizes: MeshSizes, point: Vec3, normal: Vec3, ball,
 
     volumes = tag_groups(zone, region, ball_zone, ball_region, liner_facet, ball_facet)
     vertices = [v_liner] + ([v_ball] if v_ball is not None else [])
-    info = ModelInfo(contact_block=point, contact_ball=ball[2] if ball else None, volumes=volumes,
-                     symmetry_planes=planes, sizes=sizes, contact_vertices=tuple(vertices),
-                     block_volumes=tuple(zone + region), ball_volumes=tuple(ball_zone + ball_region))
+    info = ModelInfo(
+        contact_block=point,
+        contact_ball=ball[2] if ball else None,
+        volumes=volumes,
+        symmetry_planes=planes,
+        sizes=sizes,
+        contact_vertices=tuple(vertices),
+        block_volumes=tuple(zone + region),
+        ball_volumes=tuple(ball_zone + ball_region),
+    )
     # the holes' edges (and seams) get the hole size: their walls are the clamped support
     hole_curves = sorted({int(c) for s in hole_surfaces for c in gmsh.model.getAdjacencies(2, s)[1]})
-    size_field(vertices, sizes, holes=[(c, liner.bolt_hole_diameter) for c in hole_curves],
-               ball=(ball[1], ball[0]) if ball else None)
+    size_field(
+        vertices,
+        sizes,
+        holes=[(c, liner.bolt_hole_diameter) for c in hole_curves],
+        ball=(ball[1], ball[0]) if ball else None,
+    )
     if generate:
         info = generate_mesh(info)
     return info
-
-
 
 
 def _drill(body: int, liner: LinerShape, holes) -> int:

@@ -11,6 +11,7 @@ mesh, the cell and facet tags of :mod:`millimpact.geometry` and a :class:`MeshIn
 Cache directory: the ``cache_dir`` argument, else ``$MILLIMPACT_MESH_CACHE``, else
 ``<repo>/meshes/cache`` when running from a source tree, else ``~/.cache/millimpact/meshes``.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -20,25 +21,25 @@ import logging
 import math
 import os
 import time
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, NamedTuple, Optional, Sequence, Union
-
-import gmsh
-import numpy as np
-from mpi4py import MPI
+from typing import Any, NamedTuple
 
 import dolfinx
+import gmsh
+import numpy as np
 from dolfinx.io import XDMFFile, gmshio
+from mpi4py import MPI
 
-from . import builders as geo
 from ..errors import MeshError
 from ..scene.liner_shape import LinerShape, vec3
-from .block import build_impact_model
-from .liner import build_liner_model
-from .builders import CELL_TAG_NAMES, FACET_TAG_NAMES, MeshSizes, ModelInfo
 from ..scene.plan import Plan
 from ..scene.schema import Scene, Vec3
+from . import builders as geo
+from .block import build_impact_model
+from .builders import CELL_TAG_NAMES, FACET_TAG_NAMES, MeshSizes, ModelInfo
+from .liner import build_liner_model
 
 logger = logging.getLogger(__name__)
 
@@ -77,7 +78,7 @@ class MeshInfo:
     symmetry: str
     symmetry_planes: tuple[str, ...]
     contact_point_block: Vec3
-    contact_point_ball: Optional[Vec3]
+    contact_point_ball: Vec3 | None
     volumes: dict[int, float] = field(default_factory=dict)
     cached: bool = False
     setup_time: float = 0.0
@@ -95,7 +96,7 @@ class MeshInfo:
         return d
 
     @classmethod
-    def from_json(cls, d: dict) -> "MeshInfo":
+    def from_json(cls, d: dict) -> MeshInfo:
         """Inverse of :meth:`to_json`."""
         d = dict(d)
         for k in ("n_cells", "n_facets", "volumes"):
@@ -154,15 +155,25 @@ def cache_key(params: dict[str, Any]) -> str:
 
 
 def _builder_parameters() -> dict[str, Any]:
-    return {"builder_version": geo.BUILDER_VERSION, "gmsh": gmsh.__version__,
-            "algorithm_2d": geo.MESH_ALGORITHM_2D, "algorithm_3d": geo.MESH_ALGORITHM_3D,
-            "growth_zone_radii": geo.SIZE_GROWTH_ZONE_RADII}
+    return {
+        "builder_version": geo.BUILDER_VERSION,
+        "gmsh": gmsh.__version__,
+        "algorithm_2d": geo.MESH_ALGORITHM_2D,
+        "algorithm_3d": geo.MESH_ALGORITHM_3D,
+        "growth_zone_radii": geo.SIZE_GROWTH_ZONE_RADII,
+    }
 
 
 # --- creation ------------------------------------------------------------------------------------
-def create_mesh(scene: Scene, plan: Plan, comm: MPI.Comm = MPI.COMM_WORLD,
-                cache_dir: Union[Path, str, None] = None, *, use_cache: bool = True,
-                export: Union[Path, str, None] = None) -> MeshData:
+def create_mesh(
+    scene: Scene,
+    plan: Plan,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    cache_dir: Path | str | None = None,
+    *,
+    use_cache: bool = True,
+    export: Path | str | None = None,
+) -> MeshData:
     """The impact mesh (ball + block) of a scene and its plan, distributed over ``comm``.
 
     Built by :func:`millimpact.geometry.block.build_impact_model` on rank 0 or loaded from the cache
@@ -174,38 +185,68 @@ def create_mesh(scene: Scene, plan: Plan, comm: MPI.Comm = MPI.COMM_WORLD,
         ln = scene.liner
         # an impact off the lifter face adds its place (a face impact keeps the cache key it had)
         place = {} if ln.impact_place == "lifter_face" else {"place": ln.impact_place, "arc": ln.impact_arc}
-        return create_liner_mesh(ln, MeshSizes.from_plan(plan), comm, cache_dir, use_cache=use_cache,
-                                 lifter=ln.impact_lifter, face=ln.impact_face, height_fraction=ln.impact_height,
-                                 x=ln.impact_x, ball_radius=scene.ball.radius, gap=plan.gap,
-                                 symmetry_planes=tuple(plan.symmetry_planes), export=export, **place)
+        return create_liner_mesh(
+            ln,
+            MeshSizes.from_plan(plan),
+            comm,
+            cache_dir,
+            use_cache=use_cache,
+            lifter=ln.impact_lifter,
+            face=ln.impact_face,
+            height_fraction=ln.impact_height,
+            x=ln.impact_x,
+            ball_radius=scene.ball.radius,
+            gap=plan.gap,
+            symmetry_planes=tuple(plan.symmetry_planes),
+            export=export,
+            **place,
+        )
     params = mesh_parameters(scene, plan)
-    return _create(params, lambda: build_impact_model(scene, plan), plan.symmetry, comm, cache_dir, use_cache,
-                   export)
+    return _create(params, lambda: build_impact_model(scene, plan), plan.symmetry, comm, cache_dir, use_cache, export)
 
 
-def create_liner_mesh(liner: LinerShape, sizes: MeshSizes, comm: MPI.Comm = MPI.COMM_WORLD,
-                      cache_dir: Union[Path, str, None] = None, *, use_cache: bool = True,
-                      export: Union[Path, str, None] = None, **placement: Any) -> MeshData:
+def create_liner_mesh(
+    liner: LinerShape,
+    sizes: MeshSizes,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    cache_dir: Path | str | None = None,
+    *,
+    use_cache: bool = True,
+    export: Path | str | None = None,
+    **placement: Any,
+) -> MeshData:
     """A liner segment mesh (tagged as the block), optionally with a ball; ``placement`` goes to
     :func:`millimpact.geometry.liner.build_liner_model` (lifter, face, height_fraction, x, ball_radius,
     gap, symmetry_planes). Cached like :func:`create_mesh`."""
     shape = {f.name: getattr(liner, f.name) for f in dataclasses.fields(LinerShape)}
-    for name, default in LinerShape.OPTIONAL_DEFAULTS.items():   # no holes, clamped: the key as before them
+    for name, default in LinerShape.OPTIONAL_DEFAULTS.items():  # no holes, clamped: the key as before them
         if shape[name] == default:
             del shape[name]
         elif isinstance(shape[name], tuple):
             shape[name] = list(shape[name])
-    params = {"kind": "liner", **_builder_parameters(), "liner": shape,
-              "sizes": dataclasses.asdict(sizes),
-              "placement": {k: list(v) if isinstance(v, tuple) else v for k, v in sorted(placement.items())}}
+    params = {
+        "kind": "liner",
+        **_builder_parameters(),
+        "liner": shape,
+        "sizes": dataclasses.asdict(sizes),
+        "placement": {k: list(v) if isinstance(v, tuple) else v for k, v in sorted(placement.items())},
+    }
     planes = tuple(placement.get("symmetry_planes", ()))
     symmetry = "half" if planes else "full"
-    return _create(params, lambda: build_liner_model(liner, sizes, **placement), symmetry, comm, cache_dir,
-                   use_cache, export)
+    return _create(
+        params, lambda: build_liner_model(liner, sizes, **placement), symmetry, comm, cache_dir, use_cache, export
+    )
 
 
-def _create(params: dict, build: Callable[[], ModelInfo], symmetry: str, comm: MPI.Comm,
-            cache_dir: Union[Path, str, None], use_cache: bool, export: Union[Path, str, None] = None) -> MeshData:
+def _create(
+    params: dict,
+    build: Callable[[], ModelInfo],
+    symmetry: str,
+    comm: MPI.Comm,
+    cache_dir: Path | str | None,
+    use_cache: bool,
+    export: Path | str | None = None,
+) -> MeshData:
     t0 = time.perf_counter()
     key = cache_key(params)
     directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
@@ -232,9 +273,17 @@ def _create(params: dict, build: Callable[[], ModelInfo], symmetry: str, comm: M
         mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
     info = dataclasses.replace(info, setup_time=time.perf_counter() - t0)
     if comm.rank == 0:
-        logger.info("mesh %s: %d cells, %d vertices, h_c %.4g m (measured %.4g m), min SICN %.3f, %s in %.2f s",
-                    key[:12], info.n_cells_total, info.n_vertices, info.h_contact, info.h_contact_measured,
-                    info.min_quality, "loaded" if info.cached else "built", info.setup_time)
+        logger.info(
+            "mesh %s: %d cells, %d vertices, h_c %.4g m (measured %.4g m), min SICN %.3f, %s in %.2f s",
+            key[:12],
+            info.n_cells_total,
+            info.n_vertices,
+            info.h_contact,
+            info.h_contact_measured,
+            info.min_quality,
+            "loaded" if info.cached else "built",
+            info.setup_time,
+        )
     return MeshData(mesh, cell_tags, facet_tags, info)
 
 
@@ -244,7 +293,7 @@ REQUIRED_CELL_TAGS = tuple(CELL_TAG_NAMES)
 REQUIRED_FACET_TAGS = (geo.BALL_CONTACT, geo.BLOCK_CONTACT, geo.BALL_INTERFACE, geo.BLOCK_INTERFACE, geo.SUPPORT)
 
 
-def load_msh(path: Union[Path, str], comm: MPI.Comm = MPI.COMM_WORLD):
+def load_msh(path: Path | str, comm: MPI.Comm = MPI.COMM_WORLD):
     """Read a gmsh .msh file that follows the mesh contract (meshes/README.md) and distribute it:
     returns (mesh, cell_tags, facet_tags). A missing physical group is a :class:`MeshError` naming
     it (one line). (``gmshio.read_from_msh`` is broken in this DOLFINx build: gmsh.merge on rank 0.)"""
@@ -257,8 +306,9 @@ def load_msh(path: Union[Path, str], comm: MPI.Comm = MPI.COMM_WORLD):
         mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
     have_c = set().union(*comm.allgather(set(int(v) for v in np.unique(cell_tags.values))))
     have_f = set().union(*comm.allgather(set(int(v) for v in np.unique(facet_tags.values))))
-    missing = [f"cell group {t} ({CELL_TAG_NAMES[t]})" for t in REQUIRED_CELL_TAGS if t not in have_c] + \
-              [f"facet group {t} ({FACET_TAG_NAMES[t]})" for t in REQUIRED_FACET_TAGS if t not in have_f]
+    missing = [f"cell group {t} ({CELL_TAG_NAMES[t]})" for t in REQUIRED_CELL_TAGS if t not in have_c] + [
+        f"facet group {t} ({FACET_TAG_NAMES[t]})" for t in REQUIRED_FACET_TAGS if t not in have_f
+    ]
     if missing:
         raise MeshError(f"mesh file {path}: missing physical {', '.join(missing)} (see meshes/README.md)")
     return mesh, cell_tags, facet_tags
@@ -270,7 +320,7 @@ def _build(build: Callable[[], ModelInfo], key: str, symmetry: str) -> MeshInfo:
     return _measure(model, key, symmetry)
 
 
-def _load_cached(directory: Path, key: str, params: dict) -> Optional[MeshInfo]:
+def _load_cached(directory: Path, key: str, params: dict) -> MeshInfo | None:
     """Merge the cached mesh into the current gmsh model; None on a miss or a broken entry."""
     msh, meta = directory / f"{key}.msh", directory / f"{key}.json"
     if not (msh.is_file() and meta.is_file()):
@@ -283,8 +333,13 @@ def _load_cached(directory: Path, key: str, params: dict) -> Optional[MeshInfo]:
         info = MeshInfo.from_json(data["info"])
     except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError, AttributeError) as exc:
         # the metadata, not the mesh: say which file is broken
-        logger.warning("mesh cache entry %s: its metadata %s is unreadable (%s: %s); rebuilding", key, meta.name,
-                       type(exc).__name__, exc)
+        logger.warning(
+            "mesh cache entry %s: its metadata %s is unreadable (%s: %s); rebuilding",
+            key,
+            meta.name,
+            type(exc).__name__,
+            exc,
+        )
         return None
     try:
         gmsh.merge(str(msh))
@@ -308,8 +363,9 @@ def _store(directory: Path, key: str, params: dict, info: MeshInfo) -> None:
         gmsh.write(str(tmp))
         os.replace(tmp, directory / f"{key}.msh")
         tmp_json = directory / f".{key}.{os.getpid()}.tmp.json"
-        tmp_json.write_text(json.dumps({"key": key, "params": params, "info": info.to_json()}, indent=1,
-                                       sort_keys=True))
+        tmp_json.write_text(
+            json.dumps({"key": key, "params": params, "info": info.to_json()}, indent=1, sort_keys=True)
+        )
         os.replace(tmp_json, directory / f"{key}.json")
     except OSError as exc:
         logger.warning("could not write the mesh cache in %s (%s); continuing without", directory, exc)
@@ -348,18 +404,34 @@ def _measure(model: ModelInfo, key: str, symmetry: str) -> MeshInfo:
     sizes = model.sizes
     tri = x[facets_by_tag.get(geo.BLOCK_CONTACT, np.zeros((0, 3), dtype=np.int64))]
     near = tri[np.linalg.norm(tri.mean(axis=1) - np.asarray(model.contact_block), axis=1) < sizes.fine_radius]
-    h_surface = max((float(np.linalg.norm(near[:, i] - near[:, j], axis=1).max()) for i, j in ((0, 1), (1, 2), (0, 2))),
-                    default=math.nan) if len(near) else math.nan
+    h_surface = (
+        max(
+            (float(np.linalg.norm(near[:, i] - near[:, j], axis=1).max()) for i, j in ((0, 1), (1, 2), (0, 2))),
+            default=math.nan,
+        )
+        if len(near)
+        else math.nan
+    )
     return MeshInfo(
-        n_cells=n_cells, n_facets=n_facets, n_vertices=int(np.unique(tets).size),
-        h_contact=sizes.h_contact, h_far=sizes.h_far, zone_radius=sizes.zone_radius,
-        h_contact_measured=h_block, h_contact_mean=h_mean, h_contact_surface=h_surface,
+        n_cells=n_cells,
+        n_facets=n_facets,
+        n_vertices=int(np.unique(tets).size),
+        h_contact=sizes.h_contact,
+        h_far=sizes.h_far,
+        zone_radius=sizes.zone_radius,
+        h_contact_measured=h_block,
+        h_contact_mean=h_mean,
+        h_contact_surface=h_surface,
         h_contact_ball_measured=h_ball,
-        min_quality=float(tet_quality(x[tets]).min()), meshing_time=model.mesh_time, cache_key=key,
-        symmetry=symmetry, symmetry_planes=tuple(model.symmetry_planes),
+        min_quality=float(tet_quality(x[tets]).min()),
+        meshing_time=model.mesh_time,
+        cache_key=key,
+        symmetry=symmetry,
+        symmetry_planes=tuple(model.symmetry_planes),
         contact_point_block=vec3(model.contact_block),
         contact_point_ball=vec3(model.contact_ball) if model.contact_ball else None,
-        volumes=dict(model.volumes))
+        volumes=dict(model.volumes),
+    )
 
 
 def _edge_lengths_at(x: np.ndarray, cells: np.ndarray, point: Sequence[float]) -> tuple[float, float]:
@@ -398,7 +470,7 @@ def tet_quality(p: np.ndarray) -> np.ndarray:
 
 
 # --- output and helpers ----------------------------------------------------------------------------
-def write_mesh_xdmf(meshdata: MeshData, path: Union[Path, str]) -> Path:
+def write_mesh_xdmf(meshdata: MeshData, path: Path | str) -> Path:
     """Write the mesh with its cell and facet tags to an XDMF file (collective). Returns the path."""
     path = Path(path)
     comm = meshdata.mesh.comm
@@ -414,17 +486,17 @@ def write_mesh_xdmf(meshdata: MeshData, path: Union[Path, str]) -> Path:
     return path
 
 
-def _as_tags(tag: Union[int, Iterable[int]]) -> list[int]:
+def _as_tags(tag: int | Iterable[int]) -> list[int]:
     return [int(tag)] if isinstance(tag, (int, np.integer)) else [int(t) for t in tag]
 
 
-def locate_cells(meshdata: MeshData, tag: Union[int, Iterable[int]]) -> np.ndarray:
+def locate_cells(meshdata: MeshData, tag: int | Iterable[int]) -> np.ndarray:
     """Local indices (int32, sorted) of the cells with cell tag ``tag`` (or any of several tags)."""
     ct = meshdata.cell_tags
     return np.sort(ct.indices[np.isin(ct.values, _as_tags(tag))]).astype(np.int32)
 
 
-def facet_indices(meshdata: MeshData, tag: Union[int, Iterable[int]]) -> np.ndarray:
+def facet_indices(meshdata: MeshData, tag: int | Iterable[int]) -> np.ndarray:
     """Local indices (int32, sorted) of the facets with facet tag ``tag`` (or any of several tags)."""
     ft = meshdata.facet_tags
     return np.sort(ft.indices[np.isin(ft.values, _as_tags(tag))]).astype(np.int32)
@@ -446,13 +518,20 @@ def mesh_report(meshdata: MeshData) -> list[tuple[str, str]]:
             rows.append((f"  {name}", f"{i.n_facets[tag]} facets"))
     rows += [
         ("zone radius", f"{i.zone_radius * 1e3:.4g} mm"),
-        ("h_contact", f"{i.h_contact * 1e3:.4g} mm target; at the block's contact point: longest edge "
-                      f"{i.h_contact_measured * 1e3:.4g} mm, mean {i.h_contact_mean * 1e3:.4g} mm; "
-                      f"contact face {i.h_contact_surface * 1e3:.4g} mm"),
+        (
+            "h_contact",
+            f"{i.h_contact * 1e3:.4g} mm target; at the block's contact point: longest edge "
+            f"{i.h_contact_measured * 1e3:.4g} mm, mean {i.h_contact_mean * 1e3:.4g} mm; "
+            f"contact face {i.h_contact_surface * 1e3:.4g} mm",
+        ),
         ("h_far", f"{i.h_far * 1e3:.4g} mm"),
         ("min quality", f"{i.min_quality:.3f} (SICN; 1 = regular tetrahedron)"),
-        ("meshing", f"{i.meshing_time:.2f} s gmsh" + (" (loaded from cache)" if i.cached else "")
-         + f"; {i.setup_time:.2f} s this call"),
+        (
+            "meshing",
+            f"{i.meshing_time:.2f} s gmsh"
+            + (" (loaded from cache)" if i.cached else "")
+            + f"; {i.setup_time:.2f} s this call",
+        ),
         ("cache key", i.cache_key[:16]),
     ]
     return rows

@@ -13,6 +13,7 @@ Importable by the tests and by the stability sweeps (:mod:`millimpact.studies.st
 ``python -m millimpact.integration.bar --method newmark-mr`` (also under ``mpirun``) runs one case and prints
 its summary and force history as JSON on rank 0.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,19 +28,27 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .integrators import IntegrationStats, LinearDynamics, StepState, TimeSchedule, integrate, kinetic_energy, strain_energy
+from .integrators import (
+    IntegrationStats,
+    LinearDynamics,
+    StepState,
+    TimeSchedule,
+    integrate,
+    kinetic_energy,
+    strain_energy,
+)
 
 
 @dataclass(frozen=True)
 class BarCase:
     """Parameters of the bar problem (SI units)."""
 
-    L: float = 0.1            #: bar length, m
-    E: float = 200e9          #: Young's modulus, Pa
-    rho: float = 7800.0       #: density, kg/m^3
-    v0: float = 1.0           #: initial velocity towards the wall, m/s
-    n_el: int = 100           #: number of P1 elements
-    gap_steps: float = 3.37   #: initial gap in units of v0 * (h / c): contact starts mid-step
+    L: float = 0.1  #: bar length, m
+    E: float = 200e9  #: Young's modulus, Pa
+    rho: float = 7800.0  #: density, kg/m^3
+    v0: float = 1.0  #: initial velocity towards the wall, m/s
+    n_el: int = 100  #: number of P1 elements
+    gap_steps: float = 3.37  #: initial gap in units of v0 * (h / c): contact starts mid-step
 
     @property
     def c(self) -> float:
@@ -74,7 +83,7 @@ class BarCase:
     @property
     def energy(self) -> float:
         """Exact (conserved) energy rho L v0^2 / 2, J (per unit area)."""
-        return 0.5 * self.rho * self.L * self.v0 ** 2
+        return 0.5 * self.rho * self.L * self.v0**2
 
 
 def build_bar(case: BarCase, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[LinearDynamics, PETSc.Vec, PETSc.Vec]:
@@ -91,7 +100,7 @@ def build_bar(case: BarCase, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[LinearDyn
     imap = V.dofmap.index_map
     n_owned = imap.size_local
     tip = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], case.L))
-    tip = tip[tip < n_owned].astype(np.int32)           # owned by exactly one rank
+    tip = tip[tip < n_owned].astype(np.int32)  # owned by exactly one rank
     rstart = imap.local_range[0]
 
     # B: one row (owned by rank 0), -1 at the tip dof; the tip's owner inserts it (off-process rows
@@ -103,8 +112,7 @@ def build_bar(case: BarCase, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[LinearDyn
         B.setValue(0, rstart + int(d), -1.0)
     B.assemble()
 
-    system = LinearDynamics(M=M, K=K, B=B, g0=np.array([case.gap]), fixed_dofs=np.zeros(0, np.int32),
-                            contact_dofs=tip)
+    system = LinearDynamics(M=M, K=K, B=B, g0=np.array([case.gap]), fixed_dofs=np.zeros(0, np.int32), contact_dofs=tip)
     u0 = M.createVecRight()
     u0.set(0.0)
     v0 = M.createVecRight()
@@ -118,11 +126,11 @@ class BarResult:
 
     t: np.ndarray
     dt: np.ndarray
-    force: np.ndarray        #: wall force lambda, N (per unit area)
-    gap: np.ndarray          #: gap, m
-    energy: np.ndarray       #: kinetic + strain (+ penalty) energy, J
-    momentum: np.ndarray     #: sum(M v), kg m/s
-    v_mean: np.ndarray       #: momentum / mass, m/s
+    force: np.ndarray  #: wall force lambda, N (per unit area)
+    gap: np.ndarray  #: gap, m
+    energy: np.ndarray  #: kinetic + strain (+ penalty) energy, J
+    momentum: np.ndarray  #: sum(M v), kg m/s
+    v_mean: np.ndarray  #: momentum / mass, m/s
     n_active: np.ndarray
     stats: IntegrationStats
 
@@ -157,9 +165,16 @@ class BarResult:
         return int(np.count_nonzero(active[1:] != active[:-1]))
 
 
-def run_bar(case: BarCase, method: str = "newmark-mr", dt_contact: float | None = None,
-            dt_free: float | None = None, t_end: float | None = None, options: dict | None = None,
-            comm: MPI.Comm = MPI.COMM_WORLD, operator_cache: dict | None = None) -> BarResult:
+def run_bar(
+    case: BarCase,
+    method: str = "newmark-mr",
+    dt_contact: float | None = None,
+    dt_free: float | None = None,
+    t_end: float | None = None,
+    options: dict | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    operator_cache: dict | None = None,
+) -> BarResult:
     """Run one bar case; default steps: dt_contact = h / c (Courant 1), dt_free = 4 h / c.
     ``operator_cache``: a dict the implicit schemes keep their step operators in (a table's)."""
     system, u0, v0 = build_bar(case, comm)
@@ -180,13 +195,23 @@ def run_bar(case: BarCase, method: str = "newmark-mr", dt_contact: float | None 
         s.mass.mult(ones, mass_vec)
         total_mass = mass_vec.sum()
         p = mass_vec.dot(s.v)
-        rows.append((s.t, s.dt, float(s.lam[0]), float(s.gap[0]), Ek + Es + s.penalty_energy, p,
-                     p / total_mass, s.n_active))
+        rows.append(
+            (s.t, s.dt, float(s.lam[0]), float(s.gap[0]), Ek + Es + s.penalty_energy, p, p / total_mass, s.n_active)
+        )
 
     stats = integrate(system, u0, v0, sched, method=method, observer=observer, options=options)
     a = np.array(rows, dtype=float)
-    return BarResult(t=a[:, 0], dt=a[:, 1], force=a[:, 2], gap=a[:, 3], energy=a[:, 4],
-                     momentum=a[:, 5], v_mean=a[:, 6], n_active=a[:, 7].astype(int), stats=stats)
+    return BarResult(
+        t=a[:, 0],
+        dt=a[:, 1],
+        force=a[:, 2],
+        gap=a[:, 3],
+        energy=a[:, 4],
+        momentum=a[:, 5],
+        v_mean=a[:, 6],
+        n_active=a[:, 7].astype(int),
+        stats=stats,
+    )
 
 
 def summarize(case: BarCase, res: BarResult) -> dict:
@@ -203,8 +228,9 @@ def summarize(case: BarCase, res: BarResult) -> dict:
         "rebound_velocity_rel_error": (res.v_mean[-1] + case.v0) / case.v0,
         "energy_max_rel_error": float(np.max(np.abs(res.energy - e0)) / e0),
         "energy_final_rel_error": float((res.energy[-1] - e0) / e0),
-        "median_force_rel_error": (float((np.median(res.force[mask]) - case.force) / case.force)
-                                   if mask.any() else float("nan")),
+        "median_force_rel_error": (
+            float((np.median(res.force[mask]) - case.force) / case.force) if mask.any() else float("nan")
+        ),
         "status_switches": res.n_status_switches(),
         "steps": res.stats.n_steps,
     }

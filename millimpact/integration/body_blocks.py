@@ -21,10 +21,11 @@ operators: the whole operator's factorization stays for the contact operator W a
 steps, so this holds a second factor of A's size. One process only: a distributed A is left to
 its own solver.
 """
+
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping, Optional
 
 import numpy as np
 from petsc4py import PETSc
@@ -44,8 +45,8 @@ class _Block:
     A: PETSc.Mat
     b: PETSc.Vec
     x: PETSc.Vec
-    last_b: Optional[np.ndarray] = None
-    last_x: Optional[np.ndarray] = None
+    last_b: np.ndarray | None = None
+    last_x: np.ndarray | None = None
 
 
 class BodyBlockSolver:
@@ -55,7 +56,7 @@ class BodyBlockSolver:
         self.blocks = blocks
 
     @classmethod
-    def build(cls, A: PETSc.Mat, options: Optional[Mapping] = None) -> Optional["BodyBlockSolver"]:
+    def build(cls, A: PETSc.Mat, options: Mapping | None = None) -> BodyBlockSolver | None:
         """The block solver of ``A`` (assembled, symmetric positive definite), or None when A is
         distributed over processes or connects all its dofs (nothing to split)."""
         if A.getComm().getSize() > 1:

@@ -1,19 +1,20 @@
 """Explicit central differences (velocity Verlet form) with the lumped (HRZ) mass and a penalty
 contact force ``k_p max(-g, 0)`` per row: the cheap, conditionally stable baseline; see
 :mod:`millimpact.integration.integrators` for its critical step and options."""
+
 from __future__ import annotations
 
 import logging
 import math
 import time
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import solvers
 from ..errors import InputError
+from . import solvers
 from .contact_rows import ContactRows
 from .dynamics import IntegrationStats, LinearDynamics
 from .mass import lumped_mass, lumped_mass_matrix
@@ -30,7 +31,9 @@ class CentralPenaltyScheme:
     def __init__(self, system: LinearDynamics, options: Mapping, stats: IntegrationStats, comm: MPI.Comm):
         self.sys, self.options, self.stats, self.comm = system, dict(options), stats, comm
         if system.T is not None:
-            raise InputError("central-penalty has no friction: use --integrator newmark-mr (or set contact.friction = 0)")
+            raise InputError(
+                "central-penalty has no friction: use --integrator newmark-mr (or set contact.friction = 0)"
+            )
         self.contact = ContactRows(system, comm)
         self.fixed = np.asarray(system.fixed_dofs, dtype=np.int64)
         self.m = lumped_mass(system.M)
@@ -54,9 +57,13 @@ class CentralPenaltyScheme:
         self.div_factor = float(solvers.get_option("divergence_factor", options, 10.0))
         stats.dt_critical = self.dt_crit
         if comm.rank == 0:
-            log.info("central-penalty: k_p = %.4g N/m, critical step %.4g s (%.2f s); step %s", k_p, self.dt_crit,
-                     time.perf_counter() - t0,
-                     f"limited to {self.safety:g} x critical" if self.limit else "NOT limited")
+            log.info(
+                "central-penalty: k_p = %.4g N/m, critical step %.4g s (%.2f s); step %s",
+                k_p,
+                self.dt_crit,
+                time.perf_counter() - t0,
+                f"limited to {self.safety:g} x critical" if self.limit else "NOT limited",
+            )
         self.u = system.M.createVecRight()
         self.v, self.a = self.u.duplicate(), self.u.duplicate()
         self.Ku, self.f = self.u.duplicate(), self.u.duplicate()
@@ -68,7 +75,7 @@ class CentralPenaltyScheme:
         self.energy = 0.0
         self.energy_ref = 0.0
         self.diverged = False
-        self.touched = False     #: a penalty force acted in some sub-step of the last step
+        self.touched = False  #: a penalty force acted in some sub-step of the last step
 
     def _row_stiffness(self) -> float:
         """max_i sum_j B_ij^2 K_jj (N/m): the stiffness a unit constraint displacement meets."""
@@ -83,8 +90,9 @@ class CentralPenaltyScheme:
         for o in (B2, kd, out):
             o.destroy()
         if not val > 0:
-            raise InputError("central-penalty: cannot derive a penalty stiffness (B acts on no free dof); "
-                             "give -impact_penalty")
+            raise InputError(
+                "central-penalty: cannot derive a penalty stiffness (B acts on no free dof); give -impact_penalty"
+            )
         return float(val)
 
     def _forces(self) -> None:
@@ -103,7 +111,7 @@ class CentralPenaltyScheme:
         self.a.array[:] = self.inv_m.array_r * self.f.array_r
 
     def _energy(self) -> float:
-        ek = 0.5 * float(np.dot(self.m.array_r, self.v.array_r ** 2))
+        ek = 0.5 * float(np.dot(self.m.array_r, self.v.array_r**2))
         es = 0.5 * float(np.dot(self.Ku.array_r, self.u.array_r))
         return self.comm.allreduce(ek + es) + self.penalty_energy
 
@@ -140,8 +148,7 @@ class CentralPenaltyScheme:
             self.stats.n_substeps -= n_sub
             return False
         self.energy = self._energy()
-        finite = self.comm.allreduce(bool(np.isfinite(self.u.array_r).all() and np.isfinite(self.energy)),
-                                     op=MPI.LAND)
+        finite = self.comm.allreduce(bool(np.isfinite(self.u.array_r).all() and np.isfinite(self.energy)), op=MPI.LAND)
         if not finite or (self.energy_ref > 0 and self.energy > self.div_factor * self.energy_ref):
             self.diverged = True
         return True

@@ -3,24 +3,23 @@ factorization, in chunks of ``W_CHUNK`` columns) and S = C W, replicated on ever
 for the columns a step needs (the candidates that touch: :func:`solve_on_touching`); gather/scatter
 of the small contact vectors, and the rows of C = [B; T] stacked.
 """
+
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg.blas import daxpy
 from petsc4py import PETSc
+from scipy.linalg.blas import daxpy
 
 from ..errors import SolverError
+from .solvers import solve_checked
 
 log = logging.getLogger(__name__)
 
 #: Columns of B^T per multi-right-hand-side solve when forming W (bounds the dense RHS memory).
 W_CHUNK = 64
-
-
-from .solvers import solve_checked
 
 
 # ----------------------------------------------------------------------- dense contact operator
@@ -73,12 +72,12 @@ class ContactOperator:
 
     W: PETSc.Mat
     S_known: np.ndarray
-    known: np.ndarray                  #: bool per column: computed
+    known: np.ndarray  #: bool per column: computed
     ksp: PETSc.KSP
     C: PETSc.Mat
-    Ct_csr: tuple                      #: (rows, cols, values) of the local rows of C^T
+    Ct_csr: tuple  #: (rows, cols, values) of the local rows of C^T
     chunk: int = W_CHUNK
-    n_rhs: int = 0                     #: columns computed so far (right-hand sides solved)
+    n_rhs: int = 0  #: columns computed so far (right-hand sides solved)
     #: (key of the columns, S[:, cols], S[cols, cols]) of the last :meth:`columns`, dropped when
     #: :meth:`ensure` computes a column (its symmetrization rewrites known rows)
     _block: tuple | None = None
@@ -97,7 +96,7 @@ class ContactOperator:
         if new.size == 0:
             return 0
         for j0 in range(0, new.size, self.chunk):
-            self._solve_columns(new[j0: j0 + self.chunk])
+            self._solve_columns(new[j0 : j0 + self.chunk])
         self.W.assemble()
         # S[:, new] = C W[:, new], gathered on every rank
         Wn = PETSc.Mat().createDense((self.W.getSizes()[0], (PETSc.DECIDE, new.size)), comm=self.W.getComm())
@@ -183,7 +182,7 @@ def contact_operator(ksp_u: PETSc.KSP, C: PETSc.Mat, chunk: int = W_CHUNK) -> Co
     W.setUp()
     W.assemble()
     Ct = C.transpose(PETSc.Mat())
-    ai, aj, av = Ct.getValuesCSR()    # local rows of C^T, global column indices
+    ai, aj, av = Ct.getValuesCSR()  # local rows of C^T, global column indices
     csr = (np.repeat(np.arange(n_loc), np.diff(ai)), np.asarray(aj, dtype=np.int64), np.array(av))
     Ct.destroy()
     return ContactOperator(W, np.full((n_c, n_c), np.nan), np.zeros(n_c, dtype=bool), ksp_u, C, csr, chunk)
@@ -203,8 +202,9 @@ def node_columns(nodes: np.ndarray, n_c: int, frictional: bool) -> np.ndarray:
     return np.concatenate([nodes, n_c + nodes, 2 * n_c + nodes]) if frictional else nodes
 
 
-def solve_on_touching(op: ContactOperator, q: np.ndarray, start: np.ndarray, gap_tol: float,
-                      frictional: bool, solve, comm) -> tuple[object, np.ndarray, np.ndarray]:
+def solve_on_touching(
+    op: ContactOperator, q: np.ndarray, start: np.ndarray, gap_tol: float, frictional: bool, solve, comm
+) -> tuple[object, np.ndarray, np.ndarray]:
     """The contact problem of a step solved on the candidates that touch, computing only their
     columns of W (:meth:`ContactOperator.ensure`). ``q`` the predicted gaps of all n_c candidates
     (m), ``start`` (bool, n_c) the nodes to begin with (the previous active set and the predicted
@@ -251,5 +251,5 @@ def apply_contact_update(op: ContactOperator, x: np.ndarray, u_pred: PETSc.Vec, 
         Wa = op.W.getDenseArray(readonly=True)
         for j in nz:
             res = daxpy(Wa[:, j], out, a=float(x[j]))
-            if res is not out:         # in place only on a contiguous float64 array (a PETSc Vec's is)
+            if res is not out:  # in place only on a contiguous float64 array (a PETSc Vec's is)
                 out[:] = res

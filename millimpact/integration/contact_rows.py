@@ -1,13 +1,14 @@
 """The contact rows as an integrator uses them: gaps and rates replicated on every rank, forces
 B^T lambda, and the tangential rows of friction; rank 0's answers broadcast."""
+
 from __future__ import annotations
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .contact_operator import gather, scatter_into, stack_rows
 from ..errors import InputError
+from .contact_operator import gather, scatter_into, stack_rows
 from .dynamics import LinearDynamics
 
 

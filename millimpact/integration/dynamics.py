@@ -4,11 +4,12 @@ time schedule; kinetic and strain energies.
 ``M a + K u = f + B^T lambda`` with unilateral contact rows ``g = g0 + B u >= 0`` (SI units: u in m,
 t in s, lambda in N); see :mod:`millimpact.integration.integrators` for the schemes.
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Optional, Protocol
+from typing import Protocol
 
 import numpy as np
 from petsc4py import PETSc
@@ -35,22 +36,22 @@ class LinearDynamics:
     g0: np.ndarray
     fixed_dofs: np.ndarray
     contact_dofs: np.ndarray
-    f_ext: Optional[PETSc.Vec] = None
+    f_ext: PETSc.Vec | None = None
     #: Coulomb friction (:mod:`millimpact.integration.friction`): ``T`` (2 n_c x n) tangential rows [t1; t2]
     #: (relative tangential displacement, m), ``friction`` the coefficient mu; None / 0: frictionless
-    T: Optional[PETSc.Mat] = None
+    T: PETSc.Mat | None = None
     friction: float = 0.0
     #: a nonlinear (plastic) internal force of the contact zone, ``f_int = K u + f_c(u)``
     #: (:class:`NonlinearZone`, e.g. :class:`millimpact.fem.plastic_zone.PlasticZone`); None: linear
-    plastic: Optional["NonlinearZone"] = None
+    plastic: NonlinearZone | None = None
     #: a dict that keeps the implicit schemes' factorized step operators (with their contact
     #: operators W) and the redistributed mass between integrate() calls on this system (impacts
     #: that share a model and a time step: the cases of a contact table); None: each call factorizes
     #: and frees its own
-    operator_cache: Optional[dict] = None
+    operator_cache: dict | None = None
     #: the initial-acceleration mass solve's PETSc defaults (keys relative to ``-impact_mass_``);
     #: None: Jacobi-CG (:func:`millimpact.integration.solvers.mass_solver_defaults`)
-    mass_solver: Optional[dict] = None
+    mass_solver: dict | None = None
 
 
 class NonlinearZone(Protocol):
@@ -111,9 +112,9 @@ class StepState:
     step: int
     mass: PETSc.Mat
     penalty_energy: float = 0.0
-    tau: Optional[np.ndarray] = None     #: friction: tangential multipliers (N, 2 n_c: [t1; t2])
-    friction_work: float = 0.0           #: friction: energy dissipated by slip so far (J, >= 0)
-    plastic_work: float = 0.0            #: plasticity: plastic work so far (J, >= 0)
+    tau: np.ndarray | None = None  #: friction: tangential multipliers (N, 2 n_c: [t1; t2])
+    friction_work: float = 0.0  #: friction: energy dissipated by slip so far (J, >= 0)
+    plastic_work: float = 0.0  #: plasticity: plastic work so far (J, >= 0)
 
 
 @dataclass
@@ -122,31 +123,31 @@ class IntegrationStats:
 
     method: str
     contact_solve: str = ""
-    n_steps: int = 0                 #: accepted steps
-    n_steps_contact: int = 0         #: of which with dt_contact
-    n_steps_free: int = 0            #: of which with dt_free
-    n_rejected: int = 0              #: dt_free steps redone with dt_contact (a gap closed)
-    n_substeps: int = 0              #: explicit sub-steps
-    n_switches: int = 0              #: contact status switches summed over constraints
-    n_active_set_changes: int = 0    #: steps whose active set differs from the previous one
+    n_steps: int = 0  #: accepted steps
+    n_steps_contact: int = 0  #: of which with dt_contact
+    n_steps_free: int = 0  #: of which with dt_free
+    n_rejected: int = 0  #: dt_free steps redone with dt_contact (a gap closed)
+    n_substeps: int = 0  #: explicit sub-steps
+    n_switches: int = 0  #: contact status switches summed over constraints
+    n_active_set_changes: int = 0  #: steps whose active set differs from the previous one
     max_active: int = 0
-    n_solves: int = 0                #: effective-matrix solves (predictors)
+    n_solves: int = 0  #: effective-matrix solves (predictors)
     n_saddle_solves: int = 0
-    n_w_columns: int = 0             #: right-hand sides of W = A^-1 B^T
-    n_factorizations: int = 0        #: of the step operators, those released after the impact included
-    n_step_operators_released: int = 0   #: step sizes' operators freed after separation (newmark.py)
-    max_schur_iterations: int = 0    #: fieldsplit: inner iterations of the Schur block (1 expected)
-    n_newton: int = 0                #: LCP active-set iterations, summed
+    n_w_columns: int = 0  #: right-hand sides of W = A^-1 B^T
+    n_factorizations: int = 0  #: of the step operators, those released after the impact included
+    n_step_operators_released: int = 0  #: step sizes' operators freed after separation (newmark.py)
+    max_schur_iterations: int = 0  #: fieldsplit: inner iterations of the Schur block (1 expected)
+    n_newton: int = 0  #: LCP active-set iterations, summed
     max_newton: int = 0
-    n_lcp_fallback: int = 0          #: LCPs solved by the NNLS fallback
-    friction: float = 0.0            #: Coulomb coefficient
-    max_friction_passes: int = 0     #: friction: normal/tangential fixed-point passes, maximum
-    n_friction_fallback: int = 0     #: friction: Tresca problems finished by projected gradient
-    friction_work_J: float = 0.0     #: friction: energy dissipated by slip (>= 0), J
+    n_lcp_fallback: int = 0  #: LCPs solved by the NNLS fallback
+    friction: float = 0.0  #: Coulomb coefficient
+    max_friction_passes: int = 0  #: friction: normal/tangential fixed-point passes, maximum
+    n_friction_fallback: int = 0  #: friction: Tresca problems finished by projected gradient
+    friction_work_J: float = 0.0  #: friction: energy dissipated by slip (>= 0), J
     max_sliding_nodes: int = 0
-    plastic_work_J: float = 0.0      #: plasticity: plastic work (dissipated and stored by hardening), J
-    n_plastic_steps: int = 0         #: steps whose converged state yields
-    n_plastic_iterations: int = 0    #: iterations of the steps with a yielding iterate, summed
+    plastic_work_J: float = 0.0  #: plasticity: plastic work (dissipated and stored by hardening), J
+    n_plastic_steps: int = 0  #: steps whose converged state yields
+    n_plastic_iterations: int = 0  #: iterations of the steps with a yielding iterate, summed
     max_plastic_iterations: int = 0
     #: converged iterates whose full return map found a yielding point outside the candidate cells
     n_plastic_candidate_misses: int = 0
@@ -155,12 +156,12 @@ class IntegrationStats:
     n_tangent_factorizations: int = 0
     dt_contact: float = 0.0
     dt_free: float = 0.0
-    dt_critical: float = float("nan")   #: central differences: critical step, s
-    dt_explicit: float = float("nan")   #: central differences: largest sub-step used, s
-    penalty: float = float("nan")       #: central differences: k_p, N/m
+    dt_critical: float = float("nan")  #: central differences: critical step, s
+    dt_explicit: float = float("nan")  #: central differences: largest sub-step used, s
+    penalty: float = float("nan")  #: central differences: k_p, N/m
     diverged: bool = False
     diverged_at: float = float("nan")
-    stopped_at: float = float("nan")    #: the ``stop`` callback ended the run here (s), before t_end
+    stopped_at: float = float("nan")  #: the ``stop`` callback ended the run here (s), before t_end
     t_end: float = 0.0
     wall_time: float = 0.0
 
@@ -183,7 +184,7 @@ class TimeSchedule:
 
     t_end: float
     dt_contact: float
-    dt_free: Optional[float] = None
+    dt_free: float | None = None
     margin: float = 2.0
 
     def __post_init__(self) -> None:
@@ -291,7 +292,7 @@ class SeparationStop:
         self.quiet_steps = max(3, int(quiet_steps))
         self.touched, self.apart = False, 0
 
-    def __call__(self, state: "StepState") -> bool:
+    def __call__(self, state: StepState) -> bool:
         if state.n_active > 0:
             self.touched, self.apart = True, 0
             return False

@@ -31,15 +31,15 @@ convergence proof (Coulomb friction is not a convex problem); a failure raises :
 
 Units: S in m/N, gaps and slips in m, multipliers in N.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
-from .lcp import solve_lcp
 from ..errors import SolverError
+from .lcp import solve_lcp
 
 #: relative tolerance of the fixed point and the slip directions
 FRICTION_RTOL = 1e-10
@@ -64,9 +64,14 @@ class FrictionResult:
     active: np.ndarray
 
 
-def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Optional[np.ndarray] = None,
-                 free: Optional[np.ndarray] = None,
-                 tau0: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray, bool]:
+def solve_tresca(
+    S_tt: np.ndarray,
+    c: np.ndarray,
+    bound: np.ndarray,
+    slip0: np.ndarray | None = None,
+    free: np.ndarray | None = None,
+    tau0: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, bool]:
     """Tresca friction with fixed bounds: ``ds = c + S_tt tau``, ``|tau_i| <= bound_i``, stick
     (ds_i = 0) inside the disc, tau_i = -bound_i ds_i/|ds_i| on it. ``S_tt`` (2n x 2n, rows
     [t1 nodes; t2 nodes]), ``c`` (2n, m), ``bound`` (n, N). ``free`` (2n bool) marks the tangential
@@ -95,10 +100,10 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
     S = S_tt[np.ix_(perm, perm)]
     cc = c[perm]
     bound = bound[idx]
-    fixed = ~free[perm].reshape(n, 2)         # components held at zero
+    fixed = ~free[perm].reshape(n, 2)  # components held at zero
     d = np.diag(S).reshape(n, 2)
     tr = np.where(fixed, 0.0, d).sum(axis=1)
-    r = np.where(tr > 0, 1.0 / np.where(tr > 0, tr, 1.0), 0.0)   # N/m
+    r = np.where(tr > 0, 1.0 / np.where(tr > 0, tr, 1.0), 0.0)  # N/m
     scale = max(float(bound.max()), 1e-300)
 
     def residual(x: np.ndarray):
@@ -138,7 +143,7 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
         x = x + alpha * dx
         F, z, nz, slide = F1, z1, nz1, s1
     ok = float(np.max(np.abs(F))) <= FRICTION_RTOL * scale
-    if not ok:   # finish with the (always convergent) accelerated projected gradient
+    if not ok:  # finish with the (always convergent) accelerated projected gradient
         tau_nm = _tresca_fista(S, cc, bound, x, ~fixed.ravel())
         F, z, nz, slide = residual(tau_nm)
         x = tau_nm
@@ -149,8 +154,9 @@ def solve_tresca(S_tt: np.ndarray, c: np.ndarray, bound: np.ndarray, slip0: Opti
     return tau, slip, ok
 
 
-def _newton_matrix(S: np.ndarray, r: np.ndarray, z: np.ndarray, nz: np.ndarray, bound: np.ndarray,
-                   slide: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+def _newton_matrix(
+    S: np.ndarray, r: np.ndarray, z: np.ndarray, nz: np.ndarray, bound: np.ndarray, slide: np.ndarray, fixed: np.ndarray
+) -> np.ndarray:
     """The generalized Jacobian of ``F(x) = x - P(z(x))``, ``z = x - r ds(x)`` (node-major pairs):
     ``J = I - D_P dz/dx`` with ``dz_i/dx = E_i - r_i S_i`` (S_i: node i's two rows of S) and
     ``D_P,i`` the identity inside the disc (stick: J_i = r_i S_i) or, on it (slide),
@@ -162,15 +168,16 @@ def _newton_matrix(S: np.ndarray, r: np.ndarray, z: np.ndarray, nz: np.ndarray, 
         DP[slide] = (bound[slide] / nz[slide])[:, None, None] * (np.eye(2) - zh[:, :, None] * zh[:, None, :])
     # J = I - D_P (E - r S) = r D_P S + blockdiag(I - D_P): two arrays of (2n)^2, not five
     J = np.einsum("nab,nbk->nak", r[:, None, None] * DP, S.reshape(n, 2, 2 * n)).reshape(2 * n, 2 * n)
-    J.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :] += np.eye(2) - DP     # the diagonal blocks
+    J.reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :] += np.eye(2) - DP  # the diagonal blocks
     rows = np.flatnonzero(fixed.ravel())
     J[rows, :] = 0.0
     J[rows, rows] = 1.0
     return J
 
 
-def _tresca_fista(S: np.ndarray, c: np.ndarray, bound: np.ndarray, x0: np.ndarray, free: np.ndarray,
-                  max_iter: int = 20000) -> np.ndarray:
+def _tresca_fista(
+    S: np.ndarray, c: np.ndarray, bound: np.ndarray, x0: np.ndarray, free: np.ndarray, max_iter: int = 20000
+) -> np.ndarray:
     """min 1/2 x.S x + c.x over |x_i| <= bound_i (discs of node-major pairs x[2i:2i+2]), x = 0 off
     ``free``: FISTA with adaptive restart (O'Donoghue, Candes 2015), step 1/L, L = lambda_max(S)."""
     n = bound.size
@@ -189,7 +196,7 @@ def _tresca_fista(S: np.ndarray, c: np.ndarray, bound: np.ndarray, x0: np.ndarra
     scale = max(float(bound.max()), 1e-300)
     for _ in range(max_iter):
         x_new = project(y - (S @ y + c) / L)
-        if (x_new - x) @ (S @ x_new + c) > 0:    # restart when the objective goes up
+        if (x_new - x) @ (S @ x_new + c) > 0:  # restart when the objective goes up
             t, y = 1.0, x.copy()
             continue
         t_new = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * t * t))
@@ -200,10 +207,17 @@ def _tresca_fista(S: np.ndarray, c: np.ndarray, bound: np.ndarray, x0: np.ndarra
     return x
 
 
-def solve_friction(S: np.ndarray, q_n: np.ndarray, q_t: np.ndarray, mu: float,
-                   active0: Optional[np.ndarray] = None, slip0: Optional[np.ndarray] = None,
-                   gap_tol: float = 0.0, tau0: Optional[np.ndarray] = None,
-                   rtol: float = PASS_RTOL) -> FrictionResult:
+def solve_friction(
+    S: np.ndarray,
+    q_n: np.ndarray,
+    q_t: np.ndarray,
+    mu: float,
+    active0: np.ndarray | None = None,
+    slip0: np.ndarray | None = None,
+    gap_tol: float = 0.0,
+    tau0: np.ndarray | None = None,
+    rtol: float = PASS_RTOL,
+) -> FrictionResult:
     """The frictional contact problem of one step (module docstring). ``S`` (3 n_c)^2 with rows
     [normal; t1; t2], ``q_n`` predicted gaps (m), ``q_t`` predicted slip increments (m, [t1; t2]),
     ``mu`` >= 0. Warm starts: ``active0`` (normal active set) and ``slip0`` (sliding nodes) of the
@@ -234,10 +248,14 @@ def solve_friction(S: np.ndarray, q_n: np.ndarray, q_t: np.ndarray, mu: float,
         else:
             tau_new, slip = np.zeros(2 * n), np.zeros(n, dtype=bool)
         scale = max(float(np.max(np.abs(lam_new), initial=0.0)), 1e-300)
-        done = (np.max(np.abs(lam_new - lam), initial=0.0) <= rtol * scale
-                and np.max(np.abs(tau_new - tau), initial=0.0) <= rtol * scale)
+        done = (
+            np.max(np.abs(lam_new - lam), initial=0.0) <= rtol * scale
+            and np.max(np.abs(tau_new - tau), initial=0.0) <= rtol * scale
+        )
         lam, tau = lam_new, tau_new
         if done:
             return FrictionResult(lam, tau, slip, it, n_fallback, active)
-    raise SolverError(f"Coulomb friction: the normal/tangential fixed point did not converge in {MAX_OUTER} "
-                      f"passes (mu = {mu:g}; a large mu with dissimilar materials couples them strongly)")
+    raise SolverError(
+        f"Coulomb friction: the normal/tangential fixed point did not converge in {MAX_OUTER} "
+        f"passes (mu = {mu:g}; a large mu with dissimilar materials couples them strongly)"
+    )

@@ -40,13 +40,14 @@ Non-PETSc settings (``options`` keys or command-line ``-impact_<key>``): ``conta
 ``gap_rtol`` (1e-9), ``lambda_check_rtol`` (1e-6: saddle-point multipliers vs the LCP's).
 The step-size rule's safety margin is :attr:`TimeSchedule.margin`.
 """
+
 from __future__ import annotations
 
 import logging
 import math
 import sys
 import time
-from typing import Callable, Mapping, Optional, Union
+from collections.abc import Callable, Mapping
 
 import numpy as np
 from petsc4py import PETSc
@@ -54,8 +55,16 @@ from petsc4py import PETSc
 from ..errors import InputError
 from ..interrupts import raise_if_interrupted
 from .central_penalty import CRITICAL_STEP_SAFETY, CentralPenaltyScheme
-from .dynamics import (IntegrationStats, LinearDynamics, SeparationStop, StepState, TimeSchedule, kinetic_energy,
-                       product_matrix, strain_energy)
+from .dynamics import (
+    IntegrationStats,
+    LinearDynamics,
+    SeparationStop,
+    StepState,
+    TimeSchedule,
+    kinetic_energy,
+    product_matrix,
+    strain_energy,
+)
 from .mass import lumped_mass, lumped_mass_matrix, redistribute_mass
 from .newmark import NewmarkScheme
 from .plastic_newmark import PlasticNewmarkScheme
@@ -64,9 +73,22 @@ from .solvers import GARBAGE_EVERY
 log = logging.getLogger(__name__)
 
 #: what callers take from this module: the driver and the values it works on
-__all__ = ["integrate", "METHODS", "LinearDynamics", "StepState", "IntegrationStats", "TimeSchedule", "kinetic_energy",
-           "product_matrix", "strain_energy", "SeparationStop", "redistribute_mass", "lumped_mass", "lumped_mass_matrix",
-           "CRITICAL_STEP_SAFETY"]
+__all__ = [
+    "integrate",
+    "METHODS",
+    "LinearDynamics",
+    "StepState",
+    "IntegrationStats",
+    "TimeSchedule",
+    "kinetic_energy",
+    "product_matrix",
+    "strain_energy",
+    "SeparationStop",
+    "redistribute_mass",
+    "lumped_mass",
+    "lumped_mass_matrix",
+    "CRITICAL_STEP_SAFETY",
+]
 
 #: Integrator names accepted by :func:`integrate`.
 METHODS = ("newmark-mr", "newmark", "central-penalty")
@@ -85,14 +107,27 @@ def terminal_bar(desc: str, total: float, unit: str, file):
         columns = os.get_terminal_size(file.fileno()).columns
     except (AttributeError, OSError, ValueError):
         columns = 0
-    return tqdm(total=total, unit=unit, desc=desc, file=file, ncols=columns or 80,
-                bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} " + unit + " simulated [{elapsed}<{remaining}]")
+    return tqdm(
+        total=total,
+        unit=unit,
+        desc=desc,
+        file=file,
+        ncols=columns or 80,
+        bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} " + unit + " simulated [{elapsed}<{remaining}]",
+    )
 
 
-def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: TimeSchedule,
-              method: str = "newmark-mr", observer: Optional[Callable[[StepState], None]] = None,
-              options: Optional[Mapping[str, object]] = None, progress: bool = False,
-              stop: Optional[Callable[[StepState], bool]] = None) -> IntegrationStats:
+def integrate(
+    system: LinearDynamics,
+    u0: PETSc.Vec,
+    v0: PETSc.Vec,
+    schedule: TimeSchedule,
+    method: str = "newmark-mr",
+    observer: Callable[[StepState], None] | None = None,
+    options: Mapping[str, object] | None = None,
+    progress: bool = False,
+    stop: Callable[[StepState], bool] | None = None,
+) -> IntegrationStats:
     """Integrate from t = 0 (displacement u0 in m, velocity v0 in m/s) to ``schedule.t_end``.
 
     ``method`` one of :data:`METHODS`; ``observer(state)`` is called (collectively, on every rank)
@@ -112,7 +147,7 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
     comm = system.M.getComm().tompi4py()
     wall0 = time.perf_counter()
     stats = IntegrationStats(method=method, t_end=schedule.t_end)
-    integ: Union[CentralPenaltyScheme, NewmarkScheme]      # PlasticNewmarkScheme is a NewmarkScheme
+    integ: CentralPenaltyScheme | NewmarkScheme  # PlasticNewmarkScheme is a NewmarkScheme
     if method == "central-penalty":
         if system.plastic is not None:
             raise InputError("--integrator central-penalty has no plasticity: use newmark-mr (or elastic materials)")
@@ -127,18 +162,36 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
     dt_free = m_free * dt_g
     stats.dt_contact, stats.dt_free = dt_g, dt_free
     if comm.rank == 0:
-        log.info("%s: t_end %.4g s, dt_contact %.4g s (asked %.4g), dt_free %.4g s", method, schedule.t_end,
-                 dt_g, schedule.dt_contact, dt_free)
+        log.info(
+            "%s: t_end %.4g s, dt_contact %.4g s (asked %.4g), dt_free %.4g s",
+            method,
+            schedule.t_end,
+            dt_g,
+            schedule.dt_contact,
+            dt_free,
+        )
 
     def notify(t: float, dt: float, step: int) -> bool:
         """Hand the state to the observer; True if ``stop`` says the run is over."""
         if observer is None and stop is None:
             return False
-        st = StepState(t=t, dt=dt, u=integ.u, v=integ.v, a=integ.a, lam=integ.lam, gap=integ.gap,
-                       n_active=int(np.count_nonzero(integ.lam > 0)), n_newton=integ.n_newton,
-                       step=step, mass=integ.mass, penalty_energy=integ.penalty_energy,
-                       tau=getattr(integ, "tau", None), friction_work=stats.friction_work_J,
-                       plastic_work=stats.plastic_work_J)
+        st = StepState(
+            t=t,
+            dt=dt,
+            u=integ.u,
+            v=integ.v,
+            a=integ.a,
+            lam=integ.lam,
+            gap=integ.gap,
+            n_active=int(np.count_nonzero(integ.lam > 0)),
+            n_newton=integ.n_newton,
+            step=step,
+            mass=integ.mass,
+            penalty_energy=integ.penalty_energy,
+            tau=getattr(integ, "tau", None),
+            friction_work=stats.friction_work_J,
+            plastic_work=stats.plastic_work_J,
+        )
         if observer is not None:
             observer(st)
         return stop is not None and step > 0 and bool(stop(st))
@@ -156,10 +209,13 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
     force_contact = False
     try:
         while k < n_grid:
-            raise_if_interrupted()   # a Ctrl-C / SIGTERM whose exception a library swallowed
+            raise_if_interrupted()  # a Ctrl-C / SIGTERM whose exception a library swallowed
             n_act = int(np.count_nonzero(prev_active)) + int(getattr(integ, "touched", False))
-            use_free = (not force_contact and n_grid - k >= m_free
-                        and schedule.free_step_allowed(integ.gap, integ.rate(), n_act))
+            use_free = (
+                not force_contact
+                and n_grid - k >= m_free
+                and schedule.free_step_allowed(integ.gap, integ.rate(), n_act)
+            )
             kk = k + (m_free if use_free else 1)
             dt = dt_free if use_free else dt_g
             t_new = schedule.t_end if kk == n_grid else kk * dt_g
@@ -189,15 +245,27 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
             if bar is not None:
                 bar.update(dt * t_scale)
             elif plain is not None and t >= plain["next"] * schedule.t_end * (1 - 1e-12):
-                print(f"  {method}: {100 * t / schedule.t_end:3.0f} % ({t * t_scale:.3g} of {schedule.t_end * t_scale:.3g} "
-                      f"{t_unit} simulated, {time.perf_counter() - plain['t0']:.1f} s)", file=sys.stderr, flush=True)
+                print(
+                    f"  {method}: {100 * t / schedule.t_end:3.0f} % ({t * t_scale:.3g} of {schedule.t_end * t_scale:.3g} "
+                    f"{t_unit} simulated, {time.perf_counter() - plain['t0']:.1f} s)",
+                    file=sys.stderr,
+                    flush=True,
+                )
                 plain["next"] = math.floor(10 * t / schedule.t_end + 1e-9) / 10 + 0.1
-            if isinstance(integ, CentralPenaltyScheme) and integ.diverged:     # the explicit scheme's test
+            if isinstance(integ, CentralPenaltyScheme) and integ.diverged:  # the explicit scheme's test
                 stats.diverged, stats.diverged_at = True, t
                 if comm.rank == 0:
-                    log.warning("%s diverged at t = %.6g s (step %d, dt %.4g s, critical %.4g s): energy %.3e J "
-                                "vs initial %.3e J", method, t, step, dt, stats.dt_critical, integ.energy,
-                                integ.energy_ref)
+                    log.warning(
+                        "%s diverged at t = %.6g s (step %d, dt %.4g s, critical %.4g s): energy %.3e J "
+                        "vs initial %.3e J",
+                        method,
+                        t,
+                        step,
+                        dt,
+                        stats.dt_critical,
+                        integ.energy,
+                        integ.energy_ref,
+                    )
                 break
     finally:
         if bar is not None:
@@ -212,8 +280,18 @@ def integrate(system: LinearDynamics, u0: PETSc.Vec, v0: PETSc.Vec, schedule: Ti
                 stats.contact_solve = "lu"
         stats.wall_time = time.perf_counter() - wall0
     if comm.rank == 0:
-        log.info("%s done: %d steps (%d contact, %d free, %d rejected), %d status switches, %d solves, "
-                 "%d factorizations, %.2f s", method, stats.n_steps, stats.n_steps_contact, stats.n_steps_free,
-                 stats.n_rejected, stats.n_switches, stats.n_solves, stats.n_factorizations, stats.wall_time)
+        log.info(
+            "%s done: %d steps (%d contact, %d free, %d rejected), %d status switches, %d solves, "
+            "%d factorizations, %.2f s",
+            method,
+            stats.n_steps,
+            stats.n_steps_contact,
+            stats.n_steps_free,
+            stats.n_rejected,
+            stats.n_switches,
+            stats.n_solves,
+            stats.n_factorizations,
+            stats.wall_time,
+        )
     integ.destroy()
     return stats

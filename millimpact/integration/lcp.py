@@ -1,20 +1,17 @@
 """The exact small LCP of a contact step: g = q + S lambda >= 0, lambda >= 0, lambda . g = 0 (S dense, symmetric
 positive definite on the candidates), by a primal-dual active set with an NNLS fallback.
 """
+
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
 from ..errors import SolverError
 
 log = logging.getLogger(__name__)
-
-
-
 
 
 # ------------------------------------------------------------------------------------ the LCP
@@ -28,8 +25,9 @@ class LCPResult:
     method: str
 
 
-def solve_lcp(S: np.ndarray, q: np.ndarray, active0: Optional[np.ndarray] = None, gap_tol: float = 0.0,
-              max_iter: int = 50) -> LCPResult:
+def solve_lcp(
+    S: np.ndarray, q: np.ndarray, active0: np.ndarray | None = None, gap_tol: float = 0.0, max_iter: int = 50
+) -> LCPResult:
     """Exact solution of the contact LCP  ``g = q + S lam >= 0, lam >= 0, lam . g = 0``.
 
     ``S = B A^-1 B^T`` (symmetric positive definite for independent constraint rows), ``q`` the
@@ -74,7 +72,7 @@ def _spd_solve(S: np.ndarray, b: np.ndarray) -> np.ndarray:
 
         return cho_solve(cho_factor(S), b)
     except np.linalg.LinAlgError as e:
-        raise SolverError("contact Schur complement S_AA is not positive definite: dependent constraint "
-                          "rows in B (e.g. two rows on the same node and direction)") from e
-
-
+        raise SolverError(
+            "contact Schur complement S_AA is not positive definite: dependent constraint "
+            "rows in B (e.g. two rows on the same node and direction)"
+        ) from e

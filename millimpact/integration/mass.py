@@ -1,8 +1,7 @@
 """Mass matrices for contact time stepping: redistribution (no mass on the contact dofs;
 Khenous, Laborde, Renard, Eur. J. Mech. A 27, 2008) and row-sum (HRZ) lumping."""
-from __future__ import annotations
 
-from typing import Optional
+from __future__ import annotations
 
 import numpy as np
 from petsc4py import PETSc
@@ -10,7 +9,7 @@ from petsc4py import PETSc
 from ..errors import MillimpactError
 
 
-def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: Optional[int] = None) -> PETSc.Mat:
+def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: int | None = None) -> PETSc.Mat:
     """Mass matrix without mass on the contact dofs, total mass per component preserved.
 
     The idea of Khenous, Laborde and Renard (Eur. J. Mech. A/Solids 27, 2008): a contact node
@@ -38,7 +37,7 @@ def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: Option
     all_c = np.unique(np.concatenate(comm.allgather(cglob))) if comm.size > 1 else np.unique(cglob)
     add = M.createVecLeft()
     add.set(0.0)
-    pending = []     # (dof, share, its contact neighbours): every neighbour is a contact dof too
+    pending = []  # (dof, share, its contact neighbours): every neighbour is a contact dof too
     for c in cglob:
         cols, vals = M.getRow(int(c))
         same = (cols % bs) == (c % bs)
@@ -59,8 +58,10 @@ def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: Option
             keep = ((cols % bs) == (c % bs)) & ~np.isin(cols, all_c) & (vals > 0.0)
             nb, w = cols[keep], vals[keep]
             if w.sum() <= 0.0:
-                raise MillimpactError(f"mass redistribution: contact dof {c} has no non-contact dof with mass "
-                                      "within two rings to take its mass")
+                raise MillimpactError(
+                    f"mass redistribution: contact dof {c} has no non-contact dof with mass "
+                    "within two rings to take its mass"
+                )
             add.setValues(nb.astype(PETSc.IntType), share * w / w.sum(), addv=PETSc.InsertMode.ADD_VALUES)
         M2.destroy()
     add.assemble()
@@ -70,8 +71,10 @@ def redistribute_mass(M: PETSc.Mat, contact_dofs: np.ndarray, block_size: Option
     d = Mr.getDiagonal()
     bad = (add.array != 0.0) & (d.array <= 0.0)
     if comm.allreduce(int(np.count_nonzero(bad))):
-        raise MillimpactError("mass redistribution produced a non-positive diagonal (negative row sums: "
-                              "use P1 elements in the contact zone)")
+        raise MillimpactError(
+            "mass redistribution produced a non-positive diagonal (negative row sums: "
+            "use P1 elements in the contact zone)"
+        )
     add.destroy()
     d.destroy()
     return Mr
@@ -87,7 +90,7 @@ def _abs_square(M: PETSc.Mat) -> PETSc.Mat:
     return A2
 
 
-def lumped_mass(M: PETSc.Mat, block_size: Optional[int] = None) -> PETSc.Vec:
+def lumped_mass(M: PETSc.Mat, block_size: int | None = None) -> PETSc.Vec:
     """Diagonal (HRZ) lumped masses (kg): M's diagonal scaled per component so each component's
     total ``e_k^T M e_k`` is kept (Hinton, Rock, Zienkiewicz 1976). Equal to row-sum lumping for
     P1 simplices; positive also for P2 (where row sums are not). Clamped rows (zero diagonal) stay 0.

@@ -7,26 +7,28 @@ Each step: one predictor solve with lambda = 0 using the factorization of ``A = 
 the final state from the saddle-point solve on the active set or ``u = u_pred + W lambda``; see
 :mod:`millimpact.integration.integrators`.
 """
+
 from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, Mapping, Optional, Union
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..errors import InputError, SolverError
 from . import solvers
 from .contact_operator import ContactOperator, apply_contact_update, contact_operator, node_columns, solve_on_touching
-from .lcp import LCPResult, solve_lcp
-from .friction import PASS_RTOL
-from .saddle_point import SaddlePointSolver
-from ..errors import InputError, SolverError
 from .contact_rows import ContactRows, broadcast
 from .dynamics import IntegrationStats, LinearDynamics, product_matrix
+from .friction import PASS_RTOL
+from .lcp import LCPResult, solve_lcp
 from .mass import redistribute_mass
+from .saddle_point import SaddlePointSolver
 
 if TYPE_CHECKING:
     from .body_blocks import BodyBlockSolver
@@ -44,11 +46,11 @@ class StepOperators:
     dt: float
     A: PETSc.Mat
     ksp_u: PETSc.KSP
-    saddle: Optional[SaddlePointSolver]
-    contact: Optional[ContactOperator] = None
+    saddle: SaddlePointSolver | None
+    contact: ContactOperator | None = None
     #: A solved body by body (:class:`.body_blocks.BodyBlockSolver`), built by a plastic scheme;
     #: None until it is, False when A did not split (or is distributed)
-    body_blocks: Union[BodyBlockSolver, Literal[False], None] = None
+    body_blocks: BodyBlockSolver | Literal[False] | None = None
 
 
 class NewmarkScheme:
@@ -56,8 +58,9 @@ class NewmarkScheme:
 
     beta, gamma = 0.25, 0.5
 
-    def __init__(self, system: LinearDynamics, redistribute: bool, options: Mapping, stats: IntegrationStats,
-                 comm: MPI.Comm):
+    def __init__(
+        self, system: LinearDynamics, redistribute: bool, options: Mapping, stats: IntegrationStats, comm: MPI.Comm
+    ):
         self.sys, self.options, self.stats, self.comm = system, dict(options), stats, comm
         self.contact = ContactRows(system, comm)
         self.fixed = np.asarray(system.fixed_dofs, dtype=np.int64)
@@ -99,10 +102,10 @@ class NewmarkScheme:
         cache = system.operator_cache
         self._shared_ops = cache is not None
         self.ops: dict[float, StepOperators] = cache.setdefault((cs, redistribute), {}) if cache is not None else {}
-        self.contact_seen = False            #: a contact was active at some accepted step
-        self.n_releases = 0                  #: times the step operators were released (<= MAX_RELEASES)
-        self.released_operators = 0          #: step sizes' operators released after the impact
-        self._released = _OperatorTotals()   #: what the released operators did
+        self.contact_seen = False  #: a contact was active at some accepted step
+        self.n_releases = 0  #: times the step operators were released (<= MAX_RELEASES)
+        self.released_operators = 0  #: step sizes' operators released after the impact
+        self._released = _OperatorTotals()  #: what the released operators did
         self.u = system.M.createVecRight()
         self.v, self.a = self.u.duplicate(), self.u.duplicate()
         self.u_new, self.u_pred = self.u.duplicate(), self.u.duplicate()
@@ -138,18 +141,30 @@ class NewmarkScheme:
         rhs.array[self.massless] = 0.0
         self.a.set(0.0)
         if rhs.norm() > 0.0:
-            solvers.solve_mass(self.M, rhs, self.a, np.union1d(self.fixed, self.massless), self.options,
-                               self.sys.mass_solver, self.sys.operator_cache)
+            solvers.solve_mass(
+                self.M,
+                rhs,
+                self.a,
+                np.union1d(self.fixed, self.massless),
+                self.options,
+                self.sys.mass_solver,
+                self.sys.operator_cache,
+            )
         rhs.destroy()
 
     def _ops(self, dt: float) -> StepOperators:
         if dt in self.ops:
             return self.ops[dt]
-        for known in self.ops:      # the same step from another schedule's grid, to round-off
+        for known in self.ops:  # the same step from another schedule's grid, to round-off
             if abs(known - dt) <= 1e-12 * dt:
                 return self.ops[known]
-        if (self.ops and not self._shared_ops and self.contact_seen and not self.active.any()
-                and self.n_releases < MAX_RELEASES):
+        if (
+            self.ops
+            and not self._shared_ops
+            and self.contact_seen
+            and not self.active.any()
+            and self.n_releases < MAX_RELEASES
+        ):
             self._release_step_operators()
         c0 = 1.0 / (self.beta * dt * dt)
         A = self.sys.K.copy()
@@ -167,9 +182,14 @@ class NewmarkScheme:
             ksp_u = saddle.ksp_u
         self.stats.n_factorizations += 1
         if self.comm.rank == 0:
-            log.info("dt = %.4g s: effective matrix factorized in %.2f s (%s)", dt, time.perf_counter() - t0,
-                     ksp_u.getPC().getFactorSolverType() if ksp_u.getPC().getType() in ("lu", "cholesky")
-                     else ksp_u.getPC().getType())
+            log.info(
+                "dt = %.4g s: effective matrix factorized in %.2f s (%s)",
+                dt,
+                time.perf_counter() - t0,
+                ksp_u.getPC().getFactorSolverType()
+                if ksp_u.getPC().getType() in ("lu", "cholesky")
+                else ksp_u.getPC().getType(),
+            )
         op = StepOperators(dt, A, ksp_u, saddle)
         self.ops[dt] = op
         return op
@@ -190,7 +210,7 @@ class NewmarkScheme:
         self.ops.clear()
         solvers.return_freed_memory()
 
-    def operator_totals(self) -> "_OperatorTotals":
+    def operator_totals(self) -> _OperatorTotals:
         """Factorizations and saddle-point solves of this run's step operators, released ones included."""
         return self._released.plus(self.ops.values())
 
@@ -215,9 +235,11 @@ class NewmarkScheme:
 
     def _lcp(self, C: ContactOperator, q: np.ndarray, gap_tol: float) -> LCPResult:
         """The frictionless contact LCP of the step over all candidates, solved on those that touch."""
+
         def solve(nodes, cols, S_sub):
             r = broadcast(self.comm, solve_lcp(S_sub, q[nodes], self._start_active()[nodes], gap_tol))
             return r, r.lam
+
         res, nodes, lam = self._on_touching(C, q, gap_tol, solve)
         return LCPResult(lam, lam > 0, res.iterations, res.method)
 
@@ -259,9 +281,11 @@ class NewmarkScheme:
                 self.stats.n_saddle_solves += 1
                 err = float(np.max(np.abs(lam_s - lam)))
                 if err > self.check_rtol * max(float(np.max(np.abs(lam))), 1e-300):
-                    raise SolverError(f"contact saddle-point solve disagrees with the LCP: max |dlambda| = "
-                                      f"{err:.3e} N (|lambda| = {np.max(np.abs(lam)):.3e} N) at step {step}, "
-                                      f"t = {t_new:.9g} s")
+                    raise SolverError(
+                        f"contact saddle-point solve disagrees with the LCP: max |dlambda| = "
+                        f"{err:.3e} N (|lambda| = {np.max(np.abs(lam)):.3e} N) at step {step}, "
+                        f"t = {t_new:.9g} s"
+                    )
                 lam = lam_s
             self.stats.n_newton += self.n_newton
             self.stats.max_newton = max(self.stats.max_newton, self.n_newton)
@@ -286,9 +310,11 @@ class NewmarkScheme:
         gap = self.contact.gap(self.u_new)
         lam_tol = 1e-8 * max(float(np.max(np.abs(lam), initial=0.0)), 1e-300)
         if n_c and (np.min(lam) < -lam_tol or np.min(gap) < -max(gap_tol, 1e-8 * scale)):
-            raise SolverError(f"contact conditions violated after the step: min lambda {np.min(lam):.3e} N, "
-                              f"min gap {np.min(gap):.3e} m at step {step}, t = {t_new:.9g} s")
-        if self.tau is not None:          # frictional
+            raise SolverError(
+                f"contact conditions violated after the step: min lambda {np.min(lam):.3e} N, "
+                f"min gap {np.min(gap):.3e} m at step {step}, t = {t_new:.9g} s"
+            )
+        if self.tau is not None:  # frictional
             self.tau = np.where(np.concatenate([lam, lam]) > lam_tol, self.tau, 0.0)
         lam = np.where(lam > lam_tol, lam, 0.0)
         # Newmark update on the local arrays
@@ -319,19 +345,31 @@ class NewmarkScheme:
         from . import friction
 
         self.tmp.waxpy(-1.0, self.u, self.u_pred)
-        q_t = self.contact.slip(self.tmp)           # slip increment of the predictor, m
+        q_t = self.contact.slip(self.tmp)  # slip increment of the predictor, m
         n_c = q.size
         tau0 = self.tau if self.tau is not None and self.tau.size == 2 * n_c else None
 
         def solve(nodes, cols, S_sub):
             # dense and small: solved on rank 0 only (the ranks share cores), the answer broadcast
             pairs = np.concatenate([nodes, n_c + nodes])
-            r = (friction.solve_friction(S_sub, q[nodes], q_t[pairs], self.mu, self._start_active()[nodes],
-                                         self.sliding[nodes], gap_tol, None if tau0 is None else tau0[pairs],
-                                         self.friction_rtol)
-                 if self.comm.rank == 0 else None)
+            r = (
+                friction.solve_friction(
+                    S_sub,
+                    q[nodes],
+                    q_t[pairs],
+                    self.mu,
+                    self._start_active()[nodes],
+                    self.sliding[nodes],
+                    gap_tol,
+                    None if tau0 is None else tau0[pairs],
+                    self.friction_rtol,
+                )
+                if self.comm.rank == 0
+                else None
+            )
             r = broadcast(self.comm, r)
             return r, np.concatenate([r.lam, r.tau])
+
         res, nodes, x = self._on_touching(C, q, gap_tol, solve)
         apply_contact_update(C, x, self.u_pred, self.u_new)
         cols = node_columns(nodes, n_c, True)
@@ -352,7 +390,7 @@ class NewmarkScheme:
         return self.contact.rate(self.v)
 
     def destroy(self) -> None:
-        if self._shared_ops:     # the system's cache keeps them for the next call
+        if self._shared_ops:  # the system's cache keeps them for the next call
             return
         for op in self.ops.values():
             _destroy_step_operators(op)
@@ -368,7 +406,7 @@ class _OperatorTotals:
     max_schur_iterations: int = 0
     monolithic: bool = False
 
-    def plus(self, ops) -> "_OperatorTotals":
+    def plus(self, ops) -> _OperatorTotals:
         out = self
         for op in ops:
             sd = op.saddle
@@ -376,7 +414,8 @@ class _OperatorTotals:
                 out.n_factorizations + (sd.n_factorizations if sd is not None else 1),
                 out.n_saddle_solves + (sd.n_solves if sd is not None else 0),
                 max(out.max_schur_iterations, sd.max_schur_iterations if sd is not None else 0),
-                out.monolithic or (sd is not None and not sd.fieldsplit))
+                out.monolithic or (sd is not None and not sd.fieldsplit),
+            )
         return out
 
 

@@ -38,22 +38,22 @@ What each saves, measured: docs/development/module-notes.md.
 A step that does not converge in ``plastic_max_iterations`` (40 with ``tangent``, 80 otherwise)
 raises :class:`SolverError` naming the step, the time and the residual.
 """
+
 from __future__ import annotations
 
-from typing import Mapping, Optional
+from collections.abc import Mapping
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..errors import InputError, SolverError
 from . import solvers
 from .body_blocks import BodyBlockSolver
 from .contact_operator import ContactOperator, apply_contact_update, contact_operator
-from .friction import PASS_RTOL
-from ..errors import InputError, SolverError
 from .dynamics import IntegrationStats, LinearDynamics
+from .friction import PASS_RTOL
 from .newmark import NewmarkScheme
-
 
 #: the residual of an exact linear solve relative to |r| (a step without contact or plastic
 #: force has a zero force scale: it converges at this round-off floor)
@@ -81,8 +81,9 @@ RETURN_MAPS = ("compiled", "numpy")
 class PlasticNewmarkScheme(NewmarkScheme):
     """Newmark (average acceleration, optional mass redistribution) with a :class:`NonlinearZone`."""
 
-    def __init__(self, system: LinearDynamics, redistribute: bool, options: Mapping, stats: IntegrationStats,
-                 comm: MPI.Comm):
+    def __init__(
+        self, system: LinearDynamics, redistribute: bool, options: Mapping, stats: IntegrationStats, comm: MPI.Comm
+    ):
         # the state update is u_pred + W x (each iteration's tangent has its own W): "schur"
         super().__init__(system, redistribute, {**dict(options), "contact_solve": "schur"}, stats, comm)
         self.contact_solve = stats.contact_solve = "schur"
@@ -91,14 +92,18 @@ class PlasticNewmarkScheme(NewmarkScheme):
         self.rtol = float(solvers.get_option("plastic_rtol", options, 1e-8))
         self.linearisation = str(solvers.get_option("plastic_linearisation", options, "elastic")).lower()
         if self.linearisation not in LINEARISATIONS:
-            raise InputError(f"-impact_plastic_linearisation {self.linearisation!r}: choose {', '.join(LINEARISATIONS)}")
+            raise InputError(
+                f"-impact_plastic_linearisation {self.linearisation!r}: choose {', '.join(LINEARISATIONS)}"
+            )
         # the accelerated fixed point converges linearly: up to 26 iterations a step on the plastic
         # liner segment (15 on the rig), against 17 for the reused tangent
         default_cap = 40 if self.linearisation == "tangent" else 80
         self.max_iterations = int(solvers.get_option("plastic_max_iterations", options, default_cap))
         if not (self.rtol > 0 and self.max_iterations >= 1):
-            raise InputError(f"-impact_plastic_rtol {self.rtol} / -impact_plastic_max_iterations "
-                             f"{self.max_iterations}: must be > 0 and >= 1")
+            raise InputError(
+                f"-impact_plastic_rtol {self.rtol} / -impact_plastic_max_iterations "
+                f"{self.max_iterations}: must be > 0 and >= 1"
+            )
         self.reuse = float(solvers.get_option("plastic_tangent_reuse", options, 0.5))
         if not 0.0 <= self.reuse < 1.0:
             raise InputError(f"-impact_plastic_tangent_reuse {self.reuse}: must be in [0, 1) (0 = full Newton)")
@@ -111,19 +116,23 @@ class PlasticNewmarkScheme(NewmarkScheme):
         self._at_committed = False
         self.candidate_fraction = float(solvers.get_option("plastic_candidate_fraction", options, 0.5))
         if not 0.0 <= self.candidate_fraction < 1.0:
-            raise InputError(f"-impact_plastic_candidate_fraction {self.candidate_fraction}: must be in [0, 1) "
-                             "(0 = every zone cell in every iteration)")
+            raise InputError(
+                f"-impact_plastic_candidate_fraction {self.candidate_fraction}: must be in [0, 1) "
+                "(0 = every zone cell in every iteration)"
+            )
         # a factorized tangent kept for reuse: (dt, dK, A_t, ksp, W)
-        self._held: Optional[tuple[float, PETSc.Mat, PETSc.Mat, PETSc.KSP, ContactOperator]] = None
+        self._held: tuple[float, PETSc.Mat, PETSc.Mat, PETSc.KSP, ContactOperator] | None = None
         self.forcing = float(solvers.get_option("plastic_friction_forcing", options, 0.1))
         if not 0.0 <= self.forcing <= 1.0:
-            raise InputError(f"-impact_plastic_friction_forcing {self.forcing}: must be in [0, 1] "
-                             "(0 = the full Coulomb test in every iteration)")
+            raise InputError(
+                f"-impact_plastic_friction_forcing {self.forcing}: must be in [0, 1] "
+                "(0 = the full Coulomb test in every iteration)"
+            )
         self.predictor = str(solvers.get_option("plastic_predictor", options, "extrapolated")).lower()
         if self.predictor not in PREDICTORS:
             raise InputError(f"-impact_plastic_predictor {self.predictor!r}: choose {', '.join(PREDICTORS)}")
         # (dt, version, f_c,n) of the last step's start: the predictor's increment
-        self._last_frozen: Optional[tuple[float, int, PETSc.Vec]] = None
+        self._last_frozen: tuple[float, int, PETSc.Vec] | None = None
         kernel = str(solvers.get_option("plastic_return_map", options, "compiled")).lower()
         if kernel not in RETURN_MAPS:
             raise InputError(f"-impact_plastic_return_map {kernel!r}: choose {', '.join(RETURN_MAPS)}")
@@ -133,9 +142,9 @@ class PlasticNewmarkScheme(NewmarkScheme):
         if blocks not in ("0", "1", "true", "false"):
             raise InputError(f"-impact_plastic_body_blocks {blocks!r}: choose 1 or 0")
         self.body_blocks = blocks in ("1", "true")
-        self._later_solves: dict[float, int] = {}     # per step size, solves beyond a step's first
+        self._later_solves: dict[float, int] = {}  # per step size, solves beyond a step's first
         # the active set of the step's last iteration's contact
-        self._iteration_active: Optional[np.ndarray] = None
+        self._iteration_active: np.ndarray | None = None
 
     def initialize(self, u0: PETSc.Vec, v0: PETSc.Vec) -> None:
         """Newmark's start with the zone's frozen plastic force: M a0 = -K u0 - f_c(u0). A start
@@ -163,7 +172,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
     # --- one step -------------------------------------------------------------------------------
     def step(self, dt: float, t_new: float, step: int, allow_reject: bool) -> bool:
         op = self._ops(dt)
-        self.friction_rtol = PASS_RTOL        # the test of the last solve (the step's first: none)
+        self.friction_rtol = PASS_RTOL  # the test of the last solve (the step's first: none)
         self._predictor_rhs(dt)
         r_norm = self.r.norm()
         u_k = self.u.copy()
@@ -171,7 +180,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
         work0 = self.stats.friction_work_J
         work_step = 0.0
         yielding_seen = False
-        fresh = self.reuse == 0.0            # a new tangent at the next yielding iteration
+        fresh = self.reuse == 0.0  # a new tangent at the next yielding iteration
         res_prev = None
         elastic = self.linearisation == "elastic"
         mixing = AndersonMixing(self.depth, self.comm) if self.linearisation != "tangent" else None
@@ -181,13 +190,13 @@ class PlasticNewmarkScheme(NewmarkScheme):
         # spent only on the iterate that passes the test (confirmed by the product itself)
         carry = elastic and self._direct_elastic(op)
         Au = None
-        solved_frozen = False     # u_k is the exact elastic solve with the committed state's f_c
+        solved_frozen = False  # u_k is the exact elastic solve with the committed state's f_c
         # after the first full evaluation that yields, the iterations return-map the candidate
         # cells alone (near or at yield); a full evaluation confirms the converged iterate
         candidates = self.candidate_fraction > 0.0 and self.linearisation != "tangent"
         restricted = False
-        extrapolated = False      # this iteration's solve took the predictor's force, not f_c(u_k)
-        self._iteration_active = None       # the active set of the last iteration's contact problem
+        extrapolated = False  # this iteration's solve took the predictor's force, not f_c(u_k)
+        self._iteration_active = None  # the active set of the last iteration's contact problem
         for it in range(self.max_iterations + 1):
             restricted_now = False
             if it == 0 and self._at_committed:
@@ -216,14 +225,14 @@ class PlasticNewmarkScheme(NewmarkScheme):
                 restricted = candidates and n_yield > 0
             yielding_seen |= n_yield > 0
             if it == 0 and carry:
-                res = f_scale = tol = np.inf      # never tested (only later iterates converge)
+                res = f_scale = tol = np.inf  # never tested (only later iterates converge)
             else:
                 res, f_scale = self._residual(op, u_k, f_c, x, Au)
                 tol = max(self.rtol * f_scale, ROUNDOFF_RTOL * r_norm)
             if self.friction_rtol > PASS_RTOL:
-                tol = 0.0      # x met a looser Coulomb test: one more iteration, at the full one
+                tol = 0.0  # x met a looser Coulomb test: one more iteration, at the full one
             if it > 0 and res <= tol and Au is not None:
-                res, f_scale = self._residual(op, u_k, f_c, x)     # the test on the true product
+                res, f_scale = self._residual(op, u_k, f_c, x)  # the test on the true product
                 tol = max(self.rtol * f_scale, ROUNDOFF_RTOL * r_norm)
             if it > 0 and res <= tol and restricted_now:
                 # the confirmation: a full evaluation at u_k; the same number of yielding points
@@ -234,7 +243,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
                     break
                 self.stats.n_plastic_candidate_misses += 1
                 if mixing is not None:
-                    mixing.forget()        # G changed with its candidates: the pairs were another map's
+                    mixing.forget()  # G changed with its candidates: the pairs were another map's
                 f_c.destroy()
                 self.zone.select_candidates(self.candidate_fraction)
                 f_c = self.zone.force_correction()
@@ -246,13 +255,16 @@ class PlasticNewmarkScheme(NewmarkScheme):
             fresh = fresh or (res_prev is not None and res > self.reuse * res_prev)
             res_prev = res
             if it == self.max_iterations:
-                raise SolverError(f"plastic Newton did not converge: residual {res:.3e} N (force scale {f_scale:.3e} N) "
-                                  f"after {it} iterations at step {step}, t = {t_new:.9g} s "
-                                  "(-impact_plastic_max_iterations, a smaller time.dt_contact)")
+                raise SolverError(
+                    f"plastic Newton did not converge: residual {res:.3e} N (force scale {f_scale:.3e} N) "
+                    f"after {it} iterations at step {step}, t = {t_new:.9g} s "
+                    "(-impact_plastic_max_iterations, a smaller time.dt_contact)"
+                )
             ksp, W, tangent = self._linearisation(op, u_k, f_c, 0 if elastic else n_yield, dt, fresh)
             if self.frictional:
-                self.friction_rtol = self._coulomb_rtol(res / f_scale if np.isfinite(res) else np.inf,
-                                                        n_yield == 0 and not extrapolated)
+                self.friction_rtol = self._coulomb_rtol(
+                    res / f_scale if np.isfinite(res) else np.inf, n_yield == 0 and not extrapolated
+                )
             solved_frozen = carry and n_yield == 0 and not extrapolated
             extrapolated = False
             if mixing is not None:
@@ -261,19 +273,20 @@ class PlasticNewmarkScheme(NewmarkScheme):
             self._solve(op, ksp, it > 0, step, t_new)
             self.stats.n_solves += 1
             q = self.contact.gap(self.u_pred)
-            gap_tol = self.gap_rtol * max(float(np.max(np.abs(q), initial=0.0)),
-                                          float(np.max(np.abs(self.contact.g0), initial=0.0)), 1e-300)
+            gap_tol = self.gap_rtol * max(
+                float(np.max(np.abs(q), initial=0.0)), float(np.max(np.abs(self.contact.g0), initial=0.0)), 1e-300
+            )
             if it == 0 and allow_reject and not np.all(q >= -gap_tol):
                 self._release(tangent)
                 return False
             x = self._contact(W, q, gap_tol, step)
             self._iteration_active = x[: q.size] > 0
-            work_step = self.stats.friction_work_J - work0      # only the last iteration's slip counts
+            work_step = self.stats.friction_work_J - work0  # only the last iteration's slip counts
             self.stats.friction_work_J = work0
             # A G(u_k) = rhs + C^T x (free rows) when carried
             AG = self._solved_product(x) if carry else None
             if mixing is not None and n_yield > 0:
-                Au = mixing.next_iterate(u_k, self.u_new, AG)     # u_k <- the accelerated G(u_k)
+                Au = mixing.next_iterate(u_k, self.u_new, AG)  # u_k <- the accelerated G(u_k)
             else:
                 self.u_new.copy(u_k)
                 Au = AG
@@ -307,13 +320,13 @@ class PlasticNewmarkScheme(NewmarkScheme):
             return False
         version, last = self.zone.version, self._last_frozen
         if last is not None and last[1] == version:
-            self._last_frozen = (dt, version, last[2])        # f_c,n = f_c,n-1: no increment
+            self._last_frozen = (dt, version, last[2])  # f_c,n = f_c,n-1: no increment
             return False
         self._last_frozen = (dt, version, f_c.copy())
         if last is None:
             return False
         dt_prev, _, f_prev = last
-        f_prev.aypx(-1.0, f_c)                  # f_c,n - f_c,n-1
+        f_prev.aypx(-1.0, f_c)  # f_c,n - f_c,n-1
         f_c.axpy(dt / dt_prev, f_prev)
         f_prev.destroy()
         return True
@@ -339,8 +352,9 @@ class PlasticNewmarkScheme(NewmarkScheme):
         n = self.zone.evaluate(u, tangent=self.linearisation == "tangent", candidates_only=candidates_only)
         return self.comm.allreduce(n, op=MPI.SUM)
 
-    def _residual(self, op, u: PETSc.Vec, f_c: PETSc.Vec, x: np.ndarray,
-                  Au: np.ndarray | None = None) -> tuple[float, float]:
+    def _residual(
+        self, op, u: PETSc.Vec, f_c: PETSc.Vec, x: np.ndarray, Au: np.ndarray | None = None
+    ) -> tuple[float, float]:
         """(|A u + f_c(u) - r - C^T x|, the force scale max(|f_c|, |C^T x|)) over the free dofs (N);
         ``Au`` (this rank's owned entries) stands for the product A u when the iteration carries it."""
         res, force = self._res, self._force
@@ -421,7 +435,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
             held = None
         if held is None:
             if self.linearisation == "held":
-                self.zone.evaluate(u_k, tangent=True)     # the same trial state, with C_t
+                self.zone.evaluate(u_k, tangent=True)  # the same trial state, with C_t
             dK = self.zone.stiffness_correction()
             A_t, ksp, W = self._factorize_tangent(op, dK)
             held = self._held = (dt, dK, A_t, ksp, W)
@@ -455,12 +469,12 @@ class PlasticNewmarkScheme(NewmarkScheme):
         A_t = op.A.copy()
         try:
             A_t.axpy(1.0, dK, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
-        except PETSc.Error:   # a projected tangent whose pattern is not inside A's
+        except PETSc.Error:  # a projected tangent whose pattern is not inside A's
             A_t.destroy()
             A_t = op.A.copy()
             A_t.axpy(1.0, dK, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
         ksp = solvers.create_effective_solver(A_t, self.petsc_options)
-        W = contact_operator(ksp, self.contact.C)     # columns computed as the steps need them
+        W = contact_operator(ksp, self.contact.C)  # columns computed as the steps need them
         self.stats.n_tangent_factorizations += 1
         return A_t, ksp, W
 
@@ -515,18 +529,18 @@ class AndersonMixing:
 
     def __init__(self, depth: int, comm: MPI.Comm):
         self.depth, self.comm = depth, comm
-        self.operator: object = None       # the KSP of G's solve (bind)
+        self.operator: object = None  # the KSP of G's solve (bind)
         #: the last iterate's (f, G(u), companion image or None), None before the first
-        self._prev: Optional[tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]] = None
+        self._prev: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
         # the pairs' columns in place, oldest overwritten (the least squares does not depend on
         # their order): no copies into a stacked array per iteration, and the Gram matrix dF^T dF
         # updated by one row (rig: 1.5 ms an iteration with the columns stacked anew)
-        self._dF: Optional[np.ndarray] = None
-        self._dG: Optional[np.ndarray] = None
-        self._dB: Optional[np.ndarray] = None
+        self._dF: np.ndarray | None = None
+        self._dG: np.ndarray | None = None
+        self._dB: np.ndarray | None = None
         self._gram = np.zeros((depth, depth))
-        self._count = 0                    # pairs kept (at most depth)
-        self._slot = 0                     # the next pair's column
+        self._count = 0  # pairs kept (at most depth)
+        self._slot = 0  # the next pair's column
 
     def bind(self, operator) -> None:
         """The operator of G's solve (a KSP): another one than the last makes another G, whose
@@ -568,10 +582,11 @@ class AndersonMixing:
         if self._prev is not None:
             f_prev, g_prev, b_prev = self._prev
             if b_prev is None:
-                companion = None          # the history has no images: stop carrying them
+                companion = None  # the history has no images: stop carrying them
             if self.depth > 0:
-                self._keep(f - f_prev, g - g_prev,
-                           companion - b_prev if companion is not None and b_prev is not None else None)
+                self._keep(
+                    f - f_prev, g - g_prev, companion - b_prev if companion is not None and b_prev is not None else None
+                )
         self._prev = (f, g, companion)
         out, image = g, companion
         k = self._count

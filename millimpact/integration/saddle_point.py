@@ -2,21 +2,30 @@
 PCFIELDSPLIT Schur with the exact Schur complement from W (prefix ``impact_``; see
 :mod:`millimpact.integration.solvers`), or a monolithic MUMPS LU (``-impact_pc_type lu``).
 """
+
 from __future__ import annotations
 
 import logging
-from typing import Mapping, Optional
+from collections.abc import Mapping
 
 import numpy as np
 from petsc4py import PETSc
 
+from .contact_operator import gather, scatter_into
+from .solvers import (
+    PREFIX,
+    SPLIT_LAM,
+    SPLIT_U,
+    check_ksp,
+    create_effective_solver,
+    mark_symmetric,
+    petsc_options,
+    saddle_solver_defaults,
+    setup_checked,
+    solve_checked,
+)
 
 log = logging.getLogger(__name__)
-
-
-
-from .solvers import PREFIX, SPLIT_LAM, SPLIT_U, check_ksp, create_effective_solver, mark_symmetric, petsc_options, saddle_solver_defaults, setup_checked, solve_checked
-from .contact_operator import gather, scatter_into
 
 
 # ------------------------------------------------------------------------------ saddle point
@@ -45,7 +54,7 @@ class SaddlePointSolver:
     of the active set, and :attr:`ksp_u` is a separate effective-matrix solver.
     """
 
-    def __init__(self, A: PETSc.Mat, B: PETSc.Mat, options: Optional[Mapping[str, object]] = None):
+    def __init__(self, A: PETSc.Mat, B: PETSc.Mat, options: Mapping[str, object] | None = None):
         self.A, self.B = A, B
         self.options = dict(options or {})
         comm = A.getComm()
@@ -65,9 +74,9 @@ class SaddlePointSolver:
         self.Sp = diagonal_aij(comm, self.m_loc, self.n_c, np.ones(self.n_c))
         self.n_factorizations = 0
         self.n_solves = 0
-        self.max_schur_iterations = 0   #: inner (Schur block) iterations of a solve, maximum
-        self._mono: Optional[PETSc.KSP] = None
-        self._mono_mat: Optional[PETSc.Mat] = None
+        self.max_schur_iterations = 0  #: inner (Schur block) iterations of a solve, maximum
+        self._mono: PETSc.KSP | None = None
+        self._mono_mat: PETSc.Mat | None = None
 
         defaults = saddle_solver_defaults(comm.tompi4py())
         self.ksp = PETSc.KSP().create(comm)
@@ -92,7 +101,7 @@ class SaddlePointSolver:
         if not self.fieldsplit:
             self.ksp_u = create_effective_solver(A, self.options)
             self.n_factorizations += 1
-        self._ready = self.fieldsplit    # the initial nest (no active row) matches its Schur matrix
+        self._ready = self.fieldsplit  # the initial nest (no active row) matches its Schur matrix
         self._rhs_u = A.createVecLeft()
         self._rhs_l = B.createVecLeft()
         self._x_u = A.createVecRight()
@@ -120,8 +129,11 @@ class SaddlePointSolver:
         if self.fieldsplit:
             # Schur complement of the masked system: -S on the active block, 1 on inactive rows
             ia = np.flatnonzero(active)
-            Sp = PETSc.Mat().createAIJ(((self.m_loc, self.n_c), (self.m_loc, self.n_c)),
-                                       nnz=(self.m_loc, self.n_c - self.m_loc), comm=self.comm)
+            Sp = PETSc.Mat().createAIJ(
+                ((self.m_loc, self.n_c), (self.m_loc, self.n_c)),
+                nnz=(self.m_loc, self.n_c - self.m_loc),
+                comm=self.comm,
+            )
             r0, r1 = Sp.getOwnershipRange()
             for i in range(r0, r1):
                 if active[i]:
@@ -181,12 +193,22 @@ class SaddlePointSolver:
     def destroy(self) -> None:
         """Free the PETSc objects (with the fieldsplit, the factorization in :attr:`ksp_u` goes with
         :attr:`ksp`)."""
-        objs = [self._mono, self._mono_mat, self.ksp, self.N, self.Bm, self.Btm, self.Bt, self.D, self.Sp,
-                self.mask, self._b, self._x]
+        objs = [
+            self._mono,
+            self._mono_mat,
+            self.ksp,
+            self.N,
+            self.Bm,
+            self.Btm,
+            self.Bt,
+            self.D,
+            self.Sp,
+            self.mask,
+            self._b,
+            self._x,
+        ]
         if not self.fieldsplit:
             objs.append(self.ksp_u)
         for o in objs:
             if o is not None:
                 o.destroy()
-
-

@@ -30,12 +30,14 @@ Beside it: the dense contact operator ``W = A^-1 B^T`` and ``S = B W`` (one mult
 solve per step size, :mod:`.contact_operator`), the saddle-point solver (:mod:`.saddle_point`) and
 the exact small LCP of a contact step (:mod:`.lcp`).
 """
+
 from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
-from typing import Iterator, Mapping, Optional, TypeVar
+from typing import TypeVar
 
 import numpy as np
 from mpi4py import MPI
@@ -50,10 +52,11 @@ PREFIX = "impact_"
 #: Split names of the saddle-point system (so the u block's prefix is ``impact_fieldsplit_u_``).
 SPLIT_U, SPLIT_LAM = "u", "lam"
 
-_KSP_REASONS = {getattr(PETSc.KSP.ConvergedReason, k): k for k in dir(PETSc.KSP.ConvergedReason)
-                if not k.startswith("_") and isinstance(getattr(PETSc.KSP.ConvergedReason, k), int)}
-
-
+_KSP_REASONS = {
+    getattr(PETSc.KSP.ConvergedReason, k): k
+    for k in dir(PETSc.KSP.ConvergedReason)
+    if not k.startswith("_") and isinstance(getattr(PETSc.KSP.ConvergedReason, k), int)
+}
 
 
 # ------------------------------------------------------------------------------------- options
@@ -74,8 +77,12 @@ def effective_solver_defaults(comm: MPI.Comm) -> dict[str, str]:
     # 20-35 %): the estimate fell short intermittently under mpirun -n 2 (INFOG(1) -9, INFO(2) 9297:
     # 1 in 20 runs of the MPI tests, benchmarks/mpi_stress.sh, "even with the refactorization
     # retry", which until 2026-11-26 never refactorized: see refactorize)
-    return {"ksp_type": "preonly", "pc_type": "cholesky", "pc_factor_mat_solver_type": "mumps",
-            "mat_mumps_icntl_14": MUMPS_WORKSPACE_PERCENT}
+    return {
+        "ksp_type": "preonly",
+        "pc_type": "cholesky",
+        "pc_factor_mat_solver_type": "mumps",
+        "mat_mumps_icntl_14": MUMPS_WORKSPACE_PERCENT,
+    }
 
 
 def saddle_solver_defaults(comm: MPI.Comm) -> dict[str, str]:
@@ -83,13 +90,19 @@ def saddle_solver_defaults(comm: MPI.Comm) -> dict[str, str]:
 
     Includes the ``fieldsplit_u_`` (effective matrix) and ``fieldsplit_lam_`` (Schur) blocks.
     """
-    d = {"ksp_type": "preonly", "pc_type": "fieldsplit", "pc_fieldsplit_type": "schur",
-         "pc_fieldsplit_schur_fact_type": "full", "pc_fieldsplit_schur_precondition": "user",
-         "fieldsplit_lam_ksp_type": "preonly", "fieldsplit_lam_pc_type": "lu",
-         "fieldsplit_lam_pc_factor_mat_solver_type": "mumps",
-         "fieldsplit_lam_mat_mumps_icntl_14": MUMPS_WORKSPACE_PERCENT,
-         # used only with -impact_pc_type lu (monolithic): MUMPS pivots on the zero block
-         "pc_factor_mat_solver_type": "mumps"}
+    d = {
+        "ksp_type": "preonly",
+        "pc_type": "fieldsplit",
+        "pc_fieldsplit_type": "schur",
+        "pc_fieldsplit_schur_fact_type": "full",
+        "pc_fieldsplit_schur_precondition": "user",
+        "fieldsplit_lam_ksp_type": "preonly",
+        "fieldsplit_lam_pc_type": "lu",
+        "fieldsplit_lam_pc_factor_mat_solver_type": "mumps",
+        "fieldsplit_lam_mat_mumps_icntl_14": MUMPS_WORKSPACE_PERCENT,
+        # used only with -impact_pc_type lu (monolithic): MUMPS pivots on the zero block
+        "pc_factor_mat_solver_type": "mumps",
+    }
     d.update({f"fieldsplit_{SPLIT_U}_{k}": v for k, v in effective_solver_defaults(comm).items()})
     return d
 
@@ -99,17 +112,16 @@ def mass_solver_defaults() -> dict[str, str]:
 
     The consistent mass matrix is well conditioned (condition number O(1) on quasi-uniform meshes).
     """
-    return {"ksp_type": "cg", "pc_type": "jacobi", "ksp_rtol": "1e-12", "ksp_atol": "0",
-            "ksp_max_it": "2000"}
+    return {"ksp_type": "cg", "pc_type": "jacobi", "ksp_rtol": "1e-12", "ksp_atol": "0", "ksp_max_it": "2000"}
 
 
 def option_key(key: object) -> str:
     """An option's key relative to ``-impact_`` (a leading ``-`` or ``impact_`` is accepted)."""
     k = str(key).lstrip("-")
-    return k[len(PREFIX):] if k.startswith(PREFIX) else k
+    return k[len(PREFIX) :] if k.startswith(PREFIX) else k
 
 
-def normalize_options(options: Optional[Mapping[str, object]]) -> dict[str, str]:
+def normalize_options(options: Mapping[str, object] | None) -> dict[str, str]:
     """Keys relative to ``-impact_`` (:func:`option_key`); values as strings."""
     out: dict[str, str] = {}
     for k, v in (options or {}).items():
@@ -192,7 +204,7 @@ def _petsc_options_used():
         try:
             import ctypes
 
-            fn = ctypes.CDLL(PETSc.__file__).PetscOptionsUsed   # dlsym searches its dependencies
+            fn = ctypes.CDLL(PETSc.__file__).PetscOptionsUsed  # dlsym searches its dependencies
             fn.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
             fn.restype = ctypes.c_int
         except (OSError, AttributeError):
@@ -220,19 +232,23 @@ def reset_option_usage() -> None:
     _READ_KEYS.clear()
 
 
-def unused_options(options: Optional[Mapping[str, object]]) -> Optional[list[str]]:
+def unused_options(options: Mapping[str, object] | None) -> list[str] | None:
     """The keys of ``options`` (as given, without a leading dash) that no PETSc object, no
     :func:`get_option` and no method setting read since :func:`reset_option_usage`: misspelled,
     or for a solver the run did not have. None when PETSc's usage record is not reachable."""
     if _petsc_options_used() is None:
         return None
-    return [str(key).lstrip("-") for key in options or {}
-            if PREFIX + option_key(key) not in _USED_NAMES and option_key(key) not in _READ_KEYS]
+    return [
+        str(key).lstrip("-")
+        for key in options or {}
+        if PREFIX + option_key(key) not in _USED_NAMES and option_key(key) not in _READ_KEYS
+    ]
 
 
 @contextmanager
-def petsc_options(defaults: Mapping[str, str], options: Optional[Mapping[str, object]] = None,
-                  prefix: str = PREFIX) -> Iterator[None]:
+def petsc_options(
+    defaults: Mapping[str, str], options: Mapping[str, object] | None = None, prefix: str = PREFIX
+) -> Iterator[None]:
     """Temporarily put ``{**defaults, **options}`` (keys relative to ``prefix``) into the PETSc
     options database, skipping keys already there (the command line wins); removed on exit.
 
@@ -261,7 +277,7 @@ def petsc_options(defaults: Mapping[str, str], options: Optional[Mapping[str, ob
 OptionValue = TypeVar("OptionValue", bool, int, float, str)
 
 
-def get_option(name: str, options: Optional[Mapping[str, object]], default: OptionValue) -> OptionValue:
+def get_option(name: str, options: Mapping[str, object] | None, default: OptionValue) -> OptionValue:
     """A non-PETSc setting ``-impact_<name>``: command line, else ``options``, else ``default``.
 
     The result has the type of ``default`` (bool, int, float or str).
@@ -294,8 +310,9 @@ def check_ksp(ksp: PETSc.KSP, what: str, step: int, t: float) -> None:
         extra = ""
         if reason == PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED:
             extra = _pc_failure(ksp.getPC())
-        raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) did not converge: {name}{extra} "
-                          f"at step {step}, t = {t:.9g} s")
+        raise SolverError(
+            f"{what} (prefix {ksp.getOptionsPrefix()}) did not converge: {name}{extra} at step {step}, t = {t:.9g} s"
+        )
 
 
 def _pc_failure(pc: PETSc.PC) -> str:
@@ -310,8 +327,9 @@ def _pc_failure(pc: PETSc.PC) -> str:
     try:
         if pc.getType() in ("lu", "cholesky") and pc.getFactorSolverType() == "mumps":
             F = pc.getFactorMatrix()
-            parts.append(f"MUMPS INFOG(1) {F.getMumpsInfog(1)}, INFO(1) {F.getMumpsInfo(1)}, "
-                         f"INFO(2) {F.getMumpsInfo(2)}")
+            parts.append(
+                f"MUMPS INFOG(1) {F.getMumpsInfog(1)}, INFO(1) {F.getMumpsInfo(1)}, INFO(2) {F.getMumpsInfo(2)}"
+            )
     except Exception:  # no factor matrix yet
         pass
     return f" ({'; '.join(parts)})" if parts else ""
@@ -322,8 +340,9 @@ def solve_checked(ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec, what: str, step: i
     try:
         ksp.solve(b, x)
     except PETSc.Error as e:
-        raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) failed: PETSc error {e.ierr} "
-                          f"at step {step}, t = {t:.9g} s") from e
+        raise SolverError(
+            f"{what} (prefix {ksp.getOptionsPrefix()}) failed: PETSc error {e.ierr} at step {step}, t = {t:.9g} s"
+        ) from e
     check_ksp(ksp, what, step, t)
 
 
@@ -332,7 +351,7 @@ def mark_symmetric(A: PETSc.Mat) -> None:
     A.setOption(PETSc.Mat.Option.SPD, True)
 
 
-def create_effective_solver(A: PETSc.Mat, options: Optional[Mapping[str, object]] = None) -> PETSc.KSP:
+def create_effective_solver(A: PETSc.Mat, options: Mapping[str, object] | None = None) -> PETSc.KSP:
     """A factorized solver of the effective matrix ``A`` (prefix ``impact_fieldsplit_u_``).
 
     The factorization happens here, once; ``ksp.solve`` then only does triangular solves.
@@ -342,7 +361,7 @@ def create_effective_solver(A: PETSc.Mat, options: Optional[Mapping[str, object]
     ksp.setOptionsPrefix(f"{PREFIX}fieldsplit_{SPLIT_U}_")
     ksp.setOperators(A)
     pre = f"fieldsplit_{SPLIT_U}_"
-    user = {k[len(pre):]: v for k, v in normalize_options(options).items() if k.startswith(pre)}
+    user = {k[len(pre) :]: v for k, v in normalize_options(options).items() if k.startswith(pre)}
     with petsc_options(effective_solver_defaults(A.getComm().tompi4py()), user, PREFIX + pre):
         ksp.setFromOptions()
         setup_checked(ksp, "factorization of the effective matrix")
@@ -356,8 +375,10 @@ def setup_checked(ksp: PETSc.KSP, what: str, step: int = 0, t: float = 0.0) -> N
     try:
         ksp.setUp()
     except PETSc.Error as e:
-        raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) failed in set-up: PETSc error "
-                          f"{e.ierr} at step {step}, t = {t:.9g} s") from e
+        raise SolverError(
+            f"{what} (prefix {ksp.getOptionsPrefix()}) failed in set-up: PETSc error "
+            f"{e.ierr} at step {step}, t = {t:.9g} s"
+        ) from e
     pc = ksp.getPC()
     # a failed factorization does not raise: the KSP's reason says so (petsc4py 3.18 has no
     # PC.getFailedReason; before this check such a failure surfaced at the first solve)
@@ -366,8 +387,9 @@ def setup_checked(ksp: PETSc.KSP, what: str, step: int = 0, t: float = 0.0) -> N
         codes = _pc_failure(pc)
         if _retry_mumps_workspace(ksp, what):
             return
-        raise SolverError(f"{what} (prefix {ksp.getOptionsPrefix()}) failed in set-up{codes} "
-                          f"at step {step}, t = {t:.9g} s")
+        raise SolverError(
+            f"{what} (prefix {ksp.getOptionsPrefix()}) failed in set-up{codes} at step {step}, t = {t:.9g} s"
+        )
 
 
 #: MUMPS ICNTL(14) (percentage of extra workspace over the analysis' estimate) tried after a
@@ -392,8 +414,12 @@ def _retry_mumps_workspace(ksp: PETSc.KSP, what: str) -> bool:
     for percent in MUMPS_WORKSPACE_RETRIES:
         if refactorize(ksp, {"mat_mumps_icntl_14": percent}):
             if MPI.COMM_WORLD.rank == 0:
-                log.warning("%s: MUMPS ran out of workspace (INFOG(1) -8/-9); refactorized with "
-                            "-%smat_mumps_icntl_14 %d", what, prefix, percent)
+                log.warning(
+                    "%s: MUMPS ran out of workspace (INFOG(1) -8/-9); refactorized with -%smat_mumps_icntl_14 %d",
+                    what,
+                    prefix,
+                    percent,
+                )
             return True
     return False
 
@@ -432,7 +458,7 @@ def return_freed_memory() -> None:
         pass
 
 
-def create_factored_solver(A: PETSc.Mat, prefix: str, options: Optional[Mapping[str, object]] = None) -> PETSc.KSP:
+def create_factored_solver(A: PETSc.Mat, prefix: str, options: Mapping[str, object] | None = None) -> PETSc.KSP:
     """A set-up (for a direct solver: factored) KSP of ``A`` with options prefix ``prefix``:
     ``options`` (keys relative to the prefix) are defaults, the command line wins."""
     ksp = PETSc.KSP().create(A.getComm())
@@ -444,8 +470,9 @@ def create_factored_solver(A: PETSc.Mat, prefix: str, options: Optional[Mapping[
     return ksp
 
 
-def solve_or_factorize(ksp: PETSc.KSP, A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, what: str,
-                       direct_prefix: str) -> PETSc.KSP:
+def solve_or_factorize(
+    ksp: PETSc.KSP, A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, what: str, direct_prefix: str
+) -> PETSc.KSP:
     """Solve ``A x = b`` with the (iterative) ``ksp``; if it does not converge, destroy it and
     solve with a Cholesky factorization of A instead (prefix ``direct_prefix``; CHOLMOD serial,
     MUMPS parallel). Returns the KSP that solved, for reuse. For mass matrices, whose Jacobi-CG
@@ -466,9 +493,15 @@ def solve_or_factorize(ksp: PETSc.KSP, A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec,
     return direct
 
 
-def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
-               options: Optional[Mapping[str, object]] = None, defaults: Optional[Mapping[str, str]] = None,
-               cache: Optional[dict] = None) -> None:
+def solve_mass(
+    M: PETSc.Mat,
+    b: PETSc.Vec,
+    x: PETSc.Vec,
+    unit_rows: np.ndarray,
+    options: Mapping[str, object] | None = None,
+    defaults: Mapping[str, str] | None = None,
+    cache: dict | None = None,
+) -> None:
     """Solve ``M x = b`` with ``x = 0`` on ``unit_rows`` (local owned indices: clamped and
     massless dofs), prefix ``impact_mass_``, for the initial acceleration (m/s^2).
 
@@ -492,7 +525,7 @@ def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
     ksp.setOptionsPrefix(PREFIX + "mass_")
     ksp.setOperators(Ms)
     pre = "mass_"
-    user = {k[len(pre):]: v for k, v in normalize_options(options).items() if k.startswith(pre)}
+    user = {k[len(pre) :]: v for k, v in normalize_options(options).items() if k.startswith(pre)}
     with petsc_options(dict(defaults) if defaults is not None else mass_solver_defaults(), user, PREFIX + pre):
         ksp.setFromOptions()
         ksp.setUp()
@@ -506,8 +539,13 @@ def solve_mass(M: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, unit_rows: np.ndarray,
 
 
 # ----------------------------------------------------------------------------- eigenvalues
-def estimate_max_eigenvalue(K: PETSc.Mat, m_lumped: PETSc.Vec, B: Optional[PETSc.Mat] = None,
-                            k_p: float = 0.0, options: Optional[Mapping[str, object]] = None) -> float:
+def estimate_max_eigenvalue(
+    K: PETSc.Mat,
+    m_lumped: PETSc.Vec,
+    B: PETSc.Mat | None = None,
+    k_p: float = 0.0,
+    options: Mapping[str, object] | None = None,
+) -> float:
     """Largest eigenvalue (rad^2/s^2) of ``M_lumped^-1 (K + k_p B^T B)`` over the dofs with mass.
 
     Computed as the largest eigenvalue of the symmetric ``D^-1/2 (K + k_p B^T B) D^-1/2``
@@ -535,8 +573,9 @@ def estimate_max_eigenvalue(K: PETSc.Mat, m_lumped: PETSc.Vec, B: Optional[PETSc
     eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
     eps.setDimensions(1)
     eps.setTolerances(1e-8, 1000)
-    with petsc_options({}, {k[4:]: v for k, v in normalize_options(options).items() if k.startswith("eps_")},
-                       PREFIX + "eps_"):
+    with petsc_options(
+        {}, {k[4:]: v for k, v in normalize_options(options).items() if k.startswith("eps_")}, PREFIX + "eps_"
+    ):
         eps.setFromOptions()
         eps.solve()
     lam = float("nan")
@@ -576,27 +615,45 @@ def check_type_options(options: Mapping[str, object]) -> None:
 
     for key, value in options.items():
         if str(key).endswith("block_krylov_size") and not str(value).strip().isdigit():
-            raise InputError(f"-{key} {value}: the block Krylov eigensolver's block size must be an integer "
-                             ">= 0 (0: SLEPc's Krylov-Schur; default 32)")
+            raise InputError(
+                f"-{key} {value}: the block Krylov eigensolver's block size must be an integer "
+                ">= 0 (0: SLEPc's Krylov-Schur; default 32)"
+            )
         if str(key).endswith("_substructures") and not str(value).strip().isdigit():
-            raise InputError(f"-{key} {value}: the number of slabs must be an integer >= 0 "
-                             "(0 or 1: one factorization of the region; default 0)")
+            raise InputError(
+                f"-{key} {value}: the number of slabs must be an integer >= 0 "
+                "(0 or 1: one factorization of the region; default 0)"
+            )
         if str(key).endswith("_substructure_zone_degree") and not str(value).strip().isdigit():
-            raise InputError(f"-{key} {value}: the zone-interface patterns' polynomial degree must be an integer "
-                             ">= 0 (0: every zone-interface coordinate its own constraint mode; default 0)")
+            raise InputError(
+                f"-{key} {value}: the zone-interface patterns' polynomial degree must be an integer "
+                ">= 0 (0: every zone-interface coordinate its own constraint mode; default 0)"
+            )
         for suffix, low, high, what in (
-                ("substructure_f_factor", 1.0, math.inf, "slab modes up to this x f_cut; default 1.5"),
-                ("substructure_trace_density", 0.0, math.inf,
-                 "trace degrees per shear wavelength; 0: every interface dof; default 4"),
-                ("substructure_margin", 0.0, math.inf, "shear wavelengths at f_cut; default 0.5"),
-                ("substructure_across", 0.0, math.inf, "a slab over this x the mean slab is cut again across; "
-                                                       "0: never; default 2"),
-                ("substructure_compress", 0.0, 1.0, "relative Gram eigenvalue of a dropped second-pass direction; "
-                                                    "0: keep all; default 1e-12"),
-                ("substructure_eps_tol", 1e-15, 1.0, "the slabs' eigensolver tolerance, relative residual; "
-                                                     "default 1e-4")):
+            ("substructure_f_factor", 1.0, math.inf, "slab modes up to this x f_cut; default 1.5"),
+            (
+                "substructure_trace_density",
+                0.0,
+                math.inf,
+                "trace degrees per shear wavelength; 0: every interface dof; default 4",
+            ),
+            ("substructure_margin", 0.0, math.inf, "shear wavelengths at f_cut; default 0.5"),
+            (
+                "substructure_across",
+                0.0,
+                math.inf,
+                "a slab over this x the mean slab is cut again across; 0: never; default 2",
+            ),
+            (
+                "substructure_compress",
+                0.0,
+                1.0,
+                "relative Gram eigenvalue of a dropped second-pass direction; 0: keep all; default 1e-12",
+            ),
+            ("substructure_eps_tol", 1e-15, 1.0, "the slabs' eigensolver tolerance, relative residual; default 1e-4"),
+        ):
             if str(key).endswith(suffix):
-                try:    # a value that is no number or numeric string (None, a list) is refused too
+                try:  # a value that is no number or numeric string (None, a list) is refused too
                     ok = isinstance(value, (int, float, str)) and low <= float(value) < high
                 except ValueError:
                     ok = False

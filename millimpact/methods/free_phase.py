@@ -25,13 +25,14 @@ Takes the reduced model, its contact dynamics and initial state, the contact set
 time steps and a :class:`millimpact.results.reduced_recorder.ReducedRecorder`; gives the summed
 integrator statistics and the phases' record (:func:`integrate_reduced`).
 """
+
 from __future__ import annotations
 
 import logging
 import math
 import time
 from types import SimpleNamespace
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 from petsc4py import PETSc
@@ -87,11 +88,24 @@ def resolve_free_phase(free_phase: str, red: ReducedModel, plan: Plan, t_end: fl
     return "modal", f"{n_free:.0f} free steps > {STEPS_PER_MODAL_COORDINATE:g} x {n_modal} modal coordinates"
 
 
-def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0: PETSc.Vec, qd0: PETSc.Vec,
-                      contact: ContactSet, plan: Plan, t_end: float, rec: ReducedRecorder, *,
-                      integrator: str = "newmark-mr", options: Optional[dict] = None, progress: bool = False,
-                      free_phase: str = "auto", f_free: float,
-                      min_span: Optional[float] = None, stop=None) -> dict[str, Any]:
+def integrate_reduced(
+    red: ReducedModel,
+    system: integrators.LinearDynamics,
+    q0: PETSc.Vec,
+    qd0: PETSc.Vec,
+    contact: ContactSet,
+    plan: Plan,
+    t_end: float,
+    rec: ReducedRecorder,
+    *,
+    integrator: str = "newmark-mr",
+    options: dict | None = None,
+    progress: bool = False,
+    free_phase: str = "auto",
+    f_free: float,
+    min_span: float | None = None,
+    stop=None,
+) -> dict[str, Any]:
     """Integrate a reduced model over [0, t_end], feeding ``rec``.
 
     ``free_phase = "step"``: the integrator all the way. ``"auto"`` (default): "modal" or "step",
@@ -116,20 +130,39 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
     t = 0.0
     stats_sum: dict[str, Any] = {}
     segments: list[tuple[str, float, float]] = []
-    out: dict[str, Any] = {"modal_rows": 0, "energy_dropped_J": 0.0, "free_modes": 0, "free_modes_time": 0.0,
-                           "free_modes_f_max_Hz": f_free, "mode": free_phase, "mode_asked": asked,
-                           "mode_reason": why}
-    modal: Optional[ModalProjection] = None
-    offset: Optional[SimpleNamespace] = None     # plastic runs: the residual state q_s
+    out: dict[str, Any] = {
+        "modal_rows": 0,
+        "energy_dropped_J": 0.0,
+        "free_modes": 0,
+        "free_modes_time": 0.0,
+        "free_modes_f_max_Hz": f_free,
+        "mode": free_phase,
+        "mode_asked": asked,
+        "mode_reason": why,
+    }
+    modal: ModalProjection | None = None
+    offset: SimpleNamespace | None = None  # plastic runs: the residual state q_s
     comm = red.comm
     while t < t_end * (1 - 1e-12):
         t_stop = t_end if free_phase == "step" else min(t_end, t_first if not segments else t + chunk)
         # between modal phases the steps are short: one step size (one factorization and one
         # contact operator W instead of two; the modal phase takes the free vibration)
-        q, qd, lam, st, mass = _run_steps(system, q, qd, t, t_stop, plan, rec, integrator, options, progress,
-                                          single_size=free_phase == "modal", stop=stop)
+        q, qd, lam, st, mass = _run_steps(
+            system,
+            q,
+            qd,
+            t,
+            t_stop,
+            plan,
+            rec,
+            integrator,
+            options,
+            progress,
+            single_size=free_phase == "modal",
+            stop=stop,
+        )
         _add_stats(stats_sum, st)
-        if math.isfinite(st.stopped_at):     # the stop callback ended the run
+        if math.isfinite(st.stopped_at):  # the stop callback ended the run
             segments.append(("step", t, t + st.stopped_at))
             stats_sum["stopped_at"] = t + st.stopped_at
             t_end = t + st.stopped_at
@@ -153,9 +186,10 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
             out["residual_state_time"] = out.get("residual_state_time", 0.0) + time.perf_counter() - t0
         q_free = q if offset is None else _minus(q, offset.q)
         g0 = contact.g0 if offset is None else contact.g0 + offset.gap_shift
-        res = _free_vibration(modal, gap_rows, g0, q_free, qd, t, t_end, plan, rec,
-                              chunk if min_span is None else min_span, offset)
-        if res is None:          # a gap closes soon: keep stepping
+        res = _free_vibration(
+            modal, gap_rows, g0, q_free, qd, t, t_end, plan, rec, chunk if min_span is None else min_span, offset
+        )
+        if res is None:  # a gap closes soon: keep stepping
             continue
         t_new, q_new, qd_new, n_rows, dropped = res
         out["modal_rows"] += n_rows
@@ -169,8 +203,13 @@ def integrate_reduced(red: ReducedModel, system: integrators.LinearDynamics, q0:
     stats_sum["t_end"] = t_end
     out["stats"] = stats_sum
     if comm.rank == 0 and modal is not None:
-        log.info("free phase: %d modal rows, %d modes up to %.4g kHz, %.3g J dropped at the switches",
-                 out["modal_rows"], out["free_modes"], f_free / 1e3, out["energy_dropped_J"])
+        log.info(
+            "free phase: %d modal rows, %d modes up to %.4g kHz, %.3g J dropped at the switches",
+            out["modal_rows"],
+            out["free_modes"],
+            f_free / 1e3,
+            out["energy_dropped_J"],
+        )
     return out
 
 
@@ -220,8 +259,20 @@ def _add_stats(total: dict, stats) -> None:
     total["n_segments"] = total.get("n_segments", 0) + 1
 
 
-def _run_steps(system, q, qd, t0: float, t1: float, plan: Plan, rec: ReducedRecorder, integrator: str,
-               options: dict, progress: bool, single_size: bool = False, stop=None):
+def _run_steps(
+    system,
+    q,
+    qd,
+    t0: float,
+    t1: float,
+    plan: Plan,
+    rec: ReducedRecorder,
+    integrator: str,
+    options: dict,
+    progress: bool,
+    single_size: bool = False,
+    stop=None,
+):
     """The integrator from (q, qd) at t0 to t1 (steps dt_contact, and dt_free out of contact unless
     ``single_size``), or until ``stop``; returns the final (q, qd, lambda, stats, mass matrix of
     the scheme)."""
@@ -232,19 +283,38 @@ def _run_steps(system, q, qd, t0: float, t1: float, plan: Plan, rec: ReducedReco
     def observe(st) -> None:
         last["st"] = st
         if st.step == 0 and t0 > 0:
-            return          # the state at t0 is already recorded
+            return  # the state at t0 is already recorded
         rec(st)
 
-    stats = integrators.integrate(system, q, qd, schedule, method=integrator, observer=observe,
-                                  options=dict(options), progress=progress, stop=stop)
+    stats = integrators.integrate(
+        system,
+        q,
+        qd,
+        schedule,
+        method=integrator,
+        observer=observe,
+        options=dict(options),
+        progress=progress,
+        stop=stop,
+    )
     st = last["st"]
     rec.time_offset = 0.0
     return st.u.copy(), st.v.copy(), np.array(st.lam, copy=True), stats, st.mass
 
 
-def _free_vibration(modal: ModalProjection, gap_rows: np.ndarray, g0: np.ndarray, q: PETSc.Vec, qd: PETSc.Vec,
-                    t0: float, t_end: float, plan: Plan, rec: ReducedRecorder, min_span: float,
-                    offset: Optional[SimpleNamespace] = None):
+def _free_vibration(
+    modal: ModalProjection,
+    gap_rows: np.ndarray,
+    g0: np.ndarray,
+    q: PETSc.Vec,
+    qd: PETSc.Vec,
+    t0: float,
+    t_end: float,
+    plan: Plan,
+    rec: ReducedRecorder,
+    min_span: float,
+    offset: SimpleNamespace | None = None,
+):
     """Closed-form free vibration from (q, qd) at t0, recorded on the free-step grid until t_end or
     until a gap is predicted below the plan's initial gap. None if that happens within
     ``min_span`` (stay with the integrator); else (t_stop, q, qd at t_stop or None at t_end, rows,
@@ -283,7 +353,7 @@ def _free_vibration(modal: ModalProjection, gap_rows: np.ndarray, g0: np.ndarray
     # first grid time with a gap below the threshold (gaps in closed form, in chunks of times)
     k_stop = None
     for k0 in range(0, len(times), 2048):
-        tau = times[k0:k0 + 2048] - t0
+        tau = times[k0 : k0 + 2048] - t0
         eta, _, _ = state(tau)
         gaps = g0[:, None] + gap_rows @ eta
         bad = np.nonzero(gaps.min(axis=0) < g_thr)[0]
@@ -292,7 +362,7 @@ def _free_vibration(modal: ModalProjection, gap_rows: np.ndarray, g0: np.ndarray
             break
     if k_stop is not None and times[k_stop] - t0 < min_span:
         return None
-    last = len(times) if k_stop is None else k_stop        # rows 0 .. last-1
+    last = len(times) if k_stop is None else k_stop  # rows 0 .. last-1
     for k0 in range(0, last, 2048):
         idx = np.arange(k0, min(last, k0 + 2048))
         rec.record_free(modal, times[idx], *state(times[idx] - t0), offset=offset)

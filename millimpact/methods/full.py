@@ -6,6 +6,7 @@ time integration by :mod:`millimpact.integration` (default Newmark with mass red
 linear solves by PETSc (:mod:`millimpact.integration.solvers`); rows by
 :class:`millimpact.results.recorder.Recorder`.
 """
+
 from __future__ import annotations
 
 import logging
@@ -22,9 +23,9 @@ from ..fem.plastic_zone import create_plastic_zone
 from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
 from ..geometry.mesh import create_mesh
 from ..integration import integrators
+from ..results.dent import plastic_report
 from ..results.fields import write_fields
 from ..results.output import RunOutput
-from ..results.dent import plastic_report
 from ..results.recorder import Recorder, impact_results
 from ..scene.plan import P1_EXPECTED_ERROR, P2_REMEDY, Plan
 from ..scene.schema import Scene
@@ -62,17 +63,26 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
         contact = create_contact(model, plan, radius=radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
     plastic = create_plastic_zone(model, [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)])
-    system = integrators.LinearDynamics(M=model.M, K=model.K, B=contact.B, g0=contact.g0,
-                                        fixed_dofs=model.fixed_dofs, contact_dofs=contact.contact_dofs,
-                                        T=contact.T, friction=plan.friction, plastic=plastic)
+    system = integrators.LinearDynamics(
+        M=model.M,
+        K=model.K,
+        B=contact.B,
+        g0=contact.g0,
+        fixed_dofs=model.fixed_dofs,
+        contact_dofs=contact.contact_dofs,
+        T=contact.T,
+        friction=plan.friction,
+        plastic=plastic,
+    )
     u0 = model.M.createVecRight()
     u0.set(0.0)
     v0 = model.ball_velocity(plan.velocity)
     rec = Recorder(model, contact, plan.probes, scene.outputs.field_times if scene.outputs.xdmf else (), plastic)
     schedule = integrators.TimeSchedule(t_end, plan.dt_contact, plan.dt_free)
     with stage(f"time loop to {t_end * 1e3:.3g} ms ({integrator})"):
-        stats = integrators.integrate(system, u0, v0, schedule, method=integrator, observer=rec,
-                                      options=options, progress=progress)
+        stats = integrators.integrate(
+            system, u0, v0, schedule, method=integrator, observer=rec, options=options, progress=progress
+        )
     ts = rec.series()
     wall = time.perf_counter() - t0
 
@@ -80,9 +90,14 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
     results["timings_s"] = {"mesh": t_mesh, "assemble": t_assemble, "integrate": wall - t_mesh - t_assemble}
     info = md.info
     model_info = {
-        "method": method, "degree": degree, "dofs": model.n_dofs_global, "contact_candidates": contact.n,
-        "symmetry": plan.symmetry, "symmetry_factor": model.sym_factor,
-        "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model, "ball_mass_exact_kg": plan.ball.mass,
+        "method": method,
+        "degree": degree,
+        "dofs": model.n_dofs_global,
+        "contact_candidates": contact.n,
+        "symmetry": plan.symmetry,
+        "symmetry_factor": model.sym_factor,
+        "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model,
+        "ball_mass_exact_kg": plan.ball.mass,
         "ball_density_scale": model.extra["ball_density_scale"],
         "mesh": info.__dict__ if hasattr(info, "__dict__") else str(info),
         "mpi_ranks": comm.size,
@@ -102,12 +117,13 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
     return RunOutput(method, ts, results, model_info, extra_writers=writers, notes=notes)
 
 
-
 #: what a P1 run should expect, from the measured convergence (docs/validation.md; benchmarks/
 #: full_hertz.py and reduced_vs_full.py): P1 is too stiff by a few percent whatever h_contact, the
 #: error sits in the far mesh; P2 of the same mesh is within ~1 % of Hertz
-P1_ERROR_NOTE = (f"expected accuracy: P1 is too stiff, {P1_EXPECTED_ERROR} on the half-space (+2.8 % against P2 "
-                 f"on the rig), and refining h_contact hardly helps; {P2_REMEDY} (docs: validation)")
+P1_ERROR_NOTE = (
+    f"expected accuracy: P1 is too stiff, {P1_EXPECTED_ERROR} on the half-space (+2.8 % against P2 "
+    f"on the rig), and refining h_contact hardly helps; {P2_REMEDY} (docs: validation)"
+)
 
 
 def run(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool) -> RunOutput:

@@ -4,6 +4,7 @@ Flight over the initial gap at the normal speed, then the Hertz contact history
 (:func:`millimpact.theory.hertz.hertz_history`), then the rebound. The target is a half-space of
 the struck body's material: no waves, no vibration, so the restitution is 1.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -37,8 +38,9 @@ def run_hertz(scene: Scene, plan: Plan) -> RunOutput:
     # approach_m as every method defines it (results/recorder.py): the ball centre's travel towards
     # the face less the initial gap, negative in flight and after the rebound; the overlap
     # (Hertz's delta) is its positive part
-    approach = np.concatenate([h.speed * t_flight - plan.gap, hist.approach,
-                               -hist.rebound_speed * (t_after - hist.contact_time)])
+    approach = np.concatenate(
+        [h.speed * t_flight - plan.gap, hist.approach, -hist.rebound_speed * (t_after - hist.contact_time)]
+    )
     overlap = np.maximum(approach, 0.0)
     vel = np.concatenate([np.full_like(t_flight, h.speed), hist.velocity, np.full_like(t_after, -hist.rebound_speed)])
     a = np.sqrt(h.radius * overlap)
@@ -46,26 +48,34 @@ def run_hertz(scene: Scene, plan: Plan) -> RunOutput:
         p = np.where(a > 0, 3 * force / (2 * np.pi * a * a), 0.0)
     acc_ball = -force / h.mass
     in_contact = np.concatenate([zeros_f, np.ones_like(hist.time), zeros_a]) > 0
-    ts = TimeSeries({
-        "time_s": t,
-        "contact_force_N": force,
-        "approach_m": approach,
-        "contact_radius_m": a,
-        "ball_velocity_m_s": vel,
-        "contact_point_displacement_m": share * overlap,
-        "contact_point_velocity_m_s": np.where(in_contact, share * vel, 0.0),
-        "contact_point_acceleration_m_s2": np.where(in_contact, share * acc_ball, 0.0),
-        "contact_point_stress_Pa": -p,
-        "ball_kinetic_energy_J": 0.5 * h.mass * vel**2,
-        "strain_energy_J": 0.4 * h.k * overlap**2.5,
-    })
+    ts = TimeSeries(
+        {
+            "time_s": t,
+            "contact_force_N": force,
+            "approach_m": approach,
+            "contact_radius_m": a,
+            "ball_velocity_m_s": vel,
+            "contact_point_displacement_m": share * overlap,
+            "contact_point_velocity_m_s": np.where(in_contact, share * vel, 0.0),
+            "contact_point_acceleration_m_s2": np.where(in_contact, share * acc_ball, 0.0),
+            "contact_point_stress_Pa": -p,
+            "ball_kinetic_energy_J": 0.5 * h.mass * vel**2,
+            "strain_energy_J": 0.4 * h.k * overlap**2.5,
+        }
+    )
     ts.columns["total_energy_J"] = ts["ball_kinetic_energy_J"] + ts["strain_energy_J"]
-    return RunOutput("hertz", ts, {"restitution": hist.rebound_speed / h.speed,
-                                   "peak_contact_stress_Pa": float(p.max())},
-                     {"dofs": 1, "description": "quasi-static Hertz contact, 1 DOF"},
-                     notes=["Hertz: quasi-static, half-space target, no wave or vibration losses (restitution 1)."]
-                     + (["Hertz is elastic: the materials' yield stress is not used (--method improved or full for plasticity)"]
-                        if plan.ball.material.plastic or plan.target.plastic else []))
+    return RunOutput(
+        "hertz",
+        ts,
+        {"restitution": hist.rebound_speed / h.speed, "peak_contact_stress_Pa": float(p.max())},
+        {"dofs": 1, "description": "quasi-static Hertz contact, 1 DOF"},
+        notes=["Hertz: quasi-static, half-space target, no wave or vibration losses (restitution 1)."]
+        + (
+            ["Hertz is elastic: the materials' yield stress is not used (--method improved or full for plasticity)"]
+            if plan.ball.material.plastic or plan.target.plastic
+            else []
+        ),
+    )
 
 
 def run(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool) -> RunOutput:

@@ -28,12 +28,13 @@ as contact-point stress, gauges from the modes' strains (sigma = E d.eps.d) plus
 modal, Hertz spring). Options: ``f_cut`` (Hz), ``modes`` (count, wins), ``h_contact`` (m),
 ``t_end`` (s), ``rtol`` (ODE).
 """
+
 from __future__ import annotations
 
 import logging
 import math
 import time
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 from mpi4py import MPI
@@ -41,23 +42,25 @@ from petsc4py import PETSc
 from scipy import integrate as sci
 
 from ..errors import InputError
-from ..geometry.mesh import create_mesh
 from ..fem.model import create_fe_model
 from ..fem.probes import create_probe
-from ..scene.plan import Plan, make_plan
+from ..geometry.mesh import create_mesh
 from ..integration.solvers import create_factored_solver
 from ..reduction.eigen import compute_modes, default_solver_options
-from ..results.timeseries import TimeSeries
 from ..results.output import RunOutput
-from .options import float_option, take
-from .reduced import refuse_plastic
+from ..results.timeseries import TimeSeries
+from ..scene.plan import Plan, make_plan
 from ..scene.schema import Scene
 from ..theory.hertz import FallingZeroEvent
+from .options import float_option, take
+from .reduced import refuse_plastic
 
 log = logging.getLogger(__name__)
 
-DESCRIPTION = ("Hertz contact spring (rigid ball) on the block's modal model (modes up to f_cut): "
-               "a light model of the block's structural response")
+DESCRIPTION = (
+    "Hertz contact spring (rigid ball) on the block's modal model (modes up to f_cut): "
+    "a light model of the block's structural response"
+)
 
 #: default contact mesh size of the block model, in units of a_max (the plan's is a_max / 4)
 COARSE_H_CONTACT = 0.5
@@ -85,8 +88,9 @@ def _scatter_add():
     return la.ScatterMode.add
 
 
-def compute_block_modes(scene: Scene, plan: Plan, f_cut: Optional[float], n_modes: Optional[int],
-                        comm: MPI.Comm = MPI.COMM_WORLD) -> BlockModes:
+def compute_block_modes(
+    scene: Scene, plan: Plan, f_cut: float | None, n_modes: int | None, comm: MPI.Comm = MPI.COMM_WORLD
+) -> BlockModes:
     """Mesh the scene, assemble P1 and compute the block's clamped modes (collective)."""
     t0 = time.perf_counter()
     md = create_mesh(scene, plan, comm)
@@ -123,7 +127,7 @@ def compute_block_modes(scene: Scene, plan: Plan, f_cut: Optional[float], n_mode
         vals = probe.values(u_fn.x.array)
         grads = probe.gradients(u_fn.x.array)
         g = np.array([E * d @ (0.5 * (gr + gr.T)) @ d for d, gr in zip(dirs, grads[1:])])
-        return -vals[0, 1], g                   # into the block (-y) positive
+        return -vals[0, 1], g  # into the block (-y) positive
 
     # (solved before the eigensolver takes the factorization over as its spectral transform)
     f_fn = model.function("unit_force")
@@ -155,33 +159,50 @@ def compute_block_modes(scene: Scene, plan: Plan, f_cut: Optional[float], n_mode
     for o in (full, ksp, K_bb, M_bb, I, x_st):
         o.destroy()
     omega = 2 * math.pi * np.asarray(freq)
-    info = {"fe_dofs": model.n_dofs_global, "block_dofs": comm.allreduce(len(idx)), "modes": len(freq),
-            "lowest_frequency_Hz": float(freq[0]) if len(freq) else None,
-            "highest_frequency_Hz": float(freq[-1]) if len(freq) else None, "next_frequency_Hz": nxt,
-            "f_cut_Hz": f_cut, "symmetry_factor": model.sym_factor,
-            "timings_s": {"mesh_and_model": t_model, "modes": t_modes}}
+    info = {
+        "fe_dofs": model.n_dofs_global,
+        "block_dofs": comm.allreduce(len(idx)),
+        "modes": len(freq),
+        "lowest_frequency_Hz": float(freq[0]) if len(freq) else None,
+        "highest_frequency_Hz": float(freq[-1]) if len(freq) else None,
+        "next_frequency_Hz": nxt,
+        "f_cut_Hz": f_cut,
+        "symmetry_factor": model.sym_factor,
+        "timings_s": {"mesh_and_model": t_model, "modes": t_modes},
+    }
     return BlockModes(omega, s, gauge, gauge_res, model.n_dofs_global, info)
 
 
-def _simulate(bm: BlockModes, m: float, k: float, v0: float, gap: float, n_sym: float, t_end: float,
-              dt_contact: float, dt_free: float, rtol: float) -> dict[str, np.ndarray]:
+def _simulate(
+    bm: BlockModes,
+    m: float,
+    k: float,
+    v0: float,
+    gap: float,
+    n_sym: float,
+    t_end: float,
+    dt_contact: float,
+    dt_free: float,
+    rtol: float,
+) -> dict[str, np.ndarray]:
     """Integrate the ball + modes system over [0, t_end]; returns sampled states."""
-    w2, s = bm.omega ** 2, bm.s
+    w2, s = bm.omega**2, bm.s
     n = len(s)
     omega = bm.omega
 
     def rhs(_t, y):
-        x, xd, eta, etad = y[0], y[1], y[2:2 + n], y[2 + n:]
+        x, xd, eta, etad = y[0], y[1], y[2 : 2 + n], y[2 + n :]
         d = x - gap - s @ eta
-        f = k * d ** 1.5 if d > 0 else 0.0
+        f = k * d**1.5 if d > 0 else 0.0
         return np.concatenate([[xd, -f / m], etad, -w2 * eta + s * (f / n_sym)])
 
-    released = FallingZeroEvent(lambda _t, y: y[0] - gap - s @ y[2:2 + n])
+    released = FallingZeroEvent(lambda _t, y: y[0] - gap - s @ y[2 : 2 + n])
 
     smax = max(float(np.max(np.abs(s))), 1e-300) if n else 1.0
-    d_scale = (m * v0 ** 2 / k) ** 0.4       # ~ delta_max
-    atol = np.concatenate([[1e-9 * d_scale, 1e-9 * v0], np.full(n, 1e-9 * d_scale / smax),
-                           np.full(n, 1e-9 * v0 / smax)])
+    d_scale = (m * v0**2 / k) ** 0.4  # ~ delta_max
+    atol = np.concatenate(
+        [[1e-9 * d_scale, 1e-9 * v0], np.full(n, 1e-9 * d_scale / smax), np.full(n, 1e-9 * v0 / smax)]
+    )
     times, states = [np.array([0.0])], [np.concatenate([[0.0, v0], np.zeros(2 * n)])[:, None]]
     t, y = 0.0, states[0][:, 0].copy()
     # flight over the gap (exact), then alternate contact (ODE) and free vibration (closed form)
@@ -190,16 +211,25 @@ def _simulate(bm: BlockModes, m: float, k: float, v0: float, gap: float, n_sym: 
     states.append(np.vstack([v0 * tf, np.full_like(tf, v0), np.zeros((2 * n, len(tf)))]))
     times.append(tf)
     t, y = t_touch, states[-1][:, -1].copy()
-    y[0] = gap                                # exactly touching
+    y[0] = gap  # exactly touching
     n_ode = 0
     plain = False
     while t < t_end * (1 - 1e-12):
         # contact: ODE until the spring releases (or a chunk ends); after a free phase that closed
         # within one free step, one free step of plain ODE (no release event) to get past it
         t_stop = min(t_end, t + (dt_free if plain else 40 * 100 * dt_contact))
-        sol = sci.solve_ivp(rhs, (t, t_stop), y, method="DOP853", rtol=rtol, atol=atol,
-                            events=None if plain else released,
-                            dense_output=True, first_step=dt_contact / 100, max_step=dt_contact)
+        sol = sci.solve_ivp(
+            rhs,
+            (t, t_stop),
+            y,
+            method="DOP853",
+            rtol=rtol,
+            atol=atol,
+            events=None if plain else released,
+            dense_output=True,
+            first_step=dt_contact / 100,
+            max_step=dt_contact,
+        )
         plain = False
         if sol.status < 0:
             raise RuntimeError(f"hertz-modal: ODE failed at t = {sol.t[-1]:.6g} s: {sol.message}")
@@ -213,7 +243,7 @@ def _simulate(bm: BlockModes, m: float, k: float, v0: float, gap: float, n_sym: 
         if t >= t_end * (1 - 1e-12):
             break
         # free: closed form until t_end or until delta > 0 on the free grid
-        x0, xd0, eta0, etad0 = y[0], y[1], y[2:2 + n], y[2 + n:]
+        x0, xd0, eta0, etad0 = y[0], y[1], y[2 : 2 + n], y[2 + n :]
         tau = np.arange(1, int(math.ceil((t_end - t) / dt_free)) + 1) * dt_free
         tau[-1] = min(tau[-1], t_end - t)
         c, sn = np.cos(np.outer(omega, tau)), np.sin(np.outer(omega, tau))
@@ -233,7 +263,7 @@ def _simulate(bm: BlockModes, m: float, k: float, v0: float, gap: float, n_sym: 
         t, y = float(t + tau[k_end - 1]), st[:, -1].copy()
     T = np.concatenate(times)
     Y = np.concatenate(states, axis=1)
-    return {"t": T, "x": Y[0], "xd": Y[1], "eta": Y[2:2 + n], "etad": Y[2 + n:], "n_ode_steps": n_ode}
+    return {"t": T, "x": Y[0], "xd": Y[1], "eta": Y[2 : 2 + n], "etad": Y[2 + n :], "n_ode_steps": n_ode}
 
 
 def run_hertz_modal(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool) -> RunOutput:
@@ -264,27 +294,40 @@ def run_hertz_modal(scene: Scene, plan: Plan, options: dict[str, Any], progress:
     h = plan.hertz
     n_sym = bm.info["symmetry_factor"]
     t_modes = time.perf_counter() - t_wall
-    sim = _simulate(bm, scene.ball.mass, h.k, h.speed, plan.gap, n_sym, t_end, plan.dt_contact / SAMPLES_PER_STEP,
-                    plan.dt_free, rtol)
+    sim = _simulate(
+        bm,
+        scene.ball.mass,
+        h.k,
+        h.speed,
+        plan.gap,
+        n_sym,
+        t_end,
+        plan.dt_contact / SAMPLES_PER_STEP,
+        plan.dt_free,
+        rtol,
+    )
     t, x, xd, eta, etad = sim["t"], sim["x"], sim["xd"], sim["eta"], sim["etad"]
     s = bm.s
     w, wd = s @ eta, s @ etad
     d = np.maximum(x - plan.gap - w, 0.0)
-    f = h.k * d ** 1.5
-    wdd = s @ (-(bm.omega ** 2)[:, None] * eta + s[:, None] * (f / n_sym))
+    f = h.k * d**1.5
+    wdd = s @ (-(bm.omega**2)[:, None] * eta + s[:, None] * (f / n_sym))
     xdd = -f / scene.ball.mass
     blk = scene.block.material
-    share = (1 - blk.poisson ** 2) / blk.youngs_modulus * h.e_star
+    share = (1 - blk.poisson**2) / blk.youngs_modulus * h.e_star
     in_c = d > 0
     dd = np.where(in_c, xd - wd, 0.0)
     a = np.sqrt(h.radius * d)
     with np.errstate(divide="ignore", invalid="ignore"):
         p = np.where(a > 0, 3 * f / (2 * np.pi * a * a), 0.0)
-    ke_ball = 0.5 * scene.ball.mass * xd ** 2
-    ke_modes = n_sym * 0.5 * np.sum(etad ** 2, axis=0)
-    se = 0.4 * h.k * d ** 2.5 + n_sym * 0.5 * np.sum((bm.omega ** 2)[:, None] * eta ** 2, axis=0)
+    ke_ball = 0.5 * scene.ball.mass * xd**2
+    ke_modes = n_sym * 0.5 * np.sum(etad**2, axis=0)
+    se = 0.4 * h.k * d**2.5 + n_sym * 0.5 * np.sum((bm.omega**2)[:, None] * eta**2, axis=0)
     cols = {
-        "time_s": t, "contact_force_N": f, "approach_m": x - plan.gap, "contact_radius_m": a,
+        "time_s": t,
+        "contact_force_N": f,
+        "approach_m": x - plan.gap,
+        "contact_radius_m": a,
         "ball_velocity_m_s": xd,
         "contact_point_displacement_m": w + share * d,
         "contact_point_velocity_m_s": wd + share * dd,
@@ -293,8 +336,14 @@ def run_hertz_modal(scene: Scene, plan: Plan, options: dict[str, Any], progress:
     }
     for i, g in enumerate(scene.gauges):
         cols[f"gauge_{g.name}_stress_Pa"] = bm.gauge[i] @ eta + bm.gauge_static[i] * f / n_sym
-    cols.update({"ball_kinetic_energy_J": ke_ball, "kinetic_energy_J": ke_ball + ke_modes, "strain_energy_J": se,
-                 "total_energy_J": ke_ball + ke_modes + se})
+    cols.update(
+        {
+            "ball_kinetic_energy_J": ke_ball,
+            "kinetic_energy_J": ke_ball + ke_modes,
+            "strain_energy_J": se,
+            "total_energy_J": ke_ball + ke_modes + se,
+        }
+    )
     ts = TimeSeries(cols)
     e = cols["total_energy_J"]
     on = np.nonzero(f > 0)[0]
@@ -311,18 +360,29 @@ def run_hertz_modal(scene: Scene, plan: Plan, options: dict[str, Any], progress:
         "energy_drift_max_rel": float(np.max(np.abs(e - e[0])) / e[0]),
         "vibration_energy_share_end": float(1.0 - ke_ball[-1] / e[0]),
         "peak_contact_stress_Pa": float(p.max()),
-        "peak_gauge_stress_Pa": {g.name: float(cols[f"gauge_{g.name}_stress_Pa"][
-            np.argmax(np.abs(cols[f"gauge_{g.name}_stress_Pa"]))]) for g in scene.gauges},
+        "peak_gauge_stress_Pa": {
+            g.name: float(cols[f"gauge_{g.name}_stress_Pa"][np.argmax(np.abs(cols[f"gauge_{g.name}_stress_Pa"]))])
+            for g in scene.gauges
+        },
         "timings_s": {**bm.info["timings_s"], "integrate": wall - t_modes},
         "ode_steps": int(sim["n_ode_steps"]),
     }
-    model = {"method": "hertz-modal", "dofs": 1 + len(s), "modes": len(s), "fe_dofs": bm.n_fe,
-             "block": bm.info, "h_contact_m": mplan.h_contact, "description": DESCRIPTION}
-    notes = [f"hertz-modal: rigid ball + Hertz spring on {len(s)} block modes up to "
-             f"{(bm.info['highest_frequency_Hz'] or 0) / 1e3:.4g} kHz (f_cut {f_cut / 1e3:.4g} kHz), "
-             f"P1 block mesh {bm.n_fe} dofs (h_contact {mplan.h_contact * 1e3:.3g} mm)",
-             "normal impact component only; no ball vibration; modes above f_cut and the local "
-             "wave radiation beyond Hertz are left out"]
+    model = {
+        "method": "hertz-modal",
+        "dofs": 1 + len(s),
+        "modes": len(s),
+        "fe_dofs": bm.n_fe,
+        "block": bm.info,
+        "h_contact_m": mplan.h_contact,
+        "description": DESCRIPTION,
+    }
+    notes = [
+        f"hertz-modal: rigid ball + Hertz spring on {len(s)} block modes up to "
+        f"{(bm.info['highest_frequency_Hz'] or 0) / 1e3:.4g} kHz (f_cut {f_cut / 1e3:.4g} kHz), "
+        f"P1 block mesh {bm.n_fe} dofs (h_contact {mplan.h_contact * 1e3:.3g} mm)",
+        "normal impact component only; no ball vibration; modes above f_cut and the local "
+        "wave radiation beyond Hertz are left out",
+    ]
     return RunOutput("hertz-modal", ts, results, model, notes=notes)
 
 

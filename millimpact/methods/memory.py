@@ -23,12 +23,13 @@ A run is refused when its ranks on this node would need more than :data:`USABLE_
 ``MILLIMPACT_AVAILABLE_MEMORY`` (bytes) overrides the available memory (tests), and
 ``MILLIMPACT_MEMORY_CHECK=off`` turns the check off.
 """
+
 from __future__ import annotations
 
 import dataclasses
 import os
 from pathlib import Path
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 from ..errors import InputError
 from ..integration.solvers import normalize_options
@@ -80,7 +81,7 @@ class MemoryEstimate(NamedTuple):
     ranks: int
 
 
-def method_degree(method: str, plan: Plan, options: Optional[dict] = None) -> int:
+def method_degree(method: str, plan: Plan, options: dict | None = None) -> int:
     """The Lagrange degree a ``method`` run of ``plan`` uses."""
     if method in METHOD_DEGREE:
         return METHOD_DEGREE[method]
@@ -88,18 +89,19 @@ def method_degree(method: str, plan: Plan, options: Optional[dict] = None) -> in
     return int(asked) if asked not in (None, "") else plan.degree
 
 
-def substructured(dofs: int, options: Optional[dict] = None) -> bool:
+def substructured(dofs: int, options: dict | None = None) -> bool:
     """Whether a reduced run of ``dofs`` DOFs cuts its struck body into slabs
     (``-impact_reduction_block_substructures``, or by itself: :func:`~millimpact.reduction.substructures.auto_slabs`).
     The model's DOFs stand in for the region's interior dofs, which the plan does not know (the
     ball and the zone are ~6 % of the panel's): near the threshold the two can disagree."""
-    body = "reduction_block_"       # the reduction's own decision, on the run's options for the block
-    mine = {k[len(body):]: v for k, v in normalize_options(options).items() if k.startswith(body)}
+    body = "reduction_block_"  # the reduction's own decision, on the run's options for the block
+    mine = {k[len(body) :]: v for k, v in normalize_options(options).items() if k.startswith(body)}
     return substructure_settings("impact_" + body, mine, dofs) is not None
 
 
-def estimate_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None,
-                    ranks: int = 1) -> MemoryEstimate:
+def estimate_memory(
+    scene: Scene, plan: Plan, method: str, options: dict | None = None, ranks: int = 1
+) -> MemoryEstimate:
     """Peak memory per rank (bytes) of a ``method`` run of ``scene`` with ``plan`` on ``ranks``
     ranks: MEMORY_MARGIN (base + c N^(4/3) / ranks) (:data:`MEMORY_MODELS`), N the estimated DOFs;
     a substructured reduction (:func:`substructured`): base + c L^(4/3) + b N / ranks with L the
@@ -138,7 +140,7 @@ def available_memory() -> tuple[float, str]:
     return best, where
 
 
-def available_override() -> Optional[float]:
+def available_override() -> float | None:
     """``MILLIMPACT_AVAILABLE_MEMORY`` in bytes (None: unset); not a number > 0 is one line (InputError)."""
     env = os.environ.get("MILLIMPACT_AVAILABLE_MEMORY")
     if not env:
@@ -148,14 +150,25 @@ def available_override() -> Optional[float]:
     except ValueError:
         value = float("nan")
     if not (value > 0 and value != float("inf")):
-        raise InputError(f"MILLIMPACT_AVAILABLE_MEMORY={env!r}: must be a number of bytes > 0 (e.g. 8e9), "
-                         "or unset to read the machine's")
+        raise InputError(
+            f"MILLIMPACT_AVAILABLE_MEMORY={env!r}: must be a number of bytes > 0 (e.g. 8e9), "
+            "or unset to read the machine's"
+        )
     return value
 
 
 #: the values of ``MILLIMPACT_MEMORY_CHECK`` (case ignored; unset or empty: on)
-CHECK_SWITCH = {"off": False, "0": False, "no": False, "false": False,
-                "on": True, "1": True, "yes": True, "true": True, "": True}
+CHECK_SWITCH = {
+    "off": False,
+    "0": False,
+    "no": False,
+    "false": False,
+    "on": True,
+    "1": True,
+    "yes": True,
+    "true": True,
+    "": True,
+}
 
 
 def memory_check_applies(method: str) -> bool:
@@ -166,13 +179,16 @@ def memory_check_applies(method: str) -> bool:
     value = os.environ.get("MILLIMPACT_MEMORY_CHECK", "")
     switch = CHECK_SWITCH.get(value.strip().lower())
     if switch is None:
-        raise InputError(f"MILLIMPACT_MEMORY_CHECK={value!r}: must be off (or 0, no, false) to turn the memory "
-                         "check off, or on (1, yes, true; the default)")
+        raise InputError(
+            f"MILLIMPACT_MEMORY_CHECK={value!r}: must be off (or 0, no, false) to turn the memory "
+            "check off, or on (1, yes, true; the default)"
+        )
     return method != "hertz" and switch
 
 
-def check_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] = None, ranks: int = 1,
-                 ranks_on_node: int = 1) -> Optional[MemoryEstimate]:
+def check_memory(
+    scene: Scene, plan: Plan, method: str, options: dict | None = None, ranks: int = 1, ranks_on_node: int = 1
+) -> MemoryEstimate | None:
     """Refuse (:class:`InputError`, one line: the estimate, the available memory and the option to
     change) a run whose ``ranks_on_node`` ranks would not fit in this node's available memory;
     returns the estimate (None when not checked)."""
@@ -185,7 +201,7 @@ def check_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] 
         return est
     # the far size that would fit (the plan's sizes otherwise), to name in the message
     h, suggestion = plan.h_far, ""
-    while h < smallest_size(scene):     # coarser than the smallest body size is no model
+    while h < smallest_size(scene):  # coarser than the smallest body size is no model
         h *= 1.1
         trial = dataclasses.replace(plan, h_far=h)
         e = estimate_memory(scene, trial, method, options, ranks)
@@ -193,9 +209,13 @@ def check_memory(scene: Scene, plan: Plan, method: str, options: Optional[dict] 
             suggestion = f"--set model.h_far={h:.3g} (~{e.dofs:,} DOFs, {e.per_rank / GB:.3g} GB a rank)"
             break
     if not suggestion:
-        suggestion = (f"--set model.h_contact=... (larger; no far size up to the smallest body size "
-                      f"{smallest_size(scene) * 1e3:.3g} mm fits)")
-    raise InputError(f"estimated peak memory {est.per_rank / GB:.3g} GB a rank x {ranks_on_node} rank(s) on this node "
-                     f"({method}, P{est.degree}, ~{est.dofs:,} DOFs, h_far {plan.h_far * 1e3:.3g} mm) exceeds "
-                     f"{USABLE_SHARE:.0%} of the available {avail / GB:.3g} GB ({where}): coarsen the mesh with "
-                     f"{suggestion}, or run on a machine with more memory")
+        suggestion = (
+            f"--set model.h_contact=... (larger; no far size up to the smallest body size "
+            f"{smallest_size(scene) * 1e3:.3g} mm fits)"
+        )
+    raise InputError(
+        f"estimated peak memory {est.per_rank / GB:.3g} GB a rank x {ranks_on_node} rank(s) on this node "
+        f"({method}, P{est.degree}, ~{est.dofs:,} DOFs, h_far {plan.h_far * 1e3:.3g} mm) exceeds "
+        f"{USABLE_SHARE:.0%} of the available {avail / GB:.3g} GB ({where}): coarsen the mesh with "
+        f"{suggestion}, or run on a machine with more memory"
+    )

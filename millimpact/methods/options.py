@@ -1,8 +1,9 @@
 """Method options (``--option KEY=VALUE``, PETSc-style ``-KEY VALUE``): typed reading with one-line
 errors that name the option."""
+
 from __future__ import annotations
 
-from typing import Optional, overload
+from typing import overload
 
 from ..errors import InputError
 from ..integration.solvers import note_option_read, option_key
@@ -45,8 +46,8 @@ def _typed_option(options: dict, key: str, default, kind: type, what: str):
 @overload
 def int_option(options: dict, key: str, default: int) -> int: ...
 @overload
-def int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]: ...
-def int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]:
+def int_option(options: dict, key: str, default: int | None) -> int | None: ...
+def int_option(options: dict, key: str, default: int | None) -> int | None:
     """Pop ``key`` as an integer."""
     return _typed_option(options, key, default, int, "an integer")
 
@@ -54,7 +55,7 @@ def int_option(options: dict, key: str, default: Optional[int]) -> Optional[int]
 @overload
 def float_option(options: dict, key: str, default: float) -> float: ...
 @overload
-def float_option(options: dict, key: str, default: Optional[float]) -> Optional[float]: ...
-def float_option(options: dict, key: str, default: Optional[float]) -> Optional[float]:
+def float_option(options: dict, key: str, default: float | None) -> float | None: ...
+def float_option(options: dict, key: str, default: float | None) -> float | None:
     """Pop ``key`` as a number."""
     return _typed_option(options, key, default, float, "a number")

@@ -32,15 +32,16 @@ The run (:func:`run_reduced`): the reduced plan (a smaller contact zone), mesh, 
 its contact rows, the reduction, the reduced contact dynamics; the time loop with its closed-form
 free phase is :mod:`.free_phase`, the observables :class:`millimpact.results.reduced_recorder.ReducedRecorder`.
 """
+
 from __future__ import annotations
 
 import logging
 import math
 import time
 from dataclasses import dataclass
-from types import SimpleNamespace
 from pathlib import Path
-from typing import Any, NamedTuple, Optional
+from types import SimpleNamespace
+from typing import Any, NamedTuple
 
 import numpy as np
 from mpi4py import MPI
@@ -56,12 +57,12 @@ from ..geometry.mesh import create_mesh
 from ..integration import integrators
 from ..integration.integrators import SeparationStop
 from ..integration.solvers import normalize_options, petsc_options
-from ..reduction.craig_bampton import reduce_model
-from ..reduction.reduced_model import MASS_FACTORIZATION, ReducedModel
 from ..reduction.augmentation import AUGMENTATION_PATTERNS
-from ..reduction.partition import create_nodal_zone_basis, partition_dofs
+from ..reduction.craig_bampton import reduce_model
 from ..reduction.nmm_zone import create_nmm_zone
+from ..reduction.partition import create_nodal_zone_basis, partition_dofs
 from ..reduction.plastic_projection import ProjectedPlasticZone
+from ..reduction.reduced_model import MASS_FACTORIZATION, ReducedModel
 from ..results.dent import plastic_report
 from ..results.fields import write_fields
 from ..results.output import RunOutput
@@ -111,19 +112,19 @@ REDUCED_METHODS = {
 class ReducedOptions(NamedTuple):
     """The options of a reduced run (module docstring), read by :func:`read_reduced_options`."""
 
-    degree: int                  #: Lagrange degree of the method
-    kind: str                    #: contact-zone basis: "nodal" or "nmm"
+    degree: int  #: Lagrange degree of the method
+    kind: str  #: contact-zone basis: "nodal" or "nmm"
     integrator: str
-    t_end: float                 #: s
-    n_modes: Optional[int]       #: modes per body (wins over f_cut)
-    f_cut: float                 #: the reduction's cutoff, Hz
-    remedy: str                  #: NMM null-space remedy
-    recovery: str                #: mode-acceleration | modal
-    augment: tuple[str, ...]     #: modal truncation augmentation patterns
-    free_phase: str              #: auto | modal | step
-    free_factor: float           #: free modes up to this many times the plan's f_cut
-    min_span: Optional[float]    #: s
-    candidate_radius: Optional[float] = None   #: m; None: the reduced plan's (REDUCED_CANDIDATE_FACTOR a_max)
+    t_end: float  #: s
+    n_modes: int | None  #: modes per body (wins over f_cut)
+    f_cut: float  #: the reduction's cutoff, Hz
+    remedy: str  #: NMM null-space remedy
+    recovery: str  #: mode-acceleration | modal
+    augment: tuple[str, ...]  #: modal truncation augmentation patterns
+    free_phase: str  #: auto | modal | step
+    free_factor: float  #: free modes up to this many times the plan's f_cut
+    min_span: float | None  #: s
+    candidate_radius: float | None = None  #: m; None: the reduced plan's (REDUCED_CANDIDATE_FACTOR a_max)
 
 
 def read_reduced_options(method: str, scene: Scene, plan: Plan, options: dict[str, Any]) -> ReducedOptions:
@@ -152,8 +153,21 @@ def read_reduced_options(method: str, scene: Scene, plan: Plan, options: dict[st
     cand = float_option(options, "candidate_radius", None)
     if cand is not None and not (math.isfinite(cand) and cand > 0):
         raise InputError(f"option candidate_radius = {cand!r}: must be a length > 0 m")
-    return ReducedOptions(degree, kind, integrator, t_end, n_modes, f_cut, remedy, recovery, augment, free_phase,
-                          free_factor, min_span, cand)
+    return ReducedOptions(
+        degree,
+        kind,
+        integrator,
+        t_end,
+        n_modes,
+        f_cut,
+        remedy,
+        recovery,
+        augment,
+        free_phase,
+        free_factor,
+        min_span,
+        cand,
+    )
 
 
 def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str]]:
@@ -170,44 +184,68 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
         # region with its margin (plan.py PLASTIC_ZONE_MARGIN)
         plastic = PLASTIC_ZONE_MARGIN * plan.plastic_radius
         # a user's fine radius (model.fine_radius) lies inside the zone, as the plan requires
-        zone = max(REDUCED_ZONE_FACTOR * a, plastic, REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact,
-                   scene.model.fine_radius or 0.0)
-        for _ in range(30):     # a fixed point: the boundary size grows with the zone, but slower
+        zone = max(
+            REDUCED_ZONE_FACTOR * a,
+            plastic,
+            REDUCED_CANDIDATE_FACTOR * a + 3.0 * plan.h_contact,
+            scene.model.fine_radius or 0.0,
+        )
+        for _ in range(30):  # a fixed point: the boundary size grows with the zone, but slower
             zone = max(zone, REDUCED_CANDIDATE_FACTOR * a + boundary_element_size(plan, zone, scene.model.fine_radius))
-        if zone == plastic:     # as the plan: no more than the bodies allow
+        if zone == plastic:  # as the plan: no more than the bodies allow
             zone = min(zone, PLASTIC_ZONE_CAP * zone_radius_limit(scene))
         scene = scene.with_value("model.zone_radius", zone)
         c_p = plan.plastic_radius
         plan = make_plan(scene)
-        notes.append(f"contact zone radius {zone * 1e3:.4g} mm = {zone / a:.3g} a_max (reduced methods' default"
-                     + (f", {zone / c_p:.3g} x the predicted plastic radius {c_p * 1e3:.3g} mm" if c_p > 0 and zone >= 0.9 * plastic else "")
-                     + f"; full on the same mesh: --set model.zone_radius={zone!r})")
+        notes.append(
+            f"contact zone radius {zone * 1e3:.4g} mm = {zone / a:.3g} a_max (reduced methods' default"
+            + (
+                f", {zone / c_p:.3g} x the predicted plastic radius {c_p * 1e3:.3g} mm"
+                if c_p > 0 and zone >= 0.9 * plastic
+                else ""
+            )
+            + f"; full on the same mesh: --set model.zone_radius={zone!r})"
+        )
     radius = min(REDUCED_CANDIDATE_FACTOR * a, min(plan.zone_radius, plan.ball_zone) - 2.0 * plan.h_contact)
     if radius < 1.2 * a:
-        raise InputError(f"model.zone_radius = {plan.zone_radius:g} m: too small for the contact candidates "
-                         f"(needs at least {1.2 * a + 2.0 * plan.h_contact:g} m = 1.2 a_max + 2 h_contact)")
-    notes.append(f"contact candidates within {radius * 1e3:.4g} mm ({radius / a:.3g} a_max) of the contact axis "
-                 f"(full with the same candidates: -candidate_radius {radius!r}); "
-                 f"f_cut {plan.f_cut / 1e3:.4g} kHz ({plan.f_cut * plan.hertz.contact_time:.3g} / t_c), "
-                 f"dt_contact {plan.dt_contact * 1e6:.4g} us (t_c / {plan.hertz.contact_time / plan.dt_contact:.3g}), "
-                 f"dt_free {plan.dt_free * 1e6:.4g} us")
+        raise InputError(
+            f"model.zone_radius = {plan.zone_radius:g} m: too small for the contact candidates "
+            f"(needs at least {1.2 * a + 2.0 * plan.h_contact:g} m = 1.2 a_max + 2 h_contact)"
+        )
+    notes.append(
+        f"contact candidates within {radius * 1e3:.4g} mm ({radius / a:.3g} a_max) of the contact axis "
+        f"(full with the same candidates: -candidate_radius {radius!r}); "
+        f"f_cut {plan.f_cut / 1e3:.4g} kHz ({plan.f_cut * plan.hertz.contact_time:.3g} / t_c), "
+        f"dt_contact {plan.dt_contact * 1e6:.4g} us (t_c / {plan.hertz.contact_time / plan.dt_contact:.3g}), "
+        f"dt_free {plan.dt_free * 1e6:.4g} us"
+    )
     return scene, plan, radius, notes
 
 
-def boundary_element_size(plan: Plan, zone: float, fine_radius: Optional[float] = None) -> float:
+def boundary_element_size(plan: Plan, zone: float, fine_radius: float | None = None) -> float:
     """The element size (m) the mesh has at distance ``zone`` from the contact point when the zone
     radius is ``zone``: h_contact within the fine radius (``fine_radius``, the scene's
     ``model.fine_radius``; None: the plan's default 1.5 a_max), then the linear growth to h_far over
     :func:`millimpact.scene.plan.size_growth_distance` (:mod:`millimpact.geometry.builders`)."""
     fine = min(fine_radius if fine_radius is not None else 1.5 * plan.hertz.a_max, zone)
-    grow = (plan.h_far - plan.h_contact) * max(0.0, zone - fine) / size_growth_distance(plan.h_contact, plan.h_far, zone,
-                                                                              plan.h_ball > 0)
+    grow = (
+        (plan.h_far - plan.h_contact)
+        * max(0.0, zone - fine)
+        / size_growth_distance(plan.h_contact, plan.h_far, zone, plan.h_ball > 0)
+    )
     return min(plan.h_far, plan.h_contact + grow)
 
 
-def build_reduced_model(model: FEModel, kind: str, *, f_cut: Optional[float], n_modes: Optional[int],
-                        remedy: str = "interface", augment: tuple[str, ...] = (),
-                        keep_away=None) -> ReducedModel:
+def build_reduced_model(
+    model: FEModel,
+    kind: str,
+    *,
+    f_cut: float | None,
+    n_modes: int | None,
+    remedy: str = "interface",
+    augment: tuple[str, ...] = (),
+    keep_away=None,
+) -> ReducedModel:
     """The reduced model of ``model`` for a zone description ``kind`` ("nodal" or "nmm"), its modes
     augmented by the zone-motion patterns ``augment`` (:func:`millimpact.reduction.reduce_model`);
     ``keep_away``: points (the gauges) a substructured body's cuts stay away from."""
@@ -216,8 +254,7 @@ def build_reduced_model(model: FEModel, kind: str, *, f_cut: Optional[float], n_
         zone = create_nmm_zone(model, part, remedy=remedy).basis
     else:
         zone = create_nodal_zone_basis(model, part)
-    return reduce_model(model, zone, f_cut=f_cut, n_modes=n_modes, partition=part, augment=augment,
-                        keep_away=keep_away)
+    return reduce_model(model, zone, f_cut=f_cut, n_modes=n_modes, partition=part, augment=augment, keep_away=keep_away)
 
 
 def reduced_system(red: ReducedModel, contact: ContactSet, friction: float) -> integrators.LinearDynamics:
@@ -232,12 +269,22 @@ def reduced_system(red: ReducedModel, contact: ContactSet, friction: float) -> i
     if n_shared and red.comm.rank == 0:
         # their mass rows carry the dense Craig-Bampton couplings: mass redistribution would
         # spread their mass over the interface and the modes
-        log.warning("%d contact coordinates lie on the zone/region interface: the contact candidates "
-                    "reach the zone boundary; enlarge model.zone_radius", n_shared)
-    return integrators.LinearDynamics(M=red.M, K=red.K, B=B_r, g0=contact.g0,
-                                      fixed_dofs=np.zeros(0, dtype=np.int32), contact_dofs=contact_coords,
-                                      T=red.project_rows(contact.T) if contact.T is not None else None,
-                                      friction=friction, mass_solver=dict(MASS_FACTORIZATION))
+        log.warning(
+            "%d contact coordinates lie on the zone/region interface: the contact candidates "
+            "reach the zone boundary; enlarge model.zone_radius",
+            n_shared,
+        )
+    return integrators.LinearDynamics(
+        M=red.M,
+        K=red.K,
+        B=B_r,
+        g0=contact.g0,
+        fixed_dofs=np.zeros(0, dtype=np.int32),
+        contact_dofs=contact_coords,
+        T=red.project_rows(contact.T) if contact.T is not None else None,
+        friction=friction,
+        mass_solver=dict(MASS_FACTORIZATION),
+    )
 
 
 def initial_state(red: ReducedModel, velocity) -> tuple[PETSc.Vec, PETSc.Vec]:
@@ -252,11 +299,16 @@ def initial_state(red: ReducedModel, velocity) -> tuple[PETSc.Vec, PETSc.Vec]:
 def refuse_plastic(method: str, plan: Plan) -> None:
     """For a method without plasticity (hertz-modal: a rigid ball on the block's modes), a plastic
     material is one line naming the way out."""
-    plastic = [name for name, mat in (("ball.material", plan.ball.material), ("the struck body's material", plan.target))
-               if mat.plastic]
+    plastic = [
+        name
+        for name, mat in (("ball.material", plan.ball.material), ("the struck body's material", plan.target))
+        if mat.plastic
+    ]
     if plastic:
-        raise InputError(f"--method {method}: {' and '.join(plastic)} yield (yield_stress / flow_curve); --method "
-                         f"{method} is elastic; use --method improved, traditional or full")
+        raise InputError(
+            f"--method {method}: {' and '.join(plastic)} yield (yield_stress / flow_curve); --method "
+            f"{method} is elastic; use --method improved, traditional or full"
+        )
 
 
 @dataclass
@@ -278,11 +330,17 @@ class ReducedSetup:
     timings: dict[str, float]
     #: the contact dynamics shared by the impacts (``share_operators``): their step factorizations
     #: and contact operators W are kept between impacts of the same time step
-    system: Optional[integrators.LinearDynamics] = None
+    system: integrators.LinearDynamics | None = None
 
 
-def build_reduced_setup(scene: Scene, plan: Plan, options: dict[str, Any], method: str,
-                        comm: MPI.Comm = MPI.COMM_WORLD, share_operators: bool = False) -> ReducedSetup:
+def build_reduced_setup(
+    scene: Scene,
+    plan: Plan,
+    options: dict[str, Any],
+    method: str,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    share_operators: bool = False,
+) -> ReducedSetup:
     """The offline part of a reduced run: reduced plan, mesh, model, contact rows, reduction
     (``options``: the run's options; the reduced run's own keys are taken out of it).
     ``share_operators``: one contact dynamics for every impact on this setup, whose factorized
@@ -294,8 +352,10 @@ def build_reduced_setup(scene: Scene, plan: Plan, options: dict[str, Any], metho
         # run's saturation warning names this option
         room = min(plan.zone_radius, plan.ball_zone) - 2.0 * plan.h_contact
         if opt.candidate_radius > room:
-            raise InputError(f"option candidate_radius = {opt.candidate_radius!r}: must be at most the contact zone's "
-                             f"radius less 2 h_contact, {room:.4g} m (or --set model.zone_radius larger)")
+            raise InputError(
+                f"option candidate_radius = {opt.candidate_radius!r}: must be at most the contact zone's "
+                f"radius less 2 h_contact, {room:.4g} m (or --set model.zone_radius larger)"
+            )
         cand_radius = opt.candidate_radius
         plan_notes = plan_notes + [f"contact candidates within {cand_radius * 1e3:.4g} mm (-candidate_radius)"]
     t0 = time.perf_counter()
@@ -307,15 +367,34 @@ def build_reduced_setup(scene: Scene, plan: Plan, options: dict[str, Any], metho
         contact = create_contact(model, plan, radius=cand_radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
     with stage("reduction (SLEPc modes, Craig-Bampton)"), reduction_solver_options(options):
-        red = build_reduced_model(model, opt.kind, f_cut=opt.f_cut, n_modes=opt.n_modes, remedy=opt.remedy,
-                                  augment=opt.augment, keep_away=[g.point for g in plan.probes.gauges])
+        red = build_reduced_model(
+            model,
+            opt.kind,
+            f_cut=opt.f_cut,
+            n_modes=opt.n_modes,
+            remedy=opt.remedy,
+            augment=opt.augment,
+            keep_away=[g.point for g in plan.probes.gauges],
+        )
     t_reduce = time.perf_counter() - t0 - t_mesh - t_assemble
     system = None
     if share_operators:
         system = reduced_system(red, contact, plan.friction)
         system.operator_cache = {}
-    return ReducedSetup(method, scene, plan, opt, md, model, contact, red, cand_radius, plan_notes,
-                        {"mesh": t_mesh, "assemble": t_assemble, "reduction_offline": t_reduce}, system)
+    return ReducedSetup(
+        method,
+        scene,
+        plan,
+        opt,
+        md,
+        model,
+        contact,
+        red,
+        cand_radius,
+        plan_notes,
+        {"mesh": t_mesh, "assemble": t_assemble, "reduction_offline": t_reduce},
+        system,
+    )
 
 
 def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str) -> RunOutput:
@@ -325,8 +404,16 @@ def run_reduced(scene: Scene, plan: Plan, options: dict[str, Any], progress: boo
     return run_reduced_case(setup, setup.scene, setup.plan, options, progress, release=True)
 
 
-def run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dict[str, Any], progress: bool,
-                     t_end: Optional[float] = None, release: bool = False, impact_only: bool = False) -> RunOutput:
+def run_reduced_case(
+    setup: ReducedSetup,
+    scene: Scene,
+    plan: Plan,
+    options: dict[str, Any],
+    progress: bool,
+    t_end: float | None = None,
+    release: bool = False,
+    impact_only: bool = False,
+) -> RunOutput:
     """One impact on a built reduced model: ``scene``/``plan`` (the same mesh sizes, zone and
     gap as the setup's; their own velocity, time steps and probes) from rest but the ball's
     velocity to ``t_end`` (default the setup's). A fresh plastic zone per impact. ``release``
@@ -336,7 +423,7 @@ def run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dic
     separate (:class:`millimpact.integration.integrators.SeparationStop`), at ``t_end`` at the
     latest, and the energies are recorded every ENERGY_EVERY_IMPACT_ONLY rows (and on the first
     and last; :attr:`millimpact.results.recorder.Recorder.energy_every`)."""
-    with reduction_solver_options(options):    # the mass projection, the free modes, the output rows
+    with reduction_solver_options(options):  # the mass projection, the free modes, the output rows
         return _run_reduced_case(setup, scene, plan, options, progress, t_end, release, impact_only)
 
 
@@ -348,8 +435,16 @@ def reduction_solver_options(options: dict[str, Any]):
     return petsc_options({}, {k: v for k, v in normalize_options(options).items() if k.startswith("reduction_")})
 
 
-def _run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: dict[str, Any], progress: bool,
-                      t_end: Optional[float], release: bool, impact_only: bool) -> RunOutput:
+def _run_reduced_case(
+    setup: ReducedSetup,
+    scene: Scene,
+    plan: Plan,
+    options: dict[str, Any],
+    progress: bool,
+    t_end: float | None,
+    release: bool,
+    impact_only: bool,
+) -> RunOutput:
     comm = setup.model.V.mesh.comm
     opt, model, contact, red, method = setup.opt, setup.model, setup.contact, setup.red, setup.method
     t_end = opt.t_end if t_end is None else t_end
@@ -363,8 +458,9 @@ def _run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: di
     t_case = time.perf_counter() - t0
 
     t1 = time.perf_counter()
-    rec = ReducedRecorder(red, contact, plan.probes, scene.outputs.field_times if scene.outputs.xdmf else (),
-                          opt.recovery, plastic)
+    rec = ReducedRecorder(
+        red, contact, plan.probes, scene.outputs.field_times if scene.outputs.xdmf else (), opt.recovery, plastic
+    )
     if release:
         red.release_recovery()
     stop = None
@@ -374,24 +470,52 @@ def _run_reduced_case(setup: ReducedSetup, scene: Scene, plan: Plan, options: di
     t_rows = time.perf_counter() - t1
     t1 = time.perf_counter()
     with stage(f"time loop to {t_end * 1e3:.3g} ms ({opt.integrator}, free phase {free_phase})"):
-        run = integrate_reduced(red, system, q0, qd0, contact, plan, t_end, rec, integrator=opt.integrator,
-                                options=dict(options), progress=progress, free_phase=free_phase,
-                                # the free modes follow the output grid (dt_free = 1 / (10 plan.f_cut)),
-                                # not a -f_cut option, which sets the reduction's cutoff alone
-                                f_free=opt.free_factor * plan.f_cut, min_span=opt.min_span, stop=stop)
+        run = integrate_reduced(
+            red,
+            system,
+            q0,
+            qd0,
+            contact,
+            plan,
+            t_end,
+            rec,
+            integrator=opt.integrator,
+            options=dict(options),
+            progress=progress,
+            free_phase=free_phase,
+            # the free modes follow the output grid (dt_free = 1 / (10 plan.f_cut)),
+            # not a -f_cut option, which sets the reduction's cutoff alone
+            f_free=opt.free_factor * plan.f_cut,
+            min_span=opt.min_span,
+            stop=stop,
+        )
     t_integrate = time.perf_counter() - t1
     ts = rec.series()
     results = impact_results(ts, plan.normal_speed, plan.probes.gauge_names, run["stats"], opt.integrator)
-    results["timings_s"] = {**setup.timings, "reduction_offline": setup.timings["reduction_offline"] + t_case,
-                            "free_modes_offline": run["free_modes_time"], "output_rows": t_rows,
-                            "integrate": t_integrate, "reduction_detail": dict(red.timings)}
+    results["timings_s"] = {
+        **setup.timings,
+        "reduction_offline": setup.timings["reduction_offline"] + t_case,
+        "free_modes_offline": run["free_modes_time"],
+        "output_rows": t_rows,
+        "integrate": t_integrate,
+        "reduction_detail": dict(red.timings),
+    }
     results["free_phase"] = {k: v for k, v in run.items() if k not in ("stats",)}
     model_info = {
-        "method": method, "degree": opt.degree, "dofs": model.n_dofs_global, "reduced_dofs": red.n_global,
-        "reduction": red.report(), "contact_candidates": contact.n, "symmetry": plan.symmetry,
-        "symmetry_factor": model.sym_factor, "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model,
-        "ball_mass_exact_kg": plan.ball.mass, "mesh": setup.md.info.to_json(), "mpi_ranks": comm.size,
-        "zone_radius_m": plan.zone_radius, "candidate_radius_m": setup.cand_radius,
+        "method": method,
+        "degree": opt.degree,
+        "dofs": model.n_dofs_global,
+        "reduced_dofs": red.n_global,
+        "reduction": red.report(),
+        "contact_candidates": contact.n,
+        "symmetry": plan.symmetry,
+        "symmetry_factor": model.sym_factor,
+        "ball_mass_model_kg": model.sym_factor * rec.ball_mass_model,
+        "ball_mass_exact_kg": plan.ball.mass,
+        "mesh": setup.md.info.to_json(),
+        "mpi_ranks": comm.size,
+        "zone_radius_m": plan.zone_radius,
+        "candidate_radius_m": setup.cand_radius,
     }
     notes = reduced_notes(method, opt, model, red) + setup.notes + mode_notes(red)
     notes += candidate_notes(ts, setup.cand_radius, plan, results)
@@ -425,16 +549,20 @@ def candidate_notes(ts, cand_radius: float, plan: Plan, results: dict) -> list[s
     results["contact_radius_max_m"] = reached
     if not saturated:
         return []
-    return [f"WARNING: the contact reached the candidates' edge ({reached * 1e3:.4g} mm of {cand_radius * 1e3:.4g} mm): "
-            f"rerun with -candidate_radius {1.3 * cand_radius!r} (and --set model.zone_radius="
-            f"{max(plan.zone_radius, 1.3 * cand_radius + 3.0 * plan.h_contact)!r} if the zone is too small)"]
+    return [
+        f"WARNING: the contact reached the candidates' edge ({reached * 1e3:.4g} mm of {cand_radius * 1e3:.4g} mm): "
+        f"rerun with -candidate_radius {1.3 * cand_radius!r} (and --set model.zone_radius="
+        f"{max(plan.zone_radius, 1.3 * cand_radius + 3.0 * plan.h_contact)!r} if the zone is too small)"
+    ]
 
 
 def reduced_notes(method: str, opt: ReducedOptions, model: FEModel, red: ReducedModel) -> list[str]:
     """The run's first note: the method, the full and reduced sizes, the cutoff."""
-    return [f"{method}: P{opt.degree}, {model.n_dofs_global} dofs -> {red.n_global} reduced "
-            f"({red.n_zone} zone, {red.n_modes} modal), f_cut {opt.f_cut / 1e3:.4g} kHz"
-            + (f", {opt.n_modes} modes per body" if opt.n_modes is not None else "")]
+    return [
+        f"{method}: P{opt.degree}, {model.n_dofs_global} dofs -> {red.n_global} reduced "
+        f"({red.n_zone} zone, {red.n_modes} modal), f_cut {opt.f_cut / 1e3:.4g} kHz"
+        + (f", {opt.n_modes} modes per body" if opt.n_modes is not None else "")
+    ]
 
 
 def mode_notes(red: ReducedModel) -> list[str]:
@@ -442,12 +570,18 @@ def mode_notes(red: ReducedModel) -> list[str]:
     notes = []
     for b in red.bodies:
         f = b.frequencies_hz
-        f = f[:len(f) - b.n_augmented - b.n_patterns]
-        notes.append(f"  {b.name}: {len(f)} modes" + (f", {f[0] / 1e3:.4g}-{f[-1] / 1e3:.4g} kHz" if len(f) else "")
-                     + (f" + {b.n_augmented} augmentation vectors" if b.n_augmented else "")
-                     + (f" + {b.n_patterns} zone-interface pattern vectors (gauges recovered in the slabs' Ritz space)"
-                        if b.n_patterns else "")
-                     + (" (constraint and fixed-interface modes from the reduction cache)" if b.from_cache else ""))
+        f = f[: len(f) - b.n_augmented - b.n_patterns]
+        notes.append(
+            f"  {b.name}: {len(f)} modes"
+            + (f", {f[0] / 1e3:.4g}-{f[-1] / 1e3:.4g} kHz" if len(f) else "")
+            + (f" + {b.n_augmented} augmentation vectors" if b.n_augmented else "")
+            + (
+                f" + {b.n_patterns} zone-interface pattern vectors (gauges recovered in the slabs' Ritz space)"
+                if b.n_patterns
+                else ""
+            )
+            + (" (constraint and fixed-interface modes from the reduction cache)" if b.from_cache else "")
+        )
     return notes
 
 

@@ -5,10 +5,12 @@ Each entry names the module (under :mod:`millimpact.methods`) and the function t
 module (and with it DOLFINx, PETSc, SLEPc) is loaded when the method runs, so ``--help`` lists
 every method at once and cheaply. To add a method: write its module, add one row here.
 """
+
 from __future__ import annotations
 
 import importlib
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 from ..errors import InputError
 
@@ -17,9 +19,9 @@ class MethodEntry(NamedTuple):
     """A run method: its ``--method`` name, family, one-line summary and where its runner lives."""
 
     name: str
-    family: str        #: "analytical", "fe" (full finite elements) or "reduced" (Craig-Bampton)
+    family: str  #: "analytical", "fe" (full finite elements) or "reduced" (Craig-Bampton)
     summary: str
-    module: str        #: module under millimpact.methods
+    module: str  #: module under millimpact.methods
     function: str = "run"
     #: what the contact point's velocity and acceleration are: "patch" (the centre of mass of the
     #: half-ball of radius a_max under it: FE models) or "surface" (the surface point of the
@@ -32,16 +34,26 @@ METHODS: tuple[MethodEntry, ...] = (
     # P2, non-contact region by Craig-Bampton modes up to f_cut
     MethodEntry("improved", "reduced", "P2 NMM contact zone + modal region (the paper's)", "reduced", "run_improved"),
     # the paper's traditional multivariable method: the zone's nodal P1 unknowns kept
-    MethodEntry("traditional", "reduced", "P1 nodal contact zone + modal region (paper)", "reduced",
-                "run_traditional"),
+    MethodEntry("traditional", "reduced", "P1 nodal contact zone + modal region (paper)", "reduced", "run_traditional"),
     MethodEntry("modal-p2", "reduced", "as traditional on the P2 model", "reduced", "run_modal_p2"),
     # the converged reference is P2 (--degree 2); the plan's P1 is cheaper and ~3 % stiff
-    MethodEntry("full", "fe", "unreduced finite elements: P1 by default (~3 % stiff), the reference with "
-                              "--degree 2", "full"),
-    MethodEntry("hertz-modal", "reduced", "Hertz spring (rigid ball) on the block's modes", "hertz_modal",
-                contact_point_kinematics="surface"),
-    MethodEntry("hertz", "analytical", "quasi-static Hertz, 1 DOF: the lightest model", "hertz",
-                contact_point_kinematics="surface"),
+    MethodEntry(
+        "full", "fe", "unreduced finite elements: P1 by default (~3 % stiff), the reference with --degree 2", "full"
+    ),
+    MethodEntry(
+        "hertz-modal",
+        "reduced",
+        "Hertz spring (rigid ball) on the block's modes",
+        "hertz_modal",
+        contact_point_kinematics="surface",
+    ),
+    MethodEntry(
+        "hertz",
+        "analytical",
+        "quasi-static Hertz, 1 DOF: the lightest model",
+        "hertz",
+        contact_point_kinematics="surface",
+    ),
 )
 
 #: the method of ``millimpact run`` when none is given: within 0.3 % of full P2 on the same mesh

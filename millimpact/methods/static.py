@@ -22,6 +22,7 @@ Measured, for the full body (symmetric models scaled back):
 - ``block_indentation``: the block surface's displacement under the contact point, Hertz's share
   delta (1 - nu2^2)/E2 / (1/E*) of the approach for the block treated as a half-space.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,21 +34,21 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..geometry.mesh import facet_indices
 from ..fem import forms
-from ..geometry import builders as G
 from ..fem.contact import create_contact
-from ..theory.hertz import effective_modulus
+from ..fem.model import create_fe_model
 from ..fem.plastic_zone import PlasticZone, ZoneMaterial
 from ..fem.plasticity import FlowCurve, J2Material
 from ..fem.plasticity import von_mises as von_mises_mandel
-from ..fem.model import create_fe_model
 from ..fem.probes import create_probe
+from ..geometry import builders as G
+from ..geometry.mesh import facet_indices
+from ..integration.contact_operator import compute_contact_operator
+from ..integration.lcp import solve_lcp
+from ..integration.solvers import create_effective_solver
 from ..scene.plan import Plan
 from ..scene.schema import Scene
-from ..integration.solvers import create_effective_solver
-from ..integration.lcp import solve_lcp
-from ..integration.contact_operator import compute_contact_operator
+from ..theory.hertz import effective_modulus
 
 #: the loaded cap: ball surface within this angle (rad) of the pole opposite the contact point
 CAP_HALF_ANGLE = np.radians(30.0)
@@ -65,9 +66,9 @@ class StaticHertzResult:
     n_active: int
     n_dofs: int
     lcp_iterations: int
-    max_von_mises: float = float("nan")        #: largest von Mises stress in the block's zone (quadrature points), Pa
+    max_von_mises: float = float("nan")  #: largest von Mises stress in the block's zone (quadrature points), Pa
     max_von_mises_depth: float = float("nan")  #: its depth below the struck face, m
-    max_von_mises_offset: float = float("nan") #: its distance from the contact axis, m
+    max_von_mises_offset: float = float("nan")  #: its distance from the contact axis, m
 
     def hertz(self, scene: Scene) -> dict[str, float]:
         """Hertz's contact radius, approach and block indentation at the measured force."""
@@ -80,8 +81,9 @@ class StaticHertzResult:
         return {"contact_radius": a, "approach": delta, "block_indentation": share * delta}
 
 
-def static_hertz(scene: Scene, plan: Plan, md, cap_displacement: float, degree: int | None = None,
-                 options: dict | None = None) -> StaticHertzResult:
+def static_hertz(
+    scene: Scene, plan: Plan, md, cap_displacement: float, degree: int | None = None, options: dict | None = None
+) -> StaticHertzResult:
     """Press the ball on the block by moving its top cap ``cap_displacement`` (m) towards the block
     and solve the frictionless contact exactly (collective over the mesh's communicator)."""
     model = create_fe_model(md, plan, degree)
@@ -135,8 +137,7 @@ def static_hertz(scene: Scene, plan: Plan, md, cap_displacement: float, degree: 
     uf = model.function()
     uf.x.array[: len(u.array_r)] = u.array_r
     uf.x.scatter_forward()
-    probe = create_probe(V, np.array([centre, [x_p, 0.0, z_p]]),
-                         np.concatenate([model.ball_cells, model.block_cells]))
+    probe = create_probe(V, np.array([centre, [x_p, 0.0, z_p]]), np.concatenate([model.ball_cells, model.block_cells]))
     # the centre lies in the ball, the surface point on the block's face (found in the block cells:
     # the probe takes the best-containing cell, and the ball does not reach y = 0 at that point)
     disp = probe.values(uf.x.array)
@@ -147,10 +148,18 @@ def static_hertz(scene: Scene, plan: Plan, md, cap_displacement: float, degree: 
     approach = float(-disp[0, 1] - plan.gap)
     vm, depth, offset = _block_von_mises_peak(model, u, np.array([x_p, 0.0, z_p]))
     result = StaticHertzResult(
-        cap_displacement=abs(cap_displacement), force=model.sym_factor * F, contact_radius=a,
-        approach=approach, block_indentation=float(-disp[1, 1]), n_active=int(np.count_nonzero(lam > 0)),
-        n_dofs=model.n_dofs_global, lcp_iterations=lcp.iterations, max_von_mises=vm, max_von_mises_depth=depth,
-        max_von_mises_offset=offset)
+        cap_displacement=abs(cap_displacement),
+        force=model.sym_factor * F,
+        contact_radius=a,
+        approach=approach,
+        block_indentation=float(-disp[1, 1]),
+        n_active=int(np.count_nonzero(lam > 0)),
+        n_dofs=model.n_dofs_global,
+        lcp_iterations=lcp.iterations,
+        max_von_mises=vm,
+        max_von_mises_depth=depth,
+        max_von_mises_offset=offset,
+    )
     for obj in (ksp, K, b, u0, du, u, lam_vec, op.W, contact.B):
         obj.destroy()
     return result
@@ -161,7 +170,7 @@ def _block_von_mises_peak(model, u: PETSc.Vec, point: np.ndarray) -> tuple[float
     depth below the face y = 0 and its distance from the contact axis (m), global over ranks:
     where a Hertz contact first yields (Johnson 6.2: on the axis at 0.48 a, 0.62 p0 for nu = 0.3)."""
     mat = model.target_material
-    elastic = J2Material(mat.youngs_modulus, mat.poisson, FlowCurve(1e300))   # never yields: the elastic stress
+    elastic = J2Material(mat.youngs_modulus, mat.poisson, FlowCurve(1e300))  # never yields: the elastic stress
     zone = PlasticZone(model.V, model.meshdata.cell_tags, [ZoneMaterial(G.BLOCK_ZONE, elastic)])
     zone.evaluate(u)
     best = (-1.0, float("nan"), float("nan"))

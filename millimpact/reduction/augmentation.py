@@ -2,22 +2,22 @@
 more interior vector, the static response of the interior to the inertia of that motion, orthogonalised against
 the kept modes; off by default (see :mod:`millimpact.reduction.craig_bampton` for the measured effect).
 """
+
 from __future__ import annotations
 
 import logging
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from petsc4py import PETSc
 
 from ..fem.model import FEModel
-
-log = logging.getLogger(__name__)
-
-from .partition import DofPartition
 from .distributed import check_converged
 from .eigen import frequencies_hz, small_ghep
+from .partition import DofPartition
+
+log = logging.getLogger(__name__)
 
 
 # --- modal truncation augmentation ---------------------------------------------------------------
@@ -33,7 +33,7 @@ def interface_motion_pattern(model: FEModel, part: DofPartition, body: str, kind
     Johnson, Contact Mechanics (1985), section 3.2), or ``"translation"``, a translation along the normal."""
     V = model.V
     bs = V.dofmap.index_map_bs
-    inward = -np.asarray(model.contact_normal, dtype=float)     # into the block
+    inward = -np.asarray(model.contact_normal, dtype=float)  # into the block
     u = model.K.createVecRight()
     u.set(0.0)
     zone = part.zone[part.zone_body == (0 if body == "ball" else 1)]
@@ -45,7 +45,7 @@ def interface_motion_pattern(model: FEModel, part: DofPartition, body: str, kind
         return u
     X = V.tabulate_dof_coordinates()[node, :3] - np.asarray(model.impact_point, dtype=float)
     nu = model.target_material.poisson
-    z = np.maximum(X @ inward, 0.0)                   # depth below the struck face
+    z = np.maximum(X @ inward, 0.0)  # depth below the struck face
     lateral = X - np.outer(X @ inward, inward)
     rho = np.linalg.norm(lateral, axis=1)
     R = np.maximum(np.hypot(rho, z), 1e-12)
@@ -57,8 +57,16 @@ def interface_motion_pattern(model: FEModel, part: DofPartition, body: str, kind
     return u
 
 
-def compute_augmentation_load(K: PETSc.Mat, M: PETSc.Mat, I: PETSc.IS, all_cols: PETSc.IS, K_ii: PETSc.Mat,
-                              M_ii: PETSc.Mat, ksp: PETSc.KSP, u_w: PETSc.Vec) -> PETSc.Vec:
+def compute_augmentation_load(
+    K: PETSc.Mat,
+    M: PETSc.Mat,
+    I: PETSc.IS,
+    all_cols: PETSc.IS,
+    K_ii: PETSc.Mat,
+    M_ii: PETSc.Mat,
+    ksp: PETSc.KSP,
+    u_w: PETSc.Vec,
+) -> PETSc.Vec:
     """The interior's static response to the inertia of a zone motion ``u_w`` (model vector, m):
     with the interior following statically, u_i = -K_ii^-1 K_iz u_w, the shape's inertia load on
     the interior is f_i = M_ii u_i + M_iz u_w, and its static response x = K_ii^-1 f_i (two
@@ -82,9 +90,9 @@ def compute_augmentation_load(K: PETSc.Mat, M: PETSc.Mat, I: PETSc.IS, all_cols:
     return x
 
 
-def compute_augmentation_vectors(K_ii: PETSc.Mat, M_ii: PETSc.Mat, xs: Sequence[PETSc.Vec],
-                                 vecs: Sequence[PETSc.Vec], rtol: float = 1e-8
-                                 ) -> tuple[np.ndarray, list[PETSc.Vec]]:
+def compute_augmentation_vectors(
+    K_ii: PETSc.Mat, M_ii: PETSc.Mat, xs: Sequence[PETSc.Vec], vecs: Sequence[PETSc.Vec], rtol: float = 1e-8
+) -> tuple[np.ndarray, list[PETSc.Vec]]:
     """Modal truncation augmentation (Dickens, Nakagawa & Wittbrodt, Comput. Struct. 62 (1997)):
     the static responses ``xs`` made M_ii-orthonormal to the kept fixed-interface modes ``vecs``
     and to each other (classical Gram-Schmidt, twice), then diagonalised by Rayleigh-Ritz on
@@ -124,7 +132,7 @@ def compute_augmentation_vectors(K_ii: PETSc.Mat, M_ii: PETSc.Mat, xs: Sequence[
         for w in Mbasis:
             w.destroy()
         return np.zeros(0), []
-    Mout = Mbasis[len(vecs):]
+    Mout = Mbasis[len(vecs) :]
     A = np.zeros((k, k))
     B = np.zeros((k, k))
     Ky = K_ii.createVecLeft()
@@ -148,5 +156,3 @@ def compute_augmentation_vectors(K_ii: PETSc.Mat, M_ii: PETSc.Mat, xs: Sequence[
     for y in out:
         y.destroy()
     return frequencies_hz(lam), result
-
-

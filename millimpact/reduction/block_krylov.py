@@ -29,11 +29,11 @@ are summed over ranks (MPI Allreduce), so every rank forms the same H_m and the 
 The products with M and the solves are PETSc's (MatMatMult, MatMatSolve: CHOLMOD serial, MUMPS
 parallel).
 """
+
 from __future__ import annotations
 
 import logging
 import time
-from typing import Optional
 
 import numpy as np
 import scipy.linalg as sla
@@ -61,8 +61,9 @@ class _Blocks:
         self.n_loc, self.n = K.getLocalSize()[0], K.getSize()[0]
 
     def _dense(self, arr: np.ndarray) -> PETSc.Mat:
-        return PETSc.Mat().createDense(((self.n_loc, self.n), (PETSc.DECIDE, arr.shape[1])),
-                                       array=np.asfortranarray(arr), comm=self.comm)
+        return PETSc.Mat().createDense(
+            ((self.n_loc, self.n), (PETSc.DECIDE, arr.shape[1])), array=np.asfortranarray(arr), comm=self.comm
+        )
 
     def mult(self, A: PETSc.Mat, W: np.ndarray) -> np.ndarray:
         Wm = self._dense(W)
@@ -76,7 +77,7 @@ class _Blocks:
         """K^-1 B with the factorization (one multi-right-hand-side solve)."""
         B = np.asfortranarray(B)
         X = np.zeros_like(B, order="F")
-        Bm, Xm = self._dense(B), self._dense(X)     # views of B and X
+        Bm, Xm = self._dense(B), self._dense(X)  # views of B and X
         self.F.matSolve(Bm, Xm)
         Bm.destroy()
         Xm.destroy()
@@ -89,7 +90,7 @@ class _Blocks:
         self.mpi.Allreduce(loc, out, op=MPI.SUM)
         return out
 
-    def m_orthonormalize(self, W: np.ndarray) -> Optional[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    def m_orthonormalize(self, W: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """(Q, M Q, R) with W = Q R, Q^T M Q = I (Cholesky of the Gram matrix); None on breakdown.
         M Q = (M W) R^-1 comes with it: the next block's solve needs it."""
         MW = self.mult(self.M, W)
@@ -102,15 +103,23 @@ class _Blocks:
         if np.min(np.abs(np.diag(R))) < 1e-10 * np.max(np.abs(np.diag(R))):
             return None
 
-        def right_divide(X: np.ndarray) -> np.ndarray:     # X R^-1
+        def right_divide(X: np.ndarray) -> np.ndarray:  # X R^-1
             return np.asfortranarray(sla.solve_triangular(R, X.T, trans="T", lower=False).T)
 
         return right_divide(W), right_divide(MW), R
 
 
-def block_krylov_modes(K: PETSc.Mat, M: PETSc.Mat, factor: PETSc.Mat, count: int, *, block: int = BLOCK_SIZE,
-                       tol: float = 1e-10, max_dim: Optional[int] = None, seed: int = 20221122
-                       ) -> Optional[tuple[np.ndarray, list[PETSc.Vec], dict]]:
+def block_krylov_modes(
+    K: PETSc.Mat,
+    M: PETSc.Mat,
+    factor: PETSc.Mat,
+    count: int,
+    *,
+    block: int = BLOCK_SIZE,
+    tol: float = 1e-10,
+    max_dim: int | None = None,
+    seed: int = 20221122,
+) -> tuple[np.ndarray, list[PETSc.Vec], dict] | None:
     """The lowest ``count`` eigenpairs of K phi = lambda M phi, ``factor`` a factorization of K
     (its MatMatSolve). Returns (lambda ascending, M-orthonormal eigenvectors as Vecs laid out like
     K's columns, statistics: basis size, seconds in the solves and in all), or None if the basis reached ``max_dim`` (default
@@ -134,7 +143,7 @@ def block_krylov_modes(K: PETSc.Mat, M: PETSc.Mat, factor: PETSc.Mat, count: int
     t_start = time.perf_counter()
     while True:
         t0 = time.perf_counter()
-        W = ops.solve(MV_last)                   # S applied to the last block
+        W = ops.solve(MV_last)  # S applied to the last block
         t_solve += time.perf_counter() - t0
         # the three-term recurrence (S is M-self-adjoint: W is M-orthogonal to all but the last two
         # blocks in exact arithmetic), then one full classical Gram-Schmidt pass against the whole
@@ -143,25 +152,29 @@ def block_krylov_modes(K: PETSc.Mat, M: PETSc.Mat, factor: PETSc.Mat, count: int
         for lo in (max(0, m - 2 * block), 0):
             h = ops.gram(V[:, lo:m], ops.mult(M, W))
             W -= V[:, lo:m] @ h
-            H[lo:m, m - block:m] += h
+            H[lo:m, m - block : m] += h
         qr = ops.m_orthonormalize(W)
         if qr is None:
             log.info("block Krylov: breakdown at basis size %d", m)
             return None
         W, MV_last, R = qr
-        H[m:m + block, m - block:m] = R
+        H[m : m + block, m - block : m] = R
         if m >= count + block:
             T = H[:m, :m]
             mu, Y = sla.eigh(0.5 * (T + T.T), subset_by_index=[m - count, m - 1])
             mu, Y = mu[::-1].copy(), np.ascontiguousarray(Y[:, ::-1])
-            res = np.linalg.norm(R @ Y[m - block:m, :], axis=0) / np.abs(mu)
+            res = np.linalg.norm(R @ Y[m - block : m, :], axis=0) / np.abs(mu)
             if np.all(mu > 0) and np.max(res) < tol:
                 break
         if m + block > max_dim:
-            log.info("block Krylov: %d of %d pairs unconverged at basis size %d", int(np.sum(res >= tol))
-                     if m >= count + block else count, count, m)
+            log.info(
+                "block Krylov: %d of %d pairs unconverged at basis size %d",
+                int(np.sum(res >= tol)) if m >= count + block else count,
+                count,
+                m,
+            )
             return None
-        V[:, m:m + block] = W
+        V[:, m : m + block] = W
         m += block
     X = V[:, :m] @ Y
     vecs = []

@@ -23,13 +23,14 @@ cache only when every rank has its file; otherwise all ranks compute. The folder
 :data:`MAX_BYTES_PER_RANK` per rank are not stored (Psi is n_i x n_b doubles: 76 MB for the rig's
 two bodies). With augmentation vectors nothing is cached. Deleting the folder is always safe.
 """
+
 from __future__ import annotations
 
 import hashlib
 import logging
 import os
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 from mpi4py import MPI
@@ -38,13 +39,13 @@ log = logging.getLogger(__name__)
 
 CACHE_ENV = "MILLIMPACT_REDUCTION_CACHE"
 #: bump when what reduce_model computes for the same matrices changes
-CACHE_VERSION = 3     # 2: a substructured body's wide slab is cut again across (substructure_across)
-                      # 3: its slabs' modes to substructure_eps_tol (1e-4, was the body's 1e-10)
+CACHE_VERSION = 3  # 2: a substructured body's wide slab is cut again across (substructure_across)
+# 3: its slabs' modes to substructure_eps_tol (1e-4, was the body's 1e-10)
 #: a rank's files above this are not written (the disk is not a second memory)
 MAX_BYTES_PER_RANK = 2e9
 
 
-def cache_dir() -> Optional[Path]:
+def cache_dir() -> Path | None:
     """The cache folder, or None (the default, and "off"): the cache is opt-in,
     ``MILLIMPACT_REDUCTION_CACHE=on`` (``reductions/`` in the mesh cache) or a folder. Off by
     default: a body's files reach gigabytes (Psi is interior x interface doubles), and a study
@@ -82,7 +83,7 @@ def _path(folder: Path, key: str, comm: MPI.Comm) -> Path:
     return folder / f"{key}.{comm.rank}of{comm.size}.npz"
 
 
-def load(comm: MPI.Comm, key: str) -> Optional[dict[str, np.ndarray]]:
+def load(comm: MPI.Comm, key: str) -> dict[str, np.ndarray] | None:
     """This rank's arrays of ``key`` when every rank has them, else None (collective)."""
     folder = cache_dir()
     data = None

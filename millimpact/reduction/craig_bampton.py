@@ -38,13 +38,14 @@ for the free-vibration modes; ``impact_reduction_mass_`` for the solve with ``M_
 :func:`default_solver_options`; ``solver_options`` merge over them, the command line wins.
 Measured costs and accuracies: docs/development/reduction-notes.md.
 """
+
 from __future__ import annotations
 
 import logging
 import math
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Optional, Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -54,15 +55,26 @@ from petsc4py import PETSc
 from ..errors import InputError, SolverError
 from ..fem.model import FEModel
 from ..integration.solvers import create_factored_solver, note_option_read, return_freed_memory
-
 from . import cache as reduction_cache
-from .partition import BODIES, DofPartition, ZoneBasis, create_nodal_zone_basis, partition_dofs
-from .distributed import (dense_columns, dense_from_rows, detached, gather_rows, local_columns_csr, ownership_offsets,
-                          split_evenly)
+from .augmentation import (
+    AUGMENTATION_PATTERNS,
+    compute_augmentation_load,
+    compute_augmentation_vectors,
+    interface_motion_pattern,
+)
+from .distributed import (
+    dense_columns,
+    dense_from_rows,
+    detached,
+    gather_rows,
+    local_columns_csr,
+    ownership_offsets,
+    split_evenly,
+)
 from .eigen import compute_modes, default_solver_options
-from .augmentation import AUGMENTATION_PATTERNS, compute_augmentation_load, compute_augmentation_vectors, interface_motion_pattern
-from .reduced_model import BodyReduction, ReducedModel
 from .interface_patterns import probe_interior_rows, zone_pattern_couplings
+from .partition import BODIES, DofPartition, ZoneBasis, create_nodal_zone_basis, partition_dofs
+from .reduced_model import BodyReduction, ReducedModel
 from .substructures import SubstructureSettings, substructure_settings, substructured_modes
 
 log = logging.getLogger(__name__)
@@ -83,12 +95,12 @@ class ReductionRequest:
     model: FEModel
     part: DofPartition
     zone: ZoneBasis
-    f_cut: Optional[float]
-    n_modes: Optional[int]
+    f_cut: float | None
+    n_modes: int | None
     opts: dict[str, str]
     augment: tuple[str, ...]
-    keep_away: Optional[np.ndarray]
-    all_cols: PETSc.IS       #: every owned model dof (the columns of the interior's rows)
+    keep_away: np.ndarray | None
+    all_cols: PETSc.IS  #: every owned model dof (the columns of the interior's rows)
 
     @property
     def comm(self) -> MPI.Comm:
@@ -105,8 +117,8 @@ class InteriorCouplings:
     (None: one factorization); ``CD_pat`` the zone-interface patterns' couplings (with ``sub``)."""
 
     name: str
-    prefix: str              #: the body's PETSc options prefix
-    idx: np.ndarray          #: owned interior dofs (local model indices)
+    prefix: str  #: the body's PETSc options prefix
+    idx: np.ndarray  #: owned interior dofs (local model indices)
     I: PETSc.IS
     n_i: int
     K_ii: PETSc.Mat
@@ -114,11 +126,11 @@ class InteriorCouplings:
     C: PETSc.Mat
     D: PETSc.Mat
     qb: np.ndarray
-    Cb: Optional[PETSc.Mat]
-    Db: Optional[PETSc.Mat]
-    rhs: Optional[PETSc.Mat]
-    sub: Optional[SubstructureSettings]
-    CD_pat: Optional[tuple[sp.csr_matrix, sp.csr_matrix]]
+    Cb: PETSc.Mat | None
+    Db: PETSc.Mat | None
+    rhs: PETSc.Mat | None
+    sub: SubstructureSettings | None
+    CD_pat: tuple[sp.csr_matrix, sp.csr_matrix] | None
 
     @property
     def patterns(self) -> bool:
@@ -133,19 +145,19 @@ class InteriorBasis:
     augmentation or pattern vectors), their frequencies (Hz), the lowest frequency not kept and
     what the output recovery and the reduced blocks need."""
 
-    Psi: Optional[PETSc.Mat]
+    Psi: PETSc.Mat | None
     phi_cols: np.ndarray
     freq: np.ndarray
     next: float
     n_aug: int = 0
     n_pat: int = 0
-    constraint_residual: float = 0.0          #: ||K_ii Psi + C|| / ||C|| (0 when not computed)
-    residual_b: Optional[PETSc.Mat] = None    #: R A_b from the slabs' Ritz space
-    ritz_recovery: Optional[dict] = None      #: the Ritz-space recovery (zone-interface patterns)
-    grams: Optional[tuple[np.ndarray, np.ndarray]] = None   #: (Phi^T M_ii Phi, Phi^T K_ii Phi)
-    substructures: Optional[dict] = None      #: the slabs' statistics
-    ksp: Optional[PETSc.KSP] = None           #: the factored K_ii (one factorization)
-    released: bool = False                    #: K_ii and M_ii destroyed by the slabs
+    constraint_residual: float = 0.0  #: ||K_ii Psi + C|| / ||C|| (0 when not computed)
+    residual_b: PETSc.Mat | None = None  #: R A_b from the slabs' Ritz space
+    ritz_recovery: dict | None = None  #: the Ritz-space recovery (zone-interface patterns)
+    grams: tuple[np.ndarray, np.ndarray] | None = None  #: (Phi^T M_ii Phi, Phi^T K_ii Phi)
+    substructures: dict | None = None  #: the slabs' statistics
+    ksp: PETSc.KSP | None = None  #: the factored K_ii (one factorization)
+    released: bool = False  #: K_ii and M_ii destroyed by the slabs
 
 
 @dataclass(frozen=True)
@@ -157,10 +169,10 @@ class ReducedInterior:
     n_i: int
     I: PETSc.IS
     timings: dict[str, float]
-    couplings: Optional[InteriorCouplings] = None
-    basis: Optional[InteriorBasis] = None
-    Phi: Optional[PETSc.Mat] = None
-    factor: Optional[Callable[[], PETSc.KSP]] = None
+    couplings: InteriorCouplings | None = None
+    basis: InteriorBasis | None = None
+    Phi: PETSc.Mat | None = None
+    factor: Callable[[], PETSc.KSP] | None = None
     from_cache: bool = False
 
 
@@ -187,10 +199,17 @@ class ReducedNumbering:
 
 
 # --- Craig-Bampton -------------------------------------------------------------------------------
-def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Optional[float] = None,
-                 n_modes: Optional[int] = None, partition: Optional[DofPartition] = None,
-                 solver_options: Optional[dict[str, str]] = None,
-                 augment: Sequence[str] = (), keep_away: Optional[np.ndarray] = None) -> ReducedModel:
+def reduce_model(
+    model: FEModel,
+    zone: ZoneBasis | None = None,
+    *,
+    f_cut: float | None = None,
+    n_modes: int | None = None,
+    partition: DofPartition | None = None,
+    solver_options: dict[str, str] | None = None,
+    augment: Sequence[str] = (),
+    keep_away: np.ndarray | None = None,
+) -> ReducedModel:
     """Craig-Bampton reduction of ``model``: the zone described by ``zone`` (default: nodal, the
     identity), each body's interior by constraint modes and fixed-interface modes up to ``f_cut``
     (Hz) or ``n_modes`` per body (``n_modes`` wins if both are given; ``n_modes >=`` the interior
@@ -213,7 +232,7 @@ def reduce_model(model: FEModel, zone: Optional[ZoneBasis] = None, *, f_cut: Opt
     return _assemble_reduced_model(req, interiors, t_start)
 
 
-def _check_request(f_cut: Optional[float], n_modes: Optional[int], augment: Sequence[str]) -> None:
+def _check_request(f_cut: float | None, n_modes: int | None, augment: Sequence[str]) -> None:
     """One clear line for a cutoff, mode count or augmentation pattern out of range."""
     if f_cut is None and n_modes is None:
         raise InputError("reduction: give a modal cutoff f_cut (Hz) or a mode count per body")
@@ -223,8 +242,9 @@ def _check_request(f_cut: Optional[float], n_modes: Optional[int], augment: Sequ
         raise InputError(f"reduction: modes = {n_modes!r} must be >= 0")
     bad = [a for a in augment if a not in AUGMENTATION_PATTERNS]
     if bad:
-        raise InputError(f"reduction: augment = {','.join(bad)}: choose from {', '.join(AUGMENTATION_PATTERNS)} "
-                         "or none")
+        raise InputError(
+            f"reduction: augment = {','.join(bad)}: choose from {', '.join(AUGMENTATION_PATTERNS)} or none"
+        )
 
 
 def _reduce_interior(req: ReductionRequest, name: str) -> ReducedInterior:
@@ -258,34 +278,42 @@ def _reduce_interior(req: ReductionRequest, name: str) -> ReducedInterior:
     Phi = None
     if basis.phi_cols.shape[1]:
         # on phi_cols' own storage when it is column-major (the slabs' Phi): no second copy
-        Phi = PETSc.Mat().createDense(((len(idx), n_i), (PETSc.DECIDE, basis.phi_cols.shape[1])),
-                                      array=np.asfortranarray(basis.phi_cols), comm=comm)
+        Phi = PETSc.Mat().createDense(
+            ((len(idx), n_i), (PETSc.DECIDE, basis.phi_cols.shape[1])),
+            array=np.asfortranarray(basis.phi_cols),
+            comm=comm,
+        )
         Phi.assemble()
     # the mode-acceleration rows factor K_ii on demand; not for a substructured body (the point of
     # substructuring is never to hold that factorization)
-    factor = (None if c.sub is not None else
-              (lambda K_ii=c.K_ii, prefix=c.prefix: create_factored_solver(K_ii, prefix, req.opts)))
+    factor = (
+        None
+        if c.sub is not None
+        else (lambda K_ii=c.K_ii, prefix=c.prefix: create_factored_solver(K_ii, prefix, req.opts))
+    )
     timings["total"] = time.perf_counter() - tb
     return ReducedInterior(name, n_i, I, timings, c, basis, Phi, factor, cached is not None)
 
 
-def _interior_couplings(req: ReductionRequest, name: str, idx: np.ndarray, I: PETSc.IS,
-                        n_i: int) -> InteriorCouplings:
+def _interior_couplings(req: ReductionRequest, name: str, idx: np.ndarray, I: PETSc.IS, n_i: int) -> InteriorCouplings:
     """The interior's blocks K_ii, M_ii, its couplings C = K_iz G, D = M_iz G to the zone and the
     interface coordinates; the slabs' settings and zone-interface patterns' couplings if any."""
     comm, model, G_q = req.comm, req.model, req.zone.G
     K_ii = model.K.createSubMatrix(I, I)
     M_ii = model.M.createSubMatrix(I, I)
     K_ia, M_ia = model.K.createSubMatrix(I, req.all_cols), model.M.createSubMatrix(I, req.all_cols)
-    C = detached(K_ia.matMult(G_q))      # K_iz G   (n_i x n_q)
-    D = detached(M_ia.matMult(G_q))      # M_iz G
+    C = detached(K_ia.matMult(G_q))  # K_iz G   (n_i x n_q)
+    D = detached(M_ia.matMult(G_q))  # M_iz G
     # interface coordinates: the non-zero columns of C and D
     cols_loc = np.unique(np.concatenate([C.getValuesCSR()[1], D.getValuesCSR()[1]]))
     qb = np.unique(np.concatenate(comm.allgather(cols_loc.astype(np.int64))))
     prefix = f"impact_reduction_{name}_"
     # slab-wise Ritz basis instead of one factorization of K_ii (option <prefix>substructures)
-    sub = (substructure_settings(prefix, req.opts, n_i)
-           if req.f_cut is not None and req.n_modes is None and not req.augment else None)
+    sub = (
+        substructure_settings(prefix, req.opts, n_i)
+        if req.f_cut is not None and req.n_modes is None and not req.augment
+        else None
+    )
     zone_degree = sub.zone_degree if sub is not None else 0
     patterns = bool(zone_degree and len(qb))
     # zone-interface patterns: the interior's static responses to a few smooth interface motions
@@ -309,23 +337,30 @@ def _interior_couplings(req: ReductionRequest, name: str, idx: np.ndarray, I: PE
     return InteriorCouplings(name, prefix, idx, I, n_i, K_ii, M_ii, C, D, qb, Cb, Db, rhs, sub, CD_pat)
 
 
-def _cache_key(req: ReductionRequest, c: InteriorCouplings) -> Optional[str]:
+def _cache_key(req: ReductionRequest, c: InteriorCouplings) -> str | None:
     """The body's key in the on-disk cache (None with augmentation vectors: not cached)."""
     if req.augment:
         return None
     return reduction_cache.body_key(
-        req.comm, [c.K_ii, c.M_ii, c.C, c.D], {"body": c.name, "f_cut": req.f_cut, "n_modes": req.n_modes,
-                                               "options": sorted((k, str(v)) for k, v in req.opts.items()),
-                                               # the command line's options for this body's solvers too
-                                               "petsc": sorted((k, str(v)) for k, v in PETSc.Options().getAll().items()
-                                                               if k.startswith(c.prefix))})
+        req.comm,
+        [c.K_ii, c.M_ii, c.C, c.D],
+        {
+            "body": c.name,
+            "f_cut": req.f_cut,
+            "n_modes": req.n_modes,
+            "options": sorted((k, str(v)) for k, v in req.opts.items()),
+            # the command line's options for this body's solvers too
+            "petsc": sorted((k, str(v)) for k, v in PETSc.Options().getAll().items() if k.startswith(c.prefix)),
+        },
+    )
 
 
-def _basis_from_cache(req: ReductionRequest, c: InteriorCouplings, cached: dict, t0: float,
-                      timings: dict[str, float]) -> InteriorBasis:
+def _basis_from_cache(
+    req: ReductionRequest, c: InteriorCouplings, cached: dict, t0: float, timings: dict[str, float]
+) -> InteriorBasis:
     """Strategy 1: Psi, Phi (and the slabs' recovery data) as stored by an earlier reduction."""
     comm = req.comm
-    for k in PETSc.Options().getAll():     # in the key: they shaped these modes (no "unused" warning)
+    for k in PETSc.Options().getAll():  # in the key: they shaped these modes (no "unused" warning)
         if k.startswith(c.prefix):
             note_option_read(k)
     n_pat = int(cached.get("n_patterns", 0))
@@ -338,12 +373,21 @@ def _basis_from_cache(req: ReductionRequest, c: InteriorCouplings, cached: dict,
         if c.sub is not None and "flex" in cached:
             residual_b = dense_from_rows(cached["flex"], comm)
     timings["from_cache"] = time.perf_counter() - t0
-    return InteriorBasis(Psi, cached["Phi"], np.asarray(cached["freq"]), float(cached["next"]), n_pat=n_pat,
-                         constraint_residual=residual, residual_b=residual_b, ritz_recovery=recovery)
+    return InteriorBasis(
+        Psi,
+        cached["Phi"],
+        np.asarray(cached["freq"]),
+        float(cached["next"]),
+        n_pat=n_pat,
+        constraint_residual=residual,
+        residual_b=residual_b,
+        ritz_recovery=recovery,
+    )
 
 
-def _basis_from_slabs(req: ReductionRequest, c: InteriorCouplings, t0: float,
-                      timings: dict[str, float]) -> InteriorBasis:
+def _basis_from_slabs(
+    req: ReductionRequest, c: InteriorCouplings, t0: float, timings: dict[str, float]
+) -> InteriorBasis:
     """Strategy 2: the slab-wise Ritz basis of :func:`~.substructures.substructured_modes` (no
     factorization of the whole K_ii)."""
     model, qb, keep_away = req.model, c.qb, req.keep_away
@@ -353,13 +397,29 @@ def _basis_from_slabs(req: ReductionRequest, c: InteriorCouplings, t0: float,
     node_xyz = model.V.tabulate_dof_coordinates()[c.idx // 3]
     zone_cd = (local_columns_csr(c.C, qb), local_columns_csr(c.D, qb))
     C_s, D_s = c.CD_pat if c.CD_pat is not None else zone_cd
-    probes = (probe_interior_rows(model, c.idx, keep_away) if c.patterns and c.name == "block"
-              and keep_away is not None and len(keep_away) else None)
+    probes = (
+        probe_interior_rows(model, c.idx, keep_away)
+        if c.patterns and c.name == "block" and keep_away is not None and len(keep_away)
+        else None
+    )
     res = substructured_modes(
-        c.K_ii, c.M_ii, C_s, D_s, node_xyz, c.idx % 3, req.f_cut,
-        math.sqrt(material.shear_modulus / material.density), c.sub, c.prefix, req.opts, keep_away,
-        patterns=c.patterns, zone_couplings=zone_cd if c.patterns else None, recovery_rows=probes,
-        release=c.patterns)
+        c.K_ii,
+        c.M_ii,
+        C_s,
+        D_s,
+        node_xyz,
+        c.idx % 3,
+        req.f_cut,
+        math.sqrt(material.shear_modulus / material.density),
+        c.sub,
+        c.prefix,
+        req.opts,
+        keep_away,
+        patterns=c.patterns,
+        zone_couplings=zone_cd if c.patterns else None,
+        recovery_rows=probes,
+        release=c.patterns,
+    )
     Psi = residual_b = None
     residual = 0.0
     if len(qb) and not c.patterns:
@@ -373,13 +433,24 @@ def _basis_from_slabs(req: ReductionRequest, c: InteriorCouplings, t0: float,
     timings["substructures"] = time.perf_counter() - t0
     return_freed_memory()
     # with patterns K_ii and M_ii were destroyed by substructured_modes: its Grams replace the products
-    return InteriorBasis(Psi, res.Phi, res.freq, res.next, n_pat=res.n_patterns, constraint_residual=residual,
-                         residual_b=residual_b, ritz_recovery=res.recovery, grams=res.grams,
-                         substructures=res.stats, released=c.patterns)
+    return InteriorBasis(
+        Psi,
+        res.Phi,
+        res.freq,
+        res.next,
+        n_pat=res.n_patterns,
+        constraint_residual=residual,
+        residual_b=residual_b,
+        ritz_recovery=res.recovery,
+        grams=res.grams,
+        substructures=res.stats,
+        released=c.patterns,
+    )
 
 
-def _basis_from_factorization(req: ReductionRequest, c: InteriorCouplings, t0: float,
-                              timings: dict[str, float]) -> InteriorBasis:
+def _basis_from_factorization(
+    req: ReductionRequest, c: InteriorCouplings, t0: float, timings: dict[str, float]
+) -> InteriorBasis:
     """Strategy 3: one Cholesky factorization of K_ii for the constraint modes, the eigensolve and
     the augmentation vectors (if asked)."""
     ksp = create_factored_solver(c.K_ii, c.prefix, req.opts)
@@ -426,8 +497,7 @@ def _constraint_modes(c: InteriorCouplings, ksp: PETSc.KSP, timings: dict[str, f
     res = R.norm(PETSc.NormType.FROBENIUS) / max(c.rhs.norm(PETSc.NormType.FROBENIUS), 1e-300)
     R.destroy()
     if not res < CONSTRAINT_RESIDUAL_TOL:
-        raise SolverError(f"constraint modes of the {c.name}: relative residual {res:.3g} "
-                          f"(factorization {c.prefix})")
+        raise SolverError(f"constraint modes of the {c.name}: relative residual {res:.3g} (factorization {c.prefix})")
     timings["constraint_modes"] = time.perf_counter() - t0
     return Psi, res
 
@@ -435,13 +505,20 @@ def _constraint_modes(c: InteriorCouplings, ksp: PETSc.KSP, timings: dict[str, f
 def _store_in_cache(comm: MPI.Comm, key: str, basis: InteriorBasis) -> None:
     """Keep a freshly computed basis in the on-disk cache."""
     flex = basis.residual_b
-    reduction_cache.store(comm, key, {
-        "Psi": basis.Psi.getDenseArray().copy() if basis.Psi is not None else np.zeros((0, 0)),
-        "Phi": basis.phi_cols, "freq": np.asarray(basis.freq), "next": np.asarray(basis.next),
-        "n_patterns": np.asarray(basis.n_pat),
-        **{"recovery_" + k: v for k, v in (basis.ritz_recovery or {}).items()},
-        **({"flex": flex.getDenseArray()} if flex is not None else {}),
-        "residual": np.asarray(basis.constraint_residual)})
+    reduction_cache.store(
+        comm,
+        key,
+        {
+            "Psi": basis.Psi.getDenseArray().copy() if basis.Psi is not None else np.zeros((0, 0)),
+            "Phi": basis.phi_cols,
+            "freq": np.asarray(basis.freq),
+            "next": np.asarray(basis.next),
+            "n_patterns": np.asarray(basis.n_pat),
+            **{"recovery_" + k: v for k, v in (basis.ritz_recovery or {}).items()},
+            **({"flex": flex.getDenseArray()} if flex is not None else {}),
+            "residual": np.asarray(basis.constraint_residual),
+        },
+    )
 
 
 # --- the reduced matrices ------------------------------------------------------------------------
@@ -451,7 +528,7 @@ def _reduced_numbering(comm: MPI.Comm, zone: ZoneBasis, interiors: list[ReducedI
     m_total = sum(len(b.basis.freq) for b in interiors if b.basis is not None)
     m_loc = split_evenly(m_total, comm.size, comm.rank)
     m_off = ownership_offsets(comm, m_loc)
-    red_off = q_off + m_off          # first reduced index of each rank
+    red_off = q_off + m_off  # first reduced index of each rank
     return ReducedNumbering(q_off, m_off, zone.n_local + m_loc, int(red_off[-1]), int(red_off[comm.rank]))
 
 
@@ -472,7 +549,7 @@ def _assemble_reduced_model(req: ReductionRequest, interiors: list[ReducedInteri
     Mzz = M.PtAP(Gr)
     timings["zone_projection"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    blocks_K: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []   # (rows, cols, dense values)
+    blocks_K: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (rows, cols, dense values)
     blocks_M: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     bodies: list[BodyReduction] = []
     mode_start = 0
@@ -498,13 +575,31 @@ def _assemble_reduced_model(req: ReductionRequest, interiors: list[ReducedInteri
     return red
 
 
-def _body_blocks(b: ReducedInterior, num: ReducedNumbering, mode_start: int, f_cut: Optional[float],
-                 blocks_K: list, blocks_M: list, comm: MPI.Comm) -> BodyReduction:
+def _body_blocks(
+    b: ReducedInterior,
+    num: ReducedNumbering,
+    mode_start: int,
+    f_cut: float | None,
+    blocks_K: list,
+    blocks_M: list,
+    comm: MPI.Comm,
+) -> BodyReduction:
     """A body's dense blocks of K_r and M_r (appended to ``blocks_K``, ``blocks_M`` with global
     reduced indices) and its :class:`BodyReduction`; its first mode is number ``mode_start``."""
     if b.n_i == 0:
-        return BodyReduction(b.name, 0, b.I, None, np.zeros(0, np.int64), None, np.zeros(0, np.int64),
-                             np.zeros(0), f_cut, math.nan, b.timings)
+        return BodyReduction(
+            b.name,
+            0,
+            b.I,
+            None,
+            np.zeros(0, np.int64),
+            None,
+            np.zeros(0, np.int64),
+            np.zeros(0),
+            f_cut,
+            math.nan,
+            b.timings,
+        )
     c, basis, Phi = b.couplings, b.basis, b.Phi
     assert c is not None and basis is not None, f"{b.name}: an interior without its couplings or basis"
     Psi = basis.Psi
@@ -535,19 +630,48 @@ def _body_blocks(b: ReducedInterior, num: ReducedNumbering, mode_start: int, f_c
     for m in (c.C, c.D, Cb, Db if M_ib is None else None):
         if m is not None:
             m.destroy()
-    return BodyReduction(b.name, b.n_i, b.I, Psi, qb, Phi, modes, freq, f_cut, basis.next,
-                         b.timings, basis.n_aug, n_patterns=basis.n_pat, ksp=basis.ksp, M_ib=M_ib, K_ii=K_ii,
-                         factor=b.factor, from_cache=b.from_cache,
-                         substructures=basis.substructures, residual_b=basis.residual_b,
-                         ritz_recovery=basis.ritz_recovery)
+    return BodyReduction(
+        b.name,
+        b.n_i,
+        b.I,
+        Psi,
+        qb,
+        Phi,
+        modes,
+        freq,
+        f_cut,
+        basis.next,
+        b.timings,
+        basis.n_aug,
+        n_patterns=basis.n_pat,
+        ksp=basis.ksp,
+        M_ib=M_ib,
+        K_ii=K_ii,
+        factor=b.factor,
+        from_cache=b.from_cache,
+        substructures=basis.substructures,
+        residual_b=basis.residual_b,
+        ritz_recovery=basis.ritz_recovery,
+    )
 
 
-def _mode_blocks(basis: InteriorBasis, Phi: PETSc.Mat, Psi: Optional[PETSc.Mat], K_ii: Optional[PETSc.Mat],
-                 M_ii: Optional[PETSc.Mat], Cb: Optional[PETSc.Mat], Db: Optional[PETSc.Mat], qb: np.ndarray,
-                 modes: np.ndarray, blocks_K: list, blocks_M: list, comm: MPI.Comm) -> None:
+def _mode_blocks(
+    basis: InteriorBasis,
+    Phi: PETSc.Mat,
+    Psi: PETSc.Mat | None,
+    K_ii: PETSc.Mat | None,
+    M_ii: PETSc.Mat | None,
+    Cb: PETSc.Mat | None,
+    Db: PETSc.Mat | None,
+    qb: np.ndarray,
+    modes: np.ndarray,
+    blocks_K: list,
+    blocks_M: list,
+    comm: MPI.Comm,
+) -> None:
     """The blocks of a body's modes: Phi^T K Phi, Phi^T M_ii Phi and their couplings to the
     interface coordinates (appended to ``blocks_K``, ``blocks_M``)."""
-    if basis.grams is not None:      # from the Ritz space: no n_i x m products
+    if basis.grams is not None:  # from the Ritz space: no n_i x m products
         Mmm, Kmm = basis.grams
     else:
         # without the Ritz-space Grams the interior's blocks were kept (released only with patterns)
@@ -585,17 +709,32 @@ def _mode_blocks(basis: InteriorBasis, Phi: PETSc.Mat, Psi: Optional[PETSc.Mat],
 def _log_reduction(red: ReducedModel) -> None:
     """One line per body and one for the reduced model (rank 0)."""
     for b in red.bodies:
-        f = b.frequencies_hz[:b.n_modes - b.n_augmented - b.n_patterns]
-        log.info("reduction %s: %d interior dofs -> %d modes (%s)%s, %d interface coordinates",
-                 b.name, b.n_interior, len(f), f"{f[0]:.4g}-{f[-1]:.4g} Hz" if len(f) else "none",
-                 f" + {b.n_augmented} augmentation vectors" if b.n_augmented else
-                 f" + {b.n_patterns} zone-interface pattern vectors" if b.n_patterns else "", len(b.qb))
-    log.info("reduced model: %d coordinates (%d zone, %d modal) in %.2f s", red.n_global, red.n_zone,
-             red.n_modes, red.timings["total"])
+        f = b.frequencies_hz[: b.n_modes - b.n_augmented - b.n_patterns]
+        log.info(
+            "reduction %s: %d interior dofs -> %d modes (%s)%s, %d interface coordinates",
+            b.name,
+            b.n_interior,
+            len(f),
+            f"{f[0]:.4g}-{f[-1]:.4g} Hz" if len(f) else "none",
+            f" + {b.n_augmented} augmentation vectors"
+            if b.n_augmented
+            else f" + {b.n_patterns} zone-interface pattern vectors"
+            if b.n_patterns
+            else "",
+            len(b.qb),
+        )
+    log.info(
+        "reduced model: %d coordinates (%d zone, %d modal) in %.2f s",
+        red.n_global,
+        red.n_zone,
+        red.n_modes,
+        red.timings["total"],
+    )
 
 
-def combine_blocks(Sk: PETSc.Mat, Sm: PETSc.Mat, blocks_K: list, blocks_M: list, red_lo: int, n_loc: int, n: int,
-             sizes, comm: MPI.Comm) -> tuple[PETSc.Mat, PETSc.Mat]:
+def combine_blocks(
+    Sk: PETSc.Mat, Sm: PETSc.Mat, blocks_K: list, blocks_M: list, red_lo: int, n_loc: int, n: int, sizes, comm: MPI.Comm
+) -> tuple[PETSc.Mat, PETSc.Mat]:
     """K_r and M_r as AIJ matrices on one common non-zero pattern: the sparse zone blocks Sk, Sm
     plus dense blocks (rows, cols, values with global reduced indices). The common pattern lets
     the integrators form K + c M with MatAXPY(SAME/SUBSET_NONZERO_PATTERN), which in parallel
@@ -616,8 +755,9 @@ def combine_blocks(Sk: PETSc.Mat, Sm: PETSc.Mat, blocks_K: list, blocks_M: list,
             cols_l.append(np.tile(np.asarray(cols, dtype=np.int64), len(r)))
             vals_l.append(unit * vals[mine].ravel())
     # complex data: real part K, imaginary part M, summed on one pattern (zeros are kept)
-    A = sp.coo_matrix((np.concatenate(vals_l), (np.concatenate(rows_l), np.concatenate(cols_l))),
-                      shape=(n_loc, n)).tocsr()
+    A = sp.coo_matrix(
+        (np.concatenate(vals_l), (np.concatenate(rows_l), np.concatenate(cols_l))), shape=(n_loc, n)
+    ).tocsr()
     A.sum_duplicates()
     A.sort_indices()
     out = []
@@ -626,5 +766,3 @@ def combine_blocks(Sk: PETSc.Mat, Sm: PETSc.Mat, blocks_K: list, blocks_M: list,
         B.assemble()
         out.append(B)
     return out[0], out[1]
-
-

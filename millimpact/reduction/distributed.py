@@ -3,6 +3,7 @@ every rank, dense column blocks, ownership offsets and even splits of a count ov
 delivered to their owners, element-wise reductions, bases of a Gram matrix's range (dependent
 directions dropped), and rank 0's dense work on the cores of the ranks that wait for it.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -10,7 +11,6 @@ import logging
 import os
 import time
 from contextlib import contextmanager
-from typing import Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -108,7 +108,7 @@ def computed_on_root(comm: MPI.Comm, compute, shared=None):
     return result if comm.rank == 0 else sent
 
 
-def _affinity() -> Optional[set[int]]:
+def _affinity() -> set[int] | None:
     """The cores this process may run on, or None where the system does not say."""
     try:
         return set(os.sched_getaffinity(0))
@@ -173,8 +173,7 @@ def aij_from_local_csr(S: sp.csr_matrix, sizes, comm: MPI.Comm) -> PETSc.Mat:
     S = S.tocsr()
     S.sum_duplicates()
     S.sort_indices()
-    A = PETSc.Mat().createAIJ(sizes, csr=(S.indptr.astype(np.int32), S.indices.astype(np.int32), S.data),
-                              comm=comm)
+    A = PETSc.Mat().createAIJ(sizes, csr=(S.indptr.astype(np.int32), S.indices.astype(np.int32), S.data), comm=comm)
     A.assemble()
     return A
 
@@ -244,8 +243,10 @@ def reduce_array(a: np.ndarray, op: MPI.Op, comm: MPI.Comm) -> np.ndarray:
 def global_extent(x: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
     """The lowest and highest coordinates over every rank's rows ``x`` (k x d; a rank may have none)."""
     d = x.shape[1]
-    return (reduce_array(x.min(axis=0) if len(x) else np.full(d, np.inf), MPI.MIN, comm),
-            reduce_array(x.max(axis=0) if len(x) else np.full(d, -np.inf), MPI.MAX, comm))
+    return (
+        reduce_array(x.min(axis=0) if len(x) else np.full(d, np.inf), MPI.MIN, comm),
+        reduce_array(x.max(axis=0) if len(x) else np.full(d, -np.inf), MPI.MAX, comm),
+    )
 
 
 def positions_in(sorted_values: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

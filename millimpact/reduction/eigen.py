@@ -11,11 +11,11 @@ reduction's slabs count first (``count_first``): most have no mode under the cut
 the first round's, and the count alone settles the first (liner panel: the first pass's slabs
 146 -> 117 s on the busier rank, docs: plasticity).
 """
+
 from __future__ import annotations
 
 import logging
 import math
-from typing import Optional
 
 import numpy as np
 from petsc4py import PETSc
@@ -28,7 +28,6 @@ from .block_krylov import BLOCK_SIZE, block_krylov_modes
 log = logging.getLogger(__name__)
 
 
-
 #: first number of modes asked from the eigensolver when only a cutoff is given (then the inertia
 #: count, or doubled until the cutoff is passed; the previous vectors seed the next round). The
 #: default scene keeps 3 ball and 7 block modes: 8 asked first cost 1 s less CPU than 16 (the
@@ -39,6 +38,7 @@ FIRST_NEV = 8
 INERTIA_MIN_DOFS = 5000
 #: a dense eigensolver (LAPACK) takes over when this share of all interior modes is requested
 DENSE_EIGEN_SHARE = 0.5
+
 
 def default_solver_options(comm_size: int) -> dict[str, str]:
     """Fresh default PETSc/SLEPc options, relative to ``impact_reduction_<body>_``.
@@ -59,8 +59,9 @@ def default_solver_options(comm_size: int) -> dict[str, str]:
 
 
 # --- eigenmodes ----------------------------------------------------------------------------------
-def sorted_eigenpairs(eps, A: PETSc.Mat, count: Optional[int] = None,
-                      keep_ksp: bool = False) -> tuple[np.ndarray, list[PETSc.Vec]]:
+def sorted_eigenpairs(
+    eps, A: PETSc.Mat, count: int | None = None, keep_ksp: bool = False
+) -> tuple[np.ndarray, list[PETSc.Vec]]:
     """The converged eigenvalues of a solved EPS (real parts, ascending) and the eigenvectors of
     the lowest ``count`` of them (all if None; Vecs laid out like A's columns); destroys the EPS.
     (Krylov-Schur converges more pairs than asked, and each eigenvector costs a B-normalization:
@@ -77,14 +78,15 @@ def sorted_eigenpairs(eps, A: PETSc.Mat, count: Optional[int] = None,
         vecs.append(v)
     if keep_ksp:
         spare = PETSc.KSP().create(A.getComm())
-        eps.getST().setKSP(spare)        # the reset on destroy hits this one
+        eps.getST().setKSP(spare)  # the reset on destroy hits this one
         spare.destroy()
     eps.destroy()
     return lam[order], vecs
 
 
-def count_below(K: PETSc.Mat, M: PETSc.Mat, lam: float, prefix: str,
-                options: Optional[dict[str, str]] = None) -> Optional[int]:
+def count_below(
+    K: PETSc.Mat, M: PETSc.Mat, lam: float, prefix: str, options: dict[str, str] | None = None
+) -> int | None:
     """The number of eigenvalues of K phi = lambda M phi below ``lam``: Sylvester's law of inertia,
     the count of negative pivots of the LDL^T factorization of K - lam M (M positive definite;
     Parlett, The Symmetric Eigenvalue Problem, 1998, section 3.3; SLEPc's spectrum slicing uses the
@@ -95,18 +97,23 @@ def count_below(K: PETSc.Mat, M: PETSc.Mat, lam: float, prefix: str,
     A = K.duplicate(copy=True)
     ksp = None
     try:
-        A.axpy(-lam, M, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)   # M's pattern is in K's (as free_modes)
+        A.axpy(-lam, M, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # M's pattern is in K's (as free_modes)
         A.setOption(PETSc.Mat.Option.SPD, False)
         A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
         ksp = PETSc.KSP().create(K.getComm())
         ksp.setOptionsPrefix(prefix + "inertia_")
         ksp.setOperators(A)
-        defaults = {"ksp_type": "preonly", "pc_type": "cholesky", "pc_factor_mat_solver_type": "mumps",
-                    # MUMPS: no ScaLAPACK root node, whose factorization gives no inertia, and null
-                    # pivot detection, without which PETSc 3.18 refuses MatGetInertia (SLEPc manual,
-                    # spectrum slicing)
-                    "mat_mumps_icntl_13": "1", "mat_mumps_icntl_24": "1"}
-        user = {k[len("inertia_"):]: v for k, v in (options or {}).items() if k.startswith("inertia_")}
+        defaults = {
+            "ksp_type": "preonly",
+            "pc_type": "cholesky",
+            "pc_factor_mat_solver_type": "mumps",
+            # MUMPS: no ScaLAPACK root node, whose factorization gives no inertia, and null
+            # pivot detection, without which PETSc 3.18 refuses MatGetInertia (SLEPc manual,
+            # spectrum slicing)
+            "mat_mumps_icntl_13": "1",
+            "mat_mumps_icntl_24": "1",
+        }
+        user = {k[len("inertia_") :]: v for k, v in (options or {}).items() if k.startswith("inertia_")}
         with petsc_options(defaults, user, prefix=prefix + "inertia_"):
             ksp.setFromOptions()
             ksp.setUp()
@@ -123,10 +130,16 @@ def count_below(K: PETSc.Mat, M: PETSc.Mat, lam: float, prefix: str,
         A.destroy()
 
 
-def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optional[float],
-                  n_modes: Optional[int], prefix: str,
-                  options: Optional[dict[str, str]] = None,
-                  count_first: bool = False) -> tuple[np.ndarray, list[PETSc.Vec], float]:
+def compute_modes(
+    K_ii: PETSc.Mat,
+    M_ii: PETSc.Mat,
+    ksp: PETSc.KSP,
+    f_cut: float | None,
+    n_modes: int | None,
+    prefix: str,
+    options: dict[str, str] | None = None,
+    count_first: bool = False,
+) -> tuple[np.ndarray, list[PETSc.Vec], float]:
     """Lowest modes of K_ii phi = omega^2 M_ii phi (GHEP): all up to ``f_cut`` (Hz), or the
     lowest ``n_modes``. Shift-and-invert at 0 with the already factored ``ksp`` (K_ii).
 
@@ -149,8 +162,8 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
         if below == 0:
             return np.zeros(0), [], math.nan
         if below is not None and below < FIRST_NEV:
-            nev = min(below + 1, n)      # one Krylov-Schur round (the liner panel's 6-mode slab: block
-        elif below is not None:          # Krylov 16.5 s against 8.8 s for the round of 8)
+            nev = min(below + 1, n)  # one Krylov-Schur round (the liner panel's 6-mode slab: block
+        elif below is not None:  # Krylov 16.5 s against 8.8 s for the round of 8)
             found = block_modes_under_cutoff(K_ii, M_ii, ksp, lam_cut, below, prefix, options)
             if found is not None:
                 return found
@@ -180,21 +193,21 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
             eps.setPurify(False)
             if prev:
                 eps.setInitialSpace(prev)
-            with petsc_options({}, {k: v for k, v in (options or {}).items() if k.startswith("eps_")},
-                               prefix=prefix):
+            with petsc_options({}, {k: v for k, v in (options or {}).items() if k.startswith("eps_")}, prefix=prefix):
                 eps.setFromOptions()
         eps.solve()
         nconv = eps.getConverged()
         if nconv < min(nev, n):
-            raise SolverError(f"eigensolver ({prefix}): {nconv} of {nev} modes converged, "
-                              f"reason {eps.getConvergedReason()}")
+            raise SolverError(
+                f"eigensolver ({prefix}): {nconv} of {nev} modes converged, reason {eps.getConvergedReason()}"
+            )
         # vectors for the lowest nev only: the next round's start, or those kept (when done, the
         # kept ones are among them: lam[nev - 1] > lam_cut, or exactly n_modes)
         lam, vecs = sorted_eigenpairs(eps, K_ii, None if dense or nconv >= n else nev, keep_ksp=not dense)
         if not dense:
-            st.destroy()   # the Python handle alone keeps it, and with it the caller's factorization (see
-                           # integration.solvers.destroy_petsc_tree)
-        done = (n_modes is not None or dense or nconv >= n or lam[min(nev, len(lam)) - 1] > lam_cut)
+            st.destroy()  # the Python handle alone keeps it, and with it the caller's factorization (see
+            # integration.solvers.destroy_petsc_tree)
+        done = n_modes is not None or dense or nconv >= n or lam[min(nev, len(lam)) - 1] > lam_cut
         if done:
             break
         for v in prev:
@@ -224,9 +237,15 @@ def compute_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, f_cut: Optio
     return freq[:keep], vecs[:keep], nxt
 
 
-def block_modes_under_cutoff(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, lam_cut: float, below: int,
-                             prefix: str, options: Optional[dict[str, str]]
-                             ) -> Optional[tuple[np.ndarray, list[PETSc.Vec], float]]:
+def block_modes_under_cutoff(
+    K_ii: PETSc.Mat,
+    M_ii: PETSc.Mat,
+    ksp: PETSc.KSP,
+    lam_cut: float,
+    below: int,
+    prefix: str,
+    options: dict[str, str] | None,
+) -> tuple[np.ndarray, list[PETSc.Vec], float] | None:
     """The ``below`` modes under lam_cut (rad^2/s^2; the count from the inertia) and the next
     frequency by the block Krylov solver; None (the caller runs Krylov-Schur) when the option
     ``<prefix>block_krylov_size`` is 0, most of the spectrum is asked, or the block solver does not
@@ -247,14 +266,25 @@ def block_modes_under_cutoff(K_ii: PETSc.Mat, M_ii: PETSc.Mat, ksp: PETSc.KSP, l
     found_below = int(np.searchsorted(lam, lam_cut, side="right"))
     if found_below != below:
         # a mode missed or one above the cut in the lowest below + 1: leave it to Krylov-Schur
-        log.info("eigensolver %s: block Krylov found %d modes under f_cut, the inertia %d; Krylov-Schur instead",
-                 prefix, found_below, below)
+        log.info(
+            "eigensolver %s: block Krylov found %d modes under f_cut, the inertia %d; Krylov-Schur instead",
+            prefix,
+            found_below,
+            below,
+        )
         for v in vecs:
             v.destroy()
         return None
-    log.info("eigensolver %s: %d modes under f_cut (inertia) by block Krylov, basis %d in blocks of %d, "
-             "%.3g s (solves %.3g s, the rest the products with M and the orthogonalization)",
-             prefix, below, stats["basis"], block, stats["total_s"], stats["solve_s"])
+    log.info(
+        "eigensolver %s: %d modes under f_cut (inertia) by block Krylov, basis %d in blocks of %d, "
+        "%.3g s (solves %.3g s, the rest the products with M and the orthogonalization)",
+        prefix,
+        below,
+        stats["basis"],
+        block,
+        stats["total_s"],
+        stats["solve_s"],
+    )
     freq = frequencies_hz(lam)
     vecs[below].destroy()
     return freq[:below], vecs[:below], float(freq[below])
@@ -271,5 +301,3 @@ def small_ghep(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Linv = np.linalg.inv(L)
     lam, W = np.linalg.eigh(Linv @ A @ Linv.T)
     return lam, Linv.T @ W
-
-

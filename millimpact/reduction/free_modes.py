@@ -1,13 +1,13 @@
 """Free-vibration modes of a reduced model, K_r phi = omega^2 M_r phi up to f_max (u = T Phi eta,
 :class:`ModalProjection`), which the reduced methods propagate in closed form between impacts.
 """
+
 from __future__ import annotations
 
 import logging
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -18,12 +18,11 @@ from slepc4py import SLEPc
 from ..errors import InputError, SolverError
 from ..fem.model import FEModel
 from ..integration.solvers import create_factored_solver, petsc_options
-
-log = logging.getLogger(__name__)
-
 from .distributed import aij_from_local_csr, gather_aij_dense, gather_rows
 from .eigen import FIRST_NEV, default_solver_options, sorted_eigenpairs
 from .reduced_model import ReducedModel
+
+log = logging.getLogger(__name__)
 
 
 # --- free-vibration modes of a reduced model -----------------------------------------------------
@@ -51,8 +50,8 @@ class ModalProjection:
     K: PETSc.Mat
     ball_coords: np.ndarray
     f_max: float
-    mass: PETSc.Mat                #: the mass matrix of the eigenproblem (reduced coordinates)
-    M_scheme: PETSc.Mat            #: Phi^T mass Phi (= I, AIJ m x m): the integrator's mass, modally
+    mass: PETSc.Mat  #: the mass matrix of the eigenproblem (reduced coordinates)
+    M_scheme: PETSc.Mat  #: Phi^T mass Phi (= I, AIJ m x m): the integrator's mass, modally
     timings: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -121,8 +120,13 @@ class ModalProjection:
         return out
 
 
-def compute_free_modes(red: ReducedModel, f_max: float, mass: Optional[PETSc.Mat] = None,
-                       solver_options: Optional[dict[str, str]] = None, shift_hz: float = 100.0) -> ModalProjection:
+def compute_free_modes(
+    red: ReducedModel,
+    f_max: float,
+    mass: PETSc.Mat | None = None,
+    solver_options: dict[str, str] | None = None,
+    shift_hz: float = 100.0,
+) -> ModalProjection:
     """The free-vibration modes of each body of ``red`` up to ``f_max`` (Hz) with the mass matrix
     ``mass`` (default M_r; semi-definite allowed: massless coordinates), as a
     :class:`ModalProjection`. Shift-and-invert at ``-(2 pi shift_hz)^2``: the free ball's rigid
@@ -139,9 +143,9 @@ def compute_free_modes(red: ReducedModel, f_max: float, mass: Optional[PETSc.Mat
     n_loc = q_hi - q_lo
     is_ball = np.zeros(n_loc, dtype=bool)
     is_ball[red.ball_coords] = True
-    sigma = -(2 * math.pi * shift_hz) ** 2
+    sigma = -((2 * math.pi * shift_hz) ** 2)
     lam_max = (2 * math.pi * f_max) ** 2
-    per_body: list[tuple[np.ndarray, np.ndarray, list[PETSc.Vec]]] = []     # (local rows, lambda, modes)
+    per_body: list[tuple[np.ndarray, np.ndarray, list[PETSc.Vec]]] = []  # (local rows, lambda, modes)
     for b, local in ((0, np.nonzero(is_ball)[0]), (1, np.nonzero(~is_ball)[0])):
         IS = PETSc.IS().createGeneral((q_lo + local).astype(np.int32), comm=comm)
         n_b = comm.allreduce(len(local))
@@ -179,8 +183,8 @@ def compute_free_modes(red: ReducedModel, f_max: float, mass: Optional[PETSc.Mat
                 raise SolverError(f"free-vibration modes ({prefix}): {nconv} of {nev} converged")
             # vectors for the lowest nev only (the next round's start, or those kept)
             lam, vecs = sorted_eigenpairs(eps, Kb, None if nev >= n_b - 1 else nev)
-            st.destroy()   # the Python handle alone keeps it, and with it the factorization (see
-                           # integration.solvers.destroy_petsc_tree)
+            st.destroy()  # the Python handle alone keeps it, and with it the factorization (see
+            # integration.solvers.destroy_petsc_tree)
             if lam[nev - 1] > lam_max or nev >= n_b - 1:
                 break
             prev = vecs[:nev]
@@ -203,7 +207,7 @@ def compute_free_modes(red: ReducedModel, f_max: float, mass: Optional[PETSc.Mat
             body_all.append(b)
             k += 1
     Phi.assemble()
-    omega2 = np.maximum(np.array(lam_all), 0.0)   # rigid modes: rounding may give -1e-6 rad^2/s^2
+    omega2 = np.maximum(np.array(lam_all), 0.0)  # rigid modes: rounding may give -1e-6 rad^2/s^2
     body = np.array(body_all, dtype=np.int8)
     c0, c1 = Phi.getOwnershipRangeColumn()
     mats = []
@@ -217,13 +221,17 @@ def compute_free_modes(red: ReducedModel, f_max: float, mass: Optional[PETSc.Mat
     if ortho > 1e-6:
         raise SolverError(f"free-vibration modes are not M-orthonormal (max |Phi^T M Phi - I| = {ortho:.3g})")
     ball = np.array([i - c0 for i in range(c0, c1) if body[i] == 0], dtype=np.int32)
-    proj = ModalProjection(red, Phi, omega2, body, mats[0], mats[1], ball, f_max, mass, mats[2],
-                           {"free_modes": time.perf_counter() - t0})
+    proj = ModalProjection(
+        red, Phi, omega2, body, mats[0], mats[1], ball, f_max, mass, mats[2], {"free_modes": time.perf_counter() - t0}
+    )
     if comm.rank == 0:
         f = np.sqrt(omega2) / (2 * math.pi)
-        log.info("free-vibration modes up to %.4g kHz: %d ball (%d rigid), %d block, %.2f s", f_max / 1e3,
-                 int(np.count_nonzero(body == 0)), int(np.count_nonzero((body == 0) & (f < 1.0))),
-                 int(np.count_nonzero(body == 1)), proj.timings["free_modes"])
+        log.info(
+            "free-vibration modes up to %.4g kHz: %d ball (%d rigid), %d block, %.2f s",
+            f_max / 1e3,
+            int(np.count_nonzero(body == 0)),
+            int(np.count_nonzero((body == 0) & (f < 1.0))),
+            int(np.count_nonzero(body == 1)),
+            proj.timings["free_modes"],
+        )
     return proj
-
-

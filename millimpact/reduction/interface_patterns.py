@@ -11,6 +11,7 @@ slabs take instead of C and D (:func:`zone_pattern_couplings`), and the interior
 reach, where the slabs keep their Ritz basis for the output recovery (:func:`probe_interior_rows`;
 the recovery itself: :func:`~.substructures.ritz_recovery`).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,8 +21,14 @@ from petsc4py import PETSc
 
 from ..fem.model import FEModel
 from ..fem.probes import create_probe
-from .distributed import (aij_from_local_csr, global_extent, local_columns_csr, orthonormal_columns,
-                          ownership_offsets, positions_in)
+from .distributed import (
+    aij_from_local_csr,
+    global_extent,
+    local_columns_csr,
+    orthonormal_columns,
+    ownership_offsets,
+    positions_in,
+)
 from .partition import BODIES, DofPartition
 
 
@@ -35,17 +42,21 @@ def zone_interface_patterns(coords: np.ndarray, comps: np.ndarray, degree: int, 
     lo, hi = global_extent(coords, comm)
     s = (coords - 0.5 * (lo + hi)) / max(0.5 * float(np.max(hi - lo)), 1e-300)
     powers = [(a, b, c) for a in range(degree + 1) for b in range(degree + 1 - a) for c in range(degree + 1 - a - b)]
-    mono = np.column_stack([s[:, 0] ** a * s[:, 1] ** b * s[:, 2] ** c for a, b, c in powers]) if len(s) else \
-        np.zeros((0, len(powers)))
+    mono = (
+        np.column_stack([s[:, 0] ** a * s[:, 1] ** b * s[:, 2] ** c for a, b, c in powers])
+        if len(s)
+        else np.zeros((0, len(powers)))
+    )
     B = np.zeros((len(coords), 3 * len(powers)))
     for comp in range(3):
         sel = comps == comp
-        B[sel, comp * len(powers):(comp + 1) * len(powers)] = mono[sel]
+        B[sel, comp * len(powers) : (comp + 1) * len(powers)] = mono[sel]
     return orthonormal_columns(B, comm)
 
 
-def zone_pattern_couplings(model: FEModel, part: DofPartition, body: str, degree: int, K_ia: PETSc.Mat,
-                           M_ia: PETSc.Mat) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+def zone_pattern_couplings(
+    model: FEModel, part: DofPartition, body: str, degree: int, K_ia: PETSc.Mat, M_ia: PETSc.Mat
+) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """K_iz W and M_iz W (owned interior rows, CSR) for the body's zone-interface patterns W of
     ``degree`` (:func:`zone_interface_patterns`; K_ia, M_ia: the interior rows of
     K and M, all columns). W is sparse: non-zero on the body's interface dofs only."""
@@ -55,8 +66,9 @@ def zone_pattern_couplings(model: FEModel, part: DofPartition, body: str, degree
     xyz = model.V.tabulate_dof_coordinates()[iface // 3]
     W_loc = zone_interface_patterns(xyz, iface % 3, degree, comm)
     p = W_loc.shape[1]
-    rows = sp.csr_matrix((W_loc.ravel(), (np.repeat(iface, p), np.tile(np.arange(p), len(iface)))),
-                         shape=(part.n_owned, p))
+    rows = sp.csr_matrix(
+        (W_loc.ravel(), (np.repeat(iface, p), np.tile(np.arange(p), len(iface)))), shape=(part.n_owned, p)
+    )
     W = aij_from_local_csr(rows, ((part.n_owned, PETSc.DETERMINE), (PETSc.DECIDE, p)), comm)
     out = []
     for A in (K_ia, M_ia):

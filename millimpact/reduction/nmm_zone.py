@@ -31,11 +31,11 @@ is dropped and so are the components of ``b^c`` along the edges whose midpoints 
 rows of ``P`` at fixed dofs stay empty. Edge-vector components below ``DIRECTION_TOL`` of the edge
 length are exact zeros, so that ``P`` does not depend on the mesh partition's round-off.
 """
+
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Optional
 
 import basix
 import numpy as np
@@ -44,9 +44,9 @@ from dolfinx.cpp.la.petsc import create_vector as _create_ghosted_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..geometry import builders as G
 from ..errors import InputError
 from ..fem.model import FEModel
+from ..geometry import builders as G
 from .distributed import ownership_offsets
 from .partition import DofPartition, ZoneBasis, partition_dofs, tagged_cells
 
@@ -66,10 +66,10 @@ class NMMZone:
     of its 12 slots (-1 where dropped)."""
 
     basis: ZoneBasis
-    nodes: np.ndarray       #: (nv,) local node indices of the owned zone vertices
-    x: np.ndarray           #: (nv, 3)
-    h: np.ndarray           #: (nv,)
-    index: np.ndarray       #: (nv, 12) global coordinate indices, -1 if dropped
+    nodes: np.ndarray  #: (nv,) local node indices of the owned zone vertices
+    x: np.ndarray  #: (nv, 3)
+    h: np.ndarray  #: (nv,)
+    index: np.ndarray  #: (nv, 12) global coordinate indices, -1 if dropped
     remedy: str
 
     def linear_field(self, c: np.ndarray, A: np.ndarray) -> np.ndarray:
@@ -129,8 +129,9 @@ class _ZoneMesh:
     fixed: np.ndarray
 
 
-def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
-                    remedy: str = "interface", scale: bool = True) -> NMMZone:
+def create_nmm_zone(
+    model: FEModel, partition: DofPartition | None = None, *, remedy: str = "interface", scale: bool = True
+) -> NMMZone:
     """The manifold-enriched zone of a P2 model (see the module docstring). Collective."""
     if model.degree != 2:
         raise InputError(f"manifold enrichment needs the P2 model (got P{model.degree})")
@@ -141,7 +142,7 @@ def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
     zm = _zone_mesh(model)
     is_vertex, is_ball, h, tangent_fixed = _vertex_data(zm, scale)
     # kept slots of the owned zone vertices
-    own_v = np.nonzero(is_vertex[:zm.n_own])[0].astype(np.int32)
+    own_v = np.nonzero(is_vertex[: zm.n_own])[0].astype(np.int32)
     keep = np.ones((len(own_v), SLOTS), dtype=bool)
     keep[:, :3] = ~zm.fixed[own_v]
     keep[:, 3:] = ~tangent_fixed[own_v].reshape(-1, 9)
@@ -150,8 +151,9 @@ def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
     if remedy == "interface":
         keep[interface_v, 3:] = False
     elif remedy == "anchors":
-        anchors = _choose_anchors(comm, zm.imap, own_v[interface_v], zm.X[own_v[interface_v]],
-                                  is_ball[own_v[interface_v]], model)
+        anchors = _choose_anchors(
+            comm, zm.imap, own_v[interface_v], zm.X[own_v[interface_v]], is_ball[own_v[interface_v]], model
+        )
         gidx = zm.imap.local_to_global(own_v)
         keep[np.isin(gidx, anchors), 3:] = False
     n_drop = int(np.count_nonzero(~keep))
@@ -164,16 +166,31 @@ def create_nmm_zone(model: FEModel, partition: Optional[DofPartition] = None, *,
     idx_all = _accumulate(zm.imap, SLOTS, idx_all, op="forward").round().astype(np.int64)
     P = _prolongation(zm, idx_all, h, n_q, comm)
     body = np.repeat(np.where(is_ball[own_v], 0, 1), SLOTS).reshape(-1, SLOTS)[keep].astype(np.int8)
-    totals = comm.allreduce(np.array([len(own_v), n_q, n_fixed_drop, n_drop - n_fixed_drop,
-                                      int(np.count_nonzero(interface_v))], dtype=np.int64), op=MPI.SUM)
-    info = {"zone_vertices": int(totals[0]), "zone_coordinates": int(totals[1]),
-            "dropped_constrained": int(totals[2]), "dropped_remedy": int(totals[3]),
-            "interface_vertices": int(totals[4]), "remedy": remedy,
-            "p2_zone_dofs": int(comm.allreduce(len(part.zone)))}
+    totals = comm.allreduce(
+        np.array(
+            [len(own_v), n_q, n_fixed_drop, n_drop - n_fixed_drop, int(np.count_nonzero(interface_v))], dtype=np.int64
+        ),
+        op=MPI.SUM,
+    )
+    info = {
+        "zone_vertices": int(totals[0]),
+        "zone_coordinates": int(totals[1]),
+        "dropped_constrained": int(totals[2]),
+        "dropped_remedy": int(totals[3]),
+        "interface_vertices": int(totals[4]),
+        "remedy": remedy,
+        "p2_zone_dofs": int(comm.allreduce(len(part.zone))),
+    }
     if comm.rank == 0:
-        log.info("NMM zone: %d vertices, %d cover coordinates (P2 zone dofs %d), dropped %d constrained + %d (%s)",
-                 info["zone_vertices"], info["zone_coordinates"], info["p2_zone_dofs"],
-                 info["dropped_constrained"], info["dropped_remedy"], remedy)
+        log.info(
+            "NMM zone: %d vertices, %d cover coordinates (P2 zone dofs %d), dropped %d constrained + %d (%s)",
+            info["zone_vertices"],
+            info["zone_coordinates"],
+            info["p2_zone_dofs"],
+            info["dropped_constrained"],
+            info["dropped_remedy"],
+            remedy,
+        )
     basis = ZoneBasis(P, body, "nmm", info)
     return NMMZone(basis, own_v, zm.X[own_v].copy(), h[own_v].copy(), index, remedy)
 
@@ -194,13 +211,17 @@ def _zone_mesh(model: FEModel) -> _ZoneMesh:
     zone_cells = zone_cells[zone_cells < n_cells_own]
     ball_cells = tagged_cells(model, (G.BALL_ZONE,))
     ball_cells = ball_cells[ball_cells < n_cells_own]
-    cn = cell_nodes[zone_cells]                                   # (nc, 10)
+    cn = cell_nodes[zone_cells]  # (nc, 10)
     E = np.stack([cn[:, ecol[:, 0]], cn[:, ecol[:, 1]], cn[:, ecol[:, 2]]], axis=-1).reshape(-1, 3)  # m, i, j
     # fixed flags on every local node
     fixed_owned = np.zeros(n_own * bs)
     fixed_owned[model.fixed_dofs] = 1.0
-    fixed = _accumulate(imap, bs, np.concatenate([fixed_owned, np.zeros((n_loc - n_own) * bs)]).reshape(-1, bs),
-                        op="forward") > 0.5
+    fixed = (
+        _accumulate(
+            imap, bs, np.concatenate([fixed_owned, np.zeros((n_loc - n_own) * bs)]).reshape(-1, bs), op="forward"
+        )
+        > 0.5
+    )
     return _ZoneMesh(imap, bs, n_own, n_loc, X, E, cn, vcol, ball_cells, cell_nodes, fixed)
 
 
@@ -217,9 +238,9 @@ def _vertex_data(zm: _ZoneMesh, scale: bool) -> tuple[np.ndarray, np.ndarray, np
     for end in (1, 2):
         np.add.at(acc[:, 2], E[:, end], length)
         np.add.at(acc[:, 3], E[:, end], 1.0)
-    along = np.abs(d) > DIRECTION_TOL * length[:, None]           # (ne, 3) axes an edge spans
+    along = np.abs(d) > DIRECTION_TOL * length[:, None]  # (ne, 3) axes an edge spans
     for c in range(3):
-        fm = zm.fixed[E[:, 0], c]                                  # midpoint fixed in component c
+        fm = zm.fixed[E[:, 0], c]  # midpoint fixed in component c
         for end in (1, 2):
             for k in range(3):
                 sel = fm & along[:, k]
@@ -268,8 +289,9 @@ def _prolongation(zm: _ZoneMesh, idx_all: np.ndarray, h: np.ndarray, n_q: int, c
     return P
 
 
-def _choose_anchors(comm: MPI.Comm, imap: IndexMap, nodes: np.ndarray, x: np.ndarray, ball: np.ndarray,
-                    model: FEModel) -> np.ndarray:
+def _choose_anchors(
+    comm: MPI.Comm, imap: IndexMap, nodes: np.ndarray, x: np.ndarray, ball: np.ndarray, model: FEModel
+) -> np.ndarray:
     """Global node indices of three interface vertices per zone, far apart and not collinear:
     A the farthest from the zone's contact point, B the farthest from A, C the farthest from the
     line AB (ties broken by the global index, so every rank picks the same)."""

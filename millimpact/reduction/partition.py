@@ -5,23 +5,23 @@ cells tagged BALL_ZONE / BLOCK_ZONE, interface nodes included) and ``interior`` 
 :class:`ZoneBasis` describes the zone, u_z = G q_z: the identity (nodal dofs kept, :func:`create_nodal_zone_basis`)
 or the manifold covers of :mod:`millimpact.reduction.nmm_zone`.
 """
+
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
 
 import numpy as np
 from dolfinx import fem
 from dolfinx.cpp.la.petsc import create_vector as _create_ghosted_vector
 from petsc4py import PETSc
 
-from ..geometry import builders as G
 from ..fem.model import FEModel
+from ..geometry import builders as G
 from .distributed import ownership_offsets
 
 log = logging.getLogger(__name__)
-
 
 
 #: the two bodies: name, (zone tag, region tag)
@@ -31,6 +31,8 @@ BODIES: tuple[tuple[str, tuple[int, int]], ...] = (
 )
 ZONE_TAGS = (G.BALL_ZONE, G.BLOCK_ZONE)
 REGION_TAGS = (G.BALL_REGION, G.BLOCK_REGION)
+
+
 # --- dof sets ----------------------------------------------------------------------------------
 def node_flags(V: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
     """Boolean per local node of ``V`` (owned and ghost): does the node belong to one of ``cells``
@@ -69,7 +71,7 @@ class DofPartition:
     zone: np.ndarray
     interface: np.ndarray
     interior: dict[str, np.ndarray]
-    zone_body: np.ndarray          #: per zone dof: 0 ball, 1 block
+    zone_body: np.ndarray  #: per zone dof: 0 ball, 1 block
     ball_node: np.ndarray
     zone_node: np.ndarray
     region_node: np.ndarray
@@ -125,7 +127,7 @@ class ZoneBasis:
         return self.G.getSize()[1]
 
 
-def create_nodal_zone_basis(model: FEModel, partition: Optional[DofPartition] = None) -> ZoneBasis:
+def create_nodal_zone_basis(model: FEModel, partition: DofPartition | None = None) -> ZoneBasis:
     """The identity on the zone: every non-fixed zone dof is a reduced coordinate (traditional
     multivariable method, and ``modal-p2``)."""
     part = partition or partition_dofs(model)
@@ -136,9 +138,8 @@ def create_nodal_zone_basis(model: FEModel, partition: Optional[DofPartition] = 
     indptr[part.zone + 1] = 1
     indptr = np.cumsum(indptr).astype(np.int32)
     cols = (q0 + np.arange(n_q)).astype(np.int32)
-    Gm = PETSc.Mat().createAIJ(((part.n_owned, PETSc.DETERMINE), (n_q, PETSc.DETERMINE)),
-                               csr=(indptr, cols, np.ones(n_q)), comm=comm)
+    Gm = PETSc.Mat().createAIJ(
+        ((part.n_owned, PETSc.DETERMINE), (n_q, PETSc.DETERMINE)), csr=(indptr, cols, np.ones(n_q)), comm=comm
+    )
     Gm.assemble()
     return ZoneBasis(Gm, part.zone_body.copy(), "nodal", {"zone_coordinates": comm.allreduce(n_q)})
-
-

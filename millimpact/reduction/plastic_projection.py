@@ -12,10 +12,10 @@ linear and modal. So the zone's displacement is ``G q`` and its force ``G^T f_c`
 without the dense Craig-Bampton blocks: on the coarse liner panel the full ``T q`` / ``T^T f``
 took 9 s of a 43 s run (a Psi and a Phi product per Newton iteration), and they grow with the region.
 """
+
 from __future__ import annotations
 
 import math
-from typing import Optional
 
 import numpy as np
 from petsc4py import PETSc
@@ -34,9 +34,9 @@ class ProjectedPlasticZone:
 
     def __init__(self, zone, red: ReducedModel):
         self.zone, self.red = zone, red
-        self._u = None                   # the zone's displacement G q (a Vec of the model's dofs)
-        self._f = None                   # the zone's force correction, assembled in place
-        self._frozen: Optional[tuple[int, PETSc.Vec]] = None     # (plastic state version, G^T f_frozen)
+        self._u = None  # the zone's displacement G q (a Vec of the model's dofs)
+        self._f = None  # the zone's force correction, assembled in place
+        self._frozen: tuple[int, PETSc.Vec] | None = None  # (plastic state version, G^T f_frozen)
 
     def _expand(self, q: PETSc.Vec) -> PETSc.Vec:
         """u = G q: exact on the zone's dofs (all the zone's cells read); zero in the interior."""
@@ -105,8 +105,9 @@ class ProjectedPlasticZone:
         repeated-impact sequence ends at a new residual state, and a table's cases share it."""
         b = self.frozen_force()
         b.scale(-1.0)
-        q = self.red.static_solve(b, (2.0 * math.pi * RESIDUAL_SHIFT_HZ) ** 2, "residual_",
-                                  "residual state (K_r q_s = -f_frozen)")
+        q = self.red.static_solve(
+            b, (2.0 * math.pi * RESIDUAL_SHIFT_HZ) ** 2, "residual_", "residual state (K_r q_s = -f_frozen)"
+        )
         b.destroy()
         return q
 

@@ -2,13 +2,15 @@
 reductions, initial-state projection and output recovery by mode acceleration (see
 :mod:`millimpact.reduction.craig_bampton` for the equations).
 """
+
 from __future__ import annotations
 
 import hashlib
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -16,10 +18,15 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..fem.model import FEModel
-from ..integration.solvers import (create_factored_solver, effective_solver_defaults, mark_symmetric,
-                                   solve_checked, solve_or_factorize)
-from .partition import DofPartition, ZoneBasis
+from ..integration.solvers import (
+    create_factored_solver,
+    effective_solver_defaults,
+    mark_symmetric,
+    solve_checked,
+    solve_or_factorize,
+)
 from .distributed import aij_from_local_csr, dense_columns, gather_rows, positions_in
+from .partition import DofPartition, ZoneBasis
 
 log = logging.getLogger(__name__)
 
@@ -45,13 +52,13 @@ class BodyReduction:
     name: str
     n_interior: int
     I: PETSc.IS
-    Psi: Optional[PETSc.Mat]
+    Psi: PETSc.Mat | None
     qb: np.ndarray
-    Phi: Optional[PETSc.Mat]
+    Phi: PETSc.Mat | None
     modes: np.ndarray
     frequencies_hz: np.ndarray
-    f_cut: Optional[float]
-    next_frequency_hz: float       #: lowest fixed-interface frequency not kept (nan if unknown)
+    f_cut: float | None
+    next_frequency_hz: float  #: lowest fixed-interface frequency not kept (nan if unknown)
     timings: dict[str, float] = field(default_factory=dict)
     #: the last ``n_augmented`` columns of Phi are augmentation vectors (their Ritz frequencies)
     n_augmented: int = 0
@@ -62,20 +69,20 @@ class BodyReduction:
     #: until :meth:`ReducedModel.release_recovery`: the factored K_ii and the mass coupling M_ib
     #: (sparse n_i x n_b) of A_b = M_ii Psi + M_ib, through which the zone's acceleration loads the
     #: interior (A_b is applied, never stored: a dense n_i x n_b matrix)
-    ksp: Optional[PETSc.KSP] = None
-    M_ib: Optional[PETSc.Mat] = None
-    K_ii: Optional[PETSc.Mat] = None
+    ksp: PETSc.KSP | None = None
+    M_ib: PETSc.Mat | None = None
+    K_ii: PETSc.Mat | None = None
     #: factors K_ii when ``ksp`` is None (Psi and Phi came from the on-disk cache: reduction.cache)
-    factor: Optional[Callable[[], PETSc.KSP]] = None
+    factor: Callable[[], PETSc.KSP] | None = None
     from_cache: bool = False
     #: the slab-wise reduction's statistics (:mod:`.substructures`), None for one factorization
-    substructures: Optional[dict] = None
+    substructures: dict | None = None
     #: substructured bodies: R A_b (dense n_i x n_b), the residual flexibility's response to the
     #: interface inertia from the Ritz space, for the mode-acceleration rows without K_ii's factor
-    residual_b: Optional[PETSc.Mat] = None
+    residual_b: PETSc.Mat | None = None
     #: substructured with zone-interface patterns: the Ritz-space recovery of output rows
     #: (:func:`~.substructures.ritz_recovery`: kept rows, V there, H_C, H_D, H_M), None otherwise
-    ritz_recovery: Optional[dict] = None
+    ritz_recovery: dict | None = None
 
     @property
     def n_modes(self) -> int:
@@ -84,17 +91,22 @@ class BodyReduction:
 
     def report(self) -> dict[str, Any]:
         """JSON-able summary."""
-        f = self.frequencies_hz[:len(self.frequencies_hz) - self.n_augmented - self.n_patterns]
-        return {"interior_dofs": self.n_interior, "interface_coordinates": int(len(self.qb)),
-                "modes": int(len(f)), "augmentation_vectors": self.n_augmented,
-                "augmentation_frequencies_Hz": [float(x) for x in self.frequencies_hz[len(f):len(f) + self.n_augmented]],
-                "interface_pattern_vectors": self.n_patterns,
-                "f_cut_Hz": self.f_cut,
-                "lowest_frequency_Hz": float(f[0]) if len(f) else None,
-                "highest_frequency_Hz": float(f[-1]) if len(f) else None,
-                "next_frequency_Hz": self.next_frequency_hz, "from_cache": self.from_cache,
-                **({"substructures": self.substructures} if self.substructures else {}),
-                "timings_s": dict(self.timings)}
+        f = self.frequencies_hz[: len(self.frequencies_hz) - self.n_augmented - self.n_patterns]
+        return {
+            "interior_dofs": self.n_interior,
+            "interface_coordinates": int(len(self.qb)),
+            "modes": int(len(f)),
+            "augmentation_vectors": self.n_augmented,
+            "augmentation_frequencies_Hz": [float(x) for x in self.frequencies_hz[len(f) : len(f) + self.n_augmented]],
+            "interface_pattern_vectors": self.n_patterns,
+            "f_cut_Hz": self.f_cut,
+            "lowest_frequency_Hz": float(f[0]) if len(f) else None,
+            "highest_frequency_Hz": float(f[-1]) if len(f) else None,
+            "next_frequency_Hz": self.next_frequency_hz,
+            "from_cache": self.from_cache,
+            **({"substructures": self.substructures} if self.substructures else {}),
+            "timings_s": dict(self.timings),
+        }
 
 
 @dataclass
@@ -116,10 +128,10 @@ class ReducedModel:
     ball_coords: np.ndarray
     n_zone: int
     timings: dict[str, float] = field(default_factory=dict)
-    _mass_ksp: Optional[PETSc.KSP] = None
-    _static: dict = field(default_factory=dict)   #: (K_r + s M_r, its factored KSP) by (s, prefix)
+    _mass_ksp: PETSc.KSP | None = None
+    _static: dict = field(default_factory=dict)  #: (K_r + s M_r, its factored KSP) by (s, prefix)
     _scatters: dict = field(default_factory=dict)
-    _recovery_rows: dict = field(default_factory=dict)   #: mode_acceleration_rows by the rows' CSR hash
+    _recovery_rows: dict = field(default_factory=dict)  #: mode_acceleration_rows by the rows' CSR hash
 
     # sizes ------------------------------------------------------------------------------------
     @property
@@ -142,8 +154,9 @@ class ReducedModel:
         return q
 
     # maps -------------------------------------------------------------------------------------
-    def _scatter(self, body: BodyReduction, which: str, mat: PETSc.Mat,
-                 q: PETSc.Vec) -> tuple[PETSc.Scatter, PETSc.Vec]:
+    def _scatter(
+        self, body: BodyReduction, which: str, mat: PETSc.Mat, q: PETSc.Vec
+    ) -> tuple[PETSc.Scatter, PETSc.Vec]:
         """Scatter from reduced vectors to the column layout of ``mat``, the ``Psi`` / ``Phi`` of a body."""
         key = (body.name, which)
         if key not in self._scatters:
@@ -154,7 +167,7 @@ class ReducedModel:
             self._scatters[key] = (PETSc.Scatter().create(q, is_from, x, None), x)
         return self._scatters[key]
 
-    def expand(self, q: PETSc.Vec, u: Optional[PETSc.Vec] = None) -> PETSc.Vec:
+    def expand(self, q: PETSc.Vec, u: PETSc.Vec | None = None) -> PETSc.Vec:
         """u = T q (a model vector, m)."""
         if u is None:
             u = self.model.K.createVecRight()
@@ -178,7 +191,7 @@ class ReducedModel:
                 y.destroy()
         return u
 
-    def restrict(self, f: PETSc.Vec, r: Optional[PETSc.Vec] = None) -> PETSc.Vec:
+    def restrict(self, f: PETSc.Vec, r: PETSc.Vec | None = None) -> PETSc.Vec:
         """r = T^T f (a reduced vector; generalized forces in N for physical coordinates)."""
         if r is None:
             r = self.create_vector()
@@ -209,9 +222,14 @@ class ReducedModel:
         q = self.create_vector()
         # a user's iterative choice (-impact_reduction_mass_ksp_type cg) that stalls falls back
         # to a factorization
-        self._mass_ksp = solve_or_factorize(self._mass_ksp, self.M, rhs, q,
-                                            "projection of the initial state on the reduced basis",
-                                            "impact_reduction_mass_direct_")
+        self._mass_ksp = solve_or_factorize(
+            self._mass_ksp,
+            self.M,
+            rhs,
+            q,
+            "projection of the initial state on the reduced basis",
+            "impact_reduction_mass_direct_",
+        )
         log.debug("mass projection: %d CG iterations", self._mass_ksp.getIterationNumber())
         return q
 
@@ -241,8 +259,9 @@ class ReducedModel:
         S = sp.csr_matrix((data, indices, indptr), shape=(n_rows, n_cols))
         for dense, idx in extra:
             loc = dense[r0:r1]
-            S = S + sp.csr_matrix((loc.ravel(), (np.repeat(np.arange(n_rows), len(idx)),
-                                                 np.tile(idx, n_rows))), shape=(n_rows, n_cols))
+            S = S + sp.csr_matrix(
+                (loc.ravel(), (np.repeat(np.arange(n_rows), len(idx)), np.tile(idx, n_rows))), shape=(n_rows, n_cols)
+            )
         return aij_from_local_csr(S.tocsr(), AG.getSizes(), self.comm)
 
     def mode_acceleration_rows(self, A: PETSc.Mat) -> np.ndarray:
@@ -261,7 +280,7 @@ class ReducedModel:
         them); bodies with augmentation vectors are skipped (Phi holds non-eigenvectors there)."""
         return self._recovery(A)[1].copy()
 
-    def displacement_recovery_rows(self, A: PETSc.Mat) -> Optional[np.ndarray]:
+    def displacement_recovery_rows(self, A: PETSc.Mat) -> np.ndarray | None:
         """The displacement part of the recovery, for bodies reduced with zone-interface patterns
         (:func:`~.substructures.ritz_recovery`): a replicated dense D (k x n_r) such that
         ``A u ~ (A T + D) q + C q''`` (C: :meth:`mode_acceleration_rows`); None when no such body
@@ -269,13 +288,14 @@ class ReducedModel:
         D = self._recovery(A)[0]
         return None if D is None else D.copy()
 
-    def _recovery(self, A: PETSc.Mat) -> tuple[Optional[np.ndarray], np.ndarray]:
+    def _recovery(self, A: PETSc.Mat) -> tuple[np.ndarray | None, np.ndarray]:
         """(D, C) of :meth:`displacement_recovery_rows` and :meth:`mode_acceleration_rows`."""
         # the same rows again (the impacts of a contact table share the probes): D, C from the first
         # time, not a fresh factorization of K_ii and solve (0.5-1 s a case on the rig)
         indptr, indices, values = A.getValuesCSR()
-        key = hashlib.sha1(b"".join(np.ascontiguousarray(x).tobytes() for x in (indptr, indices, values))
-                           + repr(A.getSize()).encode()).hexdigest()
+        key = hashlib.sha1(
+            b"".join(np.ascontiguousarray(x).tobytes() for x in (indptr, indices, values)) + repr(A.getSize()).encode()
+        ).hexdigest()
         if self.comm.allreduce(key in self._recovery_rows, op=MPI.LAND):
             return self._recovery_rows[key]
         k = A.getSize()[0]
@@ -292,16 +312,15 @@ class ReducedModel:
                 pos, inside = positions_in(rec["rows"], ix)
                 if self.comm.allreduce(int(np.count_nonzero(~inside)), op=MPI.SUM):
                     if self.comm.rank == 0:
-                        log.warning("%s: output rows outside the kept Ritz rows: recovered as u = T q there",
-                                    b.name)
+                        log.warning("%s: output rows outside the kept Ritz rows: recovered as u = T q there", b.name)
                     AI.destroy()
                     continue
                 if self.comm.allreduce(len(ix), op=MPI.SUM):
                     S = sp.csr_matrix((vals, pos, ip), shape=(r1 - r0, len(rec["rows"])))
-                    AV = np.vstack(self.comm.allgather(np.asarray(S @ rec["V"])))           # k x n_cols
+                    AV = np.vstack(self.comm.allgather(np.asarray(S @ rec["V"])))  # k x n_cols
                     D = np.zeros((k, self.n_global)) if D is None else D
                     D[:, b.qb] += AV @ rec["H_C"]
-                    D[:, b.modes] -= gather_rows(AI.matMult(b.Phi), self.comm)       # u_i replaced, not added
+                    D[:, b.modes] -= gather_rows(AI.matMult(b.Phi), self.comm)  # u_i replaced, not added
                     C[:, b.qb] += AV @ rec["H_D"]
                     C[:, b.modes] += AV @ rec["H_M"]
                 AI.destroy()
@@ -318,26 +337,26 @@ class ReducedModel:
                 AI.destroy()
                 continue
             if b.ksp is None and b.factor is not None and b.M_ib is not None and b.n_interior and not b.n_augmented:
-                b.ksp = b.factor()      # Psi and Phi came from the cache: factor K_ii now, once
+                b.ksp = b.factor()  # Psi and Phi came from the cache: factor K_ii now, once
             if b.n_interior == 0 or b.ksp is None or b.M_ib is None or b.n_augmented:
                 continue
             # M_ib is kept with the constraint modes only (craig_bampton._body_blocks)
             assert b.Psi is not None, f"{b.name}: the mass coupling M_ib without constraint modes Psi"
             cols = PETSc.IS().createGeneral(b.I.getIndices(), comm=self.comm)
             rows = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
-            AI = A.createSubMatrix(rows, cols)                       # k x n_i
+            AI = A.createSubMatrix(rows, cols)  # k x n_i
             if AI.norm(PETSc.NormType.FROBENIUS) == 0.0:
                 continue
-            AIt = AI.transpose()                                   # n_i x k
+            AIt = AI.transpose()  # n_i x k
             rhs = dense_columns(AIt, np.arange(k), self.comm)
             Y = rhs.duplicate()
             # the eigensolver's reset dropped the factor (shift-and-invert shares this KSP): set up
             # again (a no-op when the factor is current)
             b.ksp.setOperators(b.K_ii)
             b.ksp.setUp()
-            b.ksp.getPC().getFactorMatrix().matSolve(rhs, Y)      # K_ii^-1 A_i^T
+            b.ksp.getPC().getFactorMatrix().matSolve(rhs, Y)  # K_ii^-1 A_i^T
             if b.Phi is not None:
-                Z = gather_rows(b.Phi.transposeMatMult(rhs), self.comm)          # m x k
+                Z = gather_rows(b.Phi.transposeMatMult(rhs), self.comm)  # m x k
                 w2 = (2 * math.pi * np.asarray(b.frequencies_hz)) ** 2
                 y = Y.getDenseArray()
                 y -= b.Phi.getDenseArray() @ (Z / w2[:, None])
@@ -345,8 +364,7 @@ class ReducedModel:
             # G = A_b^T Y = Psi^T (M_ii Y) + M_ib^T Y                               (n_b x k)
             M_ii = self.model.M.createSubMatrix(b.I, b.I)
             MY = M_ii.matMult(Y)
-            G = gather_rows(b.Psi.transposeMatMult(MY), self.comm) + gather_rows(b.M_ib.transposeMatMult(Y),
-                                                                                 self.comm)
+            G = gather_rows(b.Psi.transposeMatMult(MY), self.comm) + gather_rows(b.M_ib.transposeMatMult(Y), self.comm)
             C[:, b.qb] -= G.T
             for m in (AI, AIt, rhs, Y, M_ii, MY):
                 m.destroy()
@@ -418,11 +436,13 @@ class ReducedModel:
 
     def report(self) -> dict[str, Any]:
         """JSON-able summary of the reduction."""
-        return {"reduced_coordinates": self.n_global, "zone_coordinates": self.n_zone,
-                "zone_description": self.zone.kind, **{f"zone_{k}": v for k, v in self.zone.info.items()},
-                "modes": self.n_modes - sum(b.n_augmented + b.n_patterns for b in self.bodies),
-                "augmentation_vectors": sum(b.n_augmented for b in self.bodies),
-                "bodies": {b.name: b.report() for b in self.bodies},
-                "timings_s": dict(self.timings)}
-
-
+        return {
+            "reduced_coordinates": self.n_global,
+            "zone_coordinates": self.n_zone,
+            "zone_description": self.zone.kind,
+            **{f"zone_{k}": v for k, v in self.zone.info.items()},
+            "modes": self.n_modes - sum(b.n_augmented + b.n_patterns for b in self.bodies),
+            "augmentation_vectors": sum(b.n_augmented for b in self.bodies),
+            "bodies": {b.name: b.report() for b in self.bodies},
+            "timings_s": dict(self.timings),
+        }

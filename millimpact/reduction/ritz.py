@@ -3,6 +3,7 @@ reduction's step 3, :mod:`.substructures`): the Craig-Bampton statics, modes and
 flexibility from K_V = V^T K_ii V, M_V = V^T M_ii V and V^T [C | D], with V's dependent columns
 dropped. Only the modes under the cutoff are computed; everything else comes from a Cholesky
 factor of K in an M-orthonormal basis (:func:`rayleigh_ritz`)."""
+
 from __future__ import annotations
 
 import math
@@ -35,7 +36,7 @@ def rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_cu
     KW *= 0.5
     lam_cut = (2 * math.pi * f_cut) ** 2
     lam, Y = lowest_eigenpairs(KW, lam_cut)
-    chol = sla.cho_factor(KW, lower=True, overwrite_a=True, check_finite=False)   # KW's storage
+    chol = sla.cho_factor(KW, lower=True, overwrite_a=True, check_finite=False)  # KW's storage
     solve = _ritz_solver(W, chol)
     m = int(np.searchsorted(lam, lam_cut, side="right"))
     phi = W @ Y[:, :m]
@@ -45,8 +46,15 @@ def rayleigh_ritz(KV: np.ndarray, MV: np.ndarray, CV: np.ndarray, n_b: int, f_cu
     # 1/lambda-amplified part would cancel there (liner panel: 1.1e-8 against 2.5e-11 of R A_b,
     # relative to the full eigendecomposition)
     flex = solve(Ab - MV @ (phi @ (phi.T @ Ab)))
-    return {"psi": psi, "phi": phi, "flex": flex, "m": m, "rank": int(W.shape[1]),
-            "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), "solve": solve}
+    return {
+        "psi": psi,
+        "phi": phi,
+        "flex": flex,
+        "m": m,
+        "rank": int(W.shape[1]),
+        "freq": np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi),
+        "solve": solve,
+    }
 
 
 def _ritz_solver(W: np.ndarray, chol: tuple):

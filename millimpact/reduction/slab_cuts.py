@@ -16,11 +16,11 @@
    coordinates (degree ``density`` x extent / shear wavelength at f_cut in each), orthonormal over
    the face's dofs.
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -57,9 +57,20 @@ class SlabCut:
         return self.across[int(self.parent[a])][0] if self.parent[a] == self.parent[b] else self.axis
 
     def stats(self) -> dict:
-        return {"axis": "xyz"[self.axis], "cuts_m": [float(c) for c in self.cuts],
-                **({"across": {str(s): {"axis": "xyz"[a], "cuts_m": [float(c) for c in cuts]}
-                               for s, (a, cuts) in self.across.items()}} if self.across else {})}
+        return {
+            "axis": "xyz"[self.axis],
+            "cuts_m": [float(c) for c in self.cuts],
+            **(
+                {
+                    "across": {
+                        str(s): {"axis": "xyz"[a], "cuts_m": [float(c) for c in cuts]}
+                        for s, (a, cuts) in self.across.items()
+                    }
+                }
+                if self.across
+                else {}
+            ),
+        }
 
 
 def quantile_cuts(x: np.ndarray, pieces: int, bands: list[tuple[float, float]], comm: MPI.Comm) -> np.ndarray:
@@ -79,8 +90,7 @@ def quantile_cuts(x: np.ndarray, pieces: int, bands: list[tuple[float, float]], 
         else:
             merged.append(list(b))
     for band in merged:
-        cuts = [c if not band[0] < c < band[1] else (band[0] if c - band[0] < band[1] - c else band[1])
-                for c in cuts]
+        cuts = [c if not band[0] < c < band[1] else (band[0] if c - band[0] < band[1] - c else band[1]) for c in cuts]
     h = (hi - lo) * 1e-3
     return np.asarray(sorted(c for c in set(round(c, 12) for c in cuts) if lo + h < c < hi - h))
 
@@ -91,8 +101,15 @@ def _bands(x_zone: np.ndarray, points: np.ndarray, margin: float, comm: MPI.Comm
     return ([(z_lo - margin, z_hi + margin)] if z_lo <= z_hi else []) + [(p - margin, p + margin) for p in points]
 
 
-def cut_slabs(coords: np.ndarray, zone_rows: np.ndarray, slabs: int, margin: float, comm: MPI.Comm,
-              keep_away: Optional[np.ndarray] = None, across_ratio: float = ACROSS_RATIO) -> SlabCut:
+def cut_slabs(
+    coords: np.ndarray,
+    zone_rows: np.ndarray,
+    slabs: int,
+    margin: float,
+    comm: MPI.Comm,
+    keep_away: np.ndarray | None = None,
+    across_ratio: float = ACROSS_RATIO,
+) -> SlabCut:
     """The pieces of a body's interior (module docstring, steps 1 and 2): ``coords`` the owned
     dofs' node coordinates, ``zone_rows`` the dofs coupled to the zone, ``keep_away`` (k x 3) the
     gauges; a slab over ``across_ratio`` x the mean count is cut again (0: never). Collective."""
@@ -118,8 +135,9 @@ def cut_slabs(coords: np.ndarray, zone_rows: np.ndarray, slabs: int, margin: flo
             ext[axis] = -1.0
             a2 = int(np.argmax(ext))
             near = away[(away[:, axis] > s_lo[axis] - margin) & (away[:, axis] < s_hi[axis] + margin)]
-            sub = quantile_cuts(coords[mine, a2], pieces,
-                                _bands(coords[mine & in_zone, a2], near[:, a2], margin, comm), comm)
+            sub = quantile_cuts(
+                coords[mine, a2], pieces, _bands(coords[mine & in_zone, a2], near[:, a2], margin, comm), comm
+            )
             if len(sub):
                 across[s] = (a2, sub)
         labels[mine] = len(parent) + (np.searchsorted(sub, coords[mine, across[s][0]]) if len(sub) else 0)
@@ -158,8 +176,15 @@ def interface_faces(labels: np.ndarray, nxt: np.ndarray, comm: MPI.Comm) -> tupl
     return np.array([key[(int(a), int(b))] for a, b in zip(labels[on], nxt[on])], dtype=np.int32), faces
 
 
-def polynomial_traces(coords: np.ndarray, comps: np.ndarray, face: np.ndarray, normals: list[int],
-                      wavelength: float, density: float, comm: MPI.Comm) -> list[sp.csr_matrix]:
+def polynomial_traces(
+    coords: np.ndarray,
+    comps: np.ndarray,
+    face: np.ndarray,
+    normals: list[int],
+    wavelength: float,
+    density: float,
+    comm: MPI.Comm,
+) -> list[sp.csr_matrix]:
     """Per face, the trace basis on this rank's Gamma rows (``face``: each row's face index,
     ``normals`` each face's normal axis; sparse: zero off the face's rows): tensor Legendre
     polynomials of the two in-face coordinates per displacement component, orthonormal over the
@@ -171,8 +196,9 @@ def polynomial_traces(coords: np.ndarray, comps: np.ndarray, face: np.ndarray, n
         if density == 0:
             n_c = comm.allreduce(int(mine.sum()))
             off = int(ownership_offsets(comm, int(mine.sum()))[comm.rank])
-            blocks.append(sp.csr_matrix((np.ones(len(rows)), (rows, off + np.arange(len(rows)))),
-                                        shape=(len(face), n_c)))
+            blocks.append(
+                sp.csr_matrix((np.ones(len(rows)), (rows, off + np.arange(len(rows)))), shape=(len(face), n_c))
+            )
             continue
         p = coords[mine][:, [a for a in range(3) if a != normal]]
         lo, hi = global_extent(p, comm)
@@ -184,7 +210,7 @@ def polynomial_traces(coords: np.ndarray, comps: np.ndarray, face: np.ndarray, n
         B = np.zeros((len(rows), 3 * poly.shape[1]))
         for comp in range(3):
             sel = comps[mine] == comp
-            B[sel, comp * poly.shape[1]:(comp + 1) * poly.shape[1]] = poly[sel]
+            B[sel, comp * poly.shape[1] : (comp + 1) * poly.shape[1]] = poly[sel]
         blocks.append(_place_rows(sp.csr_matrix(orthonormal_columns(B, comm)), rows, len(face)))
     return blocks
 

@@ -36,6 +36,7 @@ keeps the slabs whole), ``substructure_eps_tol`` (:data:`SLAB_EPS_TOL`). Under M
 whole slabs (:func:`slab_owners`) and only the Ritz matrices (solved on rank 0) and the final rows
 travel. Measured costs and accuracies: docs/development/reduction-notes.md.
 """
+
 from __future__ import annotations
 
 import logging
@@ -43,7 +44,6 @@ import math
 import resource
 import time
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -51,8 +51,15 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..integration.solvers import check_type_options, create_factored_solver, petsc_options, return_freed_memory
-from .distributed import (DEPENDENT_TOL, computed_on_root, deliver_rows, dense_from_rows, gram_basis, positions_in,
-                          reduce_array)
+from .distributed import (
+    DEPENDENT_TOL,
+    computed_on_root,
+    deliver_rows,
+    dense_from_rows,
+    gram_basis,
+    positions_in,
+    reduce_array,
+)
 from .eigen import compute_modes
 from .ritz import rayleigh_ritz
 from .slab_cuts import ACROSS_RATIO, SlabCut, cut_slabs, interface_faces, interface_next, polynomial_traces
@@ -86,38 +93,48 @@ class SubstructureSettings:
     slabs: int
     f_factor: float = 1.5
     trace_density: float = 4.0
-    margin: float = 0.5            #: shear wavelengths at f_cut between a cut and the zone or a gauge
-    compress: float = 1e-12        #: second pass: relative Gram eigenvalue of a dropped direction (0: keep all)
-    zone_degree: int = 0           #: zone-interface patterns' polynomial degree (0: exact constraint modes)
-    across: float = ACROSS_RATIO   #: a slab over this x the mean is cut again across (0: never)
+    margin: float = 0.5  #: shear wavelengths at f_cut between a cut and the zone or a gauge
+    compress: float = 1e-12  #: second pass: relative Gram eigenvalue of a dropped direction (0: keep all)
+    zone_degree: int = 0  #: zone-interface patterns' polynomial degree (0: exact constraint modes)
+    across: float = ACROSS_RATIO  #: a slab over this x the mean is cut again across (0: never)
     eps_tol: float = SLAB_EPS_TOL  #: the slabs' eigensolver tolerance
 
 
-def substructure_settings(prefix: str, options: Optional[dict[str, str]],
-                          n_interior: int = 0) -> Optional[SubstructureSettings]:
+def substructure_settings(
+    prefix: str, options: dict[str, str] | None, n_interior: int = 0
+) -> SubstructureSettings | None:
     """The body's settings from the command line (``-<prefix>substructures`` ...) or ``options``
     (their ranges checked by :func:`~millimpact.integration.solvers.check_type_options`, the CLI's
     check); None for one factorization (S < 2). Without ``substructures`` a body of
     ``n_interior`` >= :data:`AUTO_MIN_DOFS` interior dofs is cut by itself (:func:`auto_slabs`),
     with the margin and zone-interface patterns of the liner panel's million-DOF run
     (:data:`AUTO_MARGIN`, :data:`AUTO_ZONE_DEGREE`) unless given."""
-    keys = ("substructures", "substructure_f_factor", "substructure_trace_density", "substructure_margin",
-            "substructure_compress", "substructure_zone_degree", "substructure_across", "substructure_eps_tol")
+    keys = (
+        "substructures",
+        "substructure_f_factor",
+        "substructure_trace_density",
+        "substructure_margin",
+        "substructure_compress",
+        "substructure_zone_degree",
+        "substructure_across",
+        "substructure_eps_tol",
+    )
     with petsc_options({}, {k: v for k, v in (options or {}).items() if k in keys}, prefix=prefix):
         db = PETSc.Options()
         raw = {k: db.getString(prefix + k, "") for k in keys}
     check_type_options({prefix + k: v for k, v in raw.items() if v})
     default = SubstructureSettings(0)
     auto = not raw["substructures"] and auto_slabs(n_interior) >= 2
-    settings = SubstructureSettings(auto_slabs(n_interior) if auto else int(raw["substructures"] or 0),
-                                    float(raw["substructure_f_factor"] or default.f_factor),
-                                    float(raw["substructure_trace_density"] or default.trace_density),
-                                    float(raw["substructure_margin"] or (AUTO_MARGIN if auto else default.margin)),
-                                    float(raw["substructure_compress"] or default.compress),
-                                    int(raw["substructure_zone_degree"]
-                                        or (AUTO_ZONE_DEGREE if auto else default.zone_degree)),
-                                    float(raw["substructure_across"] or default.across),
-                                    float(raw["substructure_eps_tol"] or default.eps_tol))
+    settings = SubstructureSettings(
+        auto_slabs(n_interior) if auto else int(raw["substructures"] or 0),
+        float(raw["substructure_f_factor"] or default.f_factor),
+        float(raw["substructure_trace_density"] or default.trace_density),
+        float(raw["substructure_margin"] or (AUTO_MARGIN if auto else default.margin)),
+        float(raw["substructure_compress"] or default.compress),
+        int(raw["substructure_zone_degree"] or (AUTO_ZONE_DEGREE if auto else default.zone_degree)),
+        float(raw["substructure_across"] or default.across),
+        float(raw["substructure_eps_tol"] or default.eps_tol),
+    )
     return settings if settings.slabs >= 2 else None
 
 
@@ -156,8 +173,9 @@ def slab_owners(dofs: list[int], ranks: int) -> np.ndarray:
     return owners
 
 
-def _gather_slab_matrices(K_ii: PETSc.Mat, M_ii: PETSc.Mat, slab_rows: list[np.ndarray],
-                          gamma: np.ndarray) -> list[tuple]:
+def _gather_slab_matrices(
+    K_ii: PETSc.Mat, M_ii: PETSc.Mat, slab_rows: list[np.ndarray], gamma: np.ndarray
+) -> list[tuple]:
     """Each of this rank's slabs' blocks K_ss, M_ss (sequential PETSc) and K_sG, M_sG (CSR) from the
     distributed K_ii, M_ii: one collective MatCreateSubMatrices per matrix for all of them (a rank
     with no slab takes an empty block)."""
@@ -206,14 +224,14 @@ class _Slab:
     K_sg: sp.csr_matrix
     M_sg: sp.csr_matrix
     B: np.ndarray
-    used: np.ndarray               #: which shared columns (zone statics, traces) reach the slab
-    n_own: int                     #: the slab's own columns (modes, second-order statics)
-    first_blocks: Optional[tuple]  #: (B^T K_ss B, B^T M_ss B) of the first pass until projected (:func:`_slab_blocks`)
+    used: np.ndarray  #: which shared columns (zone statics, traces) reach the slab
+    n_own: int  #: the slab's own columns (modes, second-order statics)
+    first_blocks: tuple | None  #: (B^T K_ss B, B^T M_ss B) of the first pass until projected (:func:`_slab_blocks`)
     stats: dict
     #: the global Ritz index of each column of B (numbered by _first_projection)
     cols: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    projected: int = 0             #: columns of B already in K_V, M_V (see _project_slab)
-    n_new: int = 0                 #: columns the second pass added
+    projected: int = 0  #: columns of B already in K_V, M_V (see _project_slab)
+    n_new: int = 0  #: columns the second pass added
 
     def release_matrices(self) -> None:
         """Free the slab's matrices (after the last projection: the Rayleigh-Ritz, the recovery
@@ -244,10 +262,10 @@ def _solve(ksp: PETSc.KSP, rhs: np.ndarray, chunk: int = 128) -> np.ndarray:
     out = np.empty_like(rhs)
     F = ksp.getPC().getFactorMatrix()
     for j in range(0, rhs.shape[1], chunk):
-        R = dense_from_rows(np.ascontiguousarray(rhs[:, j:j + chunk]), MPI.COMM_SELF)
+        R = dense_from_rows(np.ascontiguousarray(rhs[:, j : j + chunk]), MPI.COMM_SELF)
         X = R.duplicate()
         F.matSolve(R, X)
-        out[:, j:j + chunk] = X.getDenseArray()
+        out[:, j : j + chunk] = X.getDenseArray()
         R.destroy()
         X.destroy()
     return out
@@ -268,12 +286,16 @@ def _global_rows(A: sp.csr_matrix, r0: int, n: int, comm: MPI.Comm) -> sp.csr_ma
     """Every rank's rows of a sparse matrix (owned rows from ``r0``) on every rank, n rows."""
     coo = A.tocoo()
     parts = comm.allgather((coo.row + r0, coo.col, coo.data))
-    return sp.csr_matrix((np.concatenate([p[2] for p in parts]),
-                          (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))),
-                         shape=(n, A.shape[1]))
+    return sp.csr_matrix(
+        (
+            np.concatenate([p[2] for p in parts]),
+            (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])),
+        ),
+        shape=(n, A.shape[1]),
+    )
 
 
-def _serial_options(options: Optional[dict[str, str]], eps_tol: float) -> dict[str, str]:
+def _serial_options(options: dict[str, str] | None, eps_tol: float) -> dict[str, str]:
     """A slab is factored by one rank: CHOLMOD unless another package was asked for; its modes are
     converged to ``eps_tol`` (``substructure_eps_tol``; a command-line ``eps_tol`` still wins)."""
     opts = dict(options or {})
@@ -287,16 +309,16 @@ def _serial_options(options: Optional[dict[str, str]], eps_tol: float) -> dict[s
 class SlabReduction:
     """What :func:`substructured_modes` gives for a body's interior (module docstring)."""
 
-    Psi: Optional[PETSc.Mat]       #: constraint modes (dense, n_i x n_b); None with zone-interface patterns
-    Phi: np.ndarray                #: owned rows of the modes (then the pattern vectors), column-major
-    flex: Optional[PETSc.Mat]      #: R A_b (dense, n_i x n_b); None with zone-interface patterns
-    freq: np.ndarray               #: Phi's frequencies (Hz)
-    n_patterns: int                #: pattern vectors at the end of Phi
-    next: float                    #: the lowest Ritz frequency not kept (nan if none)
-    residual: float                #: ||K_ii Psi + C|| / ||C|| (0 without Psi)
-    stats: dict                    #: slabs, cuts, columns and the phases' times (s)
-    recovery: Optional[dict]       #: the Ritz-space output recovery (:func:`ritz_recovery`)
-    grams: Optional[tuple]         #: (Phi^T M_ii Phi, Phi^T K_ii Phi) from the Ritz space (patterns)
+    Psi: PETSc.Mat | None  #: constraint modes (dense, n_i x n_b); None with zone-interface patterns
+    Phi: np.ndarray  #: owned rows of the modes (then the pattern vectors), column-major
+    flex: PETSc.Mat | None  #: R A_b (dense, n_i x n_b); None with zone-interface patterns
+    freq: np.ndarray  #: Phi's frequencies (Hz)
+    n_patterns: int  #: pattern vectors at the end of Phi
+    next: float  #: the lowest Ritz frequency not kept (nan if none)
+    residual: float  #: ||K_ii Psi + C|| / ||C|| (0 without Psi)
+    stats: dict  #: slabs, cuts, columns and the phases' times (s)
+    recovery: dict | None  #: the Ritz-space output recovery (:func:`ritz_recovery`)
+    grams: tuple | None  #: (Phi^T M_ii Phi, Phi^T K_ii Phi) from the Ritz space (patterns)
 
 
 @dataclass(frozen=True)
@@ -337,19 +359,31 @@ class _RitzSystem:
     """The dense Ritz matrices K_V, M_V, C_V (rank 0's; None elsewhere), ``n_cols`` columns, and the
     last Rayleigh-Ritz's results; dropped (set to None) once the expansion no longer needs them."""
 
-    KV: Optional[np.ndarray]
-    MV: Optional[np.ndarray]
-    CV: Optional[np.ndarray]
+    KV: np.ndarray | None
+    MV: np.ndarray | None
+    CV: np.ndarray | None
     n_cols: int
-    ritz: Optional[dict] = None
+    ritz: dict | None = None
 
 
-def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: sp.csr_matrix, coords: np.ndarray,
-                        comps: np.ndarray, f_cut: float, shear_speed: float, settings: SubstructureSettings,
-                        prefix: str, options: Optional[dict[str, str]] = None,
-                        keep_away: Optional[np.ndarray] = None, patterns: bool = False,
-                        zone_couplings: Optional[tuple[sp.csr_matrix, sp.csr_matrix]] = None,
-                        recovery_rows: Optional[np.ndarray] = None, release: bool = False) -> SlabReduction:
+def substructured_modes(
+    K_ii: PETSc.Mat,
+    M_ii: PETSc.Mat,
+    C: sp.csr_matrix,
+    D: sp.csr_matrix,
+    coords: np.ndarray,
+    comps: np.ndarray,
+    f_cut: float,
+    shear_speed: float,
+    settings: SubstructureSettings,
+    prefix: str,
+    options: dict[str, str] | None = None,
+    keep_away: np.ndarray | None = None,
+    patterns: bool = False,
+    zone_couplings: tuple[sp.csr_matrix, sp.csr_matrix] | None = None,
+    recovery_rows: np.ndarray | None = None,
+    release: bool = False,
+) -> SlabReduction:
     """Psi, Phi, R A_b, frequencies (Hz), the next frequency, Psi's relative residual and statistics
     from the slab-wise Ritz basis (module docstring; :class:`SlabReduction`). ``C``, ``D``: owned rows
     of K_iz G and M_iz G on the interface coordinates (sparse: only the zone's slab has rows there);
@@ -377,10 +411,12 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     t_pass1 = time.perf_counter()
     gathered = _gather_slab_matrices(K_ii, M_ii, [lay.slab_rows[s] for s in lay.my_ids], lay.gamma_glob)
     KT_gg, MT_gg = _gamma_blocks(K_ii, M_ii, lay, release, comm)
-    mine = [_first_pass_slab(s, mats, lay, settings, f_cut, prefix, serial_opts, comm.rank)
-            for s, mats in zip(lay.my_ids, gathered)]
+    mine = [
+        _first_pass_slab(s, mats, lay, settings, f_cut, prefix, serial_opts, comm.rank)
+        for s, mats in zip(lay.my_ids, gathered)
+    ]
     del gathered
-    phase = {"pass1_s": time.perf_counter() - t_pass1}        # this rank's slabs (before any wait)
+    phase = {"pass1_s": time.perf_counter() - t_pass1}  # this rank's slabs (before any wait)
     t0 = time.perf_counter()
     system = _first_projection(mine, lay, KT_gg, MT_gg, comm)
     phase["project_s"] = time.perf_counter() - t0
@@ -388,7 +424,7 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     system.ritz = _ritz_on_root(system.KV, system.MV, system.CV, lay.n_b, f_cut, comm)
     phase["ritz_s"] = time.perf_counter() - t0
     _second_pass(mine, lay, system, settings, f_cut, prefix, serial_opts, phase, comm)
-    return_freed_memory()          # the second pass's factors and solves, before the expansion
+    return_freed_memory()  # the second pass's factors and solves, before the expansion
     t0 = time.perf_counter()
     m, freq, ritz_rank = system.ritz["m"], system.ritz["freq"], system.ritz["rank"]
     Psi, Phi, flex, f_pat, recovery, grams = _expand(mine, lay, system, patterns, zone_couplings, recovery_rows, comm)
@@ -398,24 +434,52 @@ def substructured_modes(K_ii: PETSc.Mat, M_ii: PETSc.Mat, C: sp.csr_matrix, D: s
     phase["residual_s"] = time.perf_counter() - t0
     stats = _slab_statistics(mine, lay, phase, system.n_cols, ritz_rank, patterns, len(f_pat), t_start, comm)
     if comm.rank == 0:
-        log.info("substructures %s: %d slabs along %s (cuts %s m; %d cut again across) on %d rank(s), %d "
-                 "interface dofs -> %d traces, %d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s",
-                 prefix, len(lay.slab_ids), stats["axis"], ", ".join(f"{c:.4g}" for c in lay.cut.cuts),
-                 len(lay.cut.across), comm.size, stats["interface_dofs"], lay.n_t, stats["slab_modes"],
-                 system.n_cols, m, stats["total_s"])
-    return SlabReduction(Psi, Phi, flex, np.concatenate([freq[:m], f_pat]) if patterns else freq[:m],
-                         len(f_pat) if patterns else 0, float(freq[m]) if m < len(freq) else math.nan,
-                         residual, stats, recovery, grams)
+        log.info(
+            "substructures %s: %d slabs along %s (cuts %s m; %d cut again across) on %d rank(s), %d "
+            "interface dofs -> %d traces, %d slab modes, Ritz basis %d: %d modes under f_cut in %.3g s",
+            prefix,
+            len(lay.slab_ids),
+            stats["axis"],
+            ", ".join(f"{c:.4g}" for c in lay.cut.cuts),
+            len(lay.cut.across),
+            comm.size,
+            stats["interface_dofs"],
+            lay.n_t,
+            stats["slab_modes"],
+            system.n_cols,
+            m,
+            stats["total_s"],
+        )
+    return SlabReduction(
+        Psi,
+        Phi,
+        flex,
+        np.concatenate([freq[:m], f_pat]) if patterns else freq[:m],
+        len(f_pat) if patterns else 0,
+        float(freq[m]) if m < len(freq) else math.nan,
+        residual,
+        stats,
+        recovery,
+        grams,
+    )
 
 
-def _slab_layout(K_ii: PETSc.Mat, C: sp.csr_matrix, D: sp.csr_matrix, coords: np.ndarray, comps: np.ndarray,
-                 f_cut: float, shear_speed: float, settings: SubstructureSettings,
-                 keep_away: Optional[np.ndarray], comm: MPI.Comm) -> SlabLayout:
+def _slab_layout(
+    K_ii: PETSc.Mat,
+    C: sp.csr_matrix,
+    D: sp.csr_matrix,
+    coords: np.ndarray,
+    comps: np.ndarray,
+    f_cut: float,
+    shear_speed: float,
+    settings: SubstructureSettings,
+    keep_away: np.ndarray | None,
+    comm: MPI.Comm,
+) -> SlabLayout:
     """Step 1: the cuts, the interface Gamma and its traces, and which rank reduces which slab."""
     wavelength = shear_speed / f_cut
     zone_rows = np.nonzero(np.diff(C.indptr))[0]
-    cut = cut_slabs(coords, zone_rows, settings.slabs, settings.margin * wavelength, comm, keep_away,
-                    settings.across)
+    cut = cut_slabs(coords, zone_rows, settings.slabs, settings.margin * wavelength, comm, keep_away, settings.across)
     labels = cut.labels
     nxt = interface_next(K_ii, labels)
     on_gamma = nxt >= 0
@@ -423,8 +487,15 @@ def _slab_layout(K_ii: PETSc.Mat, C: sp.csr_matrix, D: sp.csr_matrix, coords: np
     n_i = K_ii.getSize()[0]
     gamma = np.nonzero(on_gamma)[0]
     face, faces = interface_faces(labels, nxt, comm)
-    traces = polynomial_traces(coords[gamma], comps[gamma], face, [cut.normal(a, b) for a, b in faces],
-                               wavelength, settings.trace_density, comm)
+    traces = polynomial_traces(
+        coords[gamma],
+        comps[gamma],
+        face,
+        [cut.normal(a, b) for a, b in faces],
+        wavelength,
+        settings.trace_density,
+        comm,
+    )
     T = sp.hstack(traces).tocsr() if traces else sp.csr_matrix((len(gamma), 0))
     n_t = T.shape[1]
     # what every slab's owner needs whole: Gamma's global rows and traces, the sparse couplings
@@ -432,30 +503,41 @@ def _slab_layout(K_ii: PETSc.Mat, C: sp.csr_matrix, D: sp.csr_matrix, coords: np
     # sparse: a Gamma row has only its own cut's traces (dense, 1.6 GB a rank at 1.2M DOFs, 15 cuts)
     T_full = sp.vstack(comm.allgather(T)).tocsr() if n_t else sp.csr_matrix((len(gamma_glob), 0))
     CD_full = _global_rows(sp.hstack([C, D]).tocsr(), r0, n_i, comm)
-    slab_rows = [np.concatenate(comm.allgather((r0 + np.nonzero((labels == s) & ~on_gamma)[0]).astype(np.int64)))
-                 for s in range(cut.pieces)]
+    slab_rows = [
+        np.concatenate(comm.allgather((r0 + np.nonzero((labels == s) & ~on_gamma)[0]).astype(np.int64)))
+        for s in range(cut.pieces)
+    ]
     slab_ids = [s for s in range(cut.pieces) if len(slab_rows[s])]
     owners = slab_owners([len(slab_rows[s]) for s in slab_ids], comm.size)
     my_ids = [s for s, o in zip(slab_ids, owners) if o == comm.rank]
-    return SlabLayout(cut, gamma, faces, T, T_full, gamma_glob, CD_full, slab_rows, slab_ids, my_ids, r0, n_i,
-                      len(labels), C.shape[1])
+    return SlabLayout(
+        cut, gamma, faces, T, T_full, gamma_glob, CD_full, slab_rows, slab_ids, my_ids, r0, n_i, len(labels), C.shape[1]
+    )
 
 
-def _gamma_blocks(K_ii: PETSc.Mat, M_ii: PETSc.Mat, lay: SlabLayout, release: bool,
-                  comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
+def _gamma_blocks(
+    K_ii: PETSc.Mat, M_ii: PETSc.Mat, lay: SlabLayout, release: bool, comm: MPI.Comm
+) -> tuple[np.ndarray, np.ndarray]:
     """Gamma's own block of the Ritz matrices, T^T A_GG T with the owned rows of A_GG (columns
     numbered as gamma_glob, the IS's order); then (``release``) K_ii and M_ii are destroyed."""
     is_gamma = PETSc.IS().createGeneral((lay.r0 + lay.gamma).astype(np.int32), comm=comm)
     Kgg, Mgg = K_ii.createSubMatrix(is_gamma, is_gamma), M_ii.createSubMatrix(is_gamma, is_gamma)
-    KT_gg, MT_gg = (reduce_array((lay.T.T @ (_csr_rows(A) @ lay.T_full)).toarray(), MPI.SUM, comm)
-                    for A in (Kgg, Mgg))
+    KT_gg, MT_gg = (reduce_array((lay.T.T @ (_csr_rows(A) @ lay.T_full)).toarray(), MPI.SUM, comm) for A in (Kgg, Mgg))
     for obj in (Kgg, Mgg, is_gamma) + ((K_ii, M_ii) if release else ()):
         obj.destroy()
     return KT_gg, MT_gg
 
 
-def _first_pass_slab(s: int, matrices: tuple, lay: SlabLayout, settings: SubstructureSettings, f_cut: float,
-                     prefix: str, serial_opts: dict[str, str], rank: int) -> _Slab:
+def _first_pass_slab(
+    s: int,
+    matrices: tuple,
+    lay: SlabLayout,
+    settings: SubstructureSettings,
+    f_cut: float,
+    prefix: str,
+    serial_opts: dict[str, str],
+    rank: int,
+) -> _Slab:
     """Step 2 for slab ``s`` (its K_ss, M_ss, K_sG, M_sG in ``matrices``): the static responses to
     the zone coordinates and their inertia, the trace extensions and the fixed-interface modes,
     all with the slab's one factorization, and the slab's own blocks of K_V, M_V."""
@@ -475,36 +557,59 @@ def _first_pass_slab(s: int, matrices: tuple, lay: SlabLayout, settings: Substru
     # second-order statics: the response to the inertia of the slab's zone statics, M_ss Z_s + M_sz
     n_zone = int(used[:n_b].sum())
     D_s = lay.CD_full[rows][:, n_b:][:, used[:n_b]].tocsr()
-    X2 = (_solve(ksp, _mult_local(M_ss, X[:, :n_zone], MPI.COMM_SELF) + D_s.toarray())
-          if n_zone else np.zeros((len(rows), 0)))
+    X2 = (
+        _solve(ksp, _mult_local(M_ss, X[:, :n_zone], MPI.COMM_SELF) + D_s.toarray())
+        if n_zone
+        else np.zeros((len(rows), 0))
+    )
     t_static = time.perf_counter() - ts - t_factor
     te = time.perf_counter()
-    f_s, vecs, _ = compute_modes(K_ss, M_ss, ksp, settings.f_factor * f_cut, None, prefix, serial_opts,
-                                 count_first=True)
+    f_s, vecs, _ = compute_modes(
+        K_ss, M_ss, ksp, settings.f_factor * f_cut, None, prefix, serial_opts, count_first=True
+    )
     t_eigen = time.perf_counter() - te
     Phi_s = np.column_stack([v.getArray(readonly=True) for v in vecs]) if vecs else np.zeros((len(rows), 0))
     for v in vecs:
         v.destroy()
     ksp.destroy()
-    return_freed_memory()      # the slab's factors and Krylov basis: the next slab's room
+    return_freed_memory()  # the slab's factors and Krylov basis: the next slab's room
     B = np.hstack([X, Phi_s, X2])
     del X, X2
     tb = time.perf_counter()
     blocks = _slab_blocks(K_ss, M_ss, B, -rhs, D_s, Phi_s.shape[1])
     del rhs, D_s
-    slab = _Slab(s, rows, K_ss, M_ss, K_sg_csr, M_sg_csr, B, used, Phi_s.shape[1] + n_zone, blocks,
-                 {"slab": s, "rank": rank, "dofs": len(rows), "modes": int(Phi_s.shape[1]),
-                  "static_columns": int(used.sum()) + n_zone, "factor_s": round(t_factor, 3),
-                  "statics_s": round(t_static, 3), "eigen_s": round(t_eigen, 3),
-                  "blocks_s": round(time.perf_counter() - tb, 3),
-                  "total_s": round(time.perf_counter() - ts, 3),
-                  "peak_rss_gb": _peak_rss_gb()})
+    slab = _Slab(
+        s,
+        rows,
+        K_ss,
+        M_ss,
+        K_sg_csr,
+        M_sg_csr,
+        B,
+        used,
+        Phi_s.shape[1] + n_zone,
+        blocks,
+        {
+            "slab": s,
+            "rank": rank,
+            "dofs": len(rows),
+            "modes": int(Phi_s.shape[1]),
+            "static_columns": int(used.sum()) + n_zone,
+            "factor_s": round(t_factor, 3),
+            "statics_s": round(t_static, 3),
+            "eigen_s": round(t_eigen, 3),
+            "blocks_s": round(time.perf_counter() - tb, 3),
+            "total_s": round(time.perf_counter() - ts, 3),
+            "peak_rss_gb": _peak_rss_gb(),
+        },
+    )
     log.info("substructures %s: slab %d on rank %d: %s", prefix, s, rank, slab.stats)
     return slab
 
 
-def _first_projection(mine: list[_Slab], lay: SlabLayout, KT_gg: np.ndarray, MT_gg: np.ndarray,
-                      comm: MPI.Comm) -> _RitzSystem:
+def _first_projection(
+    mine: list[_Slab], lay: SlabLayout, KT_gg: np.ndarray, MT_gg: np.ndarray, comm: MPI.Comm
+) -> _RitzSystem:
     """Step 3's matrices after the first pass: the Ritz columns numbered slab by slab on every rank
     alike, and K_V, M_V, C_V on rank 0."""
     layout = sorted(x for part in comm.allgather([(sl.index, sl.used, sl.n_own) for sl in mine]) for x in part)
@@ -522,14 +627,22 @@ def _first_projection(mine: list[_Slab], lay: SlabLayout, KT_gg: np.ndarray, MT_
     if comm.rank == 0:
         KV, MV, CV = np.zeros((n_cols, n_cols)), np.zeros((n_cols, n_cols)), np.zeros((n_cols, 2 * n_b))
         KV[np.ix_(t_idx, t_idx)], MV[np.ix_(t_idx, t_idx)] = KT_gg, MT_gg
-        CV[t_idx] = (lay.CD_full[lay.gamma_glob].T @ lay.T_full).T.toarray()      # replicated data: no sum
+        CV[t_idx] = (lay.CD_full[lay.gamma_glob].T @ lay.T_full).T.toarray()  # replicated data: no sum
     KV, MV, CV = _project(mine, lay.T_full, t_idx, lay.CD_full, (KV, MV, CV), comm, n_cols=n_cols, n_rhs=2 * n_b)
     return _RitzSystem(KV, MV, CV, n_cols)
 
 
-def _second_pass(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, settings: SubstructureSettings,
-                 f_cut: float, prefix: str, serial_opts: dict[str, str], phase: dict[str, float],
-                 comm: MPI.Comm) -> None:
+def _second_pass(
+    mine: list[_Slab],
+    lay: SlabLayout,
+    system: _RitzSystem,
+    settings: SubstructureSettings,
+    f_cut: float,
+    prefix: str,
+    serial_opts: dict[str, str],
+    phase: dict[str, float],
+    comm: MPI.Comm,
+) -> None:
     """Step 4: each slab's static response (Gamma held) to the inertia of the first pass's modes and
     constraint modes, M_ii Phi and A_b = M_ii Psi + M_ib (one step of inverse iteration on them),
     joins the basis; ``system`` projected and solved again. A slab's rows of M_ii V couple its own
@@ -537,7 +650,7 @@ def _second_pass(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, settin
     n_b, ritz = lay.n_b, system.ritz
     assert ritz is not None, "the second pass follows the first Rayleigh-Ritz"
     if not n_b + ritz["m"]:
-        _release_slab_matrices(mine)   # the first projection was the last
+        _release_slab_matrices(mine)  # the first projection was the last
         return
     t0 = time.perf_counter()
     coef = np.hstack([ritz["psi"], ritz["phi"]])
@@ -567,20 +680,33 @@ def _second_pass(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, settin
     phase["pass2_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     system.n_cols += int(offsets[-1])
-    system.KV, system.MV, system.CV = _project(mine, lay.T_full, lay.t_idx, lay.CD_full,
-                                               (system.KV, system.MV, system.CV), comm, n_cols=system.n_cols,
-                                               n_rhs=2 * n_b)
+    system.KV, system.MV, system.CV = _project(
+        mine,
+        lay.T_full,
+        lay.t_idx,
+        lay.CD_full,
+        (system.KV, system.MV, system.CV),
+        comm,
+        n_cols=system.n_cols,
+        n_rhs=2 * n_b,
+    )
     _release_slab_matrices(mine)
     phase["project_s"] += time.perf_counter() - t0
     t0 = time.perf_counter()
-    system.ritz = None                 # the first Rayleigh-Ritz's results, before the second's
+    system.ritz = None  # the first Rayleigh-Ritz's results, before the second's
     system.ritz = _ritz_on_root(system.KV, system.MV, system.CV, n_b, f_cut, comm)
     phase["ritz_s"] += time.perf_counter() - t0
 
 
-def _expand(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, patterns: bool,
-            zone_couplings: Optional[tuple[sp.csr_matrix, sp.csr_matrix]], recovery_rows: Optional[np.ndarray],
-            comm: MPI.Comm) -> tuple:
+def _expand(
+    mine: list[_Slab],
+    lay: SlabLayout,
+    system: _RitzSystem,
+    patterns: bool,
+    zone_couplings: tuple[sp.csr_matrix, sp.csr_matrix] | None,
+    recovery_rows: np.ndarray | None,
+    comm: MPI.Comm,
+) -> tuple:
     """Psi, Phi, R A_b (or with ``patterns``: Phi with the pattern vectors, their frequencies, the
     Ritz-space recovery and Grams) expanded from the Ritz coefficients, straight into their final
     storage; each slab's rows sent to the ranks owning them. The dense Ritz matrices of ``system``
@@ -590,18 +716,29 @@ def _expand(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, patterns: b
     m = ritz["m"]
     recovery = grams = None
     f_pat = np.zeros(0)
-    targets: tuple[np.ndarray, ...]           # the results' storage, and their Ritz coefficients
+    targets: tuple[np.ndarray, ...]  # the results' storage, and their Ritz coefficients
     parts: tuple[np.ndarray, ...]
     if patterns:
-        f_pat, c_pat, grams = computed_on_root(comm, lambda: _patterns_and_grams(_on_root(KV), _on_root(MV), ritz))
+        f_pat, c_pat, grams = computed_on_root(
+            comm, lambda kv=KV, mv=MV, rz=ritz: _patterns_and_grams(_on_root(kv), _on_root(mv), rz)
+        )
         A = np.hstack([ritz["phi"], c_pat])
         if zone_couplings is not None:
-            recovery = ritz_recovery(mine, lay.T_full, t_idx, lay.gamma_glob, ritz, MV, A,
-                                     _global_rows(sp.hstack(zone_couplings).tocsr(), lay.r0, lay.n_i, comm),
-                                     np.asarray(recovery_rows if recovery_rows is not None else [], dtype=np.int64),
-                                     system.n_cols, comm)
+            recovery = ritz_recovery(
+                mine,
+                lay.T_full,
+                t_idx,
+                lay.gamma_glob,
+                ritz,
+                MV,
+                A,
+                _global_rows(sp.hstack(zone_couplings).tocsr(), lay.r0, lay.n_i, comm),
+                np.asarray(recovery_rows if recovery_rows is not None else [], dtype=np.int64),
+                system.n_cols,
+                comm,
+            )
         Psi = flex = None
-        Phi = np.zeros((n_loc, m + len(f_pat)), order="F")       # PETSc's dense layout: shared, not copied
+        Phi = np.zeros((n_loc, m + len(f_pat)), order="F")  # PETSc's dense layout: shared, not copied
         targets, parts = (Phi,), (A,)
     else:
         Psi, flex = _dense_zeros(n_loc, n_b, comm), _dense_zeros(n_loc, n_b, comm)
@@ -629,7 +766,7 @@ def _expand(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, patterns: b
         for sl in mine:
             c = coef[sl.cols]
             for j in range(0, len(sl.rows), EXPAND_ROWS):
-                yield sl.rows[j:j + EXPAND_ROWS], sl.B[j:j + EXPAND_ROWS] @ c
+                yield sl.rows[j : j + EXPAND_ROWS], sl.B[j : j + EXPAND_ROWS] @ c
             sl.release()
             return_freed_memory()
 
@@ -640,25 +777,54 @@ def _expand(mine: list[_Slab], lay: SlabLayout, system: _RitzSystem, patterns: b
     return Psi, Phi, flex, f_pat, recovery, grams
 
 
-def _slab_statistics(mine: list[_Slab], lay: SlabLayout, phase: dict[str, float], n_cols: int, ritz_rank,
-                     patterns: bool, n_pattern_vectors: int, t_start: float, comm: MPI.Comm) -> dict:
+def _slab_statistics(
+    mine: list[_Slab],
+    lay: SlabLayout,
+    phase: dict[str, float],
+    n_cols: int,
+    ritz_rank,
+    patterns: bool,
+    n_pattern_vectors: int,
+    t_start: float,
+    comm: MPI.Comm,
+) -> dict:
     """The slabs' statistics (every rank's slabs) and the phases' times (s): this rank's slabs, and on
     rank 0 the projections, the dense Ritz solves, the second pass, the expansion and Psi's residual."""
-    slab_stats = sorted((x for part in comm.allgather([sl.stats for sl in mine]) for x in part),
-                        key=lambda x: x["slab"])
+    slab_stats = sorted(
+        (x for part in comm.allgather([sl.stats for sl in mine]) for x in part), key=lambda x: x["slab"]
+    )
     n_b = lay.n_b
-    return {"slabs": slab_stats, **lay.cut.stats(), "interface_faces": len(lay.faces),
-            "interface_dofs": len(lay.gamma_glob), "traces": lay.n_t,
-            **({"zone_patterns": n_b, "pattern_vectors": n_pattern_vectors} if patterns
-               else {"interface_coordinates": n_b}),
-            "ritz_columns": n_cols, "ritz_rank": ritz_rank, "slab_modes": int(sum(x["modes"] for x in slab_stats)),
-            "pass1_s_by_rank": [round(x, 3) for x in comm.allgather(phase.pop("pass1_s"))],
-            **{k: round(v, 3) for k, v in phase.items()}, "total_s": round(time.perf_counter() - t_start, 3)}
+    return {
+        "slabs": slab_stats,
+        **lay.cut.stats(),
+        "interface_faces": len(lay.faces),
+        "interface_dofs": len(lay.gamma_glob),
+        "traces": lay.n_t,
+        **(
+            {"zone_patterns": n_b, "pattern_vectors": n_pattern_vectors} if patterns else {"interface_coordinates": n_b}
+        ),
+        "ritz_columns": n_cols,
+        "ritz_rank": ritz_rank,
+        "slab_modes": int(sum(x["modes"] for x in slab_stats)),
+        "pass1_s_by_rank": [round(x, 3) for x in comm.allgather(phase.pop("pass1_s"))],
+        **{k: round(v, 3) for k, v in phase.items()},
+        "total_s": round(time.perf_counter() - t_start, 3),
+    }
 
 
-def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, gamma_glob: np.ndarray,
-                  ritz: dict, MV: Optional[np.ndarray], A: np.ndarray, CDz: sp.csr_matrix, rows: np.ndarray,
-                  n_cols: int, comm: MPI.Comm) -> dict:
+def ritz_recovery(
+    slabs: list[_Slab],
+    T_full: sp.csr_matrix,
+    t_idx: np.ndarray,
+    gamma_glob: np.ndarray,
+    ritz: dict,
+    MV: np.ndarray | None,
+    A: np.ndarray,
+    CDz: sp.csr_matrix,
+    rows: np.ndarray,
+    n_cols: int,
+    comm: MPI.Comm,
+) -> dict:
     """Output recovery without constraint modes, from the Ritz space V (replicated, small).
 
     The interior obeys K_ii u_i = -C q - D q'' - M_ii u_i'' (no load of its own; C = K_iz G,
@@ -678,14 +844,15 @@ def ritz_recovery(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, 
         pos, hit = positions_in(sl.rows, rows)
         keep[np.ix_(np.nonzero(hit)[0], sl.cols)] = sl.B[pos[hit]]
     CV_sum, keep = _sum_on_root(CV, comm), reduce_array(keep, MPI.SUM, comm)
-    pos, on_g = positions_in(gamma_glob, rows)          # gamma_glob: the ranks' sorted rows in rank order
+    pos, on_g = positions_in(gamma_glob, rows)  # gamma_glob: the ranks' sorted rows in rank order
     keep[np.ix_(np.nonzero(on_g)[0], t_idx)] = T_full[pos[on_g]].toarray()
 
-    def images():                                         # K_V, M_V and the eigenpairs are rank 0's
+    def images():  # K_V, M_V and the eigenpairs are rank 0's
         CV_r = _on_root(CV_sum)
-        CV_r[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()     # replicated data: no sum
-        H = ritz["solve"]                                 # K_V^+: the final Rayleigh-Ritz's factor
+        CV_r[t_idx] += (CDz[gamma_glob].T @ T_full).T.toarray()  # replicated data: no sum
+        H = ritz["solve"]  # K_V^+: the final Rayleigh-Ritz's factor
         return -H(CV_r[:, :n_b]), -H(CV_r[:, n_b:]), -H(_on_root(MV) @ A)
+
     H_C, H_D, H_M = computed_on_root(comm, images)
     return {"rows": rows, "V": keep, "H_C": H_C, "H_D": H_D, "H_M": H_M}
 
@@ -698,7 +865,7 @@ def pattern_vectors(KV: np.ndarray, MV: np.ndarray, ritz: dict) -> tuple[np.ndar
     frequencies (Hz) and coefficients."""
     phi, psi = ritz["phi"], ritz["psi"]
     psi = psi - phi @ (phi.T @ (MV @ psi))
-    psi = psi - phi @ (phi.T @ (MV @ psi))           # twice: classical Gram-Schmidt's loss of orthogonality
+    psi = psi - phi @ (phi.T @ (MV @ psi))  # twice: classical Gram-Schmidt's loss of orthogonality
     W = psi @ gram_basis(psi.T @ MV @ psi, DEPENDENT_TOL)
     lam, Y = np.linalg.eigh(W.T @ KV @ W)
     return np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), W @ Y
@@ -709,14 +876,15 @@ def constraint_residual(K_ii: PETSc.Mat, Psi: PETSc.Mat, C: sp.csr_matrix, comm:
     P = Psi.getDenseArray()
     num = 0.0
     for j in range(0, P.shape[1], chunk):
-        R = _mult_local(K_ii, P[:, j:j + chunk], comm) + C[:, j:j + chunk].toarray()
+        R = _mult_local(K_ii, P[:, j : j + chunk], comm) + C[:, j : j + chunk].toarray()
         num += float(np.sum(R * R))
     num, den = reduce_array(np.array([num, float(C.multiply(C).sum())]), MPI.SUM, comm)
     return math.sqrt(num) / max(math.sqrt(den), 1e-300)
 
 
-def _slab_blocks(K_ss: PETSc.Mat, M_ss: PETSc.Mat, B: np.ndarray, K_X: sp.csr_matrix, D_s: sp.csr_matrix,
-                 n_modes: int) -> tuple[np.ndarray, np.ndarray]:
+def _slab_blocks(
+    K_ss: PETSc.Mat, M_ss: PETSc.Mat, B: np.ndarray, K_X: sp.csr_matrix, D_s: sp.csr_matrix, n_modes: int
+) -> tuple[np.ndarray, np.ndarray]:
     """A slab's own blocks B^T K_ss B and B^T M_ss B of its first-pass columns B = [X | Phi_s | X2],
     with K_ss B taken from what the statics solved rather than multiplied out: K_ss X = ``K_X``
     (sparse: the zone couplings and K_sG T, X = -K_ss^-1 [C_s | K_sG T]) and K_ss X2 = M_ss X_z +
@@ -728,13 +896,21 @@ def _slab_blocks(K_ss: PETSc.Mat, M_ss: PETSc.Mat, B: np.ndarray, K_X: sp.csr_ma
     MB = _mult_local(M_ss, B, MPI.COMM_SELF)
     PM = MB.T @ B
     n_x, n_zone = K_X.shape[1], D_s.shape[1]
-    KPhi = _mult_local(K_ss, B[:, n_x:n_x + n_modes], MPI.COMM_SELF)
+    KPhi = _mult_local(K_ss, B[:, n_x : n_x + n_modes], MPI.COMM_SELF)
     PK = np.vstack([np.asarray(K_X.T @ B), KPhi.T @ B, PM[:n_zone] + np.asarray(D_s.T @ B)])
     return PK, PM
 
 
-def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_full: sp.csr_matrix,
-             current: tuple, comm: MPI.Comm, n_cols: int, n_rhs: int) -> tuple:
+def _project(
+    slabs: list[_Slab],
+    T_full: sp.csr_matrix,
+    t_idx: np.ndarray,
+    CD_full: sp.csr_matrix,
+    current: tuple,
+    comm: MPI.Comm,
+    n_cols: int,
+    n_rhs: int,
+) -> tuple:
     """K_V = V^T K_ii V, M_V = V^T M_ii V and [V^T C | V^T D] (n_cols Ritz columns, n_rhs columns
     of [C | D]) with the columns of each rank's slabs not yet projected (``projected`` onward)
     added to ``current`` (rank 0's matrices, grown to n_cols): a slab's own block and its coupling
@@ -748,7 +924,7 @@ def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_fu
             P = sl.first_blocks[k] if sl.first_blocks is not None else _mult_local(A_, Bn, MPI.COMM_SELF).T @ B
             V_[np.ix_(cn, cols)] += P
             V_[np.ix_(cols, cn)] += P.T
-            V_[np.ix_(cn, cn)] -= P[:, new]                                    # the new-new block once
+            V_[np.ix_(cn, cn)] -= P[:, new]  # the new-new block once
             G = ((A_g @ T_full).T @ Bn).T
             V_[np.ix_(cn, t_idx)] += G
             V_[np.ix_(t_idx, cn)] += G.T
@@ -763,13 +939,13 @@ def _project(slabs: list[_Slab], T_full: sp.csr_matrix, t_idx: np.ndarray, CD_fu
     KV[:k, :k] += current[0]
     MV[:k, :k] += current[1]
     CV[:k] += current[2]
-    for A in (KV, MV):                 # symmetrized in place: no second n x n array
+    for A in (KV, MV):  # symmetrized in place: no second n x n array
         A += A.T
         A *= 0.5
     return KV, MV, CV
 
 
-def _sum_on_root(a: np.ndarray, comm: MPI.Comm) -> Optional[np.ndarray]:
+def _sum_on_root(a: np.ndarray, comm: MPI.Comm) -> np.ndarray | None:
     """The element-wise sum of every rank's ``a`` on rank 0 (None on the others)."""
     a = np.ascontiguousarray(a, dtype=float)
     if comm.size == 1:
@@ -779,7 +955,7 @@ def _sum_on_root(a: np.ndarray, comm: MPI.Comm) -> Optional[np.ndarray]:
     return out
 
 
-def _on_root(a: Optional[np.ndarray]) -> np.ndarray:
+def _on_root(a: np.ndarray | None) -> np.ndarray:
     """``a``, an array rank 0 holds (a sum of :func:`_sum_on_root`, the dense Ritz matrices), on rank 0."""
     assert a is not None, "an array that only rank 0 holds, read on another rank"
     return a
@@ -788,8 +964,11 @@ def _on_root(a: Optional[np.ndarray]) -> np.ndarray:
 def _ritz_on_root(KV, MV, CV, n_b: int, f_cut: float, comm: MPI.Comm) -> dict:
     """:func:`~.ritz.rayleigh_ritz` on rank 0 (which holds K_V, M_V, C_V) with the waiting ranks' cores,
     its results broadcast; the solver ``solve`` (K_V^+, for :func:`ritz_recovery`) stays on rank 0."""
-    return computed_on_root(comm, lambda: rayleigh_ritz(KV, MV, CV, n_b, f_cut),
-                            lambda ritz: {k: v for k, v in ritz.items() if k != "solve"})
+    return computed_on_root(
+        comm,
+        lambda: rayleigh_ritz(KV, MV, CV, n_b, f_cut),
+        lambda ritz: {k: v for k, v in ritz.items() if k != "solve"},
+    )
 
 
 def _patterns_and_grams(KV: np.ndarray, MV: np.ndarray, ritz: dict):

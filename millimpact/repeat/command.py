@@ -1,11 +1,10 @@
 """``millimpact repeat``: N impacts at one spot, each from the previous one's residual state."""
+
 from __future__ import annotations
 
 import argparse
 import json
 import math
-from pathlib import Path
-from typing import Optional
 
 from ..results.output_folder import FORCE_HELP, OUT_HELP
 
@@ -39,22 +38,32 @@ MAX_IMPACTS = 1000
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig-plastic)")
     p.add_argument("--impacts", type=int, required=True, metavar="N", help=f"number of impacts, 1 to {MAX_IMPACTS}")
-    p.add_argument("--velocities", metavar="V1,...", help="impact speeds, m/s: one, or one per impact "
-                                                          "(default the scene's speed)")
-    p.add_argument("--angles", metavar="A1,...", help="angles from the face normal, deg in [0, 90): one, or one "
-                                                      "per impact (default the scene's)")
-    p.add_argument("--offset", metavar="DX,DY", help="the even impacts' shift from the odd ones on the face, m "
-                                                     "(impact.point's coordinates; default none)")
+    p.add_argument(
+        "--velocities", metavar="V1,...", help="impact speeds, m/s: one, or one per impact (default the scene's speed)"
+    )
+    p.add_argument(
+        "--angles",
+        metavar="A1,...",
+        help="angles from the face normal, deg in [0, 90): one, or one per impact (default the scene's)",
+    )
+    p.add_argument(
+        "--offset",
+        metavar="DX,DY",
+        help="the even impacts' shift from the odd ones on the face, m (impact.point's coordinates; default none)",
+    )
     p.add_argument("--method", default="improved", help="improved (default), traditional, modal-p2 or full")
-    p.add_argument("--out", required=True, help=OUT_HELP.replace(" (default {default})", " (required)")
-                   + "; its finished impacts are reused")
+    p.add_argument(
+        "--out",
+        required=True,
+        help=OUT_HELP.replace(" (default {default})", " (required)") + "; its finished impacts are reused",
+    )
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="override a scene field")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
-def parse_numbers(text: Optional[str], option: str, n: int, default: float) -> list[float]:
+def parse_numbers(text: str | None, option: str, n: int, default: float) -> list[float]:
     """One number or ``n`` comma-separated numbers of ``option`` as a list of ``n``."""
     from ..errors import InputError
 
@@ -71,7 +80,7 @@ def parse_numbers(text: Optional[str], option: str, n: int, default: float) -> l
     return vals
 
 
-def build_impacts(scene, n: int, velocities: Optional[str], angles: Optional[str], offset: Optional[str]):
+def build_impacts(scene, n: int, velocities: str | None, angles: str | None, offset: str | None):
     """The sequence's ImpactSpecs from the command line (one InputError line for a bad one)."""
     import numpy as np
 
@@ -79,8 +88,10 @@ def build_impacts(scene, n: int, velocities: Optional[str], angles: Optional[str
     from .sequence import ImpactSpec
 
     if not 1 <= n <= MAX_IMPACTS:
-        raise InputError(f"--impacts {n}: must lie in [1, {MAX_IMPACTS}] (each impact is a transient solve: "
-                         f"{MAX_IMPACTS} take about a day)")
+        raise InputError(
+            f"--impacts {n}: must lie in [1, {MAX_IMPACTS}] (each impact is a transient solve: "
+            f"{MAX_IMPACTS} take about a day)"
+        )
     v = np.asarray(scene.impact.velocity, float)
     nrm = np.asarray(scene.contact_normal, float)
     v_n = -float(v @ nrm)
@@ -116,15 +127,15 @@ def main(args: argparse.Namespace) -> int:
     from .verdict import classify
 
     comm = MPI.COMM_WORLD
-    enable_stages(not args.quiet)      # the model's stages (meshing, reduction) as they start and end
-    if not 1 <= args.impacts <= MAX_IMPACTS:        # before the scene: a huge N is refused at once
+    enable_stages(not args.quiet)  # the model's stages (meshing, reduction) as they start and end
+    if not 1 <= args.impacts <= MAX_IMPACTS:  # before the scene: a huge N is refused at once
         build_impacts(None, args.impacts, None, None, None)
     if args.method not in METHODS:
         raise InputError(f"--method {args.method}: choose one of {', '.join(METHODS)}")
     scene = command_scene(args)
     impacts = build_impacts(scene, args.impacts, args.velocities, args.angles, args.offset)
     options = parse_options(args.option)
-    check_sequence(scene, impacts, args.method)   # the plan's refusals: before the folder
+    check_sequence(scene, impacts, args.method)  # the plan's refusals: before the folder
     # before computing: checks, lock, leftovers (collective; docs/outputs.md)
     target = claim_output(args.out, "repeat", force=args.force, comm=comm)
     out = target.path
@@ -140,10 +151,13 @@ def main(args: argparse.Namespace) -> int:
     comm.barrier()
     done_before = len(list(store.glob("impact-*.json")))
     if not quiet:
-        say(f"repeat {scene.name}: {len(impacts)} impact{'' if len(impacts) == 1 else 's'}, method {args.method}"
-            + (f"; {done_before} finished impact file(s) in {store}" if done_before else ""))
-    outcomes = run_sequence(scene, impacts, args.method, options, comm,
-                            progress=None if quiet else say, store_dir=store)
+        say(
+            f"repeat {scene.name}: {len(impacts)} impact{'' if len(impacts) == 1 else 's'}, method {args.method}"
+            + (f"; {done_before} finished impact file(s) in {store}" if done_before else "")
+        )
+    outcomes = run_sequence(
+        scene, impacts, args.method, options, comm, progress=None if quiet else say, store_dir=store
+    )
     verdict = classify(outcomes)
     if comm.rank == 0:
         details = []
@@ -158,8 +172,10 @@ def main(args: argparse.Namespace) -> int:
             say(verdict_text(verdict))
             for note in summary["notes"]:
                 say(f"  note: {note}")
-            say(f"  results in {target.shown}/ (impacts.csv, restitution.png, dent.png, summary.json, summary.txt)"
-                + target.replaced_note())
+            say(
+                f"  results in {target.shown}/ (impacts.csv, restitution.png, dent.png, summary.json, summary.txt)"
+                + target.replaced_note()
+            )
     return 0
 
 

@@ -9,19 +9,22 @@ Figures: ``restitution.png`` (e_n, and e_t for oblique impacts, against the impa
 with its numbers, per-impact details (energy balance, rotation, launch shift, wall time) and the
 small-strain note; written last, its presence marks a complete sequence.
 """
+
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from ..commandkit.store import write_atomic
 from .sequence import OUTCOME_COLUMNS, ImpactOutcome, ImpactSpec
 from .verdict import Verdict
+
 
 def small_strain_line(outcomes: Sequence[ImpactOutcome], rotations: Sequence[float]) -> str:
     """One line: the sequence's largest plastic strain and rotation at a peak force, and whether
@@ -35,10 +38,12 @@ def small_strain_line(outcomes: Sequence[ImpactOutcome], rotations: Sequence[flo
 
 def write_impacts_csv(path: Path, outcomes: Sequence[ImpactOutcome]) -> None:
     """``impacts.csv`` (module docstring)."""
-    lines = ["# repeated impacts at one spot (millimpact repeat): one row per impact, SI units "
-             "(suffix of each name); restitutions and the equivalent plastic strain dimensionless; "
-             "the dent is the residual state's after the impact (cumulative), the plastic work the impact's own",
-             ",".join(OUTCOME_COLUMNS)]
+    lines = [
+        "# repeated impacts at one spot (millimpact repeat): one row per impact, SI units "
+        "(suffix of each name); restitutions and the equivalent plastic strain dimensionless; "
+        "the dent is the residual state's after the impact (cumulative), the plastic work the impact's own",
+        ",".join(OUTCOME_COLUMNS),
+    ]
     for o in outcomes:
         d = asdict(o)
         lines.append(",".join(str(d[c]) if c == "impact" else f"{d[c]:.10g}" for c in OUTCOME_COLUMNS))
@@ -52,8 +57,9 @@ def read_impacts_csv(path: Path) -> list[ImpactOutcome]:
     out = []
     for ln in rows[1:]:
         vals = dict(zip(head, ln.split(",")))
-        out.append(ImpactOutcome(impact=int(vals["impact"]),
-                                 **{c: float(vals[c]) for c in OUTCOME_COLUMNS if c != "impact"}))
+        out.append(
+            ImpactOutcome(impact=int(vals["impact"]), **{c: float(vals[c]) for c in OUTCOME_COLUMNS if c != "impact"})
+        )
     return out
 
 
@@ -72,7 +78,7 @@ def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -
     if np.any(np.isfinite(e_t)):
         ax.plot(k, e_t, "s--", label="tangential e_t")
     ax.set_xlabel("impact number")
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))   # impacts are counted, not measured
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # impacts are counted, not measured
     ax.set_ylabel("coefficient of restitution (-)")
     ax.set_title(f"{title}: restitution")
     ax.grid(True, alpha=0.3)
@@ -101,12 +107,23 @@ def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -
 
 def verdict_text(v: Verdict) -> str:
     """One line: the verdict and its reason."""
-    return f"verdict: {v.kind}" + (f" from impact {v.impacts_to_shakedown}" if v.impacts_to_shakedown else "") + \
-        (f" ({v.numbers['reason']})" if "reason" in v.numbers else "")
+    return (
+        f"verdict: {v.kind}"
+        + (f" from impact {v.impacts_to_shakedown}" if v.impacts_to_shakedown else "")
+        + (f" ({v.numbers['reason']})" if "reason" in v.numbers else "")
+    )
 
 
-def write_sequence(folder: Path, scene, method: str, impacts: Sequence[ImpactSpec], outcomes: Sequence[ImpactOutcome],
-                   verdict: Verdict, details: Sequence[dict], extra: dict) -> dict[str, Any]:
+def write_sequence(
+    folder: Path,
+    scene,
+    method: str,
+    impacts: Sequence[ImpactSpec],
+    outcomes: Sequence[ImpactOutcome],
+    verdict: Verdict,
+    details: Sequence[dict],
+    extra: dict,
+) -> dict[str, Any]:
     """Write the sequence's files into ``folder`` (rank 0); ``summary.json`` last. Returns the summary."""
     from .. import __version__
     from ..scene.toml_io import dump_scene
@@ -119,22 +136,41 @@ def write_sequence(folder: Path, scene, method: str, impacts: Sequence[ImpactSpe
     reached = [k for k, d in enumerate(details, 1) if d.get("zone_boundary_elastic") is False]
     notes = [note]
     if reached:
-        notes.append(f"WARNING: the plastic region reached the contact zone's boundary (where the model is linear) "
-                     f"in impact(s) {', '.join(map(str, reached))}: rerun with a larger --set model.zone_radius")
-    summary = {"millimpact_version": __version__, "scene": scene.name, "method": method,
-               "impacts": [{"speed_m_s": s.speed_m_s, "angle_deg": s.angle_deg, "offset_m": list(s.offset_m)}
-                           for s in impacts],
-               "verdict": {"kind": verdict.kind, "impacts_to_shakedown": verdict.impacts_to_shakedown,
-                           "numbers": verdict.numbers},
-               "outcomes": [asdict(o) for o in outcomes], "details": list(details),
-               "notes": notes, **extra, "files": sorted(["impacts.csv", "scene.toml", *figures])}
-    lines = [f"millimpact repeat {scene.name}, method {method}: {len(outcomes)} impacts",
-             verdict_text(verdict), *notes, "",
-             f"{'impact':>6} {'e_n':>7} {'F_max kN':>9} {'t_c us':>7} {'W_p mJ':>8} {'dent um':>8} {'eps_p':>6}"]
+        notes.append(
+            f"WARNING: the plastic region reached the contact zone's boundary (where the model is linear) "
+            f"in impact(s) {', '.join(map(str, reached))}: rerun with a larger --set model.zone_radius"
+        )
+    summary = {
+        "millimpact_version": __version__,
+        "scene": scene.name,
+        "method": method,
+        "impacts": [
+            {"speed_m_s": s.speed_m_s, "angle_deg": s.angle_deg, "offset_m": list(s.offset_m)} for s in impacts
+        ],
+        "verdict": {
+            "kind": verdict.kind,
+            "impacts_to_shakedown": verdict.impacts_to_shakedown,
+            "numbers": verdict.numbers,
+        },
+        "outcomes": [asdict(o) for o in outcomes],
+        "details": list(details),
+        "notes": notes,
+        **extra,
+        "files": sorted(["impacts.csv", "scene.toml", *figures]),
+    }
+    lines = [
+        f"millimpact repeat {scene.name}, method {method}: {len(outcomes)} impacts",
+        verdict_text(verdict),
+        *notes,
+        "",
+        f"{'impact':>6} {'e_n':>7} {'F_max kN':>9} {'t_c us':>7} {'W_p mJ':>8} {'dent um':>8} {'eps_p':>6}",
+    ]
     for o in outcomes:
-        lines.append(f"{o.impact:6d} {o.restitution_normal:7.4f} {o.peak_normal_force_N / 1e3:9.4g} "
-                     f"{o.contact_duration_s * 1e6:7.4g} {o.plastic_dissipation_J * 1e3:8.4g} "
-                     f"{o.residual_dent_depth_m * 1e6:8.4g} {o.max_equivalent_plastic_strain:6.3g}")
+        lines.append(
+            f"{o.impact:6d} {o.restitution_normal:7.4f} {o.peak_normal_force_N / 1e3:9.4g} "
+            f"{o.contact_duration_s * 1e6:7.4g} {o.plastic_dissipation_J * 1e3:8.4g} "
+            f"{o.residual_dent_depth_m * 1e6:8.4g} {o.max_equivalent_plastic_strain:6.3g}"
+        )
     (folder / "summary.txt").write_text("\n".join(lines) + "\n")
     write_atomic(folder / "summary.json", json.dumps(_jsonable(summary), indent=1) + "\n")
     return summary

@@ -38,15 +38,17 @@ fixed during an impact, as for a single one.
 The ball's own state (its plastic strain if it yields) is carried too: the same ball strikes
 again, as in Seifried, Schiehlen & Eberhard (2005)'s repeated-impact experiment.
 """
+
 from __future__ import annotations
 
 import json
 import logging
 import math
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -57,8 +59,17 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ImpactSpec", "ImpactOutcome", "ImpactRecord", "run_sequence",
-           "impact_velocity", "sequence_scene", "check_impacts", "check_sequence", "OUTCOME_COLUMNS"]
+__all__ = [
+    "ImpactSpec",
+    "ImpactOutcome",
+    "ImpactRecord",
+    "run_sequence",
+    "impact_velocity",
+    "sequence_scene",
+    "check_impacts",
+    "check_sequence",
+    "OUTCOME_COLUMNS",
+]
 
 #: each impact's time span: the flight over the gap plus this many Hertz contact times (the
 #: separation stop ends it ~1.1 t_c after contact for a plastic impact)
@@ -75,9 +86,17 @@ IMPACT_SPAN_CONTACTS = 3.0
 REPEAT_ZONE_FACTOR = 1.2
 
 #: the columns of impacts.csv, in order (ImpactOutcome's fields)
-OUTCOME_COLUMNS = ("impact", "restitution_normal", "restitution_tangential", "peak_normal_force_N",
-                   "contact_duration_s", "plastic_dissipation_J", "residual_dent_depth_m",
-                   "residual_dent_radius_m", "max_equivalent_plastic_strain")
+OUTCOME_COLUMNS = (
+    "impact",
+    "restitution_normal",
+    "restitution_tangential",
+    "peak_normal_force_N",
+    "contact_duration_s",
+    "plastic_dissipation_J",
+    "residual_dent_depth_m",
+    "residual_dent_radius_m",
+    "max_equivalent_plastic_strain",
+)
 
 
 @dataclass(frozen=True)
@@ -148,9 +167,10 @@ def check_impacts(scene, impacts: Sequence[ImpactSpec]) -> None:
         if dx == 0.0 and dy == 0.0:
             continue
         if scene.liner is not None:
-            raise InputError(f"--offset {dx:g},{dy:g}: offsets are for block scenes (the face y = 0); "
-                             f"{scene.name} strikes a liner")
-        x0, z0 = (p if p is not None else (scene.impact_point[0], scene.impact_point[2]))
+            raise InputError(
+                f"--offset {dx:g},{dy:g}: offsets are for block scenes (the face y = 0); {scene.name} strikes a liner"
+            )
+        x0, z0 = p if p is not None else (scene.impact_point[0], scene.impact_point[2])
         try:
             scene.with_value("impact.point", (x0 + dx, z0 + dy))
         except InputError as exc:
@@ -162,8 +182,14 @@ def sequence_scene(scene, impacts: Sequence[ImpactSpec], method: str):
     slowest normal speed, cutoff and contact step of the fastest, the least symmetric model, the
     zone of the fastest (REPEAT_ZONE_FACTOR times it, whatever the number of impacts: a
     sequence's first impact is the same for one impact or several) grown by the largest offset."""
-    from ..scene.plan import (ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan,
-                              scene_hertz)
+    from ..scene.plan import (
+        ELEMENTS_ACROSS_CONTACT,
+        F_CUT_FACTOR,
+        GAP_FACTOR,
+        STEPS_PER_CONTACT,
+        make_plan,
+        scene_hertz,
+    )
 
     # one scene per distinct impact (a long sequence repeats a few): its plan decides the symmetry
     distinct = list(dict.fromkeys(ImpactSpec(i.speed_m_s, i.angle_deg) for i in impacts))
@@ -171,10 +197,12 @@ def sequence_scene(scene, impacts: Sequence[ImpactSpec], method: str):
     slow = min(scenes, key=lambda s: s.normal_speed)
     fast = max(scenes, key=lambda s: s.normal_speed)
     hs, hf = scene_hertz(slow), scene_hertz(fast)
-    sets = {"model.h_contact": scene.model.h_contact or hs.a_max / ELEMENTS_ACROSS_CONTACT,
-            "impact.gap": scene.impact.gap or GAP_FACTOR * hs.delta_max,
-            "model.f_cut": scene.model.f_cut or F_CUT_FACTOR / hf.contact_time,
-            "time.dt_contact": scene.time.dt_contact or hf.contact_time / STEPS_PER_CONTACT}
+    sets = {
+        "model.h_contact": scene.model.h_contact or hs.a_max / ELEMENTS_ACROSS_CONTACT,
+        "impact.gap": scene.impact.gap or GAP_FACTOR * hs.delta_max,
+        "model.f_cut": scene.model.f_cut or F_CUT_FACTOR / hf.contact_time,
+        "time.dt_contact": scene.time.dt_contact or hf.contact_time / STEPS_PER_CONTACT,
+    }
     planes = set(make_plan(fast).symmetry_planes)
     for s in scenes:
         planes &= set(make_plan(s).symmetry_planes)
@@ -182,8 +210,9 @@ def sequence_scene(scene, impacts: Sequence[ImpactSpec], method: str):
         planes.discard("x")
     if any(i.offset_m[1] != 0.0 for i in impacts):
         planes.discard("z")
-    sets["model.symmetry"] = {frozenset(): "full", frozenset({"x"}): "half",
-                              frozenset({"x", "z"}): "quarter"}.get(frozenset(planes), "full")
+    sets["model.symmetry"] = {frozenset(): "full", frozenset({"x"}): "half", frozenset({"x", "z"}): "quarter"}.get(
+        frozenset(planes), "full"
+    )
     design = fast
     for k, v in sets.items():
         design = design.with_value(k, v)
@@ -227,9 +256,17 @@ def check_sequence(scene, impacts: Sequence[ImpactSpec], method: str):
 
 
 # --- the sequence -----------------------------------------------------------------------------
-def run_sequence(scene, impacts: Sequence[ImpactSpec], method: str = "improved",
-                 petsc_options: Optional[Mapping] = None, comm=None, progress=None, *,
-                 store_dir: Optional[Path] = None, records: Optional[list] = None) -> list[ImpactOutcome]:
+def run_sequence(
+    scene,
+    impacts: Sequence[ImpactSpec],
+    method: str = "improved",
+    petsc_options: Mapping | None = None,
+    comm=None,
+    progress=None,
+    *,
+    store_dir: Path | None = None,
+    records: list | None = None,
+) -> list[ImpactOutcome]:
     """Run ``impacts`` one after the other on ``scene`` (a Scene, a built-in name or a TOML
     file) with ``method`` (improved, traditional, modal-p2 or full), each from the previous one's
     residual state (module docstring); returns one :class:`ImpactOutcome` per impact.
@@ -279,11 +316,17 @@ def run_sequence(scene, impacts: Sequence[ImpactSpec], method: str = "improved",
             records.append(record)
         if progress is not None and comm.rank == 0:
             o = record.outcome
-            progress(f"  [{k + 1}/{len(impacts)}] v = {spec.speed_m_s:g} m/s, angle {spec.angle_deg:g} deg"
-                     + (f", offset ({spec.offset_m[0] * 1e3:g}, {spec.offset_m[1] * 1e3:g}) mm" if any(spec.offset_m) else "")
-                     + f": e_n {o.restitution_normal:.4f}, F_max {o.peak_normal_force_N / 1e3:.4g} kN, plastic work "
-                     f"{o.plastic_dissipation_J:.4g} J, dent {o.residual_dent_depth_m * 1e6:.4g} um, "
-                     f"{record.details['wall_time_s']:.1f} s")
+            progress(
+                f"  [{k + 1}/{len(impacts)}] v = {spec.speed_m_s:g} m/s, angle {spec.angle_deg:g} deg"
+                + (
+                    f", offset ({spec.offset_m[0] * 1e3:g}, {spec.offset_m[1] * 1e3:g}) mm"
+                    if any(spec.offset_m)
+                    else ""
+                )
+                + f": e_n {o.restitution_normal:.4f}, F_max {o.peak_normal_force_N / 1e3:.4g} kN, plastic work "
+                f"{o.plastic_dissipation_J:.4g} J, dent {o.residual_dent_depth_m * 1e6:.4g} um, "
+                f"{record.details['wall_time_s']:.1f} s"
+            )
     return outcomes
 
 
@@ -293,8 +336,15 @@ def sequence_key(design, method: str, options: Mapping, ranks: int) -> str:
     from ..commandkit.store import piece_key
     from ..scene.toml_io import dump_scene
 
-    return piece_key({"scene": dump_scene(design), "method": method, "options": sorted(options.items()),
-                      "ranks": ranks, "version": __version__})
+    return piece_key(
+        {
+            "scene": dump_scene(design),
+            "method": method,
+            "options": sorted(options.items()),
+            "ranks": ranks,
+            "version": __version__,
+        }
+    )
 
 
 def _spec_json(spec: ImpactSpec) -> dict:
@@ -344,14 +394,19 @@ def store_finished(folder: Path, key: str, k: int, record: ImpactRecord, engine,
     state = engine.zone.get_state() if engine.zone is not None else {}
 
     def save_state(tmp: Path) -> None:
-        with open(tmp, "wb") as f:   # a file, not a name: np.savez would add ".npz" to the temporary one
+        with open(tmp, "wb") as f:  # a file, not a name: np.savez would add ".npz" to the temporary one
             np.savez(f, **state)
 
     write_atomic(folder / f"impact-{k:03d}.rank{comm.rank}.npz", save_state)
     comm.barrier()
     if comm.rank == 0:
-        data = {"key": key, "impact": k, "spec": _spec_json(record.spec), "outcome": asdict(record.outcome),
-                "details": {n: v for n, v in record.details.items() if n != "dent_profile"}}
+        data = {
+            "key": key,
+            "impact": k,
+            "spec": _spec_json(record.spec),
+            "outcome": asdict(record.outcome),
+            "details": {n: v for n, v in record.details.items() if n != "dent_profile"},
+        }
         write_atomic(folder / f"impact-{k:03d}.json", json.dumps(data, indent=1, default=float))
         if record.series is not None:
             record.series.write_csv(folder / f"impact-{k:03d}-timeseries.csv")
@@ -363,12 +418,12 @@ class _Engine:
     """What the two engines share: the per-impact scene and plan, the contact rows per offset,
     the launch onto the deformed face and the outcome."""
 
-    zone = None          #: the model's PlasticZone (None when nothing yields)
+    zone = None  #: the model's PlasticZone (None when nothing yields)
     #: the sequence's full model and its contact candidates' radius (m; None: the plan's), set by
     #: each engine once it has built them
     model: FEModel
-    cand_radius: Optional[float]
-    progress = False     #: the time loop's progress inside an impact (rank 0)
+    cand_radius: float | None
+    progress = False  #: the time loop's progress inside an impact (rank 0)
 
     def __init__(self, design, method: str, options: dict, comm):
         from ..scene.plan import make_plan
@@ -377,7 +432,7 @@ class _Engine:
         self.plan = make_plan(design)
         self.contacts: dict[tuple, Any] = {}
         self.systems: dict[tuple, Any] = {}
-        self.u_res = None    #: the residual state's vector (model or reduced), None before the first impact
+        self.u_res = None  #: the residual state's vector (model or reduced), None before the first impact
 
     def release(self) -> None:
         """Free what the impact dropped (collective): petsc4py 3.18 parks the objects whose
@@ -431,15 +486,25 @@ class _Engine:
         e_t = (v_t + 3.5 * j_t / m) / v_t if v_t > 1e-9 * max(v_n, 1e-300) else math.nan
         w_p = float(ts["plastic_dissipation_J"][-1]) if "plastic_dissipation_J" in ts else 0.0
         eps = float(ts["max_equivalent_plastic_strain"][-1]) if "max_equivalent_plastic_strain" in ts else 0.0
-        o = ImpactOutcome(k, float(results.get("restitution", math.nan)), float(e_t), float(fn.max()),
-                          float(metrics["contact_duration_s"]), w_p, float(dent["residual_dent_depth_m"]),
-                          float(dent["residual_dent_radius_m"]), eps)
-        details = {"energy_drift_over_impact_rel": float(results["energy_drift_over_impact_rel"]),
-                   "energy_initial_J": float(results["energy_initial_J"]),
-                   "impact_energy_J": float(plan.hertz.energy) if hasattr(plan.hertz, "energy") else math.nan,
-                   "max_approach_m": float(metrics.get("max_approach_m", math.nan)),
-                   "contact_ended": bool(fn[-1] <= 1e-6 * max(float(fn.max()), 1e-300)),
-                   "dent_profile": dent.get("residual_dent_profile")}
+        o = ImpactOutcome(
+            k,
+            float(results.get("restitution", math.nan)),
+            float(e_t),
+            float(fn.max()),
+            float(metrics["contact_duration_s"]),
+            w_p,
+            float(dent["residual_dent_depth_m"]),
+            float(dent["residual_dent_radius_m"]),
+            eps,
+        )
+        details = {
+            "energy_drift_over_impact_rel": float(results["energy_drift_over_impact_rel"]),
+            "energy_initial_J": float(results["energy_initial_J"]),
+            "impact_energy_J": float(plan.hertz.energy) if hasattr(plan.hertz, "energy") else math.nan,
+            "max_approach_m": float(metrics.get("max_approach_m", math.nan)),
+            "contact_ended": bool(fn[-1] <= 1e-6 * max(float(fn.max()), 1e-300)),
+            "dent_profile": dent.get("residual_dent_profile"),
+        }
         return o, details
 
     def boundary(self) -> dict:
@@ -450,9 +515,11 @@ class _Engine:
         from ..results.dent import zone_boundary_note
 
         keys, notes = zone_boundary_note(self.model, self.zone, self.plan)
-        return {"zone_boundary_max_equivalent_plastic_strain": keys["zone_boundary_max_equivalent_plastic_strain"],
-                "zone_boundary_elastic": bool(keys["zone_boundary_elastic"]),
-                "plastic_zone_radius_m": keys["plastic_zone_radius_m"]["struck_body"]}
+        return {
+            "zone_boundary_max_equivalent_plastic_strain": keys["zone_boundary_max_equivalent_plastic_strain"],
+            "zone_boundary_elastic": bool(keys["zone_boundary_elastic"]),
+            "plastic_zone_radius_m": keys["plastic_zone_radius_m"]["struck_body"],
+        }
 
     def dent(self, u_full) -> dict:
         """Depth and radius (m) of the dent of the residual displacement ``u_full`` (a model
@@ -476,7 +543,9 @@ class _ReducedEngine(_Engine):
         self.design, self.plan = self.setup.scene, self.setup.plan
         self.model, self.red, self.cand_radius = self.setup.model, self.setup.red, self.setup.cand_radius
         self.contacts[(0.0, 0.0)] = self.setup.contact
-        self.zone = create_plastic_zone(self.model, [(BALL_ZONE, self.plan.ball.material), (BLOCK_ZONE, self.plan.target)])
+        self.zone = create_plastic_zone(
+            self.model, [(BALL_ZONE, self.plan.ball.material), (BLOCK_ZONE, self.plan.target)]
+        )
         self.plastic = ProjectedPlasticZone(self.zone, self.red) if self.zone is not None else None
 
     def system_for(self, spec):
@@ -485,7 +554,7 @@ class _ReducedEngine(_Engine):
         key, contact = self.contact_for(spec)
         if key not in self.systems:
             system = reduced_system(self.red, contact, self.plan.friction)
-            system.operator_cache = {}       # the elastic step factorization, kept between impacts
+            system.operator_cache = {}  # the elastic step factorization, kept between impacts
             system.plastic = self.plastic
             self.systems[key] = system
         return self.systems[key], contact
@@ -510,20 +579,40 @@ class _ReducedEngine(_Engine):
         rec.energy_every = ENERGY_EVERY_IMPACT_ONLY
         t_end = impact_t_end(plan)
         stop = impact_only_stop(plan)
-        run = integrate_reduced(self.red, system, q0, qd0, contact, plan, t_end, rec, integrator=opt.integrator,
-                                options=dict(self.options), progress=self.progress, free_phase=opt.free_phase,
-                                f_free=opt.free_factor * plan.f_cut, min_span=opt.min_span, stop=stop)
+        run = integrate_reduced(
+            self.red,
+            system,
+            q0,
+            qd0,
+            contact,
+            plan,
+            t_end,
+            rec,
+            integrator=opt.integrator,
+            options=dict(self.options),
+            progress=self.progress,
+            free_phase=opt.free_phase,
+            f_free=opt.free_factor * plan.f_cut,
+            min_span=opt.min_span,
+            stop=stop,
+        )
         ts = rec.series()
         results = impact_results(ts, plan.normal_speed, plan.probes.gauge_names, run["stats"], opt.integrator)
         rotation = self._rotation(rec.q_peak)
-        self._q_res = None                   # the state changed: a new residual state
+        self._q_res = None  # the state changed: a new residual state
         q_new = self.residual_q()
         u_full = self.red.expand(q_new) if q_new is not None else self.red.model.K.createVecRight()
         dent = self.dent(u_full)
         u_full.destroy()
         outcome, details = self.outcome(k, plan, ts, results, dent)
-        details.update({"launch_shift_m": shift, "max_rotation_at_peak_rad": rotation,
-                        **solver_counts(run["stats"].get), **self.boundary()})
+        details.update(
+            {
+                "launch_shift_m": shift,
+                "max_rotation_at_peak_rad": rotation,
+                **solver_counts(run["stats"].get),
+                **self.boundary(),
+            }
+        )
         return ImpactRecord(outcome, spec, ts, details)
 
     _q_res = None
@@ -564,20 +653,31 @@ class _FullEngine(_Engine):
         self.integrator = take(self.options, "integrator") or "newmark-mr"
         a = self.plan.hertz.a_max
         # the reduced methods' candidates (methods/reduced.py reduced_plan): the same model as improved's
-        self.cand_radius = min(REDUCED_CANDIDATE_FACTOR * a,
-                               min(self.plan.zone_radius, self.plan.ball_zone) - 2.0 * self.plan.h_contact)
+        self.cand_radius = min(
+            REDUCED_CANDIDATE_FACTOR * a, min(self.plan.zone_radius, self.plan.ball_zone) - 2.0 * self.plan.h_contact
+        )
         md = create_mesh(design, self.plan, comm)
         self.model = create_fe_model(md, self.plan, self.degree)
-        self.zone = create_plastic_zone(self.model, [(BALL_ZONE, self.plan.ball.material), (BLOCK_ZONE, self.plan.target)])
+        self.zone = create_plastic_zone(
+            self.model, [(BALL_ZONE, self.plan.ball.material), (BLOCK_ZONE, self.plan.target)]
+        )
 
     def system_for(self, spec):
         from ..integration import integrators
 
         key, c = self.contact_for(spec)
         if key not in self.systems:
-            s = integrators.LinearDynamics(M=self.model.M, K=self.model.K, B=c.B, g0=c.g0,
-                                           fixed_dofs=self.model.fixed_dofs, contact_dofs=c.contact_dofs, T=c.T,
-                                           friction=self.plan.friction, plastic=self.zone)
+            s = integrators.LinearDynamics(
+                M=self.model.M,
+                K=self.model.K,
+                B=c.B,
+                g0=c.g0,
+                fixed_dofs=self.model.fixed_dofs,
+                contact_dofs=c.contact_dofs,
+                T=c.T,
+                friction=self.plan.friction,
+                plastic=self.zone,
+            )
             s.operator_cache = {}
             self.systems[key] = s
         return self.systems[key], c
@@ -616,18 +716,35 @@ class _FullEngine(_Engine):
         t_end = impact_t_end(plan)
         stop = impact_only_stop(plan)
         sched = integrators.TimeSchedule(t_end, plan.dt_contact, plan.dt_contact)
-        stats = integrators.integrate(system, u0, v0, sched, method=self.integrator, observer=rec,
-                                      options=dict(self.options), progress=self.progress, stop=stop)
+        stats = integrators.integrate(
+            system,
+            u0,
+            v0,
+            sched,
+            method=self.integrator,
+            observer=rec,
+            options=dict(self.options),
+            progress=self.progress,
+            stop=stop,
+        )
         ts = rec.series()
         results = impact_results(ts, plan.normal_speed, plan.probes.gauge_names, stats, self.integrator)
-        rotation = self.zone.max_rotation(rec.q_peak) if (self.zone is not None and rec.q_peak is not None) else math.nan
+        rotation = (
+            self.zone.max_rotation(rec.q_peak) if (self.zone is not None and rec.q_peak is not None) else math.nan
+        )
         u_new = self.residual_u()
         if u_new is None:
             u_new = self.model.K.createVecRight()
         dent = self.dent(u_new)
         outcome, details = self.outcome(k, plan, ts, results, dent)
-        details.update({"launch_shift_m": shift, "max_rotation_at_peak_rad": rotation,
-                        **solver_counts(lambda k, d: getattr(stats, k, d)), **self.boundary()})
+        details.update(
+            {
+                "launch_shift_m": shift,
+                "max_rotation_at_peak_rad": rotation,
+                **solver_counts(lambda k, d: getattr(stats, k, d)),
+                **self.boundary(),
+            }
+        )
         return ImpactRecord(outcome, spec, ts, details)
 
 
@@ -635,8 +752,12 @@ def solver_counts(get) -> dict:
     """What an impact's time loop cost in solver work, from its integration statistics (``get(key,
     default)``): steps that yielded, their plastic iterations, effective-matrix solves, tangent
     factorizations."""
-    return {"plastic_steps": int(get("n_plastic_steps", 0)), "plastic_iterations": int(get("n_plastic_iterations", 0)),
-            "solves": int(get("n_solves", 0)), "tangent_factorizations": int(get("n_tangent_factorizations", 0))}
+    return {
+        "plastic_steps": int(get("n_plastic_steps", 0)),
+        "plastic_iterations": int(get("n_plastic_iterations", 0)),
+        "solves": int(get("n_solves", 0)),
+        "tangent_factorizations": int(get("n_tangent_factorizations", 0)),
+    }
 
 
 def impact_t_end(plan) -> float:
@@ -662,6 +783,7 @@ class _PeakMixin:
                     if self.q_peak is not None:
                         self.q_peak.destroy()
                     self.q_peak = st.u.copy()
+
         return PeakRecorder
 
 

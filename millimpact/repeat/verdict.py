@@ -17,11 +17,13 @@ with D_0 = 0):
 - undecided: the increments decay but are not yet small; the impacts the fitted ratio needs to
   bring them to CLOSED_SHARE are reported.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Optional, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -42,7 +44,7 @@ class Verdict:
     otherwise); ``numbers``: the figures the verdict rests on."""
 
     kind: str
-    impacts_to_shakedown: Optional[int]
+    impacts_to_shakedown: int | None
     numbers: dict = field(default_factory=dict)
 
 
@@ -69,13 +71,20 @@ def classify(outcomes: Sequence[Any]) -> Verdict:
     if n == 0:
         return Verdict("undecided", None, numbers)
     w1, d1 = float(w[0]), float(inc[0])
-    numbers.update({"plastic_work_first_J": w1, "plastic_work_last_J": float(w[-1]),
-                    "plastic_work_share_last": float(w[-1] / w1) if w1 > 0 else math.nan,
-                    "dent_first_m": d1, "dent_last_m": float(d[-1]),
-                    "dent_increment_last_m": float(inc[-1]),
-                    "dent_increment_share_last": float(inc[-1] / d1) if d1 > 0 else math.nan,
-                    "elastic_share_threshold": ELASTIC_SHARE, "closed_share_threshold": CLOSED_SHARE,
-                    "ratchet_ratio_threshold": RATCHET_RATIO})
+    numbers.update(
+        {
+            "plastic_work_first_J": w1,
+            "plastic_work_last_J": float(w[-1]),
+            "plastic_work_share_last": float(w[-1] / w1) if w1 > 0 else math.nan,
+            "dent_first_m": d1,
+            "dent_last_m": float(d[-1]),
+            "dent_increment_last_m": float(inc[-1]),
+            "dent_increment_share_last": float(inc[-1] / d1) if d1 > 0 else math.nan,
+            "elastic_share_threshold": ELASTIC_SHARE,
+            "closed_share_threshold": CLOSED_SHARE,
+            "ratchet_ratio_threshold": RATCHET_RATIO,
+        }
+    )
     if w1 <= 0:
         numbers["reason"] = "the first impact did no plastic work: elastic from the start"
         return Verdict("elastic shakedown", 1, numbers)
@@ -95,15 +104,21 @@ def classify(outcomes: Sequence[Any]) -> Verdict:
         k = n
         while k - 1 >= 2 and inc[k - 2] < CLOSED_SHARE * d1:
             k -= 1
-        numbers["reason"] = (f"plastic work {w[-1] / w1:.3g} of the first impact's, dent increments below "
-                             f"{CLOSED_SHARE:.0%} of the first dent from impact {k} on: a closed plastic cycle")
+        numbers["reason"] = (
+            f"plastic work {w[-1] / w1:.3g} of the first impact's, dent increments below "
+            f"{CLOSED_SHARE:.0%} of the first dent from impact {k} on: a closed plastic cycle"
+        )
         return Verdict("plastic shakedown", k, numbers)
     if not math.isfinite(q) or q >= RATCHET_RATIO:
-        numbers["reason"] = (f"dent increments not decaying (ratio {q:.3g} an impact over the last "
-                             f"{min(FIT_IMPACTS, n - 1)}, threshold {RATCHET_RATIO:g})")
+        numbers["reason"] = (
+            f"dent increments not decaying (ratio {q:.3g} an impact over the last "
+            f"{min(FIT_IMPACTS, n - 1)}, threshold {RATCHET_RATIO:g})"
+        )
         return Verdict("ratcheting", None, numbers)
     need = math.log(CLOSED_SHARE * d1 / inc[-1]) / math.log(q) if inc[-1] > 0 and d1 > 0 else math.nan
     numbers["impacts_more_to_closed_share"] = float(need)
-    numbers["reason"] = (f"dent increments decaying by a ratio {q:.3g} an impact, still {inc[-1] / d1:.3g} of the "
-                         f"first dent; ~{max(1, math.ceil(need))} more impact(s) to reach {CLOSED_SHARE:.0%} at that rate")
+    numbers["reason"] = (
+        f"dent increments decaying by a ratio {q:.3g} an impact, still {inc[-1] / d1:.3g} of the "
+        f"first dent; ~{max(1, math.ceil(need))} more impact(s) to reach {CLOSED_SHARE:.0%} at that rate"
+    )
     return Verdict("undecided", None, numbers)

@@ -22,10 +22,10 @@ the odd extension y(t_r - s) = -y(t_r + s): the kernel is symmetric, so the filt
 at t_r and rises from rest continuously (keeping the raw zeros before and the plainly filtered
 series after made a step of 0.25 of the peak velocity at the first contact).
 """
+
 from __future__ import annotations
 
 import math
-from typing import Optional
 
 import numpy as np
 
@@ -33,7 +33,7 @@ import numpy as np
 SIGMA_TIMES_F_HALF = math.sqrt(math.log(2.0) / 2.0) / math.pi
 
 
-def gaussian_low_pass(t: np.ndarray, y: np.ndarray, f_half: float, rest_until: Optional[float] = None) -> np.ndarray:
+def gaussian_low_pass(t: np.ndarray, y: np.ndarray, f_half: float, rest_until: float | None = None) -> np.ndarray:
     """``y`` (sampled at increasing times ``t``, s) band-limited by the zero-phase Gaussian whose
     transfer function is 1/2 at ``f_half`` (Hz); the samples before ``rest_until`` (s; the first
     contact, before which the body is at rest) are kept as they are. See the module docstring."""
@@ -42,13 +42,13 @@ def gaussian_low_pass(t: np.ndarray, y: np.ndarray, f_half: float, rest_until: O
     if len(t) < 3 or not f_half > 0:
         return y.copy()
     if rest_until is not None and t[0] < rest_until <= t[-1]:
-        r = int(np.searchsorted(t, rest_until)) - 1          # the last sample at rest
+        r = int(np.searchsorted(t, rest_until)) - 1  # the last sample at rest
         ta, ya = t[r:] - t[r], y[r:] - y[r]
         near = ta[1:][ta[1:] <= 4.0 * SIGMA_TIMES_F_HALF / f_half][::-1]
         ext_t = np.concatenate([-near, ta])
-        ext_y = np.concatenate([-ya[1:1 + len(near)][::-1], ya])
-        out = y.copy()                                       # t_r itself stays as recorded
-        out[r + 1:] = gaussian_low_pass(ext_t, ext_y, f_half)[len(near) + 1:] + y[r]
+        ext_y = np.concatenate([-ya[1 : 1 + len(near)][::-1], ya])
+        out = y.copy()  # t_r itself stays as recorded
+        out[r + 1 :] = gaussian_low_pass(ext_t, ext_y, f_half)[len(near) + 1 :] + y[r]
         return out
     sigma = SIGMA_TIMES_F_HALF / f_half
     dt = np.gradient(t)

@@ -13,6 +13,7 @@ d(r) = w(r) - w(r_far), w the displacement into the body along the contact norma
 1.5 zone radii (elastic, beyond the dent). ``residual_dent_depth_m`` = d(0); ``residual_dent_radius_m``
 the radius where d first falls to 5 % of d(0) (the permanent indentation's edge).
 """
+
 from __future__ import annotations
 
 import math
@@ -52,7 +53,7 @@ def residual_displacement(model: FEModel, zone, reduced=None):
         owned = (ksp, A)
     else:
         rhs = reduced.restrict(f)
-        x = reduced.static_solve(rhs, s, "impact_dent_", "residual (dent) solve")    # kept with the model
+        x = reduced.static_solve(rhs, s, "impact_dent_", "residual (dent) solve")  # kept with the model
         u = reduced.expand(x)
         owned = (x, rhs)
     # a dropped handle would park its object on the communicator's garbage (a table's every case)
@@ -64,7 +65,7 @@ def residual_displacement(model: FEModel, zone, reduced=None):
 def dent_profile(model: FEModel, u_res, plan: Plan) -> tuple[np.ndarray, np.ndarray]:
     """(r, d(r)) in m: the residual depth below the undeformed face, from the contact point out."""
     n = np.asarray(plan.contact_normal, dtype=float)
-    p = np.asarray(plan.probes.contact_point, dtype=float)      # already just inside the body
+    p = np.asarray(plan.probes.contact_point, dtype=float)  # already just inside the body
     r = np.linspace(0.0, 1.5 * plan.zone_radius, PROFILE_SAMPLES)
     pts = p[None, :] + r[:, None] * np.array([1.0, 0.0, 0.0])[None, :]
     probe = create_probe(model.V, pts, model.block_cells)
@@ -96,12 +97,14 @@ def small_strain_note(max_plastic_strain: float, max_rotation: float, where: str
     """One note line: the largest equivalent plastic strain and rotation (rad), and whether the
     small-strain model holds (a warning past SMALL_STRAIN_LIMIT)."""
     text = f"small strain: largest equivalent plastic strain {max_plastic_strain:.3g}"
-    if math.isfinite(max_rotation):    # not known when no impact state was kept at the peak force
+    if math.isfinite(max_rotation):  # not known when no impact state was kept at the peak force
         text += f", largest rotation {where} {max_rotation:.3g} rad"
     if max_plastic_strain > SMALL_STRAIN_LIMIT:
-        return (text + f"; WARNING: past {SMALL_STRAIN_LIMIT:g}, where the small-strain J2 model stops being a good "
-                "approximation (no change of geometry under the ball, no finite-strain stress measure): the dent, "
-                "plastic work and restitution are estimates there, a finite-strain model is needed to trust them")
+        return (
+            text + f"; WARNING: past {SMALL_STRAIN_LIMIT:g}, where the small-strain J2 model stops being a good "
+            "approximation (no change of geometry under the ball, no finite-strain stress measure): the dent, "
+            "plastic work and restitution are estimates there, a finite-strain model is needed to trust them"
+        )
     return text + f"; within the small-strain model's range (plastic strain < {SMALL_STRAIN_LIMIT:g})"
 
 
@@ -118,8 +121,11 @@ def dent_of(model: FEModel, u_res, plan: Plan) -> dict[str, Any]:
             radius = float(np.interp(DENT_EDGE_SHARE * depth, [d[j], d[j - 1]], [r[j], r[j - 1]])) if j else 0.0
         else:
             radius = float(r[-1])
-    return {"residual_dent_depth_m": depth, "residual_dent_radius_m": radius,
-            "residual_dent_profile": {"r_m": r.tolist(), "depth_m": d.tolist()}}
+    return {
+        "residual_dent_depth_m": depth,
+        "residual_dent_radius_m": radius,
+        "residual_dent_profile": {"r_m": r.tolist(), "depth_m": d.tolist()},
+    }
 
 
 def plastic_section(zone, plan: Plan, h_contact: float) -> dict[str, Any]:
@@ -129,10 +135,16 @@ def plastic_section(zone, plan: Plan, h_contact: float) -> dict[str, Any]:
     rank 0 (``s_m``, ``depth_m``, ``alpha``; :meth:`PlasticZone.section`), for
     :func:`millimpact.results.plots.plot_plastic_section`."""
     s, d, alpha = zone.section(plan.impact_point, plan.contact_normal, (1.0, 0.0, 0.0), 0.5 * h_contact)
-    if "z" in plan.symmetry_planes:     # a quarter model keeps z >= z_p: mirror the other half in
+    if "z" in plan.symmetry_planes:  # a quarter model keeps z >= z_p: mirror the other half in
         s, d, alpha = np.concatenate([s, -s]), np.concatenate([d, d]), np.concatenate([alpha, alpha])
-    return {"s_m": s, "depth_m": d, "alpha": alpha, "a_max_m": plan.hertz.a_max, "zone_radius_m": plan.zone_radius,
-            "predicted_radius_m": plan.plastic_radius}
+    return {
+        "s_m": s,
+        "depth_m": d,
+        "alpha": alpha,
+        "a_max_m": plan.hertz.a_max,
+        "zone_radius_m": plan.zone_radius,
+        "predicted_radius_m": plan.plastic_radius,
+    }
 
 
 #: plastic strain below this at the zone boundary counts as elastic there (round-off of the return map)
@@ -147,26 +159,43 @@ def zone_boundary_note(model: FEModel, zone, plan: Plan) -> tuple[dict[str, Any]
     extents = zone.plastic_extent(plan.impact_point, BOUNDARY_ALPHA_TOL)
     ball_r, target_r = extents.get(BALL_ZONE, 0.0), extents.get(BLOCK_ZONE, 0.0)
     a = plan.hertz.a_max
-    keys = {"zone_boundary_max_equivalent_plastic_strain": alpha, "zone_boundary_elastic": alpha <= BOUNDARY_ALPHA_TOL,
-            "plastic_zone_radius_m": {"ball": ball_r, "struck_body": target_r,
-                                      "predicted": plan.plastic_radius, "contact_zone": plan.zone_radius}}
-    extent = (f"plastic region: {target_r * 1e3:.3g} mm ({target_r / a:.3g} a_max) from the impact point in the struck "
-              f"body, {ball_r * 1e3:.3g} mm in the ball; predicted {plan.plastic_radius * 1e3:.3g} mm "
-              f"(Johnson's cavity model on Thornton's contact radius)")
+    keys = {
+        "zone_boundary_max_equivalent_plastic_strain": alpha,
+        "zone_boundary_elastic": alpha <= BOUNDARY_ALPHA_TOL,
+        "plastic_zone_radius_m": {
+            "ball": ball_r,
+            "struck_body": target_r,
+            "predicted": plan.plastic_radius,
+            "contact_zone": plan.zone_radius,
+        },
+    }
+    extent = (
+        f"plastic region: {target_r * 1e3:.3g} mm ({target_r / a:.3g} a_max) from the impact point in the struck "
+        f"body, {ball_r * 1e3:.3g} mm in the ball; predicted {plan.plastic_radius * 1e3:.3g} mm "
+        f"(Johnson's cavity model on Thornton's contact radius)"
+    )
     if alpha <= BOUNDARY_ALPHA_TOL:
-        return keys, [extent, f"plasticity stayed inside the contact zone (radius {plan.zone_radius * 1e3:.4g} mm): "
-                              "its boundary is elastic"]
-    return keys, [extent, f"WARNING: plastic strain {alpha:.3g} at the contact zone's boundary (radius "
-                          f"{plan.zone_radius * 1e3:.4g} mm), where the model is linear: rerun with "
-                          f"--set model.zone_radius={1.5 * plan.zone_radius:.4g}"]
+        return keys, [
+            extent,
+            f"plasticity stayed inside the contact zone (radius {plan.zone_radius * 1e3:.4g} mm): "
+            "its boundary is elastic",
+        ]
+    return keys, [
+        extent,
+        f"WARNING: plastic strain {alpha:.3g} at the contact zone's boundary (radius "
+        f"{plan.zone_radius * 1e3:.4g} mm), where the model is linear: rerun with "
+        f"--set model.zone_radius={1.5 * plan.zone_radius:.4g}",
+    ]
 
 
 def plastic_notes(zone, stats, sym_factor: float) -> str:
     """One note line: plastic work, the largest plastic strain, Newton's effort."""
-    return (f"plasticity: plastic work {sym_factor * stats.plastic_work_J:.4g} J, max equivalent plastic strain "
-            f"{zone.max_equivalent_plastic_strain():.3g}; {stats.n_plastic_steps} yielding steps, Newton "
-            f"{stats.n_plastic_iterations} iterations (max {stats.max_plastic_iterations} a step), "
-            f"{stats.n_tangent_factorizations} tangent factorizations")
+    return (
+        f"plasticity: plastic work {sym_factor * stats.plastic_work_J:.4g} J, max equivalent plastic strain "
+        f"{zone.max_equivalent_plastic_strain():.3g}; {stats.n_plastic_steps} yielding steps, Newton "
+        f"{stats.n_plastic_iterations} iterations (max {stats.max_plastic_iterations} a step), "
+        f"{stats.n_tangent_factorizations} tangent factorizations"
+    )
 
 
 def plastic_report(model: FEModel, zone, plan: Plan, stats, reduced=None) -> tuple[dict[str, Any], list[str], Any]:
@@ -188,4 +217,5 @@ def plastic_report(model: FEModel, zone, plan: Plan, stats, reduced=None) -> tup
     def write(folder) -> None:
         if rank == 0:
             plot_plastic_section(section, folder / "plastic_zone.png")
+
     return keys, notes + more, write

@@ -1,16 +1,20 @@
 """ParaView fields: the displacement at chosen times as XDMF with the mesh's cell tags."""
+
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
 from ..fem.model import FEModel
 
 
-def write_fields(model: FEModel, fields: list[tuple[float, np.ndarray]], path: Path,
-                 plastic_fields: Optional[list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = None) -> None:
+def write_fields(
+    model: FEModel,
+    fields: list[tuple[float, np.ndarray]],
+    path: Path,
+    plastic_fields: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None,
+) -> None:
     """XDMF of the displacement (m) at the recorded times, with cell tags (collective); for a
     plastic run also the cellwise (DG0) largest equivalent plastic strain and von Mises stress (Pa)
     of the contact zones' quadrature points (``plastic_fields``: one (cells, alpha, von Mises) per
@@ -43,10 +47,10 @@ def write_fields(model: FEModel, fields: list[tuple[float, np.ndarray]], path: P
             if out_fn is not u:
                 out_fn.interpolate(u)
             xdmf.write_function(out_fn, t)
-            if plastic_fields and i < len(plastic_fields):     # cellwise holds their two functions
+            if plastic_fields and i < len(plastic_fields):  # cellwise holds their two functions
                 cells, alpha, vm = plastic_fields[i]
                 for f, values in zip(cellwise, (alpha, vm)):
                     f.x.array[:] = 0.0
-                    f.x.array[cells] = values     # DG0: one dof per cell, dof index = cell index
+                    f.x.array[cells] = values  # DG0: one dof per cell, dof index = cell index
                     f.x.scatter_forward()
                     xdmf.write_function(f, t)

@@ -1,9 +1,11 @@
 """What a method hands back: the time series, scalar results, model sizes, notes and writers."""
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from .timeseries import TimeSeries
 

@@ -27,6 +27,7 @@ The policy:
 - A failed write (full disk, quota, I/O error) is an :class:`~millimpact.errors.OutputError`: one
   line, exit status 1; the staging folder is removed, so nothing half-written remains.
 """
+
 from __future__ import annotations
 
 import atexit
@@ -36,10 +37,10 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterable, Iterator, Optional
 
 from ..errors import InputError, OutputError
 from ..interrupts import raise_if_interrupted
@@ -53,18 +54,22 @@ HIDDEN = (".partial-", ".old-", ".probe-")
 #: errno values of a failed write that no retry fixes: said in one line, exit status 1
 WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EPERM}
 #: the --out and --force help of every command that writes (``OUT_HELP.format(default=...)``)
-OUT_HELP = ("output folder (default {default}); a rerun replaces what millimpact wrote there and keeps "
-            "your other files (docs/outputs.md)")
-FORCE_HELP = ("write into --out even if it holds files millimpact did not write, or another kind of output "
-              "(same-named entries are replaced, and named)")
+OUT_HELP = (
+    "output folder (default {default}); a rerun replaces what millimpact wrote there and keeps "
+    "your other files (docs/outputs.md)"
+)
+FORCE_HELP = (
+    "write into --out even if it holds files millimpact did not write, or another kind of output "
+    "(same-named entries are replaced, and named)"
+)
 #: the folder being written now (its interruption note is the CLI's one line on Ctrl-C)
-_CURRENT: list["OutputFolder"] = []
+_CURRENT: list[OutputFolder] = []
 #: lock files held by this process: path -> file descriptor (kept until exit or the output is done)
 _LOCKS: dict[Path, int] = {}
 
 
 # --- the manifest -----------------------------------------------------------------------------------
-def read_manifest(folder: Path) -> Optional[dict]:
+def read_manifest(folder: Path) -> dict | None:
     """The manifest of a millimpact output, ``files`` None for one written before manifests
     (a marker without names, or an older ``summary.json`` / ``compare.json`` / ``contact_table.json``
     / ``study.json``); None for any other folder."""
@@ -72,13 +77,20 @@ def read_manifest(folder: Path) -> Optional[dict]:
     try:
         data = json.loads((folder / MARKER).read_text())
         beside = data.get("beside") or {}
-        return {"kind": data.get("kind", "run"), "files": data.get("files"),
-                "beside": {str(k): list(v) for k, v in beside.items()} if isinstance(beside, dict) else {}}
+        return {
+            "kind": data.get("kind", "run"),
+            "files": data.get("files"),
+            "beside": {str(k): list(v) for k, v in beside.items()} if isinstance(beside, dict) else {},
+        }
     except (OSError, ValueError, AttributeError):
         pass
     version = "millimpact_version"
-    for name, kind, key in (("summary.json", "run", version), ("compare.json", "compare", version),
-                            ("contact_table.json", "table", version), ("study.json", "study", "cases")):
+    for name, kind, key in (
+        ("summary.json", "run", version),
+        ("compare.json", "compare", version),
+        ("contact_table.json", "table", version),
+        ("study.json", "study", "cases"),
+    ):
         try:
             if key in json.loads((folder / name).read_text()):
                 return {"kind": kind, "files": None, "beside": {}}
@@ -87,7 +99,7 @@ def read_manifest(folder: Path) -> Optional[dict]:
     return None
 
 
-def kinds_beside(manifest: Optional[dict], kind: str) -> dict:
+def kinds_beside(manifest: dict | None, kind: str) -> dict:
     """The other kinds' names a folder with ``manifest`` holds, when ``kind`` is written into it:
     the earlier main kind's (unless it is ``kind``) and those already beside it (kind -> names)."""
     if manifest is None:
@@ -98,7 +110,7 @@ def kinds_beside(manifest: Optional[dict], kind: str) -> dict:
     return others
 
 
-def owned_names(manifest: Optional[dict], kind: str) -> Optional[set]:
+def owned_names(manifest: dict | None, kind: str) -> set | None:
     """The names ``kind`` wrote in a folder with ``manifest`` (None: an output of that kind written
     before manifests named its files; empty set: none of that kind)."""
     if manifest is None:
@@ -113,8 +125,7 @@ def is_millimpact_output(folder: Path) -> bool:
     return read_manifest(folder) is not None
 
 
-def write_marker(folder: Path, kind: str, files: Optional[Iterable[str]] = None,
-                 beside: Optional[dict] = None) -> None:
+def write_marker(folder: Path, kind: str, files: Iterable[str] | None = None, beside: dict | None = None) -> None:
     """Write the manifest of ``folder`` (atomically): ``kind`` and the names millimpact wrote there
     (None: not known; a rerun then replaces only the names it writes again); ``beside``: other
     kinds' names in the same folder (kind -> names)."""
@@ -163,20 +174,23 @@ def prepare_output(out: Path | str, option: str = "--out", force: bool = False) 
         out = Path(os.path.realpath(out))
     cwd = Path.cwd().resolve()
     if out == cwd or out in cwd.parents or out == Path(out.anchor) or out.resolve() == cwd:
-        raise InputError(f"{option} {raw}: is the current folder or one of its parents; give a folder "
-                         "of its own (e.g. out/NAME)")
+        raise InputError(
+            f"{option} {raw}: is the current folder or one of its parents; give a folder of its own (e.g. out/NAME)"
+        )
     if out.exists() and not out.is_dir():
         raise InputError(f"{option} {raw}: is a file; give a folder")
     if out.is_dir() and any(out.iterdir()) and not is_millimpact_output(out) and not force:
-        raise InputError(f"{option} {raw}: holds files millimpact did not write; give a new folder "
-                         "or add --force to write beside them")
+        raise InputError(
+            f"{option} {raw}: holds files millimpact did not write; give a new folder "
+            "or add --force to write beside them"
+        )
     parent = out.parent
     for p in [parent, *parent.parents]:
         if p.exists():
             if not p.is_dir():
                 raise InputError(f"{option} {raw}: {p} is a file, so no folder can be made under it")
             break
-    try:   # a place where a folder can be made: make the parents and a probe folder there now
+    try:  # a place where a folder can be made: make the parents and a probe folder there now
         parent.mkdir(parents=True, exist_ok=True)
         probe = Path(tempfile.mkdtemp(prefix=f".{out.name}.probe-", dir=parent))
         shutil.rmtree(probe, ignore_errors=True)
@@ -191,15 +205,15 @@ class OutputFolder:
     """A claimed output folder (:func:`claim_output`): checked, locked, and written through
     :meth:`staged` (and :meth:`open` for a cache that outlives interruptions)."""
 
-    path: Path                         #: absolute
-    shown: str                         #: as the user gave it
+    path: Path  #: absolute
+    shown: str  #: as the user gave it
     kind: str
     force: bool
     option: str
     comm: object = None
-    existed: bool = False              #: held entries when claimed
-    said: list[str] = field(default_factory=list)   #: what publishing replaced or kept
-    note: str | Callable[[], str] = ""   #: what an interruption leaves (the CLI's one line)
+    existed: bool = False  #: held entries when claimed
+    said: list[str] = field(default_factory=list)  #: what publishing replaced or kept
+    note: str | Callable[[], str] = ""  #: what an interruption leaves (the CLI's one line)
 
     @property
     def rank0(self) -> bool:
@@ -228,8 +242,16 @@ class OutputFolder:
         the folder keeps (its finished cases), not that nothing was written."""
         unwritten = self.note if callable(self.note) else None
         try:
-            with staged_output(self.path, self.comm if collective else None, self.kind, force=self.force, keep=keep,
-                               said=self.said, what=f"{self.option} {self.shown}", unwritten=unwritten) as stage:
+            with staged_output(
+                self.path,
+                self.comm if collective else None,
+                self.kind,
+                force=self.force,
+                keep=keep,
+                said=self.said,
+                what=f"{self.option} {self.shown}",
+                unwritten=unwritten,
+            ) as stage:
                 yield stage
         except BaseException:
             _unlock(self.path)
@@ -247,8 +269,7 @@ class OutputFolder:
         _unlock(self.path)
 
 
-def claim_output(out: Path | str, kind: str, force: bool = False, option: str = "--out",
-                 comm=None) -> OutputFolder:
+def claim_output(out: Path | str, kind: str, force: bool = False, option: str = "--out", comm=None) -> OutputFolder:
     """Check ``out`` (:func:`prepare_output`), take its lock, remove what killed runs left there,
     and refuse a folder of another kind unless ``force``; before any computing. Collective when
     ``comm`` is given (default: MPI_COMM_WORLD under mpirun): rank 0 checks and locks."""
@@ -269,8 +290,10 @@ def claim_output(out: Path | str, kind: str, force: bool = False, option: str = 
             old = read_manifest(path) if path.is_dir() else None
             if old is not None and old["kind"] != kind and kind not in old["beside"] and not force:
                 _unlock(path)
-                raise InputError(f"{option} {raw}: holds a millimpact {old['kind']} output, not {_a(kind)}; give "
-                                 f"a new folder, or add --force to write the {kind} beside it")
+                raise InputError(
+                    f"{option} {raw}: holds a millimpact {old['kind']} output, not {_a(kind)}; give "
+                    f"a new folder, or add --force to write the {kind} beside it"
+                )
             existed = path.is_dir() and any(p.name != MARKER for p in path.iterdir())
             result = (str(path), existed, leftovers)
         except (InputError, OutputError) as exc:
@@ -316,7 +339,7 @@ def _lock(path: Path, what: str) -> None:
     import fcntl
 
     lock = _lock_path(path)
-    if lock in _LOCKS:         # this process holds it already (an API caller claiming again)
+    if lock in _LOCKS:  # this process holds it already (an API caller claiming again)
         return
     while True:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
@@ -325,15 +348,16 @@ def _lock(path: Path, what: str) -> None:
         except OSError:
             holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "?"
             os.close(fd)
-            raise InputError(f"{what}: another millimpact (process {holder}) is writing there; wait for it "
-                             "or give another folder") from None
-        try:   # the file may have been replaced since it was opened (a holder unlinked it at the end)
+            raise InputError(
+                f"{what}: another millimpact (process {holder}) is writing there; wait for it or give another folder"
+            ) from None
+        try:  # the file may have been replaced since it was opened (a holder unlinked it at the end)
             if os.fstat(fd).st_ino == os.stat(lock).st_ino:
                 break
         except FileNotFoundError:
             pass
         os.close(fd)
-    try:   # the holder's process id, for the refusal's line (nothing depends on it)
+    try:  # the holder's process id, for the refusal's line (nothing depends on it)
         os.ftruncate(fd, 0)
         os.pwrite(fd, str(os.getpid()).encode(), 0)
     except OSError:
@@ -347,13 +371,13 @@ def _unlock(path: Path) -> None:
     lock = _lock_path(path)
     fd = _LOCKS.pop(lock, None)
     if fd is not None:
-        lock.unlink(missing_ok=True)   # while held: a waiter that opened it sees the inode change
+        lock.unlink(missing_ok=True)  # while held: a waiter that opened it sees the inode change
         os.close(fd)
 
 
 def _unlock_all() -> None:
     for lock in list(_LOCKS):
-        _unlock(lock.parent / lock.name[1:-len(".lock")])
+        _unlock(lock.parent / lock.name[1 : -len(".lock")])
 
 
 def release_locks() -> None:
@@ -373,9 +397,16 @@ def _world():
 
 # --- staging and publishing ---------------------------------------------------------------------------
 @contextmanager
-def staged_output(out: Path, comm=None, kind: str = "run", force: bool = False, keep: Iterable[str] = (),
-                  said: Optional[list[str]] = None, what: str = "",
-                  unwritten: Optional[Callable[[], str]] = None) -> Iterator[Path]:
+def staged_output(
+    out: Path,
+    comm=None,
+    kind: str = "run",
+    force: bool = False,
+    keep: Iterable[str] = (),
+    said: list[str] | None = None,
+    what: str = "",
+    unwritten: Callable[[], str] | None = None,
+) -> Iterator[Path]:
     """Write an output's files into a hidden staging folder ``.NAME.partial-*`` and :func:`publish`
     it to ``out`` only on success. Collective when ``comm`` is given: rank 0 makes the folder and
     every rank gets its path (collective writers such as XDMF); only rank 0 publishes. An exception
@@ -399,12 +430,12 @@ def staged_output(out: Path, comm=None, kind: str = "run", force: bool = False, 
         error = None
         try:
             yield stage
-            raise_if_interrupted()   # a Ctrl-C / SIGTERM whose exception a library swallowed
-        except Exception as exc:   # agreed on by all ranks below: none waits for one that failed
+            raise_if_interrupted()  # a Ctrl-C / SIGTERM whose exception a library swallowed
+        except Exception as exc:  # agreed on by all ranks below: none waits for one that failed
             error = exc
         if comm is not None and comm.size > 1 and comm.allreduce(error is not None) and error is None:
             error = OutputError(f"{what}: another rank failed writing; nothing was written")
-            error.said_by_rank0 = True   # the CLI leaves the line to the rank that failed
+            error.said_by_rank0 = True  # the CLI leaves the line to the rank that failed
         if error is not None:
             raise error
         if rank == 0:
@@ -433,7 +464,7 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
     present = {p.name for p in out.iterdir()} - {MARKER} if out.is_dir() else set()
     keep = set(keep) & present
     owned = owned_names(old, kind)
-    if owned is None:                      # written before manifests: what this output writes again is its
+    if owned is None:  # written before manifests: what this output writes again is its
         owned = present & set(new)
     owned = (owned & present) - keep
     # the other kinds' entries (an output added beside another with --force): still theirs
@@ -442,7 +473,7 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
     foreign = present - owned - keep - theirs
     write_marker(stage, kind, new)
     said = [f"replaced the earlier {kind}'s {len(owned)} {_entries(len(owned))}"] if owned else []
-    if not present - owned:                 # nothing else there: swap the whole folder
+    if not present - owned:  # nothing else there: swap the whole folder
         trash = out.parent / f".{out.name}.old-{os.getpid()}"
         if out.exists():
             out.rename(trash)
@@ -470,8 +501,10 @@ def publish(stage: Path, out: Path, kind: str, force: bool = False, keep: Iterab
             said.append(f"kept the {k}'s {len(v)} {_entries(len(v))}")
     if foreign - clash:
         rest = sorted(foreign - clash)
-        said.append(f"kept {len(rest)} {_entries(len(rest))} millimpact did not write: {', '.join(rest[:5])}"
-                    + (" ..." if len(rest) > 5 else ""))
+        said.append(
+            f"kept {len(rest)} {_entries(len(rest))} millimpact did not write: {', '.join(rest[:5])}"
+            + (" ..." if len(rest) > 5 else "")
+        )
     return said
 
 
@@ -493,7 +526,7 @@ def _free_name(folder: Path, name: str) -> str:
 
 
 # --- failed writes ------------------------------------------------------------------------------------
-def _write_error(exc: BaseException, what: str, unwritten: Optional[Callable[[], str]] = None) -> Optional[OutputError]:
+def _write_error(exc: BaseException, what: str, unwritten: Callable[[], str] | None = None) -> OutputError | None:
     """The one-line :class:`OutputError` of a failed write (an OSError with a write errno, or the
     RuntimeError HDF5 raises for one), else None (not a write failure: raised as it is)."""
     if isinstance(exc, OutputError):
@@ -528,4 +561,3 @@ def hdf5_file(path: Path) -> Iterator[object]:
         h5.close()
     with open(path, "wb") as fh:
         fh.write(image)
-

@@ -1,9 +1,9 @@
 """Figures (matplotlib, Agg): contact force with the Hertz curve, the paper's four contact-point
 panels, gauge stresses and the energy balance. Called by rank 0 after a run; never by solvers."""
+
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -44,8 +44,16 @@ def time_unit(span: float) -> tuple[float, str]:
 def value_unit(column: str, values: np.ndarray) -> tuple[float, str]:
     """(factor, unit) for a time-series column (SI, the unit its name's suffix): the SI prefix that
     puts the largest magnitude between 1 and 1000 (N -> kN, m -> µm, Pa -> MPa or GPa, ...)."""
-    for suffix, unit in (("_m_s2", "m/s\u00b2"), ("_m_s", "m/s"), ("_N_s", "N s"), ("_Pa", "Pa"), ("_N", "N"),
-                         ("_J", "J"), ("_m", "m"), ("_s", "s")):
+    for suffix, unit in (  # noqa: B007 (the unit of the suffix found is used after the loop)
+        ("_m_s2", "m/s\u00b2"),
+        ("_m_s", "m/s"),
+        ("_N_s", "N s"),
+        ("_Pa", "Pa"),
+        ("_N", "N"),
+        ("_J", "J"),
+        ("_m", "m"),
+        ("_s", "s"),
+    ):
         if column.endswith(suffix):
             break
     else:
@@ -55,7 +63,7 @@ def value_unit(column: str, values: np.ndarray) -> tuple[float, str]:
     peak = float(np.max(np.abs(values))) if len(values) else 0.0
     power = 0 if peak == 0 or not np.isfinite(peak) else int(np.floor(np.log10(peak) / 3.0)) * 3
     power = min(max(power, -9), 9)
-    return 10.0 ** -power, _PREFIX[power] + unit
+    return 10.0**-power, _PREFIX[power] + unit
 
 
 def _contact_window(ts: TimeSeries, pad: float = 0.5) -> tuple[float, float]:
@@ -69,7 +77,7 @@ def _contact_window(ts: TimeSeries, pad: float = 0.5) -> tuple[float, float]:
     return float(max(t[0], t0 - pad * d)), float(min(t[-1], t1 + pad * d))
 
 
-def plot_force(ts: TimeSeries, path: Path, hertz: Optional[HertzHistory] = None, title: str = "") -> None:
+def plot_force(ts: TimeSeries, path: Path, hertz: HertzHistory | None = None, title: str = "") -> None:
     """Contact force against time, with the Hertz history shifted to the same first contact."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
@@ -100,8 +108,9 @@ CONTACT_POINT_PANELS = [
 ]
 
 
-def plot_contact_point(series: dict[str, TimeSeries], path: Path, title: str = "",
-                       window: Optional[tuple[float, float]] = None) -> None:
+def plot_contact_point(
+    series: dict[str, TimeSeries], path: Path, title: str = "", window: tuple[float, float] | None = None
+) -> None:
     """The paper's four panels (displacement, velocity, acceleration, stress of the liner's contact
     point, along the face normal) against time; one line per labelled series."""
     plt = pyplot()
@@ -150,8 +159,12 @@ def plot_gauges(ts: TimeSeries, path: Path, title: str = "") -> bool:
         sel = (t >= a) & (t <= b)
         tscale, tu = time_unit(b - a)
         for c in cols:
-            ax.plot(t[sel] * tscale, ts[c][sel] * vs, lw=0.8 if a == t[0] and two else 1.3,
-                    label=c[len("gauge_"):-len("_stress_Pa")])
+            ax.plot(
+                t[sel] * tscale,
+                ts[c][sel] * vs,
+                lw=0.8 if a == t[0] and two else 1.3,
+                label=c[len("gauge_") : -len("_stress_Pa")],
+            )
         ax.set_xlabel(f"time [{tu}]")
     if two:
         axes[0].set_title("whole run")
@@ -174,16 +187,25 @@ def plot_energy(ts: TimeSeries, path: Path, title: str = "") -> bool:
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     t = ts.time
     scale, unit = time_unit(float(t[-1] - t[0]))
-    for col, label in (("kinetic_energy_J", "kinetic"), ("strain_energy_J", "elastic strain"),
-                       ("total_energy_J", "kinetic + elastic"), ("ball_kinetic_energy_J", "ball kinetic"),
-                       ("friction_dissipation_J", "dissipated by friction"),
-                       ("plastic_dissipation_J", "plastic work (dissipated)")):
+    for col, label in (
+        ("kinetic_energy_J", "kinetic"),
+        ("strain_energy_J", "elastic strain"),
+        ("total_energy_J", "kinetic + elastic"),
+        ("ball_kinetic_energy_J", "ball kinetic"),
+        ("friction_dissipation_J", "dissipated by friction"),
+        ("plastic_dissipation_J", "plastic work (dissipated)"),
+    ):
         if col in ts:
             ax.plot(t * scale, ts[col], label=label, lw=2 if col == "total_energy_J" else 1.2)
     lost = [c for c in ("friction_dissipation_J", "plastic_dissipation_J") if c in ts]
     if lost:
-        ax.plot(t * scale, ts["total_energy_J"] + sum(ts[c] for c in lost), "k--", lw=1.5,
-                label="kinetic + elastic + dissipated (conserved)")
+        ax.plot(
+            t * scale,
+            ts["total_energy_J"] + sum(ts[c] for c in lost),
+            "k--",
+            lw=1.5,
+            label="kinetic + elastic + dissipated (conserved)",
+        )
     ax.set_xlabel(f"time [{unit}]")
     es, eu = value_unit("total_energy_J", ts["total_energy_J"])
     for line in ax.get_lines():
@@ -237,8 +259,8 @@ def plot_force_approach(ts: TimeSeries, path: Path, title: str = "") -> None:
         i_peak = int(np.argmax(f))
         fs, fu = value_unit("contact_force_N", f)
         ds, du = value_unit("approach_m", d[sel])
-        ax.plot(d[sel.start:i_peak + 1] * ds, f[sel.start:i_peak + 1] * fs, lw=2, label="loading")
-        ax.plot(d[i_peak:sel.stop] * ds, f[i_peak:sel.stop] * fs, lw=2, label="unloading")
+        ax.plot(d[sel.start : i_peak + 1] * ds, f[sel.start : i_peak + 1] * fs, lw=2, label="loading")
+        ax.plot(d[i_peak : sel.stop] * ds, f[i_peak : sel.stop] * fs, lw=2, label="unloading")
         ax.set_xlabel(f"approach [{du}]")
         ax.set_ylabel(f"contact force [{fu}]")
         ax.legend()
@@ -286,8 +308,10 @@ def plot_plastic_section(section: dict, path: Path, title: str = "") -> None:
         tri = mtri.Triangulation(s * sc, d * sc)
         # drop the long, thin triangles Delaunay makes across the gap between the two bodies
         xy = np.column_stack([s, d]) * sc
-        edges = np.max([np.linalg.norm(xy[tri.triangles[:, i]] - xy[tri.triangles[:, (i + 1) % 3]], axis=1)
-                        for i in range(3)], axis=0)
+        edges = np.max(
+            [np.linalg.norm(xy[tri.triangles[:, i]] - xy[tri.triangles[:, (i + 1) % 3]], axis=1) for i in range(3)],
+            axis=0,
+        )
         tri.set_mask(edges > 4.0 * np.median(edges))
         levels = np.linspace(0.0, top, 11)
         levels[0] = 1e-6 * top
@@ -296,15 +320,17 @@ def plot_plastic_section(section: dict, path: Path, title: str = "") -> None:
     else:
         ax.text(0.5, 0.5, "no plastic strain", transform=ax.transAxes, ha="center")
     th = np.linspace(0.0, 2.0 * np.pi, 200)
-    for r, style, label in ((zone, "k-", f"contact zone, radius {zone * sc:.3g} {unit}"),
-                            (float(section["predicted_radius_m"]), "C1--", "predicted plastic radius (cavity model)")):
+    for r, style, label in (
+        (zone, "k-", f"contact zone, radius {zone * sc:.3g} {unit}"),
+        (float(section["predicted_radius_m"]), "C1--", "predicted plastic radius (cavity model)"),
+    ):
         if r > 0:
             ax.plot(r * sc * np.cos(th), r * sc * np.sin(th), style, lw=1.0, label=label)
     a = float(section["a_max_m"]) * sc
-    ax.plot([-a, a], [0.0, 0.0], color="C3", lw=3, label=f"Hertz contact diameter 2 a_max")
+    ax.plot([-a, a], [0.0, 0.0], color="C3", lw=3, label="Hertz contact diameter 2 a_max")
     ax.axhline(0.0, color="0.5", lw=0.5)
     ax.set_xlim(-1.1 * zone * sc, 1.1 * zone * sc)
-    ax.set_ylim(1.1 * zone * sc, -1.1 * zone * sc)       # depth down
+    ax.set_ylim(1.1 * zone * sc, -1.1 * zone * sc)  # depth down
     ax.set_aspect("equal")
     ax.set_xlabel(f"distance from the contact axis in the section [{unit}]")
     ax.set_ylabel(f"depth below the struck face [{unit}] (ball above)")

@@ -12,10 +12,12 @@ tangential velocity and the cumulative friction work.
 Takes the model, its contact set and the plan's :class:`millimpact.scene.plan.ProbeSpec` (where to
 probe, the struck body's elastic constants, the initial gap); never the scene.
 """
+
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Optional, Protocol, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -49,8 +51,9 @@ class Recorder:
     direction and the initial gap; ``field_times`` (s) the states kept for XDMF.
     """
 
-    def __init__(self, model: FEModel, contact: ContactSet, probes: ProbeSpec, field_times: tuple[float, ...],
-                 plastic=None):
+    def __init__(
+        self, model: FEModel, contact: ContactSet, probes: ProbeSpec, field_times: tuple[float, ...], plastic=None
+    ):
         self.model: EnergyModel = model
         self.contact = contact
         #: the plastic zone (:class:`millimpact.fem.plastic_zone.PlasticZone`), None if elastic:
@@ -66,7 +69,7 @@ class Recorder:
         self.sym = model.sym_factor
         self.x_p, _, self.z_p = contact.point
         self.p = contact.point
-        self.n = contact.normal     # e_y for the block
+        self.n = contact.normal  # e_y for the block
         # ball centre-of-mass velocity along n: c . v with c = M e_n(ball) / m_ball
         # (M has zero rows and columns on clamped and symmetry dofs, so M e ignores them)
         self.c_y = model.M.createVecLeft()
@@ -84,7 +87,7 @@ class Recorder:
             self.c_t = model.M.createVecLeft()
             model.M.mult(model.ball_velocity(self.t_v), self.c_t)
             self.c_t.scale(1.0 / self.ball_mass_model)
-            self.t_proj = contact.tangents @ self.t_v    # components of t_v in the rows' basis (t1, t2)
+            self.t_proj = contact.tangents @ self.t_v  # components of t_v in the rows' basis (t1, t2)
             self._fw_base, self._fw_last = 0.0, 0.0
         # the contact point's velocity and acceleration (into the struck body positive): those of
         # the centre of mass of the half-ball of radius a_max under it (fem.probes.patch_momentum_row),
@@ -95,7 +98,8 @@ class Recorder:
         if probes.patch_radius > 0:
             direction = -np.asarray(self.n if self.liner else (0.0, 1.0, 0.0), dtype=float)
             self._chi, self._e, self.patch_nodes, self.patch_radius = patch_indicator(
-                V, model.M, model.block_dofs, np.asarray(probes.contact_point), direction, probes.patch_radius)
+                V, model.M, model.block_dofs, np.asarray(probes.contact_point), direction, probes.patch_radius
+            )
             self.c_patch, self._patch_mass = patch_momentum_row(model.M, self._chi, self._e), model.M
         self.ball_mask = model.M.createVecRight()
         self.ball_mask.set(0.0)
@@ -116,7 +120,7 @@ class Recorder:
         self.field_times = sorted(field_times)
         self.fields: list[tuple[float, np.ndarray]] = []
         self._next_field = 0
-        self.e0: Optional[float] = None
+        self.e0: float | None = None
         #: energies on every ``energy_every``-th row and the last (the others NaN): the two
         #: products with M and K are a quarter of a reduced contact step, and a contact table needs
         #: only the energies at the ends; 1 (every row) unless a caller sets it
@@ -124,17 +128,32 @@ class Recorder:
         #: the state of the last row recorded without energies (its index, u, v, mass), for series()
         self._skipped_row, self._skipped_u, self._skipped_v, self._skipped_mass = -1, None, None, None
 
-    names_base = ["time_s", "contact_force_N", "approach_m", "contact_radius_m", "ball_velocity_m_s",
-                  "contact_point_displacement_m", "contact_point_velocity_m_s", "contact_point_acceleration_m_s2",
-                  "contact_point_stress_Pa", "contact_point_von_mises_Pa"]
+    names_base = [
+        "time_s",
+        "contact_force_N",
+        "approach_m",
+        "contact_radius_m",
+        "ball_velocity_m_s",
+        "contact_point_displacement_m",
+        "contact_point_velocity_m_s",
+        "contact_point_acceleration_m_s2",
+        "contact_point_stress_Pa",
+        "contact_point_von_mises_Pa",
+    ]
 
     @property
     def names(self) -> list[str]:
-        return (self.names_base + [f"gauge_{name}_stress_Pa" for name in self.gauge_names]
-                + ["ball_kinetic_energy_J", "kinetic_energy_J", "strain_energy_J", "total_energy_J"]
-                + (["tangential_force_N", "ball_tangential_velocity_m_s", "friction_dissipation_J"]
-                   if self.friction else [])
-                + (["plastic_dissipation_J", "max_equivalent_plastic_strain"] if self.plastic is not None else []))
+        return (
+            self.names_base
+            + [f"gauge_{name}_stress_Pa" for name in self.gauge_names]
+            + ["ball_kinetic_energy_J", "kinetic_energy_J", "strain_energy_J", "total_energy_J"]
+            + (
+                ["tangential_force_N", "ball_tangential_velocity_m_s", "friction_dissipation_J"]
+                if self.friction
+                else []
+            )
+            + (["plastic_dissipation_J", "max_equivalent_plastic_strain"] if self.plastic is not None else [])
+        )
 
     def _local(self, vec) -> np.ndarray:
         self.u_fn.vector.array[:] = vec.array_r
@@ -146,8 +165,14 @@ class Recorder:
         u_loc = self._local(st.u).copy()
         return self.probe.values(u_loc), self.probe.gradients(u_loc)
 
-    def probe_columns(self, vals_u: np.ndarray, vals_v: np.ndarray, vals_a: np.ndarray,
-                      grads: np.ndarray, patch: Optional[tuple[np.ndarray, np.ndarray]] = None) -> list[np.ndarray]:
+    def probe_columns(
+        self,
+        vals_u: np.ndarray,
+        vals_v: np.ndarray,
+        vals_a: np.ndarray,
+        grads: np.ndarray,
+        patch: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> list[np.ndarray]:
         """The probe columns of the rows for n_t states at once: from the displacement, velocity
         and acceleration values (n_t, points, 3) and displacement gradients (n_t, points, 3, 3) at
         the probes (the contact point first, then the gauges), the contact point's displacement,
@@ -156,13 +181,13 @@ class Recorder:
         ``patch`` (velocity, acceleration), each (n_t,): the patch's centre-of-mass values that
         replace the probe's velocity and acceleration (see ``c_patch``)."""
         s = stress_from_gradient(grads[:, 0], self.mu, self.lmbda)
-        if self.plastic is not None:   # sigma = C (eps - eps_p): the contact point lies in the plastic zone
+        if self.plastic is not None:  # sigma = C (eps - eps_p): the contact point lies in the plastic zone
             s = s - self._plastic_stress_offset()
         eps = 0.5 * (grads[:, 1:] + np.swapaxes(grads[:, 1:], -1, -2))
         gauges = [self.E * np.einsum("i,tij,j->t", d, eps[:, k], d) for k, d in enumerate(self.gauge_dirs)]
         if not self.liner:
             normal = [-vals_u[:, 0, 1], -vals_v[:, 0, 1], -vals_a[:, 0, 1], s[:, 1, 1]]
-        else:   # along the contact normal n, into the liner positive
+        else:  # along the contact normal n, into the liner positive
             n = self.n
             normal = [-(vals_u[:, 0] @ n), -(vals_v[:, 0] @ n), -(vals_a[:, 0] @ n), np.einsum("i,tij,j->t", n, s, n)]
         if patch is not None:
@@ -183,7 +208,7 @@ class Recorder:
             pts = self.contact.points[active]
             if not self.liner:
                 a = float(np.max(np.hypot(pts[:, 0] - self.x_p, pts[:, 2] - self.z_p)))
-            else:   # distance from the contact axis p + s n
+            else:  # distance from the contact axis p + s n
                 d = pts - self.p
                 a = float(np.max(np.linalg.norm(d - np.outer(d @ self.n, self.n), axis=1)))
         else:
@@ -197,15 +222,16 @@ class Recorder:
         if self.c_patch is not None:
             mass = getattr(st, "mass", None)
             if mass is not None and mass is not self._patch_mass and mass.getSize()[1] == self._chi.getSize():
-                self.c_patch.destroy()    # the scheme's mass (newmark-mr: massless contact dofs)
+                self.c_patch.destroy()  # the scheme's mass (newmark-mr: massless contact dofs)
                 self.c_patch, self._patch_mass = patch_momentum_row(mass, self._chi, self._e), mass
             patch = (np.array([self.c_patch.dot(st.v)]), np.array([self.c_patch.dot(st.a)]))
-        probe_cols = [float(c[0]) for c in self.probe_columns(vals_u[None], vals_v[None], vals_a[None], grads[None],
-                                                              patch)]
+        probe_cols = [
+            float(c[0]) for c in self.probe_columns(vals_u[None], vals_v[None], vals_a[None], grads[None], patch)
+        ]
         mass = st.mass if getattr(st, "mass", None) is not None else m.M
         if len(self.rows) % self.energy_every == 0:
             energies = self._energies(st.u, st.v, mass)
-        else:       # kept for series(): the last row gets its energies there
+        else:  # kept for series(): the last row gets its energies there
             energies = [math.nan] * 4
             if self._skipped_u is None:
                 self._skipped_u, self._skipped_v = st.u.duplicate(), st.v.duplicate()
@@ -236,7 +262,7 @@ class Recorder:
         self.rows.append([float(x) for x in row])
         while self._next_field < len(self.field_times) and st.t >= self.field_times[self._next_field] - 1e-15:
             self.fields.append((st.t, st.u.array_r.copy()))
-            if self.plastic is not None:   # the zone's cellwise plastic strain and von Mises stress
+            if self.plastic is not None:  # the zone's cellwise plastic strain and von Mises stress
                 self.plastic_fields.append(self.plastic.cell_fields())
             self._next_field += 1
 
@@ -261,7 +287,7 @@ class Recorder:
         if i < 0 or self._skipped_row != i:
             return
         k = self.names.index("ball_kinetic_energy_J")
-        self.rows[i][k:k + 4] = self._energies(self._skipped_u, self._skipped_v, self._skipped_mass)
+        self.rows[i][k : k + 4] = self._energies(self._skipped_u, self._skipped_v, self._skipped_mass)
 
     def series(self) -> TimeSeries:
         """The rows as a time series; with the patch (``c_patch``) the contact point's velocity and
@@ -287,8 +313,9 @@ def band_limit_contact_point(ts: TimeSeries, f_half: float) -> None:
             ts.columns[name] = gaussian_low_pass(ts.time, ts[name], f_half, rest_until=first)
 
 
-def impact_results(ts: TimeSeries, normal_speed: float, gauge_names: Sequence[str], stats,
-                   integrator: str) -> dict[str, Any]:
+def impact_results(
+    ts: TimeSeries, normal_speed: float, gauge_names: Sequence[str], stats, integrator: str
+) -> dict[str, Any]:
     """Scalar results of an FE run (full or reduced): restitution from the ball's centre-of-mass
     velocity just after the first contact (over the arrival ``normal_speed``, m/s), energy balance
     (kinetic + elastic strain + friction and plastic dissipation), peak stresses (of the gauges
@@ -307,13 +334,15 @@ def impact_results(ts: TimeSeries, normal_speed: float, gauge_names: Sequence[st
     e = ts["total_energy_J"] + dissipated
     e_in = e[0]
     e_dev = np.abs(e - e_in)
-    e_dev[~np.isfinite(e)] = 0.0       # rows without energies (Recorder.energy_every)
+    e_dev[~np.isfinite(e)] = 0.0  # rows without energies (Recorder.energy_every)
     i_peak = int(np.argmax(f))
     plastic = {}
     if "plastic_dissipation_J" in ts:
-        plastic = {"plastic_dissipation_J": float(ts["plastic_dissipation_J"][-1]),
-                   "plastic_dissipation_share": float(ts["plastic_dissipation_J"][-1] / e_in),
-                   "max_equivalent_plastic_strain": float(ts["max_equivalent_plastic_strain"][-1])}
+        plastic = {
+            "plastic_dissipation_J": float(ts["plastic_dissipation_J"][-1]),
+            "plastic_dissipation_share": float(ts["plastic_dissipation_J"][-1] / e_in),
+            "max_equivalent_plastic_strain": float(ts["max_equivalent_plastic_strain"][-1]),
+        }
     return {
         **plastic,
         "restitution": restitution,

@@ -14,12 +14,12 @@ acceleration (``recovery``: mode-acceleration, the default, or modal: u = T q al
 
 Takes the reduced model, the full model's contact set and the plan's probe spec; gives rows.
 """
+
 from __future__ import annotations
 
 import dataclasses
 import math
 from types import SimpleNamespace
-from typing import Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -28,9 +28,9 @@ from petsc4py import PETSc
 
 from ..fem.contact import ContactSet
 from ..fem.probes import PointProbe
+from ..reduction.distributed import gather_aij_dense, local_rows_to_aij
 from ..reduction.free_modes import ModalProjection
 from ..reduction.reduced_model import ReducedModel
-from ..reduction.distributed import gather_aij_dense, local_rows_to_aij
 from ..scene.plan import ProbeSpec
 from .recorder import Recorder
 
@@ -72,8 +72,15 @@ class ReducedRecorder(Recorder):
     states' times (restarted integrations). XDMF states are expanded to model vectors at once.
     """
 
-    def __init__(self, red: ReducedModel, contact: ContactSet, probes: ProbeSpec, field_times: tuple[float, ...],
-                 recovery: str = "mode-acceleration", plastic=None):
+    def __init__(
+        self,
+        red: ReducedModel,
+        contact: ContactSet,
+        probes: ProbeSpec,
+        field_times: tuple[float, ...],
+        recovery: str = "mode-acceleration",
+        plastic=None,
+    ):
         super().__init__(red.model, contact, probes, field_times, plastic)
         self._c_full = self.c_y
         self._probe_full = self.probe
@@ -84,21 +91,21 @@ class ReducedRecorder(Recorder):
             P_val = self._probe_full.P_val
             rows = local_rows_to_aij(sp.vstack([P_val, self._probe_full.P_grad]).tocsr(), red.model.V)
             C = red.mode_acceleration_rows(rows)
-            self._ma = (C[:P_val.shape[0]], C[P_val.shape[0]:])
+            self._ma = (C[: P_val.shape[0]], C[P_val.shape[0] :])
             # bodies reduced with zone-interface patterns: a displacement part too (added to P T)
             D = red.displacement_recovery_rows(rows)
             if D is not None:
-                self._md = (D[:P_val.shape[0]], D[P_val.shape[0]:])
+                self._md = (D[: P_val.shape[0]], D[P_val.shape[0] :])
         self.time_offset = 0.0
         self.proj: ReducedModel | ModalProjection = red
         # per projection (its id): (T^T c, ball mask, two work vectors, probe P T, energy view)
         self._maps: dict[int, tuple[PETSc.Vec, PETSc.Vec, PETSc.Vec, PETSc.Vec, PointProbe, ProjectedModel]] = {}
-        self._ma_maps: dict[int, Optional[PointProbe]] = {}     # per projection: mode-acceleration rows
-        self._dense: dict[int, SimpleNamespace] = {}            # per modal projection: _dense_maps()
-        self._offsets: dict[tuple[int, int], SimpleNamespace] = {}     # per plastic state: _offset_terms()
-        self._ct_full = getattr(self, "c_t", None)     # friction: the ball's tangential row
+        self._ma_maps: dict[int, PointProbe | None] = {}  # per projection: mode-acceleration rows
+        self._dense: dict[int, SimpleNamespace] = {}  # per modal projection: _dense_maps()
+        self._offsets: dict[tuple[int, int], SimpleNamespace] = {}  # per plastic state: _offset_terms()
+        self._ct_full = getattr(self, "c_t", None)  # friction: the ball's tangential row
         self._ct_maps: dict[int, object] = {}
-        self._patch_full = self.c_patch                 # the contact point's patch row
+        self._patch_full = self.c_patch  # the contact point's patch row
         self._patch_maps: dict[int, object] = {}
         self.set_projection(red)
 
@@ -109,15 +116,23 @@ class ReducedRecorder(Recorder):
         if key not in self._maps:
             mask = proj.create_vector()
             mask.array[proj.ball_coords] = 1.0
-            view = ProjectedModel(M=proj.M, K=proj.K, fixed_dofs=np.zeros(0, dtype=np.int32),
-                                  sym_factor=proj.model.sym_factor)
+            view = ProjectedModel(
+                M=proj.M, K=proj.K, fixed_dofs=np.zeros(0, dtype=np.int32), sym_factor=proj.model.sym_factor
+            )
             probe = project_probe(self._probe_full, proj)
             if self._md is not None:
                 d = self._rows_probe(self._md, proj)
-                probe = PointProbe(probe.comm, probe.n_points, probe.P_val + d.P_val, probe.P_grad + d.P_grad,
-                                   probe.found)
-            self._maps[key] = (proj.restrict(self._c_full), mask, proj.create_vector(), proj.create_vector(),
-                               probe, view)
+                probe = PointProbe(
+                    probe.comm, probe.n_points, probe.P_val + d.P_val, probe.P_grad + d.P_grad, probe.found
+                )
+            self._maps[key] = (
+                proj.restrict(self._c_full),
+                mask,
+                proj.create_vector(),
+                proj.create_vector(),
+                probe,
+                view,
+            )
             self._ma_maps[key] = self._ma_probe(proj)
         self.c_y, self.ball_mask, self.tmp, self.tmp2, self.probe, self.model = self._maps[key]
         self.ma_probe = self._ma_maps[key]
@@ -133,7 +148,7 @@ class ReducedRecorder(Recorder):
     def _local(self, vec) -> np.ndarray:
         return vec.array_r
 
-    def _ma_probe(self, proj) -> Optional[PointProbe]:
+    def _ma_probe(self, proj) -> PointProbe | None:
         """The mode-acceleration rows for states of ``proj`` as a probe acting on accelerations
         (owned columns of proj's coordinates): C for the reduced model, C Phi for a modal one."""
         return None if self._ma is None else self._rows_probe(self._ma, proj, quasi_static=True)
@@ -150,7 +165,9 @@ class ReducedRecorder(Recorder):
                 C = comm.allreduce(C[:, r0:r1] @ proj.Phi.getDenseArray(), op=MPI.SUM)
                 # quasi-static only below the lowest fixed-interface mode not kept: a free mode
                 # above it drives the truncated modes near or past resonance
-                nxt = [b.next_frequency_hz for b in proj.red.bodies if b.n_interior and np.isfinite(b.next_frequency_hz)]
+                nxt = [
+                    b.next_frequency_hz for b in proj.red.bodies if b.n_interior and np.isfinite(b.next_frequency_hz)
+                ]
                 if nxt and quasi_static:
                     C = C * (np.sqrt(proj.omega2) < 2 * math.pi * min(nxt))[None, :]
             lo, hi = proj.M.getOwnershipRange()
@@ -178,13 +195,20 @@ class ReducedRecorder(Recorder):
 
             c_y, mask, _, _, probe, _ = self._maps[id(modal)]
             ma = self._ma_maps[id(modal)]
-            cols = lambda P: sp.hstack(comm.allgather(P)).toarray()    # noqa: E731 (local columns)
+            cols = lambda P: sp.hstack(comm.allgather(P)).toarray()  # noqa: E731 (local columns)
             self._dense[key] = SimpleNamespace(
-                c=vec(c_y), ct=vec(self._ct_maps[id(modal)]) if self._ct_full is not None else None,
+                c=vec(c_y),
+                ct=vec(self._ct_maps[id(modal)]) if self._ct_full is not None else None,
                 cp=vec(self._patch_maps[id(modal)]) if self._patch_full is not None else None,
-                mask=vec(mask), Pv=cols(probe.P_val), Pg=cols(probe.P_grad), n_points=probe.n_points,
-                Cv=cols(ma.P_val) if ma is not None else None, Cg=cols(ma.P_grad) if ma is not None else None,
-                M=gather_aij_dense(modal.M_scheme, comm), K=gather_aij_dense(modal.K, comm))
+                mask=vec(mask),
+                Pv=cols(probe.P_val),
+                Pg=cols(probe.P_grad),
+                n_points=probe.n_points,
+                Cv=cols(ma.P_val) if ma is not None else None,
+                Cg=cols(ma.P_grad) if ma is not None else None,
+                M=gather_aij_dense(modal.M_scheme, comm),
+                K=gather_aij_dense(modal.K, comm),
+            )
         return self._dense[key]
 
     def _offset_terms(self, red, offset) -> SimpleNamespace:
@@ -202,12 +226,20 @@ class ReducedRecorder(Recorder):
             red.K.mult(offset.q, Kq)
             se = 0.5 * Kq.dot(offset.q) + self.plastic.strain_energy_correction(offset.q)
             Kq.destroy()
-            self._offsets[key] = SimpleNamespace(c=c_y.dot(offset.q), vals=probe.values(arr),
-                                                 grads=probe.gradients(arr), se=se, u=red.expand(offset.q))
+            self._offsets[key] = SimpleNamespace(
+                c=c_y.dot(offset.q), vals=probe.values(arr), grads=probe.gradients(arr), se=se, u=red.expand(offset.q)
+            )
         return self._offsets[key]
 
-    def record_free(self, modal: ModalProjection, times: np.ndarray, eta: np.ndarray, etad: np.ndarray,
-                    etadd: np.ndarray, offset=None) -> None:
+    def record_free(
+        self,
+        modal: ModalProjection,
+        times: np.ndarray,
+        eta: np.ndarray,
+        etad: np.ndarray,
+        etadd: np.ndarray,
+        offset=None,
+    ) -> None:
         """Rows of a closed-form free phase at ``times`` from the replicated modal states (m x n_t),
         all at once: the rows :meth:`__call__` would give for each (no contact force, zero
         multipliers; the same formulas on m-column maps), plus the XDMF fields at their times.
@@ -221,10 +253,10 @@ class ReducedRecorder(Recorder):
         vball = -(d.c @ etad)
         np_ = d.n_points
         u_v, u_g = d.Pv @ eta, d.Pg @ eta
-        if d.Cv is not None:            # mode-acceleration recovery
+        if d.Cv is not None:  # mode-acceleration recovery
             u_v, u_g = u_v + d.Cv @ etadd, u_g + d.Cg @ etadd
         vals_u, vals_v, vals_a = (np.moveaxis(x.reshape(np_, 3, n_t), -1, 0) for x in (u_v, d.Pv @ etad, d.Pv @ etadd))
-        grads = np.moveaxis(u_g.reshape(np_, 3, 3, n_t), -1, 0)               # (n_t, points, 3, 3)
+        grads = np.moveaxis(u_g.reshape(np_, 3, 3, n_t), -1, 0)  # (n_t, points, 3, 3)
         ke = 0.5 * np.einsum("it,it->t", etad, d.M @ etad)
         vb = d.mask[:, None] * etad
         ke_ball = 0.5 * np.einsum("it,it->t", vb, d.M @ vb)
@@ -236,8 +268,18 @@ class ReducedRecorder(Recorder):
             se = se + off.se
         zero = np.zeros(n_t)
         patch = (d.cp @ etad, d.cp @ etadd) if d.cp is not None else None
-        cols = [times, zero, approach, zero, vball, *self.probe_columns(vals_u, vals_v, vals_a, grads, patch), self.sym * ke_ball,
-                self.sym * ke, self.sym * se, self.sym * (ke + se)]
+        cols = [
+            times,
+            zero,
+            approach,
+            zero,
+            vball,
+            *self.probe_columns(vals_u, vals_v, vals_a, grads, patch),
+            self.sym * ke_ball,
+            self.sym * ke,
+            self.sym * se,
+            self.sym * (ke + se),
+        ]
         if self.friction:
             # no friction while apart: the cumulative work stays at its value (see __call__)
             self._fw_base += self._fw_last

@@ -15,6 +15,7 @@ code) can be scored against it with ``millimpact compare``.
 
 :func:`read_reference` reads either (or a run folder, or a plain ``timeseries.h5/.csv``).
 """
+
 from __future__ import annotations
 
 import csv
@@ -36,8 +37,10 @@ REFERENCE_FORMAT = "millimpact-reference"
 REFERENCE_CSV_FORMAT = "millimpact-reference-csv"
 REFERENCE_VERSION = 1
 
-TIME_ORIGIN = ("t = 0 when the ball, moving at its arrival velocity, is the gap `first_contact_s` x normal "
-               "speed away from the struck face; first contact at t = first_contact_s")
+TIME_ORIGIN = (
+    "t = 0 when the ball, moving at its arrival velocity, is the gap `first_contact_s` x normal "
+    "speed away from the struck face; first contact at t = first_contact_s"
+)
 
 #: what each column means (sign conventions included); gauges match ``gauge_<name>_stress_Pa``
 DESCRIPTIONS = {
@@ -47,15 +50,15 @@ DESCRIPTIONS = {
     "contact_radius_m": "radius of the contact patch (outermost point carrying force)",
     "ball_velocity_m_s": "ball centre-of-mass velocity along the impact normal, towards the liner positive",
     "contact_point_displacement_m": "liner displacement at the contact point along the impact normal, "
-                                    "into the liner positive",
+    "into the liner positive",
     "contact_point_velocity_m_s": "liner velocity at the contact point along the impact normal, into the liner positive: "
-                                  "FE methods: the centre of mass of the half-ball of radius a_max (Hertz) under it; "
-                                  "Hertz models: the surface point",
+    "FE methods: the centre of mass of the half-ball of radius a_max (Hertz) under it; "
+    "Hertz models: the surface point",
     "contact_point_acceleration_m_s2": "liner acceleration at the contact point along the impact normal, "
-                                       "into the liner positive: FE methods: the centre of mass of the half-ball of "
-                                       "radius a_max (Hertz) under it; Hertz models: the surface point",
+    "into the liner positive: FE methods: the centre of mass of the half-ball of "
+    "radius a_max (Hertz) under it; Hertz models: the surface point",
     "contact_point_stress_Pa": "normal stress (sigma_yy, along the impact normal) just below the contact point, "
-                               "compression negative",
+    "compression negative",
     "contact_point_von_mises_Pa": "von Mises stress just below the contact point",
     "ball_kinetic_energy_J": "kinetic energy of the ball",
     "kinetic_energy_J": "kinetic energy of ball and liner",
@@ -103,8 +106,17 @@ class Reference:
 
 def _metadata(scene, plan, out, summary) -> dict[str, Any]:
     h = plan.hertz
-    metrics = {k: summary.get(k) for k in ("peak_contact_force_N", "contact_duration_s", "max_approach_m",
-                                           "impulse_N_s", "restitution", "wall_time_s")}
+    metrics = {
+        k: summary.get(k)
+        for k in (
+            "peak_contact_force_N",
+            "contact_duration_s",
+            "max_approach_m",
+            "impulse_N_s",
+            "restitution",
+            "wall_time_s",
+        )
+    }
     return {
         "millimpact_version": __version__,
         "scene": scene.name,
@@ -123,7 +135,7 @@ def write_reference(folder: Path, scene, plan, out, summary: dict, scene_toml: s
     ts = out.series
     meta = _metadata(scene, plan, out, summary)
     columns = list(ts.columns)
-    with hdf5_file(folder / "reference.h5") as h5:   # in memory, one write: a full disk is one line
+    with hdf5_file(folder / "reference.h5") as h5:  # in memory, one write: a full disk is one line
         fill_hdf5(h5, ts, summary, scene_toml)
         h5.attrs["format"] = REFERENCE_FORMAT
         h5.attrs["format_version"] = REFERENCE_VERSION
@@ -145,10 +157,14 @@ def write_reference(folder: Path, scene, plan, out, summary: dict, scene_toml: s
         sub.attrs["model_json"] = json.dumps(jsonable(meta["model"]))
         sub.attrs["plan_json"] = json.dumps(jsonable(meta["plan"]))
     ts.write_csv(folder / "reference.csv")
-    side = {"format": REFERENCE_CSV_FORMAT, "format_version": REFERENCE_VERSION, "csv": "reference.csv",
-            **meta,
-            "columns": [{"name": n, "unit": unit_of(n), "description": describe(n)} for n in columns],
-            "scene_toml": scene_toml}
+    side = {
+        "format": REFERENCE_CSV_FORMAT,
+        "format_version": REFERENCE_VERSION,
+        "csv": "reference.csv",
+        **meta,
+        "columns": [{"name": n, "unit": unit_of(n), "description": describe(n)} for n in columns],
+        "scene_toml": scene_toml,
+    }
     (folder / "reference.json").write_text(json.dumps(jsonable(side), indent=2) + "\n")
     return ["reference.h5", "reference.csv", "reference.json"]
 
@@ -176,8 +192,10 @@ def read_history_csv(path: Path, what: str = "file") -> TimeSeries:
     if dupes:
         raise InputError(f"{what} {path}: duplicate column(s) {', '.join(dupes)}")
     if "time_s" not in names:
-        raise InputError(f"{what} {path}: no 'time_s' column (header: {', '.join(names)[:200]}); "
-                         "time must be a column named time_s, in seconds")
+        raise InputError(
+            f"{what} {path}: no 'time_s' column (header: {', '.join(names)[:200]}); "
+            "time must be a column named time_s, in seconds"
+        )
     data = []
     for (lineno, _), row in zip(lines[1:], rows[1:]):
         if len(row) != len(names):
@@ -187,7 +205,9 @@ def read_history_csv(path: Path, what: str = "file") -> TimeSeries:
             try:
                 x = float(cell)
             except ValueError:
-                raise InputError(f"{what} {path}: line {lineno}, column {name}: {cell.strip()!r} is not a number") from None
+                raise InputError(
+                    f"{what} {path}: line {lineno}, column {name}: {cell.strip()!r} is not a number"
+                ) from None
             if not math.isfinite(x):
                 raise InputError(f"{what} {path}: line {lineno}, column {name}: {cell.strip()!r} is not finite")
             vals.append(x)
@@ -221,8 +241,10 @@ def read_reference(path: Path) -> Reference:
         return _read_reference_h5(path)
     side = path.with_suffix(".json")
     if not side.is_file() and not is_millimpact_output(path.parent):
-        raise InputError(f"reference {path}: not a millimpact reference (no {side.name} beside it and not in a "
-                         "millimpact run folder); write one with 'millimpact run SCENE --reference'")
+        raise InputError(
+            f"reference {path}: not a millimpact reference (no {side.name} beside it and not in a "
+            "millimpact run folder); write one with 'millimpact run SCENE --reference'"
+        )
     ts = read_history_csv(path, "reference")
     meta: dict[str, Any] = {}
     if side.is_file():
@@ -231,8 +253,10 @@ def read_reference(path: Path) -> Reference:
         except (OSError, json.JSONDecodeError) as exc:
             raise InputError(f"reference sidecar {side}: not valid JSON ({exc})") from None
         if meta.get("format") == REFERENCE_CSV_FORMAT and int(meta.get("format_version", 0)) > REFERENCE_VERSION:
-            raise InputError(f"reference sidecar {side}: format_version {meta['format_version']} is newer than "
-                             f"this millimpact reads (<= {REFERENCE_VERSION})")
+            raise InputError(
+                f"reference sidecar {side}: format_version {meta['format_version']} is newer than "
+                f"this millimpact reads (<= {REFERENCE_VERSION})"
+            )
     return Reference(path, ts, meta)
 
 
@@ -246,19 +270,27 @@ def _read_reference_h5(path: Path) -> Reference:
     with h5:
         fmt = h5.attrs.get("format")
         if fmt not in (REFERENCE_FORMAT, "millimpact-timeseries") or "timeseries" not in h5:
-            raise InputError(f"reference {path}: attribute format = {fmt!r}: must be {REFERENCE_FORMAT!r} "
-                             "(written by millimpact run --reference)")
+            raise InputError(
+                f"reference {path}: attribute format = {fmt!r}: must be {REFERENCE_FORMAT!r} "
+                "(written by millimpact run --reference)"
+            )
         version = int(h5.attrs.get("format_version", 0))
         if version < 1 or version > REFERENCE_VERSION:
-            raise InputError(f"reference {path}: format_version = {version}: this millimpact reads 1..{REFERENCE_VERSION}")
+            raise InputError(
+                f"reference {path}: format_version = {version}: this millimpact reads 1..{REFERENCE_VERSION}"
+            )
         g = h5["timeseries"]
-        order = json.loads(g.attrs["columns"]) if "columns" in g.attrs else \
-            ["time_s"] + sorted(n for n in g if n != "time_s")
+        order = (
+            json.loads(g.attrs["columns"])
+            if "columns" in g.attrs
+            else ["time_s"] + sorted(n for n in g if n != "time_s")
+        )
         if "time_s" not in order:
             raise InputError(f"reference {path}: no timeseries/time_s dataset")
         ts = TimeSeries({n: np.asarray(g[n][...], dtype=float) for n in order})
-        meta: dict[str, Any] = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()
-                                if k not in ("summary_json",)}
+        meta: dict[str, Any] = {
+            k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items() if k not in ("summary_json",)
+        }
         meta = jsonable({k: (v.item() if hasattr(v, "item") else v) for k, v in meta.items()})
         for group in ("hertz", "metrics"):
             if group in h5:

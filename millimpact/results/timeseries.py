@@ -4,6 +4,7 @@ Column names carry their unit as a suffix (``time_s``, ``contact_force_N``); :da
 each known column to its unit. Files are written by rank 0 only, into a staging folder that is
 renamed into place when complete, so an interrupted run never leaves a folder that looks finished.
 """
+
 from __future__ import annotations
 
 import csv
@@ -41,8 +42,15 @@ def unit_of(column: str) -> str:
     """Unit of a column from its name (``gauge_A_stress_Pa`` -> ``Pa``)."""
     if column in UNITS:
         return UNITS[column]
-    for suffix, unit in (("_m_s2", "m/s^2"), ("_m_s", "m/s"), ("_Pa", "Pa"), ("_N", "N"), ("_J", "J"),
-                         ("_m", "m"), ("_s", "s")):
+    for suffix, unit in (
+        ("_m_s2", "m/s^2"),
+        ("_m_s", "m/s"),
+        ("_Pa", "Pa"),
+        ("_N", "N"),
+        ("_J", "J"),
+        ("_m", "m"),
+        ("_s", "s"),
+    ):
         if column.endswith(suffix):
             return unit
     return ""
@@ -65,7 +73,7 @@ class TimeSeries:
         return self.columns["time_s"]
 
     @classmethod
-    def from_rows(cls, names: list[str], rows: list[list[float]]) -> "TimeSeries":
+    def from_rows(cls, names: list[str], rows: list[list[float]]) -> TimeSeries:
         data = np.asarray(rows, dtype=float).reshape(len(rows), len(names))
         return cls({n: data[:, i].copy() for i, n in enumerate(names)})
 
@@ -79,7 +87,7 @@ class TimeSeries:
                 w.writerow([f"{x:.10g}" for x in row])
 
     @classmethod
-    def read_csv(cls, path: Path) -> "TimeSeries":
+    def read_csv(cls, path: Path) -> TimeSeries:
         with open(path, newline="") as fh:
             rows = list(csv.reader(fh))
         names = [n.strip() for n in rows[0]]
@@ -97,8 +105,12 @@ def contact_metrics(ts: TimeSeries) -> dict[str, float]:
     """
     t, f = ts.time, ts["contact_force_N"]
     fmax = float(np.max(f)) if len(f) else 0.0
-    out = {"peak_contact_force_N": fmax, "contact_duration_s": 0.0, "impulse_N_s": float(np.trapz(f, t)),
-           "time_of_peak_force_s": float(t[int(np.argmax(f))]) if len(f) else 0.0}
+    out = {
+        "peak_contact_force_N": fmax,
+        "contact_duration_s": 0.0,
+        "impulse_N_s": float(np.trapz(f, t)),
+        "time_of_peak_force_s": float(t[int(np.argmax(f))]) if len(f) else 0.0,
+    }
     if "approach_m" in ts:
         out["max_approach_m"] = float(np.max(ts["approach_m"]))
     if fmax <= 0:
@@ -149,8 +161,7 @@ def write_summary(folder: Path, summary: dict) -> None:
     (folder / "summary.json").write_text(json.dumps(jsonable(data), indent=2) + "\n")
 
 
-def write_hdf5(folder: Path, ts: TimeSeries, summary: dict, scene_toml: str,
-               filename: str = "timeseries.h5") -> Path:
+def write_hdf5(folder: Path, ts: TimeSeries, summary: dict, scene_toml: str, filename: str = "timeseries.h5") -> Path:
     """``timeseries.h5``: one dataset per column with a ``unit`` attribute, the summary as JSON and
     the scene as TOML text in the root attributes. Returns the file's path."""
     with hdf5_file(folder / filename) as h5:

@@ -1,6 +1,8 @@
 """The built-in scenes (``paper-rig`` the default, ``paper-rig-plastic``, ``hertz-halfspace``, ``study-base``,
-``liner-segment``, ``liner-panel``, ``mill-crmo``, ``mill-hadfield``, ``leeb-d``) and the paper's parameter studies; :func:`resolve_scene` takes a built-in name or a TOML file.
+``liner-segment``, ``liner-panel``, ``mill-crmo``, ``mill-hadfield``, ``leeb-d``) and the paper's
+parameter studies; :func:`resolve_scene` takes a built-in name or a TOML file.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -10,10 +12,22 @@ from pathlib import Path
 from typing import TypedDict
 
 from ..errors import SceneError
-
 from ..theory.rubber import compression_modulus, sheet_shape_factor, shore_a_modulus
 from .liner_shape import vec3
-from .schema import Ball, Block, ContactOptions, Gauge, Impact, Liner, Material, Outputs, Scene, TimeSpan, Vec3, coerce_value
+from .schema import (
+    Ball,
+    Block,
+    ContactOptions,
+    Gauge,
+    Impact,
+    Liner,
+    Material,
+    Outputs,
+    Scene,
+    TimeSpan,
+    Vec3,
+    coerce_value,
+)
 from .toml_io import load_scene
 
 
@@ -45,7 +59,7 @@ def _paper_rig() -> Scene:
     return Scene(
         name="paper-rig",
         description="The paper's test rig (Liu et al. 2022, Tables 1-2): r = 15 mm steel ball at 3 m/s "
-                    "normal to the 42 x 80 mm face of a 45 mm thick block clamped at its base; 40 ms.",
+        "normal to the 42 x 80 mm face of a 45 mm thick block clamped at its base; 40 ms.",
         block=block,
         gauges=_default_gauges(block, 0.015),
         outputs=Outputs(field_times=(0.0, 45e-6, 90e-6, 1e-3)),
@@ -58,12 +72,16 @@ def _paper_rig_plastic() -> Scene:
     ball = Ball(radius=0.015, material=coerce_value(Material, "forged-ball-60hrc", "ball.material"))
     block = dataclasses.replace(rig.block, material=coerce_value(Material, "cr-mo-liner", "block.material"))
     return dataclasses.replace(
-        rig, name="paper-rig-plastic", ball=ball, block=block,
+        rig,
+        name="paper-rig-plastic",
+        ball=ball,
+        block=block,
         description="The paper's rig with real steels (elastic-plastic, J2): a forged 60 HRC ball (Y 1.9 GPa) on a "
-                    "Cr-Mo liner-steel block (Y 0.95 GPa), 3 m/s; Hertz p0 4.9 GPa is 3x the block's first-yield "
-                    "pressure 1.6 Y. Material values and sources: scene/materials.toml. 40 ms as the rig (the reduced methods continue "
-                    "the free vibration about the residual state in closed form; full FE steps it: --set time.end=2e-3 "
-                    "for the impact and the first ringing).")
+        "Cr-Mo liner-steel block (Y 0.95 GPa), 3 m/s; Hertz p0 4.9 GPa is 3x the block's first-yield "
+        "pressure 1.6 Y. Material values and sources: scene/materials.toml. 40 ms as the rig (the reduced methods continue "
+        "the free vibration about the residual state in closed form; full FE steps it: --set time.end=2e-3 "
+        "for the impact and the first ringing).",
+    )
 
 
 def _hertz_halfspace() -> Scene:
@@ -71,7 +89,7 @@ def _hertz_halfspace() -> Scene:
     return Scene(
         name="hertz-halfspace",
         description="The default ball on a large block clamped at its back face: a half-space-like "
-                    "target whose impact Hertz theory describes (restitution ~0.99).",
+        "target whose impact Hertz theory describes (restitution ~0.99).",
         block=block,
         gauges=_default_gauges(block, 0.015),
         time=TimeSpan(end=0.3e-3),
@@ -84,7 +102,7 @@ def _study_base() -> Scene:
     return Scene(
         name="study-base",
         description="Base case of the paper's parameter studies (section 4): r = 20 mm, v = 3 m/s, "
-                    "b = 40 mm, u = nu_ball / nu_block = 1.0; other values as the rig.",
+        "b = 40 mm, u = nu_ball / nu_block = 1.0; other values as the rig.",
         ball=Ball(radius=0.020),
         block=block,
         gauges=_default_gauges(block, 0.020),
@@ -102,11 +120,13 @@ def _mill_block(name: str, liner_material: str, what: str) -> Scene:
     block = Block(**MILL_BLOCK, material=coerce_value(Material, liner_material, "block.material"))
     return Scene(
         name=name,
-        description=(f"A 125 mm forged 60 HRC ball (Y 1.9 GPa) at 8 m/s normal to a 75 mm {what} liner plate, "
-                     "250 x 250 mm, clamped at its back (the shell). Balls of 100-150 mm strike SAG liners at "
-                     "3-13 m/s (100-580 J for 125 mm; docs: design, section 10); the plate thickness is the liner-segment "
-                     "scene's shell plate (Royston 2007: 75-100 mm). Material values and sources: "
-                     "scene/materials.toml. Impact only (0.6 ms)."),
+        description=(
+            f"A 125 mm forged 60 HRC ball (Y 1.9 GPa) at 8 m/s normal to a 75 mm {what} liner plate, "
+            "250 x 250 mm, clamped at its back (the shell). Balls of 100-150 mm strike SAG liners at "
+            "3-13 m/s (100-580 J for 125 mm; docs: design, section 10); the plate thickness is the liner-segment "
+            "scene's shell plate (Royston 2007: 75-100 mm). Material values and sources: "
+            "scene/materials.toml. Impact only (0.6 ms)."
+        ),
         ball=Ball(radius=MILL_BALL_RADIUS, material=coerce_value(Material, "forged-ball-60hrc", "ball.material")),
         block=block,
         impact=Impact(velocity=(0.0, -8.0, 0.0)),
@@ -126,17 +146,29 @@ def _oblique_velocity(liner: Liner) -> Vec3:
     face's inward normal -n, tilted towards the plate (down the face): v = V (-cos(a) n - sin(a) s),
     s the face's up-slope direction in the y-z plane."""
     _, n = liner.face_point()
-    up = (0.0, n[2], -n[1]) if n[2] > 0 else (0.0, -n[2], n[1])    # in-face, pointing away from the plate
+    up = (0.0, n[2], -n[1]) if n[2] > 0 else (0.0, -n[2], n[1])  # in-face, pointing away from the plate
     a = math.radians(LINER_IMPACT_ANGLE)
     return vec3(round(LINER_IMPACT_SPEED * (-math.cos(a) * nc - math.sin(a) * uc), 12) + 0.0 for nc, uc in zip(n, up))
 
 
 def _liner_segment() -> Scene:
     """A large ball striking a SAG liner's lifter face obliquely (sizes and sources in the description)."""
-    liner = Liner(length=0.40, width=0.50, thickness=0.075, n_lifters=1, lifter_height=0.20,
-                  lifter_top_width=0.10, lifter_face_angle=20.0, lifter_spacing=0.30, mill_radius=5.5,
-                  impact_lifter=0, impact_face="+z", impact_height=0.5, impact_x=0.0,
-                  material=coerce_value(Material, "cr-mo-liner", "liner.material"))
+    liner = Liner(
+        length=0.40,
+        width=0.50,
+        thickness=0.075,
+        n_lifters=1,
+        lifter_height=0.20,
+        lifter_top_width=0.10,
+        lifter_face_angle=20.0,
+        lifter_spacing=0.30,
+        mill_radius=5.5,
+        impact_lifter=0,
+        impact_face="+z",
+        impact_height=0.5,
+        impact_x=0.0,
+        material=coerce_value(Material, "cr-mo-liner", "liner.material"),
+    )
     v = _oblique_velocity(liner)
     return Scene(
         name="liner-segment",
@@ -151,7 +183,8 @@ def _liner_segment() -> Scene:
             "GPa) and a forged 60 HRC ball (Y 1.9 GPa), values and sources in scene/materials.toml; Hertz p0 "
             "~6.9 GPa is 4.5x the liner's first-yield pressure. The elastic case (the paper's steel in both "
             "bodies): --set ball.material=paper-steel --set liner.material=paper-steel. "
-            "Half model: the plane of incidence x = 0 is a symmetry plane."),
+            "Half model: the plane of incidence x = 0 is a symmetry plane."
+        ),
         ball=Ball(radius=0.0625, material=coerce_value(Material, "forged-ball-60hrc", "ball.material")),
         liner=liner,
         impact=Impact(velocity=v),
@@ -178,8 +211,10 @@ def _panel_gauges(liner: Liner) -> tuple[Gauge, ...]:
     p, n = liner.face_point()
     c = liner.lifter_centres()[liner.impact_lifter]
     # the nearest hole in the kept half (x >= the impact's x), on the struck face's side preferred
-    hx, hs = min(liner.bolt_holes(), key=lambda h: (h[0] < p[0], (h[1] > c) != (liner.impact_face == "+z"),
-                                                    (h[0] - p[0]) ** 2 + (h[1] - c) ** 2))
+    hx, hs = min(
+        liner.bolt_holes(),
+        key=lambda h: (h[0] < p[0], (h[1] > c) != (liner.impact_face == "+z"), (h[0] - p[0]) ** 2 + (h[1] - c) ** 2),
+    )
     R, w = liner.mill_radius, liner.width
     phi = (hs - 0.5 * w) / R
     r = R + GAUGE_DEPTH
@@ -195,14 +230,31 @@ def _liner_panel() -> Scene:
     """A panel of a SAG mill's shell liner: three lifters, bolt holes, rubber backing (sources in the description)."""
     length, width, height, spacing, base = 1.0, 1.2, 0.18, 0.45, 0.1 + 2 * 0.18 * math.tan(math.radians(20.0))
     # the backing's compression modulus: the sheet under one lifter's foot (base x length) bonded, Gent and Lindley
-    e_c = compression_modulus(shore_a_modulus(PANEL_BACKING_SHORE_A),
-                              sheet_shape_factor(base, length, PANEL_BACKING_THICKNESS))
-    liner = Liner(length=length, width=width, thickness=0.075, n_lifters=3, lifter_height=height,
-                  lifter_top_width=0.10, lifter_face_angle=20.0, lifter_spacing=spacing, mill_radius=5.5,
-                  bolt_hole_diameter=0.042, bolt_x=(-0.25, 0.25), bolt_arc=(0.375, 0.825), backing="rubber",
-                  backing_modulus=round(e_c, -6), backing_thickness=PANEL_BACKING_THICKNESS,
-                  impact_lifter=1, impact_face="+z", impact_height=0.5, impact_x=0.0,
-                  material=coerce_value(Material, "cr-mo-liner", "liner.material"))
+    e_c = compression_modulus(
+        shore_a_modulus(PANEL_BACKING_SHORE_A), sheet_shape_factor(base, length, PANEL_BACKING_THICKNESS)
+    )
+    liner = Liner(
+        length=length,
+        width=width,
+        thickness=0.075,
+        n_lifters=3,
+        lifter_height=height,
+        lifter_top_width=0.10,
+        lifter_face_angle=20.0,
+        lifter_spacing=spacing,
+        mill_radius=5.5,
+        bolt_hole_diameter=0.042,
+        bolt_x=(-0.25, 0.25),
+        bolt_arc=(0.375, 0.825),
+        backing="rubber",
+        backing_modulus=round(e_c, -6),
+        backing_thickness=PANEL_BACKING_THICKNESS,
+        impact_lifter=1,
+        impact_face="+z",
+        impact_height=0.5,
+        impact_x=0.0,
+        material=coerce_value(Material, "cr-mo-liner", "liner.material"),
+    )
     # the ball, friction, run time and outputs are liner-segment's (the description says so)
     return dataclasses.replace(
         _liner_segment(),
@@ -226,7 +278,8 @@ def _liner_panel() -> Scene:
             "k_n = E_c / t on the back face (docs/scenes.md, liner-panel); the bolt holes' surfaces clamped. "
             "Steels as liner-segment (cr-mo-liner, forged-ball-60hrc; scene/materials.toml), elastic-plastic. "
             "Gauges: 'bolt' beside the bolt hole nearest the impact, 'root' at the struck lifter's root. "
-            "Half model: the plane of incidence x = 0 is a symmetry plane."),
+            "Half model: the plane of incidence x = 0 is a symmetry plane."
+        ),
         liner=liner,
         impact=Impact(velocity=_oblique_velocity(liner)),
         gauges=_panel_gauges(liner),
@@ -259,9 +312,13 @@ def _leeb_d() -> Scene:
             "2.8 MPa (steel-400hb, ~600 HLD; steel-108hb, steel-551hb: --set block.material=NAME; sources "
             "in scene/materials.toml). A small ball: the mesh grows from the contact and the block's far size "
             "is its own (scene/plan.py). Impact only (0.25 ms). benchmarks/leeb_rebound.py compares e with "
-            "HLD / 1000."),
-        ball=Ball(radius=LEEB_D_TIP_RADIUS, material=coerce_value(Material, "wc-co-tip", "ball.material"),
-                  body_mass=LEEB_D_BODY_MASS),
+            "HLD / 1000."
+        ),
+        ball=Ball(
+            radius=LEEB_D_TIP_RADIUS,
+            material=coerce_value(Material, "wc-co-tip", "ball.material"),
+            body_mass=LEEB_D_BODY_MASS,
+        ),
         block=block,
         impact=Impact(velocity=(0.0, -round(LEEB_D_SPEED, 12), 0.0)),
         time=TimeSpan(end=0.25e-3),
@@ -276,8 +333,9 @@ BUILTIN_SCENES = {
     "liner-segment": _liner_segment,
     "liner-panel": _liner_panel,
     "mill-crmo": lambda: _mill_block("mill-crmo", "cr-mo-liner", "Cr-Mo steel (Y 0.95 GPa)"),
-    "mill-hadfield": lambda: _mill_block("mill-hadfield", "hadfield-mn-liner",
-                                         "Hadfield manganese steel (Y 380 MPa, strong hardening)"),
+    "mill-hadfield": lambda: _mill_block(
+        "mill-hadfield", "hadfield-mn-liner", "Hadfield manganese steel (Y 380 MPa, strong hardening)"
+    ),
     "leeb-d": _leeb_d,
 }
 DEFAULT_SCENE = "paper-rig"
@@ -295,32 +353,76 @@ class StudySpec:
     label: str
     display: tuple[float, ...]
     unit: str
-    paper_conclusion: str       #: "" for a study that is not the paper's
+    paper_conclusion: str  #: "" for a study that is not the paper's
 
 
 BUILTIN_STUDIES = {
-    "poisson": StudySpec("poisson", "study-base", "ball.material.poisson", (0.15, 0.30, 0.45),
-                         "u = nu_ball / nu_block", (0.5, 1.0, 1.5), "",
-                         "(2) Poisson ratio changes little the contact-point displacement, velocity and "
-                         "acceleration but changes the stress; above u = 1.0 the stress grows less."),
-    "velocity": StudySpec("velocity", "study-base", "impact.velocity", (1.0, 3.0, 5.0),
-                          "v", (1.0, 3.0, 5.0), "m/s",
-                          "(3) displacement, velocity, acceleration and stress grow with v; above 3 m/s "
-                          "they grow less."),
-    "radius": StudySpec("radius", "study-base", "ball.radius", (0.015, 0.020, 0.025),
-                        "r", (15.0, 20.0, 25.0), "mm",
-                        "(4) displacement, velocity and stress grow with r, acceleration changes little; "
-                        "above 20 mm the stress changes greatly and the peak acceleration comes earlier."),
-    "velocity-plastic": StudySpec("velocity-plastic", "paper-rig-plastic", "impact.velocity",
-                                  (0.1, 0.3, 1.0, 3.0, 10.0), "v", (0.1, 0.3, 1.0, 3.0, 10.0), "m/s", ""),
-    "mill-crmo": StudySpec("mill-crmo", "mill-crmo", "impact.velocity", (3.0, 5.0, 8.0, 13.0), "v",
-                           (3.0, 5.0, 8.0, 13.0), "m/s", ""),
-    "mill-hadfield": StudySpec("mill-hadfield", "mill-hadfield", "impact.velocity", (3.0, 5.0, 8.0, 13.0), "v",
-                               (3.0, 5.0, 8.0, 13.0), "m/s", ""),
-    "thickness": StudySpec("thickness", "study-base", "block.thickness", (0.030, 0.040, 0.050),
-                           "b", (30.0, 40.0, 50.0), "mm",
-                           "(5) displacement and acceleration grow with b, stress amplitude falls; above "
-                           "40 mm the time of peak acceleration hardly changes."),
+    "poisson": StudySpec(
+        "poisson",
+        "study-base",
+        "ball.material.poisson",
+        (0.15, 0.30, 0.45),
+        "u = nu_ball / nu_block",
+        (0.5, 1.0, 1.5),
+        "",
+        "(2) Poisson ratio changes little the contact-point displacement, velocity and "
+        "acceleration but changes the stress; above u = 1.0 the stress grows less.",
+    ),
+    "velocity": StudySpec(
+        "velocity",
+        "study-base",
+        "impact.velocity",
+        (1.0, 3.0, 5.0),
+        "v",
+        (1.0, 3.0, 5.0),
+        "m/s",
+        "(3) displacement, velocity, acceleration and stress grow with v; above 3 m/s they grow less.",
+    ),
+    "radius": StudySpec(
+        "radius",
+        "study-base",
+        "ball.radius",
+        (0.015, 0.020, 0.025),
+        "r",
+        (15.0, 20.0, 25.0),
+        "mm",
+        "(4) displacement, velocity and stress grow with r, acceleration changes little; "
+        "above 20 mm the stress changes greatly and the peak acceleration comes earlier.",
+    ),
+    "velocity-plastic": StudySpec(
+        "velocity-plastic",
+        "paper-rig-plastic",
+        "impact.velocity",
+        (0.1, 0.3, 1.0, 3.0, 10.0),
+        "v",
+        (0.1, 0.3, 1.0, 3.0, 10.0),
+        "m/s",
+        "",
+    ),
+    "mill-crmo": StudySpec(
+        "mill-crmo", "mill-crmo", "impact.velocity", (3.0, 5.0, 8.0, 13.0), "v", (3.0, 5.0, 8.0, 13.0), "m/s", ""
+    ),
+    "mill-hadfield": StudySpec(
+        "mill-hadfield",
+        "mill-hadfield",
+        "impact.velocity",
+        (3.0, 5.0, 8.0, 13.0),
+        "v",
+        (3.0, 5.0, 8.0, 13.0),
+        "m/s",
+        "",
+    ),
+    "thickness": StudySpec(
+        "thickness",
+        "study-base",
+        "block.thickness",
+        (0.030, 0.040, 0.050),
+        "b",
+        (30.0, 40.0, 50.0),
+        "mm",
+        "(5) displacement and acceleration grow with b, stress amplitude falls; above "
+        "40 mm the time of peak acceleration hardly changes.",
+    ),
 }
 
 
@@ -329,8 +431,9 @@ def builtin_scene(name: str) -> Scene:
     try:
         return BUILTIN_SCENES[name]()
     except KeyError:
-        raise SceneError("scene", name, f"unknown built-in scene; known: {', '.join(BUILTIN_SCENES)} "
-                         "(or give a .toml file)") from None
+        raise SceneError(
+            "scene", name, f"unknown built-in scene; known: {', '.join(BUILTIN_SCENES)} (or give a .toml file)"
+        ) from None
 
 
 def resolve_scene(name_or_file: str | None) -> Scene:

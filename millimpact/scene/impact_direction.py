@@ -8,6 +8,7 @@ plane x = x_p, which holds n on the block's face and on a liner's lifter faces, 
 Used by the DEM tables and the repeated-impact sequences. numpy is imported where it computes
 (the command line imports the scene stage).
 """
+
 from __future__ import annotations
 
 import math

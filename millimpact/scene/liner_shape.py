@@ -20,6 +20,7 @@ through the plate, normal to it (radial on a curved plate), at every pair of an 
 ``"rubber"`` (an elastic Winkler layer; its stiffness is a scene field of
 :class:`millimpact.scene.schema.Liner`); the holes' surfaces are clamped (the bolts).
 """
+
 from __future__ import annotations
 
 import math
@@ -98,20 +99,24 @@ class LinerShape:
             return False
         R, w, t = self.mill_radius, self.width, self.thickness
         if R == 0:
-            r, s = -y, z                                    # depth below the inner face, arc position
+            r, s = -y, z  # depth below the inner face, arc position
         else:
             r = math.hypot(y - R, z - 0.5 * w) - R
             s = 0.5 * w + R * math.atan2(z - 0.5 * w, R - y)
         in_plate = -tol <= r <= t + tol and -tol <= s <= w + tol
-        if in_plate and any(self.hole_distance(p, hx, hs) < 0.5 * self.bolt_hole_diameter - tol
-                            for hx, hs in self.bolt_holes()):
+        if in_plate and any(
+            self.hole_distance(p, hx, hs) < 0.5 * self.bolt_hole_diameter - tol for hx, hs in self.bolt_holes()
+        ):
             return False
         if in_plate:
             return True
         hb, ht, h = 0.5 * self.lifter_base_width, 0.5 * self.lifter_top_width, self.lifter_height
         for c in self.lifter_centres():
-            dy, dz = (y, z - c) if R == 0 else (y - (R - R * math.cos((c - 0.5 * w) / R)),
-                                                z - (0.5 * w + R * math.sin((c - 0.5 * w) / R)))
+            dy, dz = (
+                (y, z - c)
+                if R == 0
+                else (y - (R - R * math.cos((c - 0.5 * w) / R)), z - (0.5 * w + R * math.sin((c - 0.5 * w) / R)))
+            )
             phi = 0.0 if R == 0 else (c - 0.5 * w) / R
             eta = dy * math.cos(phi) - dz * math.sin(phi)
             zeta = dy * math.sin(phi) + dz * math.cos(phi)
@@ -123,12 +128,20 @@ class LinerShape:
         """Refuse bolt holes off the plate, under a lifter's foot or overlapping, and an unknown
         backing, with a :class:`SceneError` naming the field."""
         if self.backing not in ("clamped", "rubber"):
-            raise SceneError("liner.backing", self.backing, "must be 'clamped' (rigid shell) or 'rubber' "
-                             "(a Winkler layer: liner.backing_modulus / liner.backing_thickness)")
+            raise SceneError(
+                "liner.backing",
+                self.backing,
+                "must be 'clamped' (rigid shell) or 'rubber' "
+                "(a Winkler layer: liner.backing_modulus / liner.backing_thickness)",
+            )
         d = self.bolt_hole_diameter
         if self.backing == "rubber" and not (isinstance(d, (int, float)) and d > 0):
-            raise SceneError("liner.backing", self.backing, "a rubber backing needs bolt holes (liner.bolt_hole_diameter "
-                             "> 0): the bolts hold the liner along the shell, the backing only across it")
+            raise SceneError(
+                "liner.backing",
+                self.backing,
+                "a rubber backing needs bolt holes (liner.bolt_hole_diameter "
+                "> 0): the bolts hold the liner along the shell, the backing only across it",
+            )
         if not (isinstance(d, (int, float)) and not isinstance(d, bool) and math.isfinite(d) and d >= 0):
             raise SceneError("liner.bolt_hole_diameter", d, "must be 0 (no holes) or a finite number > 0 m")
         if d == 0:
@@ -136,30 +149,43 @@ class LinerShape:
                 raise SceneError("liner.bolt_hole_diameter", d, "must be > 0 m when bolt_x / bolt_arc place holes")
             return
         if not self.bolt_x or not self.bolt_arc:
-            raise SceneError("liner.bolt_x" if not self.bolt_x else "liner.bolt_arc",
-                             list(self.bolt_x if not self.bolt_x else self.bolt_arc),
-                             "must list at least one position (m) when bolt_hole_diameter > 0")
+            raise SceneError(
+                "liner.bolt_x" if not self.bolt_x else "liner.bolt_arc",
+                list(self.bolt_x if not self.bolt_x else self.bolt_arc),
+                "must list at least one position (m) when bolt_hole_diameter > 0",
+            )
         half = 0.5 * d
         lim = 0.5 * self.length - half
         for i, x in enumerate(self.bolt_x):
             if not (math.isfinite(x) and -lim < x < lim):
-                raise SceneError(f"liner.bolt_x[{i}]", x, f"must lie in ({-lim:g}, {lim:g}) m (the hole inside the plate)")
+                raise SceneError(
+                    f"liner.bolt_x[{i}]", x, f"must lie in ({-lim:g}, {lim:g}) m (the hole inside the plate)"
+                )
         xs = sorted(self.bolt_x)
         if any(b - a <= d for a, b in zip(xs, xs[1:])):
             raise SceneError("liner.bolt_x", list(self.bolt_x), f"holes must be more than a diameter ({d:g} m) apart")
         ss = sorted(self.bolt_arc)
         if any(b - a <= d for a, b in zip(ss, ss[1:])):
-            raise SceneError("liner.bolt_arc", list(self.bolt_arc), f"holes must be more than a diameter ({d:g} m) apart")
+            raise SceneError(
+                "liner.bolt_arc", list(self.bolt_arc), f"holes must be more than a diameter ({d:g} m) apart"
+            )
         hb = 0.5 * max(self.lifter_base_width, self.lifter_top_width)
         for i, s in enumerate(self.bolt_arc):
             if not (math.isfinite(s) and half < s < self.width - half):
-                raise SceneError(f"liner.bolt_arc[{i}]", s, f"must lie in ({half:g}, {self.width - half:g}) m "
-                                 "(the hole inside the plate)")
+                raise SceneError(
+                    f"liner.bolt_arc[{i}]",
+                    s,
+                    f"must lie in ({half:g}, {self.width - half:g}) m (the hole inside the plate)",
+                )
             for c in self.lifter_centres():
                 if abs(s - c) < hb + half:
-                    raise SceneError(f"liner.bolt_arc[{i}]", s, f"the hole meets the foot of the lifter at arc "
-                                     f"{c:g} m: keep it {hb + half:g} m or more from a lifter centre line "
-                                     "(holes go through the shell plate between lifters)")
+                    raise SceneError(
+                        f"liner.bolt_arc[{i}]",
+                        s,
+                        f"the hole meets the foot of the lifter at arc "
+                        f"{c:g} m: keep it {hb + half:g} m or more from a lifter centre line "
+                        "(holes go through the shell plate between lifters)",
+                    )
 
     @property
     def lifter_base_width(self) -> float:
@@ -193,31 +219,49 @@ class LinerShape:
         a = self.lifter_face_angle
         lo = -math.degrees(math.atan(self.lifter_top_width / (2.0 * self.lifter_height)))
         if not (isinstance(a, (int, float)) and math.isfinite(a) and lo < a < 90.0):
-            raise SceneError("liner.lifter_face_angle", a, f"must lie in ({lo:.4g}, 90) deg "
-                             "(a smaller angle makes the lifter's base width negative)")
+            raise SceneError(
+                "liner.lifter_face_angle",
+                a,
+                f"must lie in ({lo:.4g}, 90) deg (a smaller angle makes the lifter's base width negative)",
+            )
         widest = max(self.lifter_base_width, self.lifter_top_width)
         if n > 1:
             s = self.lifter_spacing
             if not (isinstance(s, (int, float)) and math.isfinite(s) and s > widest):
-                raise SceneError("liner.lifter_spacing", s, f"must exceed the lifter's widest section "
-                                 f"{widest:g} m, else neighbouring lifters overlap")
+                raise SceneError(
+                    "liner.lifter_spacing",
+                    s,
+                    f"must exceed the lifter's widest section {widest:g} m, else neighbouring lifters overlap",
+                )
         span = (n - 1) * (self.lifter_spacing if n > 1 else 0.0) + widest
         if span >= self.width:
-            raise SceneError("liner.width", self.width, f"must exceed the lifters' span {span:g} m "
-                             f"({n} lifters, spacing {self.lifter_spacing:g} m, widest section {widest:g} m)")
+            raise SceneError(
+                "liner.width",
+                self.width,
+                f"must exceed the lifters' span {span:g} m "
+                f"({n} lifters, spacing {self.lifter_spacing:g} m, widest section {widest:g} m)",
+            )
         r = self.mill_radius
         if not (isinstance(r, (int, float)) and math.isfinite(r) and r >= 0):
             raise SceneError("liner.mill_radius", r, "must be 0 (flat) or > 0 m")
         if r > 0:
             r_min = max(self.width / (0.5 * math.pi), 4.0 * self.lifter_height)
             if r < r_min:
-                raise SceneError("liner.mill_radius", r, f"must be 0 (flat) or >= {r_min:g} m (the plate spans "
-                                 "at most 90 degrees of arc and lifters reach at most a quarter of the way "
-                                 "to the axis)")
+                raise SceneError(
+                    "liner.mill_radius",
+                    r,
+                    f"must be 0 (flat) or >= {r_min:g} m (the plate spans "
+                    "at most 90 degrees of arc and lifters reach at most a quarter of the way "
+                    "to the axis)",
+                )
             if self.foot_depth <= 0:
-                raise SceneError("liner.thickness", self.thickness, f"too thin for lifters "
-                                 f"{self.lifter_base_width:g} m wide on a plate curved to mill_radius {r:g} m "
-                                 "(the back face would pass under the lifter's foot corners)")
+                raise SceneError(
+                    "liner.thickness",
+                    self.thickness,
+                    f"too thin for lifters "
+                    f"{self.lifter_base_width:g} m wide on a plate curved to mill_radius {r:g} m "
+                    "(the back face would pass under the lifter's foot corners)",
+                )
         self.validate_bolts()
 
     def lifter_rotate(self, c: float, eta: float, zeta: float) -> tuple[float, float]:
@@ -241,8 +285,9 @@ class LinerShape:
         dy, dz = self.lifter_rotate(c, eta, zeta)
         return R - R * math.cos(phi) + dy, 0.5 * self.width + R * math.sin(phi) + dz
 
-    def lifter_face_point(self, lifter: int = 0, face: str = "+z", height_fraction: float = 0.5,
-                          x: float = 0.0) -> tuple[Vec3, Vec3]:
+    def lifter_face_point(
+        self, lifter: int = 0, face: str = "+z", height_fraction: float = 0.5, x: float = 0.0
+    ) -> tuple[Vec3, Vec3]:
         """A point on a lifter face and the face's outward unit normal: ((x, y, z), (nx, ny, nz)), m.
 
         ``lifter`` indexes :meth:`lifter_centres`; ``face`` is ``"+z"`` or ``"-z"`` (the side the
@@ -254,21 +299,24 @@ class LinerShape:
         if face not in ("+z", "-z"):
             raise SceneError("liner.impact_face", face, "must be '+z' or '-z'")
         if not (0.0 < height_fraction < 1.0):
-            raise SceneError("liner.impact_height", height_fraction, "must lie in (0, 1) (a fraction of the lifter height)")
+            raise SceneError(
+                "liner.impact_height", height_fraction, "must lie in (0, 1) (a fraction of the lifter height)"
+            )
         if not (-0.5 * self.length < x < 0.5 * self.length):
             raise SceneError("liner.impact_x", x, f"must lie in (-{self.length / 2:g}, {self.length / 2:g}) m")
         sign = 1.0 if face == "+z" else -1.0
         hb, ht, h = 0.5 * self.lifter_base_width, 0.5 * self.lifter_top_width, self.lifter_height
         eta = height_fraction * h
-        zeta = sign * (hb + (ht - hb) * height_fraction)      # local, from the lifter's centre line
-        n_zeta, n_eta = sign * h, hb - ht                       # outward normal of the face (local)
+        zeta = sign * (hb + (ht - hb) * height_fraction)  # local, from the lifter's centre line
+        n_zeta, n_eta = sign * h, hb - ht  # outward normal of the face (local)
         nn = math.hypot(n_zeta, n_eta)
         c = self.lifter_centres()[lifter]
         (y, z), (ny, nz) = self.lifter_to_global(c, zeta, eta), self.lifter_rotate(c, n_eta / nn, n_zeta / nn)
         return (float(x), y, z), (0.0, ny, nz)
 
-    def lifter_top_point(self, lifter: int = 0, face: str = "+z", arc: float = 0.0,
-                         x: float = 0.0) -> tuple[Vec3, Vec3]:
+    def lifter_top_point(
+        self, lifter: int = 0, face: str = "+z", arc: float = 0.0, x: float = 0.0
+    ) -> tuple[Vec3, Vec3]:
         """A point on a lifter's top and the top's outward unit normal (towards the mill axis):
         ((x, y, z), (nx, ny, nz)), m. ``arc`` (m) is measured across the top from the lifter's
         centre line, positive towards ``face``; it must lie in (-top/2, top/2)."""
@@ -278,8 +326,12 @@ class LinerShape:
             raise SceneError("liner.impact_face", face, "must be '+z' or '-z'")
         ht = 0.5 * self.lifter_top_width
         if not (isinstance(arc, (int, float)) and math.isfinite(arc) and -ht < arc < ht):
-            raise SceneError("liner.impact_arc", arc, f"must lie in ({-ht:g}, {ht:g}) m on the lifter top "
-                             "(from its centre line, positive towards liner.impact_face)")
+            raise SceneError(
+                "liner.impact_arc",
+                arc,
+                f"must lie in ({-ht:g}, {ht:g}) m on the lifter top "
+                "(from its centre line, positive towards liner.impact_face)",
+            )
         if not (-0.5 * self.length < x < 0.5 * self.length):
             raise SceneError("liner.impact_x", x, f"must lie in (-{self.length / 2:g}, {self.length / 2:g}) m")
         c = self.lifter_centres()[lifter]
@@ -287,8 +339,7 @@ class LinerShape:
         (y, z), (ny, nz) = self.lifter_to_global(c, zeta, self.lifter_height), self.lifter_rotate(c, 1.0, 0.0)
         return (float(x), y, z), (0.0, ny, nz)
 
-    def plate_point(self, lifter: int = 0, face: str = "+z", arc: float = 0.0,
-                    x: float = 0.0) -> tuple[Vec3, Vec3]:
+    def plate_point(self, lifter: int = 0, face: str = "+z", arc: float = 0.0, x: float = 0.0) -> tuple[Vec3, Vec3]:
         """A point on the plate's inner face and its outward unit normal (towards the mill axis):
         ((x, y, z), (nx, ny, nz)), m. ``arc`` (m) is the arc length along the inner face from the
         centre line of ``lifter``, positive towards its ``face``; the point must lie on the plate
@@ -306,13 +357,22 @@ class LinerShape:
         if face == "-z":
             lo, hi = c - self.width, c
         if not (math.isfinite(s) and 0.0 < s < self.width):
-            raise SceneError("liner.impact_arc", arc, f"must lie on the plate: ({lo:g}, {hi:g}) m from lifter "
-                             f"{lifter}'s centre line (positive towards liner.impact_face)")
+            raise SceneError(
+                "liner.impact_arc",
+                arc,
+                f"must lie on the plate: ({lo:g}, {hi:g}) m from lifter "
+                f"{lifter}'s centre line (positive towards liner.impact_face)",
+            )
         if any(abs(s - cc) <= hb for cc in self.lifter_centres()):
-            raise SceneError("liner.impact_arc", arc, f"lies under a lifter's foot: keep it more than {hb:g} m "
-                             "from a lifter's centre line")
-        if any(self.hole_distance((x, *self._plate_yz(s)), hx, hs) <= 0.5 * self.bolt_hole_diameter
-               for hx, hs in self.bolt_holes()):
+            raise SceneError(
+                "liner.impact_arc",
+                arc,
+                f"lies under a lifter's foot: keep it more than {hb:g} m from a lifter's centre line",
+            )
+        if any(
+            self.hole_distance((x, *self._plate_yz(s)), hx, hs) <= 0.5 * self.bolt_hole_diameter
+            for hx, hs in self.bolt_holes()
+        ):
             raise SceneError("liner.impact_arc", arc, "lies in a bolt hole")
         R = self.mill_radius
         if R == 0:
@@ -329,8 +389,15 @@ class LinerShape:
         phi = (s - 0.5 * self.width) / R
         return R - R * math.cos(phi), 0.5 * self.width + R * math.sin(phi)
 
-    def impact_site(self, place: str = "lifter_face", lifter: int = 0, face: str = "+z",
-                    height_fraction: float = 0.5, x: float = 0.0, arc: float = 0.0) -> tuple[Vec3, Vec3]:
+    def impact_site(
+        self,
+        place: str = "lifter_face",
+        lifter: int = 0,
+        face: str = "+z",
+        height_fraction: float = 0.5,
+        x: float = 0.0,
+        arc: float = 0.0,
+    ) -> tuple[Vec3, Vec3]:
         """The first-contact point and outward unit normal of an impact on ``place``: a lifter face
         (:meth:`lifter_face_point`: ``height_fraction``), a lifter top (:meth:`lifter_top_point`) or
         the plate (:meth:`plate_point`), these two at ``arc`` (m) from the lifter's centre line."""
@@ -341,4 +408,3 @@ class LinerShape:
         if place == "plate":
             return self.plate_point(lifter, face, arc, x)
         raise SceneError("liner.impact_place", place, f"must be one of {', '.join(IMPACT_PLACES)}")
-

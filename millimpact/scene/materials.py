@@ -1,5 +1,5 @@
-"""Named materials for scene files (``material = "NAME"``): ``scene/materials.toml``, every value with its source.
-"""
+"""Named materials for scene files (``material = "NAME"``): ``scene/materials.toml``, every value with its source."""
+
 from __future__ import annotations
 
 import tomllib
@@ -7,8 +7,6 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SceneError
-
-
 
 #: named materials (``material = "NAME"``): scene/materials.toml, every value with its source
 NAMED_MATERIALS: dict[str, dict] = tomllib.loads((Path(__file__).with_name("materials.toml")).read_text())
@@ -19,5 +17,3 @@ def named_material(name: Any, where: str) -> dict:
     if not isinstance(name, str) or name not in NAMED_MATERIALS:
         raise SceneError(where, name, f"unknown material; named materials: {', '.join(NAMED_MATERIALS)}")
     return dict(NAMED_MATERIALS[name])
-
-

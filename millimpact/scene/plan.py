@@ -10,10 +10,10 @@ impact point, contact normal, arrival velocity and friction coefficient, and the
 recorder probes (:class:`ProbeSpec`: the contact point and each gauge, mirrored into the kept part
 of a symmetric model and nudged just inside the struck body, so that one cell holds each).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
@@ -90,8 +90,7 @@ def scene_hertz(scene: Scene) -> HertzImpact:
     """Hertz values of a scene: the ball on a half-space of the block's material (the block is
     clamped, so the impacting mass is the ball's), with the normal component of the velocity."""
     e_star = effective_modulus(scene.ball.material, scene.target_material)
-    return hertz_impact(scene.ball.radius, scene.ball.mass, scene.normal_speed, e_star,
-                        scene.target_material.poisson)
+    return hertz_impact(scene.ball.radius, scene.ball.mass, scene.normal_speed, e_star, scene.target_material.poisson)
 
 
 def smallest_size(scene: Scene) -> float:
@@ -109,11 +108,17 @@ def smallest_body_side(scene: Scene) -> tuple[str, float]:
     """The struck body's smallest size (m) and the scene field that sets it."""
     if scene.liner is not None:
         ln = scene.liner
-        sides = {"liner.length": ln.length, "liner.thickness": ln.thickness,
-                 "liner.lifter_top_width": ln.lifter_top_width}
+        sides = {
+            "liner.length": ln.length,
+            "liner.thickness": ln.thickness,
+            "liner.lifter_top_width": ln.lifter_top_width,
+        }
     else:
-        sides = {"block.length": scene.block.length, "block.thickness": scene.block.thickness,
-                 "block.height": scene.block.height}
+        sides = {
+            "block.length": scene.block.length,
+            "block.thickness": scene.block.thickness,
+            "block.height": scene.block.height,
+        }
     return min(sides.items(), key=lambda kv: kv[1])
 
 
@@ -140,8 +145,11 @@ def predict_plastic_radius(h: HertzImpact, materials: tuple[Material, ...]) -> f
     initial yield stress; :func:`millimpact.theory.thornton.plastic_zone_radius` on Thornton's
     contact radius); 0 when none yields."""
     # a material is plastic exactly when it has an initial yield stress
-    radii = [plastic_zone_radius(h.radius, h.mass, h.speed, h.e_star, y, m.poisson)[1]
-             for m in materials if (y := m.initial_yield_stress) is not None]
+    radii = [
+        plastic_zone_radius(h.radius, h.mass, h.speed, h.e_star, y, m.poisson)[1]
+        for m in materials
+        if (y := m.initial_yield_stress) is not None
+    ]
     return max(radii, default=0.0)
 
 
@@ -176,7 +184,7 @@ class ProbeSpec:
     gauges: tuple[GaugePlace, ...]
     material: Material
     liner: bool
-    slide_direction: Optional[Vec3]
+    slide_direction: Vec3 | None
     gap: float
     patch_radius: float = 0.0
     band_limit_hz: float = 0.0
@@ -192,24 +200,24 @@ class Plan:
     numbers that the lower stages need (not printed by :meth:`table`)."""
 
     hertz: HertzImpact
-    symmetry: str                 #: full | half | quarter
+    symmetry: str  #: full | half | quarter
     symmetry_planes: tuple[str, ...]  #: subset of ("x", "z"): x = x_p and z = z_p planes are cut
-    h_contact: float              #: element size at the contact point, m
-    h_far: float                  #: element size far from it, m
-    zone_radius: float            #: contact-zone radius around the contact point (both bodies), m
-    fine_radius: float            #: radius within which the size is h_contact, m
-    gap: float                    #: initial gap between ball and face, m
-    dt_contact: float             #: step while in contact, s
-    dt_free: float                #: step in free vibration, s
-    f_cut: float                  #: modal cutoff frequency, Hz
-    degree: int                   #: Lagrange degree of the full model
-    ball: Ball                    #: the ball: radius (m), material; its mass ``ball.mass`` (kg)
-    target: Material              #: the struck body's material (the block's or the liner's)
-    impact_point: Vec3            #: point p of first contact on the struck face, m
-    contact_normal: Vec3          #: outward unit normal n of the struck face at p
-    velocity: Vec3                #: the ball's arrival velocity, m/s
-    friction: float               #: Coulomb coefficient between ball and struck body
-    probes: ProbeSpec             #: what a recorder observes, and where
+    h_contact: float  #: element size at the contact point, m
+    h_far: float  #: element size far from it, m
+    zone_radius: float  #: contact-zone radius around the contact point (both bodies), m
+    fine_radius: float  #: radius within which the size is h_contact, m
+    gap: float  #: initial gap between ball and face, m
+    dt_contact: float  #: step while in contact, s
+    dt_free: float  #: step in free vibration, s
+    f_cut: float  #: modal cutoff frequency, Hz
+    degree: int  #: Lagrange degree of the full model
+    ball: Ball  #: the ball: radius (m), material; its mass ``ball.mass`` (kg)
+    target: Material  #: the struck body's material (the block's or the liner's)
+    impact_point: Vec3  #: point p of first contact on the struck face, m
+    contact_normal: Vec3  #: outward unit normal n of the struck face at p
+    velocity: Vec3  #: the ball's arrival velocity, m/s
+    friction: float  #: Coulomb coefficient between ball and struck body
+    probes: ProbeSpec  #: what a recorder observes, and where
     reasons: tuple[tuple[str, str], ...] = ()
     #: predicted radius of the plastic region about the impact point (m; 0 if the materials are
     #: elastic or the impact stays below the yield onset): :func:`predict_plastic_radius`
@@ -238,23 +246,36 @@ class Plan:
         """(name, value with unit, reason) rows for printing."""
         why = dict(self.reasons)
         rows = [
-            ("symmetry", f"{self.symmetry} (cut planes: {', '.join(self.symmetry_planes) or 'none'})", why.get("symmetry", "")),
-            ("h_contact", f"{self.h_contact*1e3:.4g} mm", why.get("h_contact", "")),
-            ("h_far", f"{self.h_far*1e3:.4g} mm", why.get("h_far", "")),
-            *([("h_ball", f"{self.h_ball*1e3:.4g} mm", why.get("h_ball", ""))] if self.h_ball > 0 else []),
-            ("zone_radius", f"{self.zone_radius*1e3:.4g} mm", why.get("zone_radius", "")),
-            *([("ball_zone_radius", f"{self.ball_zone_radius*1e3:.4g} mm", why.get("ball_zone_radius", ""))]
-              if self.ball_zone_radius > 0 else []),
-            ("fine_radius", f"{self.fine_radius*1e3:.4g} mm", why.get("fine_radius", "")),
-            ("gap", f"{self.gap*1e6:.4g} um", why.get("gap", "")),
-            ("dt_contact", f"{self.dt_contact*1e6:.4g} us", why.get("dt_contact", "")),
-            ("dt_free", f"{self.dt_free*1e6:.4g} us", why.get("dt_free", "")),
-            ("f_cut", f"{self.f_cut/1e3:.4g} kHz", why.get("f_cut", "")),
+            (
+                "symmetry",
+                f"{self.symmetry} (cut planes: {', '.join(self.symmetry_planes) or 'none'})",
+                why.get("symmetry", ""),
+            ),
+            ("h_contact", f"{self.h_contact * 1e3:.4g} mm", why.get("h_contact", "")),
+            ("h_far", f"{self.h_far * 1e3:.4g} mm", why.get("h_far", "")),
+            *([("h_ball", f"{self.h_ball * 1e3:.4g} mm", why.get("h_ball", ""))] if self.h_ball > 0 else []),
+            ("zone_radius", f"{self.zone_radius * 1e3:.4g} mm", why.get("zone_radius", "")),
+            *(
+                [("ball_zone_radius", f"{self.ball_zone_radius * 1e3:.4g} mm", why.get("ball_zone_radius", ""))]
+                if self.ball_zone_radius > 0
+                else []
+            ),
+            ("fine_radius", f"{self.fine_radius * 1e3:.4g} mm", why.get("fine_radius", "")),
+            ("gap", f"{self.gap * 1e6:.4g} um", why.get("gap", "")),
+            ("dt_contact", f"{self.dt_contact * 1e6:.4g} us", why.get("dt_contact", "")),
+            ("dt_free", f"{self.dt_free * 1e6:.4g} us", why.get("dt_free", "")),
+            ("f_cut", f"{self.f_cut / 1e3:.4g} kHz", why.get("f_cut", "")),
             ("degree", f"P{self.degree}", why.get("degree", "")),
         ]
         if self.plastic_radius > 0:
-            rows.insert(4 if self.h_ball > 0 else 3, ("plastic_radius", f"{self.plastic_radius*1e3:.4g} mm ({self.plastic_radius/self.hertz.a_max:.3g} a_max)",
-                            why.get("plastic_radius", "")))
+            rows.insert(
+                4 if self.h_ball > 0 else 3,
+                (
+                    "plastic_radius",
+                    f"{self.plastic_radius * 1e3:.4g} mm ({self.plastic_radius / self.hertz.a_max:.3g} a_max)",
+                    why.get("plastic_radius", ""),
+                ),
+            )
         return rows
 
 
@@ -271,17 +292,30 @@ def decide_symmetry(scene: Scene) -> tuple[str, tuple[str, ...], str]:
     tol = 1e-12
     planes = []
     if abs(x_p) < 1e-9 and abs(vx) <= tol * scene.impact.speed:
-        planes.append("x")   # a liner is prismatic along x and symmetric about x = 0 as well
-    if scene.liner is None and (scene.block.support == "back" and abs(z_p - 0.5 * scene.block.height) < 1e-9
-            and abs(vz) <= tol * scene.impact.speed):
+        planes.append("x")  # a liner is prismatic along x and symmetric about x = 0 as well
+    if scene.liner is None and (
+        scene.block.support == "back"
+        and abs(z_p - 0.5 * scene.block.height) < 1e-9
+        and abs(vz) <= tol * scene.impact.speed
+    ):
         planes.append("z")
     allowed = {0: "full", 1: "half", 2: "quarter"}[len(planes)]
     req = scene.model.symmetry
     if req == "auto":
-        reason = f"{allowed}: " + ("; ".join(
-            {"x": ("velocity in the plane of incidence x = 0 (liner: prismatic along x)" if scene.liner is not None
-                   else "normal velocity in the x = 0 mid-plane"), "z": "back-clamped block struck at mid-height"}[p]
-            for p in planes) or "no symmetry plane (oblique or off-centre impact)")
+        reason = f"{allowed}: " + (
+            "; ".join(
+                {
+                    "x": (
+                        "velocity in the plane of incidence x = 0 (liner: prismatic along x)"
+                        if scene.liner is not None
+                        else "normal velocity in the x = 0 mid-plane"
+                    ),
+                    "z": "back-clamped block struck at mid-height",
+                }[p]
+                for p in planes
+            )
+            or "no symmetry plane (oblique or off-centre impact)"
+        )
         return allowed, tuple(planes), reason
     order = ["full", "half", "quarter"]
     if order.index(req) > order.index(allowed):
@@ -293,8 +327,9 @@ def decide_symmetry(scene: Scene) -> tuple[str, tuple[str, ...], str]:
     return req, tuple(planes), "user choice"
 
 
-def mirror_into_model(point: np.ndarray, direction: np.ndarray, planes: tuple[str, ...],
-                      impact_point: Vec3) -> tuple[np.ndarray, np.ndarray]:
+def mirror_into_model(
+    point: np.ndarray, direction: np.ndarray, planes: tuple[str, ...], impact_point: Vec3
+) -> tuple[np.ndarray, np.ndarray]:
     """Map a point (and a direction) on the full body into the kept part of a symmetric model
     (cut by the x = x_p and z = z_p ``planes`` through the impact point)."""
     x_p, _, z_p = impact_point
@@ -311,7 +346,7 @@ def inward_point(point: np.ndarray, scene: Scene, planes: tuple[str, ...], h_con
     ``h_contact`` (m), so that one cell holds it."""
     eps = 1e-6 * h_contact
     p = np.array(point, float)
-    if scene.liner is not None:   # the liner's contact point: along -n into the lifter
+    if scene.liner is not None:  # the liner's contact point: along -n into the lifter
         p = p - eps * np.asarray(scene.contact_normal)
         if "x" in planes:
             p[0] = max(p[0], scene.impact_point[0] + eps)
@@ -329,7 +364,7 @@ def inward_point(point: np.ndarray, scene: Scene, planes: tuple[str, ...], h_con
     return p
 
 
-def slide_direction(velocity: Vec3, normal: Vec3) -> Optional[Vec3]:
+def slide_direction(velocity: Vec3, normal: Vec3) -> Vec3 | None:
     """The unit tangential direction of ``velocity`` on the plane of unit ``normal``; None when
     the velocity is normal to it (tangential part below 1e-12 of the speed)."""
     v, n = np.array(velocity), np.array(normal)
@@ -339,8 +374,14 @@ def slide_direction(velocity: Vec3, normal: Vec3) -> Optional[Vec3]:
     return None
 
 
-def make_probe_spec(scene: Scene, planes: tuple[str, ...], h_contact: float, gap: float,
-                    patch_radius: float = 0.0, band_limit_hz: float = 0.0) -> ProbeSpec:
+def make_probe_spec(
+    scene: Scene,
+    planes: tuple[str, ...],
+    h_contact: float,
+    gap: float,
+    patch_radius: float = 0.0,
+    band_limit_hz: float = 0.0,
+) -> ProbeSpec:
     """Where a model of ``scene`` (cut by the symmetry ``planes``, contact element size
     ``h_contact``) is probed: the contact point and each gauge, inside the struck body's kept
     part; ``patch_radius``: see :class:`ProbeSpec`."""
@@ -348,11 +389,17 @@ def make_probe_spec(scene: Scene, planes: tuple[str, ...], h_contact: float, gap
     gauges = []
     for g in scene.gauges:
         p, d = mirror_into_model(np.array(g.position), np.array(g.direction), planes, scene.impact_point)
-        gauges.append(GaugePlace(g.name, vec3(inward_point(p, scene, planes, h_contact)),
-                                 vec3(d / np.linalg.norm(d))))
-    return ProbeSpec(vec3(contact_point), tuple(gauges), scene.target_material, scene.liner is not None,
-                     slide_direction(scene.impact.velocity, scene.contact_normal), gap, patch_radius,
-                     band_limit_hz)
+        gauges.append(GaugePlace(g.name, vec3(inward_point(p, scene, planes, h_contact)), vec3(d / np.linalg.norm(d))))
+    return ProbeSpec(
+        vec3(contact_point),
+        tuple(gauges),
+        scene.target_material,
+        scene.liner is not None,
+        slide_direction(scene.impact.velocity, scene.contact_normal),
+        gap,
+        patch_radius,
+        band_limit_hz,
+    )
 
 
 def make_plan(scene: Scene) -> Plan:
@@ -374,9 +421,11 @@ def make_plan(scene: Scene) -> Plan:
         # compliance and the low modes, which its own size sets; the contact's stress field decays
         # within a few contact radii, which the growth from h_contact resolves
         h_far, h_ball = side / 4.0, scene.ball.radius / 4.0
-        reasons["h_far"] = (f"{side_field} / 4: a small ball (radius <= {SMALL_BALL_SHARE:g} x the body's smallest "
-                            f"side), the size grows from the contact at <= {MAX_SIZE_GROWTH:g} per unit distance: "
-                            "the cost follows the contact, not the block")
+        reasons["h_far"] = (
+            f"{side_field} / 4: a small ball (radius <= {SMALL_BALL_SHARE:g} x the body's smallest "
+            f"side), the size grows from the contact at <= {MAX_SIZE_GROWTH:g} per unit distance: "
+            "the cost follows the contact, not the block"
+        )
         reasons["h_ball"] = "ball radius / 4 inside the ball (small ball)"
     f_cut_plan = m.f_cut if m.f_cut is not None else F_CUT_FACTOR / h.contact_time
     h_wave = wave_element_size(scene.target_material, f_cut_plan)
@@ -384,17 +433,23 @@ def make_plan(scene: Scene) -> Plan:
         # a liner's gauges sit away from the impact (a bolt hole, a lifter root): the waves that
         # reach them are the answer there, so the far mesh resolves them up to the cutoff
         h_far = h_wave
-        reasons["h_far"] = (f"shear wavelength at f_cut / {WAVE_ELEMENTS:g} (gauges away from the impact; "
-                            "P1 phase error (k h)^2 / 24 ~ 0.4 %)")
-    if h_ball >= h_far:    # the wave size above took the body's far size below the ball's
+        reasons["h_far"] = (
+            f"shear wavelength at f_cut / {WAVE_ELEMENTS:g} (gauges away from the impact; "
+            "P1 phase error (k h)^2 / 24 ~ 0.4 %)"
+        )
+    if h_ball >= h_far:  # the wave size above took the body's far size below the ball's
         h_ball = 0.0
         reasons.pop("h_ball", None)
     c_p = predict_plastic_radius(h, (scene.ball.material, scene.target_material))
     reasons["plastic_radius"] = "Johnson's cavity model on Thornton's contact radius (theory/thornton.py)"
     zone = m.zone_radius if m.zone_radius is not None else max(ZONE_RADIUS_FACTOR * h.a_max, PLASTIC_ZONE_MARGIN * c_p)
-    reasons["zone_radius"] = ("user" if m.zone_radius is not None else
-                              f"{ZONE_RADIUS_FACTOR:g} a_max (holds the contact patch)" if zone == ZONE_RADIUS_FACTOR * h.a_max
-                              else f"{PLASTIC_ZONE_MARGIN:g} plastic_radius (holds the plastic region)")
+    reasons["zone_radius"] = (
+        "user"
+        if m.zone_radius is not None
+        else f"{ZONE_RADIUS_FACTOR:g} a_max (holds the contact patch)"
+        if zone == ZONE_RADIUS_FACTOR * h.a_max
+        else f"{PLASTIC_ZONE_MARGIN:g} plastic_radius (holds the plastic region)"
+    )
     limit = zone_radius_limit(scene)
     if m.zone_radius is None and zone > PLASTIC_ZONE_CAP * limit:
         # the margins ask for more than the bodies allow (a fast impact of a small ball): take what
@@ -402,8 +457,9 @@ def make_plan(scene: Scene) -> Plan:
         # methods), and a plastic run's zone-boundary check says whether the plastic region stayed
         # inside
         zone = PLASTIC_ZONE_CAP * limit
-        reasons["zone_radius"] = (f"{zone / h.a_max:.3g} a_max: capped by the bodies' size "
-                                  f"(0.45 x the smallest, {limit:g} m)")
+        reasons["zone_radius"] = (
+            f"{zone / h.a_max:.3g} a_max: capped by the bodies' size (0.45 x the smallest, {limit:g} m)"
+        )
     if zone >= limit:
         raise SceneError("model.zone_radius", zone, f"the contact zone must be smaller than {limit:g} m for this scene")
     ball_zone = 0.0
@@ -412,16 +468,21 @@ def make_plan(scene: Scene) -> Plan:
         # the block's plastic region is larger than the ball: the ball's zone stays inside it and
         # holds the contact patch (the candidates need 1.2 a_max + 2 h_contact)
         ball_zone = ball_limit
-        reasons["ball_zone_radius"] = (f"{PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} ball radius: a small ball's zone "
-                                       "in the ball (the block's is larger)")
+        reasons["ball_zone_radius"] = (
+            f"{PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} ball radius: a small ball's zone "
+            "in the ball (the block's is larger)"
+        )
     if m.ball_zone_radius is not None:
         # the ball's own zone (a repeated-impact sequence: the liner's plastic region grows, the
         # ball's stays small), no larger than the zone and than the ball allows
         top = min(zone, ball_limit) if is_small_ball(scene) else zone
         if m.ball_zone_radius > top:
-            raise SceneError("model.ball_zone_radius", m.ball_zone_radius,
-                             f"must be at most {top:g} m (the contact zone's radius"
-                             + (f", and {PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} the ball radius)" if top < zone else ")"))
+            raise SceneError(
+                "model.ball_zone_radius",
+                m.ball_zone_radius,
+                f"must be at most {top:g} m (the contact zone's radius"
+                + (f", and {PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} the ball radius)" if top < zone else ")"),
+            )
         ball_zone = m.ball_zone_radius if m.ball_zone_radius < zone else 0.0
         reasons["ball_zone_radius"] = "user"
     fine = min(1.5 * h.a_max, ball_zone or zone)
@@ -430,18 +491,25 @@ def make_plan(scene: Scene) -> Plan:
         # a fast plastic impact's plastic region (and contact) outgrows 1.5 a_max: the user can
         # mesh the whole region at h_contact (benchmarks/plastic_restitution.py)
         if m.fine_radius > (ball_zone or zone):
-            raise SceneError("model.fine_radius", m.fine_radius,
-                             f"must be at most the contact-zone radius ({ball_zone or zone:g} m)")
+            raise SceneError(
+                "model.fine_radius", m.fine_radius, f"must be at most the contact-zone radius ({ball_zone or zone:g} m)"
+            )
         fine, reasons["fine_radius"] = m.fine_radius, "user"
     if h_c > (ball_zone or zone) / 2:
         if m.h_contact is not None:
-            raise SceneError("model.h_contact", h_c, f"must be at most half the contact-zone radius ({zone/2:g} m)")
+            raise SceneError("model.h_contact", h_c, f"must be at most half the contact-zone radius ({zone / 2:g} m)")
         if m.zone_radius is not None:
-            raise SceneError("model.zone_radius", zone, f"must be at least 2 h_contact = {2 * h_c:.4g} m "
-                             f"(h_contact = a_max / {ELEMENTS_ACROSS_CONTACT:g} of this impact)")
+            raise SceneError(
+                "model.zone_radius",
+                zone,
+                f"must be at least 2 h_contact = {2 * h_c:.4g} m "
+                f"(h_contact = a_max / {ELEMENTS_ACROSS_CONTACT:g} of this impact)",
+            )
         raise contact_too_large(scene, h)
     gap = scene.impact.gap if scene.impact.gap is not None else GAP_FACTOR * h.delta_max
-    reasons["gap"] = "user" if scene.impact.gap is not None else f"{GAP_FACTOR:g} delta_max (flight before contact is exact)"
+    reasons["gap"] = (
+        "user" if scene.impact.gap is not None else f"{GAP_FACTOR:g} delta_max (flight before contact is exact)"
+    )
     t = scene.time
     dt_c = t.dt_contact if t.dt_contact is not None else h.contact_time / STEPS_PER_CONTACT
     reasons["dt_contact"] = "user" if t.dt_contact is not None else f"t_c / {STEPS_PER_CONTACT}"
@@ -449,18 +517,38 @@ def make_plan(scene: Scene) -> Plan:
     reasons["f_cut"] = "user" if m.f_cut is not None else f"{F_CUT_FACTOR:g} / t_c (docs: design, section 4)"
     # free vibration: resolve the kept band (10 steps per period of f_cut)
     dt_f = t.dt_free if t.dt_free is not None else max(dt_c, 1.0 / (10.0 * f_cut))
-    reasons["dt_free"] = "user" if t.dt_free is not None else "1 / (10 f_cut): ten steps per period of the highest kept mode"
+    reasons["dt_free"] = (
+        "user" if t.dt_free is not None else "1 / (10 f_cut): ten steps per period of the highest kept mode"
+    )
     reasons["degree"] = "user" if m.degree != 1 else f"P1 (default): expect {P1_EXPECTED_ERROR}; {P2_REMEDY}"
     if dt_c > t.end:
         raise SceneError("time.end", t.end, f"must exceed the contact step ({dt_c:g} s)")
-    return Plan(h, sym, planes, h_c, h_far, zone, fine, gap, dt_c, dt_f, f_cut, m.degree,
-                ball=scene.ball, target=scene.target_material, impact_point=scene.impact_point,
-                contact_normal=scene.contact_normal, velocity=scene.impact.velocity,
-                friction=scene.contact.friction,
-                probes=make_probe_spec(scene, planes, h_c, gap, h.a_max, F_CUT_FACTOR / h.contact_time),
-                reasons=tuple(reasons.items()), plastic_radius=c_p,
-                backing_stiffness=scene.liner.backing_stiffness if scene.liner is not None else 0.0,
-                h_ball=h_ball, ball_zone_radius=ball_zone)
+    return Plan(
+        h,
+        sym,
+        planes,
+        h_c,
+        h_far,
+        zone,
+        fine,
+        gap,
+        dt_c,
+        dt_f,
+        f_cut,
+        m.degree,
+        ball=scene.ball,
+        target=scene.target_material,
+        impact_point=scene.impact_point,
+        contact_normal=scene.contact_normal,
+        velocity=scene.impact.velocity,
+        friction=scene.contact.friction,
+        probes=make_probe_spec(scene, planes, h_c, gap, h.a_max, F_CUT_FACTOR / h.contact_time),
+        reasons=tuple(reasons.items()),
+        plastic_radius=c_p,
+        backing_stiffness=scene.liner.backing_stiffness if scene.liner is not None else 0.0,
+        h_ball=h_ball,
+        ball_zone_radius=ball_zone,
+    )
 
 
 #: the largest Hertz contact radius a_max the plan meshes, as a share of the smallest of the ball
@@ -482,17 +570,23 @@ def contact_too_large(scene: Scene, h: HertzImpact) -> SceneError:
     side_field, side = smallest_body_side(scene)
     if ratio > share:
         v_max = h.speed * (share * min(scene.ball.radius, side) / h.a_max) ** 2.5
-        return SceneError("impact.velocity", list(scene.impact.velocity),
-                          f"with these materials (ball density {scene.ball.material.density:g} kg/m^3, contact "
-                          f"modulus E* {h.e_star:.3g} Pa) the Hertz contact radius a_max would be {ratio:.3g} x the "
-                          f"ball radius, more than the {share:.3g} the model meshes: the normal speed must be at most "
-                          f"{v_max:.3g} m/s (or the materials stiffer or lighter)")
+        return SceneError(
+            "impact.velocity",
+            list(scene.impact.velocity),
+            f"with these materials (ball density {scene.ball.material.density:g} kg/m^3, contact "
+            f"modulus E* {h.e_star:.3g} Pa) the Hertz contact radius a_max would be {ratio:.3g} x the "
+            f"ball radius, more than the {share:.3g} the model meshes: the normal speed must be at most "
+            f"{v_max:.3g} m/s (or the materials stiffer or lighter)",
+        )
     r_max = scene.ball.radius * share * side / h.a_max
-    return SceneError("ball.radius", scene.ball.radius,
-                      f"must be at most {r_max:.3g} m on this {'liner' if scene.liner is not None else 'block'} "
-                      f"({side_field} = {side:g} m): its Hertz contact radius a_max = {h.a_max:.3g} m must stay "
-                      f"under {share:.3g} x the struck body's smallest side (or make the body's sides at least "
-                      f"{h.a_max / share:.3g} m)")
+    return SceneError(
+        "ball.radius",
+        scene.ball.radius,
+        f"must be at most {r_max:.3g} m on this {'liner' if scene.liner is not None else 'block'} "
+        f"({side_field} = {side:g} m): its Hertz contact radius a_max = {h.a_max:.3g} m must stay "
+        f"under {share:.3g} x the struck body's smallest side (or make the body's sides at least "
+        f"{h.a_max / share:.3g} m)",
+    )
 
 
 #: first yield under a Hertz contact (von Mises, nu = 0.3): p0 = 1.60 Y on the axis at 0.48 a
@@ -503,7 +597,7 @@ FIRST_YIELD_PRESSURE_FACTOR = 1.60
 TYPICAL_LINER_YIELD = 0.95e9
 
 
-def elastic_limit_note(plan: Plan) -> Optional[str]:
+def elastic_limit_note(plan: Plan) -> str | None:
     """A note when an all-elastic scene's Hertz pressure exceeds first yield (p0 > 1.6 Y) of its
     materials' yield stresses (none given: of a typical liner steel), else None."""
     if plan.ball.material.plastic or plan.target.plastic:
@@ -526,22 +620,28 @@ def first_yield_notes(h: HertzImpact, ball: Material, target: Material, target_n
         assert y is not None, "a plastic material has an initial yield stress"
         limit = FIRST_YIELD_PRESSURE_FACTOR * y
         if h.p0 > limit:
-            notes.append(f"beyond the elastic limit: p0 = {h.p0 / 1e9:.3g} GPa exceeds the {body}'s first-yield "
-                         f"pressure 1.6 Y = {limit / 1e9:.3g} GPa (Y {y / 1e9:.3g} GPa; Johnson 1985, 6.2): the "
-                         f"{body} yields, and these elastic values overestimate the peak force and the restitution "
-                         "(millimpact run with a plastic method gives the elastic-plastic answer)")
+            notes.append(
+                f"beyond the elastic limit: p0 = {h.p0 / 1e9:.3g} GPa exceeds the {body}'s first-yield "
+                f"pressure 1.6 Y = {limit / 1e9:.3g} GPa (Y {y / 1e9:.3g} GPa; Johnson 1985, 6.2): the "
+                f"{body} yields, and these elastic values overestimate the peak force and the restitution "
+                "(millimpact run with a plastic method gives the elastic-plastic answer)"
+            )
         else:
-            notes.append(f"within the elastic limit of the {body}: p0 = {h.p0 / 1e9:.3g} GPa <= 1.6 Y = "
-                         f"{limit / 1e9:.3g} GPa (Johnson 1985, 6.2)")
+            notes.append(
+                f"within the elastic limit of the {body}: p0 = {h.p0 / 1e9:.3g} GPa <= 1.6 Y = "
+                f"{limit / 1e9:.3g} GPa (Johnson 1985, 6.2)"
+            )
     return notes
 
 
-def _typical_steel_note(p0: float) -> Optional[str]:
+def _typical_steel_note(p0: float) -> str | None:
     """The elastic-limit note of an all-elastic scene (p0 in Pa), None below the limit."""
     limit = FIRST_YIELD_PRESSURE_FACTOR * TYPICAL_LINER_YIELD
     if p0 <= limit:
         return None
-    return (f"elastic model beyond the elastic limit: Hertz p0 = {p0 / 1e9:.3g} GPa exceeds the first-yield pressure "
-            f"1.6 Y = {limit / 1e9:.3g} GPa of a typical liner steel (Y {TYPICAL_LINER_YIELD / 1e9:g} GPa); real steels "
-            f"yield here: set [block.material] / [liner.material] name = \"cr-mo-liner\" (or yield_stress) for the "
-            f"elastic-plastic answer (methods improved, traditional, full; scene paper-rig-plastic is the rig so)")
+    return (
+        f"elastic model beyond the elastic limit: Hertz p0 = {p0 / 1e9:.3g} GPa exceeds the first-yield pressure "
+        f"1.6 Y = {limit / 1e9:.3g} GPa of a typical liner steel (Y {TYPICAL_LINER_YIELD / 1e9:g} GPa); real steels "
+        f'yield here: set [block.material] / [liner.material] name = "cr-mo-liner" (or yield_stress) for the '
+        f"elastic-plastic answer (methods improved, traditional, full; scene paper-rig-plastic is the rig so)"
+    )

@@ -11,6 +11,7 @@ direction. ``support = "base"`` clamps the ``z = 0`` face (the paper's rig), ``"
 ``y = -thickness`` face (a half-space-like block). The ball starts at
 ``(x_p, radius + gap, z_p)`` above the impact point ``(x_p, 0, z_p)`` and moves with ``velocity``.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -19,15 +20,14 @@ import math
 import tomllib
 import typing
 from dataclasses import dataclass, field
-from typing import Any, Optional
+from typing import Any
 
 from ..errors import SceneError
 from .liner_shape import IMPACT_PLACES, LinerShape, vec3
+from .materials import named_material
 
 Vec3 = tuple[float, float, float]
 Vec2 = tuple[float, float]
-from .materials import named_material
-
 
 #: densities the model takes, kg/m^3: engineering solids from polymers (~900) to the densest metal,
 #: osmium (22,590; CRC Handbook of Chemistry and Physics), with margin
@@ -49,9 +49,9 @@ class Material:
     density: float = 7800.0
     shear_modulus: float = 70.0e9
     poisson: float = 0.3
-    yield_stress: Optional[float] = None
+    yield_stress: float | None = None
     hardening_modulus: float = 0.0
-    flow_curve: Optional[tuple[tuple[float, float], ...]] = None
+    flow_curve: tuple[tuple[float, float], ...] | None = None
     source: str = ""
 
     def validate(self, where: str) -> None:
@@ -63,26 +63,43 @@ class Material:
             _positive(f"{where}.yield_stress", self.yield_stress, "Pa (leave it out for an elastic material)")
         _finite(f"{where}.hardening_modulus", self.hardening_modulus, "Pa")
         if self.hardening_modulus < 0:
-            raise SceneError(f"{where}.hardening_modulus", self.hardening_modulus, "must be >= 0 Pa (0: perfectly plastic)")
+            raise SceneError(
+                f"{where}.hardening_modulus", self.hardening_modulus, "must be >= 0 Pa (0: perfectly plastic)"
+            )
         if self.hardening_modulus != 0 and (self.yield_stress is None or self.flow_curve is not None):
             # it would be ignored: linear hardening needs a yield stress, a flow curve has its own slopes
-            raise SceneError(f"{where}.hardening_modulus", self.hardening_modulus,
-                             "applies with yield_stress only (linear hardening): " +
-                             ("the flow curve gives the hardening; leave it out" if self.flow_curve is not None
-                              else "give yield_stress too, or leave it out for an elastic material"))
+            raise SceneError(
+                f"{where}.hardening_modulus",
+                self.hardening_modulus,
+                "applies with yield_stress only (linear hardening): "
+                + (
+                    "the flow curve gives the hardening; leave it out"
+                    if self.flow_curve is not None
+                    else "give yield_stress too, or leave it out for an elastic material"
+                ),
+            )
         if self.flow_curve is not None:
             pts = self.flow_curve
             if len(pts) < 2:
-                raise SceneError(f"{where}.flow_curve", [list(p) for p in pts], "must have at least two [strain, stress] pairs")
+                raise SceneError(
+                    f"{where}.flow_curve", [list(p) for p in pts], "must have at least two [strain, stress] pairs"
+                )
             if pts[0][0] != 0.0 or any(b[0] <= a[0] for a, b in zip(pts, pts[1:])):
-                raise SceneError(f"{where}.flow_curve", [list(p) for p in pts],
-                                 "plastic strains must start at 0 and increase strictly")
+                raise SceneError(
+                    f"{where}.flow_curve",
+                    [list(p) for p in pts],
+                    "plastic strains must start at 0 and increase strictly",
+                )
             if pts[0][1] <= 0 or any(b[1] < a[1] for a, b in zip(pts, pts[1:])):
-                raise SceneError(f"{where}.flow_curve", [list(p) for p in pts],
-                                 "flow stresses must be > 0 Pa and must not decrease")
+                raise SceneError(
+                    f"{where}.flow_curve", [list(p) for p in pts], "flow stresses must be > 0 Pa and must not decrease"
+                )
             if self.yield_stress is not None and self.yield_stress != pts[0][1]:
-                raise SceneError(f"{where}.yield_stress", self.yield_stress,
-                                 f"must equal the flow curve's first stress {pts[0][1]:g} Pa (or be left out)")
+                raise SceneError(
+                    f"{where}.yield_stress",
+                    self.yield_stress,
+                    f"must equal the flow curve's first stress {pts[0][1]:g} Pa (or be left out)",
+                )
 
     @property
     def plastic(self) -> bool:
@@ -90,7 +107,7 @@ class Material:
         return self.yield_stress is not None or self.flow_curve is not None
 
     @property
-    def initial_yield_stress(self) -> Optional[float]:
+    def initial_yield_stress(self) -> float | None:
         """The stress at which yielding starts (Pa), None for an elastic material."""
         return self.flow_curve[0][1] if self.flow_curve is not None else self.yield_stress
 
@@ -137,22 +154,29 @@ class Ball:
 
     radius: float = 0.015
     material: Material = field(default_factory=Material)
-    body_mass: Optional[float] = None
+    body_mass: float | None = None
 
     def validate(self) -> None:
         _positive("ball.radius", self.radius, "m")
         if not (BALL_RADIUS_RANGE[0] <= self.radius <= BALL_RADIUS_RANGE[1]):
-            raise SceneError("ball.radius", self.radius, f"must lie in [{BALL_RADIUS_RANGE[0]:g}, {BALL_RADIUS_RANGE[1]:g}] m "
-                             "(test and grinding balls; a small-contact impact model)")
+            raise SceneError(
+                "ball.radius",
+                self.radius,
+                f"must lie in [{BALL_RADIUS_RANGE[0]:g}, {BALL_RADIUS_RANGE[1]:g}] m "
+                "(test and grinding balls; a small-contact impact model)",
+            )
         self.material.validate("ball.material")
         if self.body_mass is not None:
             own = self.sphere_mass
             lo, hi = own, BODY_MASS_RATIO_MAX * own
             _finite("ball.body_mass", self.body_mass, "kg")
             if not (lo * (1 - 1e-12) <= self.body_mass <= hi):
-                raise SceneError("ball.body_mass", self.body_mass,
-                                 f"must lie in [{lo:.4g}, {hi:.4g}] kg: at least the sphere's own mass and at most "
-                                 f"{BODY_MASS_RATIO_MAX:g} x it (or leave it out: the sphere's mass)")
+                raise SceneError(
+                    "ball.body_mass",
+                    self.body_mass,
+                    f"must lie in [{lo:.4g}, {hi:.4g}] kg: at least the sphere's own mass and at most "
+                    f"{BODY_MASS_RATIO_MAX:g} x it (or leave it out: the sphere's mass)",
+                )
 
     @property
     def sphere_mass(self) -> float:
@@ -188,7 +212,9 @@ class Block:
         _positive("block.thickness", self.thickness, "m")
         _positive("block.height", self.height, "m")
         if self.support not in ("base", "back"):
-            raise SceneError("block.support", self.support, "must be 'base' (z = 0 face) or 'back' (y = -thickness face)")
+            raise SceneError(
+                "block.support", self.support, "must be 'base' (z = 0 face) or 'back' (y = -thickness face)"
+            )
         self.material.validate("block.material")
 
 
@@ -243,8 +269,9 @@ class Liner(LinerShape):
         surface's outward unit normal (m)."""
         if self.impact_place == "lifter_face":
             return self.lifter_face_point(self.impact_lifter, self.impact_face, self.impact_height, self.impact_x)
-        return self.impact_site(self.impact_place, self.impact_lifter, self.impact_face, self.impact_height,
-                                self.impact_x, self.impact_arc)
+        return self.impact_site(
+            self.impact_place, self.impact_lifter, self.impact_face, self.impact_height, self.impact_x, self.impact_arc
+        )
 
     def validate(self) -> None:
         self.material.validate("liner.material")
@@ -254,7 +281,7 @@ class Liner(LinerShape):
         if self.impact_place not in IMPACT_PLACES:
             raise SceneError("liner.impact_place", self.impact_place, f"must be one of {', '.join(IMPACT_PLACES)}")
         _finite("liner.impact_arc", self.impact_arc, "m from the struck lifter's centre line")
-        self.face_point()   # refuses a lifter, face, height or x off the liner
+        self.face_point()  # refuses a lifter, face, height or x off the liner
         _positive("liner.backing_modulus", self.backing_modulus, "Pa (compression modulus of the rubber backing)")
         _positive("liner.backing_thickness", self.backing_thickness, "m (thickness of the rubber backing)")
 
@@ -282,8 +309,8 @@ class Impact:
     """
 
     velocity: Vec3 = (0.0, -3.0, 0.0)
-    point: Optional[Vec2] = None
-    gap: Optional[float] = None
+    point: Vec2 | None = None
+    gap: float | None = None
 
     @property
     def speed(self) -> float:
@@ -310,8 +337,8 @@ class TimeSpan:
     ``None`` for the plan's choice (from the Hertz contact time)."""
 
     end: float = 0.040
-    dt_contact: Optional[float] = None
-    dt_free: Optional[float] = None
+    dt_contact: float | None = None
+    dt_free: float | None = None
 
 
 @dataclass(frozen=True)
@@ -327,15 +354,15 @@ class ModelOptions:
     liner's).
     """
 
-    h_contact: Optional[float] = None
-    h_far: Optional[float] = None
-    zone_radius: Optional[float] = None
+    h_contact: float | None = None
+    h_far: float | None = None
+    zone_radius: float | None = None
     symmetry: str = "auto"
     degree: int = 1
-    f_cut: Optional[float] = None
-    modes: Optional[int] = None
-    fine_radius: Optional[float] = None
-    ball_zone_radius: Optional[float] = None
+    f_cut: float | None = None
+    modes: int | None = None
+    fine_radius: float | None = None
+    ball_zone_radius: float | None = None
 
 
 @dataclass(frozen=True)
@@ -362,7 +389,7 @@ class Scene:
     time: TimeSpan = field(default_factory=TimeSpan)
     model: ModelOptions = field(default_factory=ModelOptions)
     outputs: Outputs = field(default_factory=Outputs)
-    liner: Optional[Liner] = None
+    liner: Liner | None = None
     contact: ContactOptions = field(default_factory=ContactOptions)
 
     def __post_init__(self) -> None:
@@ -415,35 +442,56 @@ class Scene:
         self.block.validate()
         if self.liner is not None and self.block != Block():
             # a liner replaces the block: a block field set on a liner scene would be ignored
-            changed = [f"block.{f.name}" for f in dataclasses.fields(Block)
-                       if getattr(self.block, f.name) != getattr(Block(), f.name)]
-            raise SceneError(changed[0], getattr(self.block, changed[0].split(".", 1)[1]),
-                             "is not used by a liner scene (its [liner] replaces the block): set the liner's "
-                             "fields (liner.thickness, liner.material, ...) instead")
+            changed = [
+                f"block.{f.name}"
+                for f in dataclasses.fields(Block)
+                if getattr(self.block, f.name) != getattr(Block(), f.name)
+            ]
+            raise SceneError(
+                changed[0],
+                getattr(self.block, changed[0].split(".", 1)[1]),
+                "is not used by a liner scene (its [liner] replaces the block): set the liner's "
+                "fields (liner.thickness, liner.material, ...) instead",
+            )
         imp, blk = self.impact, self.block
         for i, c in enumerate(imp.velocity):
             _finite(f"impact.velocity[{i}]", c, "m/s")
         if imp.speed > MAX_IMPACT_SPEED:
-            raise SceneError("impact.velocity", list(imp.velocity), f"its speed {imp.speed:g} m/s must be at most "
-                             f"{MAX_IMPACT_SPEED:g} m/s (small-strain contact; mill impacts are below ~15 m/s)")
+            raise SceneError(
+                "impact.velocity",
+                list(imp.velocity),
+                f"its speed {imp.speed:g} m/s must be at most "
+                f"{MAX_IMPACT_SPEED:g} m/s (small-strain contact; mill impacts are below ~15 m/s)",
+            )
         self.contact.validate()
         if self.liner is not None:
             self._validate_liner(self.liner)
         elif imp.normal_speed <= 0.0:
-            raise SceneError("impact.velocity", list(imp.velocity),
-                             "its y component must be negative (towards the struck face y = 0)")
+            raise SceneError(
+                "impact.velocity",
+                list(imp.velocity),
+                "its y component must be negative (towards the struck face y = 0)",
+            )
         if imp.point is not None and self.liner is None:
             x, z = imp.point
             if not (-blk.length / 2 < x < blk.length / 2):
-                raise SceneError("impact.point[0]", x, f"must lie on the face: (-{blk.length/2:g}, {blk.length/2:g}) m")
+                raise SceneError(
+                    "impact.point[0]", x, f"must lie on the face: (-{blk.length / 2:g}, {blk.length / 2:g}) m"
+                )
             if not (0.0 < z < blk.height):
                 raise SceneError("impact.point[1]", z, f"must lie on the face: (0, {blk.height:g}) m")
         if imp.gap is not None:
             if not (math.isfinite(imp.gap) and imp.gap >= 0.0):
-                raise SceneError("impact.gap", imp.gap, "must be >= 0 m (a negative gap puts the ball inside the block)")
+                raise SceneError(
+                    "impact.gap", imp.gap, "must be >= 0 m (a negative gap puts the ball inside the block)"
+                )
             if imp.gap > self.ball.radius:
-                raise SceneError("impact.gap", imp.gap, f"must be at most the ball radius ({self.ball.radius:g} m): "
-                                 "the simulation starts just before contact")
+                raise SceneError(
+                    "impact.gap",
+                    imp.gap,
+                    f"must be at most the ball radius ({self.ball.radius:g} m): "
+                    "the simulation starts just before contact",
+                )
         names = set()
         for i, g in enumerate(self.gauges):
             where = f"gauges[{i}]"
@@ -453,21 +501,41 @@ class Scene:
             if self.liner is not None:
                 # a gauge on a liner sits a hair under its surface (the probe needs a cell holding it)
                 if not self.liner.contains(vec3(g.position), tol=1e-9):
-                    raise SceneError(f"{where}.position", list(g.position), "must lie in the liner (plate or a "
-                                     "lifter, not in a bolt hole): place it a fraction of a mm under the surface")
+                    raise SceneError(
+                        f"{where}.position",
+                        list(g.position),
+                        "must lie in the liner (plate or a "
+                        "lifter, not in a bolt hole): place it a fraction of a mm under the surface",
+                    )
                 if not math.sqrt(sum(c * c for c in g.direction)) > 0:
                     raise SceneError(f"{where}.direction", list(g.direction), "must be a non-zero vector")
                 continue
             x, y, z = g.position
             tol = 1e-9
-            inside = (-blk.length / 2 - tol <= x <= blk.length / 2 + tol and -blk.thickness - tol <= y <= tol
-                      and -tol <= z <= blk.height + tol)
-            on_surface = inside and min(abs(x - blk.length / 2), abs(x + blk.length / 2), abs(y), abs(y + blk.thickness),
-                                        abs(z), abs(z - blk.height)) <= 1e-6
+            inside = (
+                -blk.length / 2 - tol <= x <= blk.length / 2 + tol
+                and -blk.thickness - tol <= y <= tol
+                and -tol <= z <= blk.height + tol
+            )
+            on_surface = (
+                inside
+                and min(
+                    abs(x - blk.length / 2),
+                    abs(x + blk.length / 2),
+                    abs(y),
+                    abs(y + blk.thickness),
+                    abs(z),
+                    abs(z - blk.height),
+                )
+                <= 1e-6
+            )
             if not on_surface:
-                raise SceneError(f"{where}.position", list(g.position),
-                                 f"must lie on the block's surface: x in [{-blk.length/2:g}, {blk.length/2:g}], "
-                                 f"y in [{-blk.thickness:g}, 0], z in [0, {blk.height:g}] m with one coordinate on a face")
+                raise SceneError(
+                    f"{where}.position",
+                    list(g.position),
+                    f"must lie on the block's surface: x in [{-blk.length / 2:g}, {blk.length / 2:g}], "
+                    f"y in [{-blk.thickness:g}, 0], z in [0, {blk.height:g}] m with one coordinate on a face",
+                )
             n = math.sqrt(sum(c * c for c in g.direction))
             if not n > 0:
                 raise SceneError(f"{where}.direction", list(g.direction), "must be a non-zero vector")
@@ -483,8 +551,11 @@ class Scene:
             if v is not None:
                 _positive(f"model.{name}", v, "Hz" if name == "f_cut" else "m")
         if m.zone_radius is not None and self.liner is None and m.zone_radius >= min(blk.length, blk.height) / 2:
-            raise SceneError("model.zone_radius", m.zone_radius,
-                             f"must be smaller than half the struck face ({min(blk.length, blk.height)/2:g} m)")
+            raise SceneError(
+                "model.zone_radius",
+                m.zone_radius,
+                f"must be smaller than half the struck face ({min(blk.length, blk.height) / 2:g} m)",
+            )
         if m.symmetry not in ("auto", "full", "half", "quarter"):
             raise SceneError("model.symmetry", m.symmetry, "must be one of auto, full, half, quarter")
         if m.degree not in (1, 2):
@@ -501,41 +572,58 @@ class Scene:
         imp = self.impact
         ln.validate()
         if imp.point is not None:
-            raise SceneError("impact.point", list(imp.point), "is not used with a liner: place the impact with "
-                             "liner.impact_lifter / impact_face / impact_height / impact_x")
+            raise SceneError(
+                "impact.point",
+                list(imp.point),
+                "is not used with a liner: place the impact with "
+                "liner.impact_lifter / impact_face / impact_height / impact_x",
+            )
         p, n = ln.face_point()
         vn = sum(v * c for v, c in zip(imp.velocity, n))
         if not vn < 0.0:
-            raise SceneError("impact.velocity", list(imp.velocity),
-                             f"must point into the struck lifter face (v . n < 0 with its outward normal n = "
-                             f"({n[0]:.4g}, {n[1]:.4g}, {n[2]:.4g}))")
+            raise SceneError(
+                "impact.velocity",
+                list(imp.velocity),
+                f"must point into the struck lifter face (v . n < 0 with its outward normal n = "
+                f"({n[0]:.4g}, {n[1]:.4g}, {n[2]:.4g}))",
+            )
         c = self.ball_centre(0.0 if imp.gap is None else imp.gap)
         if ln.impact_place != "lifter_face":
             self._check_ball_clear(ln, c)
             return
         Rm = ln.mill_radius
         # clearance of the ball from the plate's inner face (y = 0, or the cylinder of radius Rm)
-        clear = c[1] - self.ball.radius if Rm == 0.0 else Rm - math.hypot(c[1] - Rm, c[2] - 0.5 * ln.width) - self.ball.radius
+        clear = (
+            c[1] - self.ball.radius
+            if Rm == 0.0
+            else Rm - math.hypot(c[1] - Rm, c[2] - 0.5 * ln.width) - self.ball.radius
+        )
         if clear <= 0.0:
-            raise SceneError("liner.impact_height", ln.impact_height,
-                             f"too low for a ball of radius {self.ball.radius:g} m: the ball would touch the "
-                             f"plate ({-clear:.4g} m into it); choose a higher point")
+            raise SceneError(
+                "liner.impact_height",
+                ln.impact_height,
+                f"too low for a ball of radius {self.ball.radius:g} m: the ball would touch the "
+                f"plate ({-clear:.4g} m into it); choose a higher point",
+            )
 
     def _check_ball_clear(self, ln: Liner, centre: Vec3) -> None:
         """Refuse a ball (at ``centre``, m) that would overlap the liner ``ln`` away from the impact
         point: a lifter beside a plate impact, or the plate or lifter edge beside a top impact."""
         hit = _ball_overlap(ln, self.ball.radius, vec3(centre))
         if hit is not None:
-            raise SceneError("liner.impact_arc", ln.impact_arc,
-                             f"a ball of radius {self.ball.radius:g} m striking the {ln.impact_place.replace('_', ' ')} "
-                             f"here would touch the liner elsewhere (at (y, z) = ({hit[0]:.4g}, {hit[1]:.4g}) m); "
-                             "move the impact away from the lifter")
+            raise SceneError(
+                "liner.impact_arc",
+                ln.impact_arc,
+                f"a ball of radius {self.ball.radius:g} m striking the {ln.impact_place.replace('_', ' ')} "
+                f"here would touch the liner elsewhere (at (y, z) = ({hit[0]:.4g}, {hit[1]:.4g}) m); "
+                "move the impact away from the lifter",
+            )
 
-    def with_value(self, path: str, value: Any) -> "Scene":
+    def with_value(self, path: str, value: Any) -> Scene:
         """A copy with the dotted field ``path`` (e.g. ``ball.radius``) set to ``value`` (validated)."""
         return self.with_values([(path, value)])
 
-    def with_values(self, assignments: typing.Sequence[tuple[str, Any]]) -> "Scene":
+    def with_values(self, assignments: typing.Sequence[tuple[str, Any]]) -> Scene:
         """A copy with every ``(path, value)`` set, validated once all are set (so their order does
         not matter: shrinking a block and dropping its gauges is one change). A material named
         (``block.material = "NAME"`` or ``block.material.name = "NAME"``) is set before the
@@ -563,7 +651,7 @@ def _names_a_material(path: str, value: Any) -> bool:
 
 # --- helpers ---------------------------------------------------------------------------------
 @functools.lru_cache(maxsize=256)
-def _ball_overlap(liner: Liner, radius: float, centre: Vec3) -> Optional[tuple[float, float]]:
+def _ball_overlap(liner: Liner, radius: float, centre: Vec3) -> tuple[float, float] | None:
     """A point (y, z) where a ball of ``radius`` at ``centre`` (m) lies inside the liner, or None.
     The liner is prismatic along x (bolt holes only take material away), so the ball overlaps it
     if its section through the centre, a disk, overlaps the profile: its circle is sampled at 720
@@ -606,9 +694,9 @@ def _in_range(name: str, value: Any, bounds: tuple[float, float], unit: str) -> 
 
 
 def _replace_path(obj: Any, parts: list[str], value: Any, full: str) -> Any:
-    if not dataclasses.is_dataclass(obj) or isinstance(obj, type):     # a field's value, never a class
+    if not dataclasses.is_dataclass(obj) or isinstance(obj, type):  # a field's value, never a class
         raise SceneError(full, value, "is not a scene field")
-    if isinstance(obj, Material) and parts == ["name"]:   # block.material.name = "NAME": that material
+    if isinstance(obj, Material) and parts == ["name"]:  # block.material.name = "NAME": that material
         if not isinstance(value, str):
             raise SceneError(full, value, "must be the name of a material (scene/materials.toml)")
         return coerce_value(Material, value, full)
@@ -631,9 +719,9 @@ def coerce_value(tp: Any, value: Any, where: str) -> Any:
             return None
         inner = [a for a in args if a is not type(None)]
         return coerce_value(inner[0], value, where)
-    if tp is Material and isinstance(value, str):            # material = "NAME"
+    if tp is Material and isinstance(value, str):  # material = "NAME"
         return from_table(tp, named_material(value, where), where)
-    if tp is Material and isinstance(value, dict) and "name" in value:   # name = "NAME" + overrides
+    if tp is Material and isinstance(value, dict) and "name" in value:  # name = "NAME" + overrides
         base = named_material(value["name"], f"{where}.name")
         return from_table(tp, {**base, **{k: v for k, v in value.items() if k != "name"}}, where)
     if isinstance(tp, type) and dataclasses.is_dataclass(tp):
@@ -676,15 +764,17 @@ def from_table(cls: type, data: dict, where: str) -> Any:
         if key not in names:
             raise SceneError(path, value, f"unknown key; allowed here: {', '.join(names)}")
         kwargs[key] = coerce_value(hints[key], value, path)
-    required = [f.name for f in dataclasses.fields(cls)
-                if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    required = [
+        f.name
+        for f in dataclasses.fields(cls)
+        if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    ]
     missing = [n for n in required if n not in kwargs]
     if missing:
-        raise SceneError(where or cls.__name__, data, f"incomplete: give {', '.join(missing)} (required here: "
-                                                      f"{', '.join(required)})")
+        raise SceneError(
+            where or cls.__name__, data, f"incomplete: give {', '.join(missing)} (required here: {', '.join(required)})"
+        )
     try:
         return cls(**kwargs)
     except TypeError as exc:  # a required field missing
         raise SceneError(where or cls.__name__, data, f"incomplete: {exc}") from None
-
-

@@ -12,6 +12,7 @@ The constants were fitted to gmsh meshes of the liner panel, the liner segment a
 (``benchmarks/panel_mesh_count.py``; docs/scenes.md, "liner-panel"): the estimate is within
 ~15 % of the measured counts there. It is an estimate for sizing and memory, not a mesh.
 """
+
 from __future__ import annotations
 
 import math
@@ -37,7 +38,7 @@ class MeshEstimate(NamedTuple):
 
     vertices: int
     edges: int
-    volume: float     #: m^3 of the model (both bodies)
+    volume: float  #: m^3 of the model (both bodies)
 
     def dofs(self, degree: int) -> int:
         """Displacement DOFs of the vector Lagrange space of ``degree`` (1 or 2)."""

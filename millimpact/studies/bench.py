@@ -34,6 +34,7 @@ gauge errors), ``reference_convergence.png``, ``bench.json`` (rows, reference, m
 ratio of wall times of ``improved`` to ``full`` at equal error). Wall times are measured side by
 side in one bench on a shared machine: compare ratios, not absolute seconds.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -49,9 +50,9 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Optional
+from typing import TYPE_CHECKING, Any
 
-if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact --help` stays fast)
+if TYPE_CHECKING:  # numpy is imported where the command computes (`millimpact --help` stays fast)
     import numpy as np
 
 from ..console import sayer
@@ -80,7 +81,7 @@ ENTRIES: dict[str, tuple[str, dict, str]] = {
 #: mesh levels: (a_max / h_contact, h_far / base)
 MESH_LEVELS = ((1.5, 2.0), (2.0, 1.5), (3.0, 1.0))
 REFERENCE_LEVELS = ((1.5, 2.0), (2.0, 1.5), (3.0, 1.0), (4.0, 1.0))
-F_CUT_FACTORS = (2.0, 4.0, 8.0)          # x 1 / t_c
+F_CUT_FACTORS = (2.0, 4.0, 8.0)  # x 1 / t_c
 #: quick: the coarsest meshes on which every method runs (h_far 3 x base failed the reduced
 #: methods' effective-matrix factorization); the reference is the finer level itself, at half the step
 QUICK_MESH_LEVELS = ((1.2, 2.0), (1.5, 2.0))
@@ -110,8 +111,11 @@ class RunSpec:
         """Cache key: sha256 of the resolved scene, method and options."""
         from .. import __version__
 
-        blob = json.dumps({"scene": resolved, "method": self.method, "options": self.options,
-                           "version": __version__}, sort_keys=True, default=str)
+        blob = json.dumps(
+            {"scene": resolved, "method": self.method, "options": self.options, "version": __version__},
+            sort_keys=True,
+            default=str,
+        )
         return hashlib.sha256(blob.encode()).hexdigest()[:24]
 
 
@@ -126,22 +130,22 @@ class RunResult:
     dofs: int = 0
     solved_dofs: int = 0
     metrics: dict = field(default_factory=dict)
-    series: Optional[dict] = None
+    series: dict | None = None
     error: str = ""
 
 
 # --- the worker (one run in its own process) -------------------------------------------------------
 def _worker(spec_json: str, out_dir: str) -> int:
     """Run one spec; write ``result.json`` and ``series.npz`` into ``out_dir``."""
-    import numpy as np
-
     import resource
 
+    import numpy as np
+
     from ..geometry.mesh import create_mesh
-    from ..scene.plan import make_plan
-    from ..results.timeseries import contact_metrics
     from ..methods.run import compute
+    from ..results.timeseries import contact_metrics
     from ..scene.builtin import resolve_scene
+    from ..scene.plan import make_plan
 
     spec = json.loads(spec_json)
     scene = resolve_scene(spec["scene"])
@@ -166,14 +170,26 @@ def _worker(spec_json: str, out_dir: str) -> int:
     model = res.model
     dofs = int(model.get("fe_dofs", model.get("dofs", 1)))
     solved = int(model.get("reduced_dofs", model.get("dofs", 1)))
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0      # kB -> MB (Linux)
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB -> MB (Linux)
     np.savez(out / "series.npz", **{k: np.asarray(v) for k, v in res.series.columns.items()})
-    (out / "result.json").write_text(json.dumps({
-        "wall_s": wall, "peak_rss_mb": rss, "dofs": dofs, "solved_dofs": solved,
-        "metrics": m, "results": {k: v for k, v in res.results.items() if isinstance(v, (int, float))},
-        "t_c_hertz_s": plan.hertz.contact_time, "gap_m": plan.gap, "speed_m_s": plan.hertz.speed,
-        "model": {k: v for k, v in model.items() if isinstance(v, (int, float, str))},
-    }, indent=1, default=float))
+    (out / "result.json").write_text(
+        json.dumps(
+            {
+                "wall_s": wall,
+                "peak_rss_mb": rss,
+                "dofs": dofs,
+                "solved_dofs": solved,
+                "metrics": m,
+                "results": {k: v for k, v in res.results.items() if isinstance(v, (int, float))},
+                "t_c_hertz_s": plan.hertz.contact_time,
+                "gap_m": plan.gap,
+                "speed_m_s": plan.hertz.speed,
+                "model": {k: v for k, v in model.items() if isinstance(v, (int, float, str))},
+            },
+            indent=1,
+            default=float,
+        )
+    )
     return 0
 
 
@@ -184,8 +200,13 @@ def run_spec(spec: RunSpec, folder: Path, timeout: float = 7200) -> RunResult:
     payload = json.dumps(spec.__dict__, default=float)
     env = dict(os.environ, MPLBACKEND="Agg")
     with open(folder / "worker.log", "w") as log_fh, children_signals():
-        proc = subprocess.run([sys.executable, "-m", "millimpact.studies.bench", "--worker", payload, str(folder)],
-                              stdout=log_fh, stderr=subprocess.STDOUT, env=env, timeout=timeout)
+        proc = subprocess.run(
+            [sys.executable, "-m", "millimpact.studies.bench", "--worker", payload, str(folder)],
+            stdout=log_fh,
+            stderr=subprocess.STDOUT,
+            env=env,
+            timeout=timeout,
+        )
     if proc.returncode != 0 or not (folder / "result.json").exists():
         tail = (folder / "worker.log").read_text().strip().splitlines()[-1:] or ["?"]
         return RunResult(spec, False, error=f"exit {proc.returncode}: {tail[0][:200]}")
@@ -199,10 +220,22 @@ def load_result(spec: RunSpec, folder: Path) -> RunResult:
     r = json.loads((folder / "result.json").read_text())
     with np.load(folder / "series.npz") as z:
         series = {k: z[k] for k in z.files}
-    return RunResult(spec, True, r["wall_s"], r["peak_rss_mb"], r["dofs"], r["solved_dofs"],
-                     {**r["metrics"], "t_c_hertz_s": r["t_c_hertz_s"], "gap_m": r["gap_m"],
-                      "speed_m_s": r["speed_m_s"], **{f"result_{k}": v for k, v in r["results"].items()}},
-                     series)
+    return RunResult(
+        spec,
+        True,
+        r["wall_s"],
+        r["peak_rss_mb"],
+        r["dofs"],
+        r["solved_dofs"],
+        {
+            **r["metrics"],
+            "t_c_hertz_s": r["t_c_hertz_s"],
+            "gap_m": r["gap_m"],
+            "speed_m_s": r["speed_m_s"],
+            **{f"result_{k}": v for k, v in r["results"].items()},
+        },
+        series,
+    )
 
 
 # --- errors against the reference ------------------------------------------------------------------
@@ -216,7 +249,7 @@ def _l2_rel(t: np.ndarray, x: np.ndarray, t_ref: np.ndarray, x_ref: np.ndarray, 
     return float(np.linalg.norm(a - b) / nb) if nb > 0 else math.nan
 
 
-def score(run: RunResult, ref: RunResult, gauge: Optional[str]) -> dict[str, float]:
+def score(run: RunResult, ref: RunResult, gauge: str | None) -> dict[str, float]:
     """Relative errors of a run against the reference (module docstring)."""
     import numpy as np
 
@@ -243,8 +276,9 @@ def score(run: RunResult, ref: RunResult, gauge: Optional[str]) -> dict[str, flo
 
 
 # --- plan of the bench -----------------------------------------------------------------------------
-def bench_specs(scene_name: str, end: float, entries: list[str], quick: bool, base_far: float,
-                a_max: float, t_c: float) -> list[RunSpec]:
+def bench_specs(
+    scene_name: str, end: float, entries: list[str], quick: bool, base_far: float, a_max: float, t_c: float
+) -> list[RunSpec]:
     """The runs of a bench (without the reference)."""
     levels = QUICK_MESH_LEVELS if quick else MESH_LEVELS
     specs = []
@@ -254,27 +288,53 @@ def bench_specs(scene_name: str, end: float, entries: list[str], quick: bool, ba
         if kind == "none":
             specs.append(RunSpec(e, method, scene_name, base_sets, dict(opts), "-", 0))
         elif kind == "f_cut":
-            for f in (QUICK_F_CUT if quick else F_CUT_FACTORS):
-                specs.append(RunSpec(e, method, scene_name, base_sets, {**opts, "f_cut": f / t_c},
-                                     f"f_cut = {f:g}/t_c", f))
+            for f in QUICK_F_CUT if quick else F_CUT_FACTORS:
+                specs.append(
+                    RunSpec(e, method, scene_name, base_sets, {**opts, "f_cut": f / t_c}, f"f_cut = {f:g}/t_c", f)
+                )
         else:
             for i, (ac, fr) in enumerate(levels):
                 sets = {**base_sets, "model.h_contact": a_max / ac, "model.h_far": base_far * fr}
-                specs.append(RunSpec(e, method, scene_name, sets, dict(opts),
-                                     f"h_c = a_max/{ac:g}, h_far = {base_far * fr * 1e3:.3g} mm", i + 1))
+                specs.append(
+                    RunSpec(
+                        e,
+                        method,
+                        scene_name,
+                        sets,
+                        dict(opts),
+                        f"h_c = a_max/{ac:g}, h_far = {base_far * fr * 1e3:.3g} mm",
+                        i + 1,
+                    )
+                )
     return specs
 
 
-def reference_specs(scene_name: str, end: float, quick: bool, base_far: float, a_max: float,
-                    t_c: float) -> list[RunSpec]:
+def reference_specs(
+    scene_name: str, end: float, quick: bool, base_far: float, a_max: float, t_c: float
+) -> list[RunSpec]:
     """The reference's convergence levels (the last one is the reference)."""
     out = []
     levels = QUICK_REFERENCE_LEVELS if quick else REFERENCE_LEVELS
     for i, (ac, fr) in enumerate(levels):
-        sets = {"time.end": end, "outputs.xdmf": False, "outputs.figures": False, "model.h_contact": a_max / ac,
-                "model.h_far": base_far * fr, "time.dt_contact": t_c / 200.0}
-        out.append(RunSpec("reference", "full", scene_name, sets, {"degree": 2},
-                           f"P2, h_c = a_max/{ac:g}, h_far = {base_far * fr * 1e3:.3g} mm, dt = t_c/200", i + 1))
+        sets = {
+            "time.end": end,
+            "outputs.xdmf": False,
+            "outputs.figures": False,
+            "model.h_contact": a_max / ac,
+            "model.h_far": base_far * fr,
+            "time.dt_contact": t_c / 200.0,
+        }
+        out.append(
+            RunSpec(
+                "reference",
+                "full",
+                scene_name,
+                sets,
+                {"degree": 2},
+                f"P2, h_c = a_max/{ac:g}, h_far = {base_far * fr * 1e3:.3g} mm, dt = t_c/200",
+                i + 1,
+            )
+        )
     return out
 
 
@@ -299,9 +359,27 @@ def cached_run(spec: RunSpec, cache: Path, say) -> RunResult:
 
 
 # --- output ----------------------------------------------------------------------------------------
-CSV_FIELDS = ["method", "run_method", "resolution", "level", "options", "status", "wall_s", "peak_rss_MB", "dofs",
-              "solved_dofs", "F_max_N", "t_c_s", "impulse_N_s", "err_F_max", "err_t_c", "err_impulse",
-              "err_force_L2", "err_gauge_L2", "note"]
+CSV_FIELDS = [
+    "method",
+    "run_method",
+    "resolution",
+    "level",
+    "options",
+    "status",
+    "wall_s",
+    "peak_rss_MB",
+    "dofs",
+    "solved_dofs",
+    "F_max_N",
+    "t_c_s",
+    "impulse_N_s",
+    "err_F_max",
+    "err_t_c",
+    "err_impulse",
+    "err_force_L2",
+    "err_gauge_L2",
+    "note",
+]
 
 
 def write_csv(rows: list[dict], path: Path) -> None:
@@ -319,8 +397,11 @@ def read_csv(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
-ERRORS = (("err_force_L2", "contact force, L2-in-time error"), ("err_F_max", "|F_max error|"),
-          ("err_gauge_L2", "gauge A stress, L2-in-time error"))
+ERRORS = (
+    ("err_force_L2", "contact force, L2-in-time error"),
+    ("err_F_max", "|F_max error|"),
+    ("err_gauge_L2", "gauge A stress, L2-in-time error"),
+)
 
 
 def plot_pareto(rows: list[dict], path: Path, title: str) -> None:
@@ -365,12 +446,18 @@ def plot_reference_convergence(levels: list[RunResult], path: Path, title: str) 
 
     ref = levels[-1]
     h = np.array([lv.spec.sets["model.h_contact"] for lv in levels[:-1]])
-    errs = {k: np.array([abs(score(lv, ref, "A")[k]) for lv in levels[:-1]]) for k in
-            ("err_F_max", "err_t_c", "err_force_L2", "err_gauge_L2")}
+    errs = {
+        k: np.array([abs(score(lv, ref, "A")[k]) for lv in levels[:-1]])
+        for k in ("err_F_max", "err_t_c", "err_force_L2", "err_gauge_L2")
+    }
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     rates = {}
-    for k, lab in (("err_F_max", "F_max"), ("err_t_c", "t_c"), ("err_force_L2", "contact force L2"),
-                   ("err_gauge_L2", "gauge A L2")):
+    for k, lab in (
+        ("err_F_max", "F_max"),
+        ("err_t_c", "t_c"),
+        ("err_force_L2", "contact force L2"),
+        ("err_gauge_L2", "gauge A L2"),
+    ):
         y = errs[k]
         ok = np.isfinite(y) & (y > 0)
         if ok.sum() >= 1:
@@ -385,9 +472,18 @@ def plot_reference_convergence(levels: list[RunResult], path: Path, title: str) 
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return {"h_contact_m": h.tolist(), "errors": {k: v.tolist() for k, v in errs.items()}, "rates": rates,
-            "finest": {"resolution": ref.spec.resolution, "dofs": ref.dofs, "wall_s": ref.wall_s,
-                       "F_max_N": ref.metrics["peak_contact_force_N"], "t_c_s": ref.metrics["contact_duration_s"]}}
+    return {
+        "h_contact_m": h.tolist(),
+        "errors": {k: v.tolist() for k, v in errs.items()},
+        "rates": rates,
+        "finest": {
+            "resolution": ref.spec.resolution,
+            "dofs": ref.dofs,
+            "wall_s": ref.wall_s,
+            "F_max_N": ref.metrics["peak_contact_force_N"],
+            "t_c_s": ref.metrics["contact_duration_s"],
+        },
+    }
 
 
 def equal_error_ratio(rows: list[dict], a: str, b: str, key: str = "err_force_L2") -> dict[str, Any]:
@@ -402,9 +498,13 @@ def equal_error_ratio(rows: list[dict], a: str, b: str, key: str = "err_force_L2
         return np.array(pts) if pts else np.zeros((0, 2))
 
     la, lb = line(a), line(b)
-    out: dict[str, Any] = {"a": a, "b": b, "error": key,
-                           "a_error_range": [float(np.exp(la[:, 0].min())), float(np.exp(la[:, 0].max()))] if len(la) else None,
-                           "b_error_range": [float(np.exp(lb[:, 0].min())), float(np.exp(lb[:, 0].max()))] if len(lb) else None}
+    out: dict[str, Any] = {
+        "a": a,
+        "b": b,
+        "error": key,
+        "a_error_range": [float(np.exp(la[:, 0].min())), float(np.exp(la[:, 0].max()))] if len(la) else None,
+        "b_error_range": [float(np.exp(lb[:, 0].min())), float(np.exp(lb[:, 0].max()))] if len(lb) else None,
+    }
     if len(la) < 1 or len(lb) < 1:
         out["ratio"] = None
         return out
@@ -426,17 +526,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", help=OUT_HELP.format(default="out/bench-SCENE"))
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--quick", action="store_true", help="tiny sizes (tests): two coarse mesh levels, short run")
-    p.add_argument("--methods", default=",".join(ENTRIES),
-                   help=f"comma-separated subset of {', '.join(ENTRIES)}")
+    p.add_argument("--methods", default=",".join(ENTRIES), help=f"comma-separated subset of {', '.join(ENTRIES)}")
     p.add_argument("--end", type=float, help=f"simulated time, s (default gap/v + {DEFAULT_END_TC:g} t_c)")
 
 
 def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
-    from ..scene.plan import make_plan
     from ..results.output_folder import claim_output, default_out
     from ..scene.builtin import DEFAULT_SCENE, resolve_scene
+    from ..scene.plan import make_plan
 
     if MPI.COMM_WORLD.size > 1:
         raise InputError("millimpact bench runs its own processes: start it without mpirun")
@@ -450,20 +549,31 @@ def main(args: argparse.Namespace) -> int:
         scene_name = str(Path(scene_name).resolve())
     plan = make_plan(scene)
     h = plan.hertz
-    end = args.end if args.end is not None else plan.gap / h.speed + (1.2 if args.quick else DEFAULT_END_TC) * h.contact_time
+    end = (
+        args.end
+        if args.end is not None
+        else plan.gap / h.speed + (1.2 if args.quick else DEFAULT_END_TC) * h.contact_time
+    )
     if not (end > plan.gap / h.speed):
         raise InputError(f"--end = {end!r} s: must exceed the flight to contact, {plan.gap / h.speed:.3g} s")
     base_far = plan.h_far
-    target = claim_output(args.out if args.out is not None else default_out(scene.name, prefix="bench-"), "bench",
-                          force=args.force)   # before the runs
+    target = claim_output(
+        args.out if args.out is not None else default_out(scene.name, prefix="bench-"), "bench", force=args.force
+    )  # before the runs
     out = target.shown
     cache = Path(os.environ.get(CACHE_ENV, "out/bench-cache"))
-    print(f"bench of scene '{scene.name}': {', '.join(entries)}; end {end * 1e6:.4g} us"
-          + (" (quick)" if args.quick else "") + f" -> {out}/", flush=True)
+    print(
+        f"bench of scene '{scene.name}': {', '.join(entries)}; end {end * 1e6:.4g} us"
+        + (" (quick)" if args.quick else "")
+        + f" -> {out}/",
+        flush=True,
+    )
     t_all = time.perf_counter()
     say = sayer()
-    ref_levels = [cached_run(s, cache, say) for s in
-                  reference_specs(scene_name, end, args.quick, base_far, h.a_max, h.contact_time)]
+    ref_levels = [
+        cached_run(s, cache, say)
+        for s in reference_specs(scene_name, end, args.quick, base_far, h.a_max, h.contact_time)
+    ]
     ref = ref_levels[-1]
     gauge = scene.gauges[0].name if scene.gauges else None
     specs = bench_specs(scene_name, end, entries, args.quick, base_far, h.a_max, h.contact_time)
@@ -471,48 +581,101 @@ def main(args: argparse.Namespace) -> int:
     with target.staged() as stage:
         for i, spec in enumerate(specs):
             res = run_spec(spec, stage / "runs" / f"{i:02d}-{spec.entry}")
-            row = {"method": spec.entry, "run_method": spec.method, "resolution": spec.resolution,
-                   "level": spec.level, "options": json.dumps(spec.options, sort_keys=True)}
+            row = {
+                "method": spec.entry,
+                "run_method": spec.method,
+                "resolution": spec.resolution,
+                "level": spec.level,
+                "options": json.dumps(spec.options, sort_keys=True),
+            }
             if res.ok:
                 drift = res.metrics.get("result_energy_drift_max_rel", 0.0)
                 sc = score(res, ref, gauge)
-                bad = (not all(math.isfinite(sc[k]) for k in ("err_F_max", "err_t_c", "err_force_L2"))
-                       or abs(sc["err_F_max"]) > 1.0 or drift > UNSTABLE_ENERGY_DRIFT)
-                row.update(status="unstable" if bad else "ok", wall_s=res.wall_s, peak_rss_MB=res.peak_rss_mb, dofs=res.dofs,
-                           solved_dofs=res.solved_dofs, F_max_N=res.metrics["peak_contact_force_N"],
-                           t_c_s=res.metrics["contact_duration_s"], impulse_N_s=res.metrics["impulse_N_s"],
-                           **sc, note=f"energy drift {drift:.3g}" if bad else "")
-                say(f"  [{i + 1}/{len(specs)}] {spec.entry:12s} {spec.resolution:40s} {row['status']:8s} {res.wall_s:7.1f} s "
+                bad = (
+                    not all(math.isfinite(sc[k]) for k in ("err_F_max", "err_t_c", "err_force_L2"))
+                    or abs(sc["err_F_max"]) > 1.0
+                    or drift > UNSTABLE_ENERGY_DRIFT
+                )
+                row.update(
+                    status="unstable" if bad else "ok",
+                    wall_s=res.wall_s,
+                    peak_rss_MB=res.peak_rss_mb,
+                    dofs=res.dofs,
+                    solved_dofs=res.solved_dofs,
+                    F_max_N=res.metrics["peak_contact_force_N"],
+                    t_c_s=res.metrics["contact_duration_s"],
+                    impulse_N_s=res.metrics["impulse_N_s"],
+                    **sc,
+                    note=f"energy drift {drift:.3g}" if bad else "",
+                )
+                say(
+                    f"  [{i + 1}/{len(specs)}] {spec.entry:12s} {spec.resolution:40s} {row['status']:8s} {res.wall_s:7.1f} s "
                     f"{res.peak_rss_mb:6.0f} MB {res.dofs:7d} dofs  F_max {100 * sc['err_F_max']:+6.2f} %  "
-                    f"force L2 {100 * sc['err_force_L2']:6.2f} %  gauge L2 {100 * sc['err_gauge_L2']:6.2f} %")
+                    f"force L2 {100 * sc['err_force_L2']:6.2f} %  gauge L2 {100 * sc['err_gauge_L2']:6.2f} %"
+                )
             else:
-                row.update(status="failed", wall_s=math.nan, peak_rss_MB=math.nan, dofs=0, solved_dofs=0,
-                           **{k: math.nan for k in ("F_max_N", "t_c_s", "impulse_N_s", "err_F_max", "err_t_c",
-                                                    "err_impulse", "err_force_L2", "err_gauge_L2")}, note=res.error)
+                row.update(
+                    status="failed",
+                    wall_s=math.nan,
+                    peak_rss_MB=math.nan,
+                    dofs=0,
+                    solved_dofs=0,
+                    **{
+                        k: math.nan
+                        for k in (
+                            "F_max_N",
+                            "t_c_s",
+                            "impulse_N_s",
+                            "err_F_max",
+                            "err_t_c",
+                            "err_impulse",
+                            "err_force_L2",
+                            "err_gauge_L2",
+                        )
+                    },
+                    note=res.error,
+                )
                 say(f"  [{i + 1}/{len(specs)}] {spec.entry:12s} {spec.resolution:40s} FAILED: {res.error}")
             rows.append(row)
         write_csv(rows, stage / "bench.csv")
         title = f"{scene.name}: error against wall time (reference: full {ref.spec.resolution})"
         plot_pareto(rows, stage / "pareto.png", title)
-        conv = plot_reference_convergence(ref_levels, stage / "reference_convergence.png",
-                                          f"{scene.name}: convergence of the reference (full P2)")
-        ratios = {f"{a}/{b}": equal_error_ratio(rows, a, b) for a, b in
-                  (("improved", "full-p2"), ("improved", "full-p1"), ("traditional", "full-p1"))
-                  if a in entries and b in entries}
-        meta = {"scene": scene.name, "end_s": end, "quick": args.quick, "reference": conv,
-                "equal_error_wall_ratio": ratios,
-                "machine": {"node": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
-                            "note": "shared machine: wall times are noisy, compare ratios"},
-                "total_wall_s": time.perf_counter() - t_all, "rows": rows}
+        conv = plot_reference_convergence(
+            ref_levels, stage / "reference_convergence.png", f"{scene.name}: convergence of the reference (full P2)"
+        )
+        ratios = {
+            f"{a}/{b}": equal_error_ratio(rows, a, b)
+            for a, b in (("improved", "full-p2"), ("improved", "full-p1"), ("traditional", "full-p1"))
+            if a in entries and b in entries
+        }
+        meta = {
+            "scene": scene.name,
+            "end_s": end,
+            "quick": args.quick,
+            "reference": conv,
+            "equal_error_wall_ratio": ratios,
+            "machine": {
+                "node": platform.node(),
+                "cpus": os.cpu_count(),
+                "python": platform.python_version(),
+                "note": "shared machine: wall times are noisy, compare ratios",
+            },
+            "total_wall_s": time.perf_counter() - t_all,
+            "rows": rows,
+        }
         (stage / "bench.json").write_text(json.dumps(meta, indent=1, default=float))
     for k, r in ratios.items():
         if r.get("ratio") is not None:
-            say(f"wall time {k} at equal contact-force L2 error ({r['at_errors'][0]:.2g}-{r['at_errors'][1]:.2g}): "
-                f"{r['ratio']:.3g}")
+            say(
+                f"wall time {k} at equal contact-force L2 error ({r['at_errors'][0]:.2g}-{r['at_errors'][1]:.2g}): "
+                f"{r['ratio']:.3g}"
+            )
         else:
             say(f"wall time {k}: no common error range ({r['a_error_range']} vs {r['b_error_range']})")
-    say(f"bench done in {time.perf_counter() - t_all:.0f} s: {out}/bench.csv, pareto.png, reference_convergence.png"
-        + target.replaced_note())
+    say(
+        f"bench done in {time.perf_counter() - t_all:.0f} s: {out}/bench.csv, pareto.png, reference_convergence.png"
+        + target.replaced_note()
+    )
     return 0
 
 

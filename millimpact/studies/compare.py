@@ -20,6 +20,7 @@ grid t_r and y_o(t) the other, linearly interpolated:
   parabola through the best lag and its neighbours. tau > 0: the other lags the reference;
 - L2 error after the shift: as above with y_o(t + tau).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -28,13 +29,13 @@ import json
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING
 
 from ..console import say, world_rank
 from ..errors import InputError
 from ..results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out
 
-if TYPE_CHECKING:   # numpy and the time series are imported where compare computes (`--help` stays fast)
+if TYPE_CHECKING:  # numpy and the time series are imported where compare computes (`--help` stays fast)
     import numpy as np
 
     from ..results.timeseries import TimeSeries
@@ -65,12 +66,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("other", help="the other implementation's CSV: time_s and any of the reference's columns")
     p.add_argument("--out", help=OUT_HELP.format(default="out/compare-OTHER"))
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
-    p.add_argument("--time-offset", type=float, default=0.0, metavar="SECONDS",
-                   help="added to OTHER's time_s before comparing, e.g. the reference's first_contact_s when "
-                        "OTHER starts at first contact (default 0)")
-    p.add_argument("--max-shift", type=float, metavar="SECONDS",
-                   help="largest time shift (either sign) searched (default: the reference's contact duration, or a "
-                        "quarter of its span without a contact force)")
+    p.add_argument(
+        "--time-offset",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="added to OTHER's time_s before comparing, e.g. the reference's first_contact_s when "
+        "OTHER starts at first contact (default 0)",
+    )
+    p.add_argument(
+        "--max-shift",
+        type=float,
+        metavar="SECONDS",
+        help="largest time shift (either sign) searched (default: the reference's contact duration, or a "
+        "quarter of its span without a contact force)",
+    )
     p.add_argument("--no-plots", action="store_true", help="skip compare.png")
 
 
@@ -82,15 +92,15 @@ class Score:
     unit: str
     peak_reference: float
     peak_other: float
-    peak_error: Optional[float]
+    peak_error: float | None
     time_of_peak_reference_s: float
     time_of_peak_other_s: float
-    time_of_peak_error_s: Optional[float]
-    l2_error: Optional[float]
+    time_of_peak_error_s: float | None
+    l2_error: float | None
     coverage: float
-    shift_s: Optional[float]
+    shift_s: float | None
     shift_at_limit: bool
-    l2_error_shifted: Optional[float]
+    l2_error_shifted: float | None
 
 
 # --- the measures -------------------------------------------------------------------------------
@@ -127,7 +137,7 @@ def peak(t: np.ndarray, y: np.ndarray, sign: float) -> tuple[float, float]:
         j1 += 1
     if j1 > j0:
         return 0.5 * float(t[j0] + t[j1]), float(y[i])
-    tp, _ = _vertex(t, sy / abs(sy[i]) if sy[i] != 0 else sy, i)   # the vertex's time: any scale (no overflow)
+    tp, _ = _vertex(t, sy / abs(sy[i]) if sy[i] != 0 else sy, i)  # the vertex's time: any scale (no overflow)
     return tp, float(y[i])
 
 
@@ -135,17 +145,25 @@ def peak(t: np.ndarray, y: np.ndarray, sign: float) -> tuple[float, float]:
 #: reference's largest |value| in the compared window
 #: The contact point's acceleration peaks negative: the deceleration while the ball is pushed back
 #: (-share F / m in Hertz, the patch's deceleration in FE runs).
-PEAK_SIGN = {"contact_force_N": 1.0, "approach_m": 1.0, "contact_radius_m": 1.0, "contact_point_displacement_m": 1.0,
-             "contact_point_stress_Pa": -1.0, "contact_point_von_mises_Pa": 1.0, "strain_energy_J": 1.0,
-             "contact_point_acceleration_m_s2": -1.0}
+PEAK_SIGN = {
+    "contact_force_N": 1.0,
+    "approach_m": 1.0,
+    "contact_radius_m": 1.0,
+    "contact_point_displacement_m": 1.0,
+    "contact_point_stress_Pa": -1.0,
+    "contact_point_von_mises_Pa": 1.0,
+    "strain_energy_J": 1.0,
+    "contact_point_acceleration_m_s2": -1.0,
+}
 
 #: a reference history varying by less than this share of its largest |value| in the window is
 #: "flat" (energies, a constant velocity): it has no time of peak or shift to report
 FLAT = 0.01
 
 
-def l2_error(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray,
-             shift: float = 0.0) -> tuple[Optional[float], float]:
+def l2_error(
+    t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray, shift: float = 0.0
+) -> tuple[float | None, float]:
     """Relative L2-in-time error of y_o(t + shift) against y_r(t) on the reference grid, over the
     part of the reference's span where t + shift lies in the other's span; and that part's share
     of int y_r^2 dt (the coverage). The error is None when the reference is zero there.
@@ -170,20 +188,21 @@ def l2_error(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray,
     if den <= 0:
         return None, coverage
     m_o = float(np.max(np.abs(y_o))) or 1.0
-    yo = np.interp(tr + shift, t_o, y_o / m_o)       # over its largest magnitude (the slopes would overflow)
+    yo = np.interp(tr + shift, t_o, y_o / m_o)  # over its largest magnitude (the slopes would overflow)
     big = max(m_o, m_den)
-    m_d, num = square_integral(yo * (m_o / big) - yr / big, tr)    # int (y_o - y_r)^2 dt = (big m_d)^2 num
+    m_d, num = square_integral(yo * (m_o / big) - yr / big, tr)  # int (y_o - y_r)^2 dt = (big m_d)^2 num
     return big * m_d / m_den * math.sqrt(num / den), coverage
 
 
 def _corr(o: np.ndarray, r: np.ndarray, j: int) -> float:
     """sum_n o[n + j] r[n], summed exactly rounded (fsum), so that the correlation of identical
     shapes is exactly symmetric about their lag."""
-    return math.fsum(o[j: j + len(r)] * r)
+    return math.fsum(o[j : j + len(r)] * r)
 
 
-def time_shift(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray,
-               max_shift: float) -> tuple[float, bool]:
+def time_shift(
+    t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray, max_shift: float
+) -> tuple[float, bool]:
     """The lag tau (s) maximising the cross-correlation of y_r(t) and y_o(t + tau) within
     |tau| <= max_shift, refined below one grid step by a parabola; and whether it hit the limit.
 
@@ -193,7 +212,6 @@ def time_shift(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarra
     which is symmetric about the true lag.
     """
     import numpy as np
-
     from scipy.signal import correlate
 
     span = t_r[-1] - t_r[0]
@@ -204,8 +222,9 @@ def time_shift(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarra
     # each over its largest magnitude: the lag does not depend on the scales, and the interpolation's
     # slopes of values near 1e308 would overflow
     r = np.interp(g, t_r, y_r / (np.max(np.abs(y_r)) or 1.0))
-    o = np.interp(t_r[0] + dt * np.arange(-kmax, n + kmax), t_o, y_o / (np.max(np.abs(y_o)) or 1.0),
-                  left=0.0, right=0.0)
+    o = np.interp(
+        t_r[0] + dt * np.arange(-kmax, n + kmax), t_o, y_o / (np.max(np.abs(y_o)) or 1.0), left=0.0, right=0.0
+    )
     if not np.any(r) or not np.any(o):
         return 0.0, False
     c = correlate(o, r, mode="valid")  # c[j] = sum_n o[n + j] r[n], lag j - kmax
@@ -218,8 +237,7 @@ def time_shift(t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarra
     return (j - kmax + min(max(delta, -0.5), 0.5)) * dt, False
 
 
-def score(name: str, t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray,
-          max_shift: float) -> Score:
+def score(name: str, t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.ndarray, max_shift: float) -> Score:
     """All measures of one history (see the module docstring)."""
     import numpy as np
 
@@ -245,11 +263,10 @@ def score(name: str, t_r: np.ndarray, y_r: np.ndarray, t_o: np.ndarray, y_o: np.
         l2s, _ = l2_error(t_r, y_r, t_o, y_o, shift)
     # (p_o - p_r) / |p_r| as p_o / |p_r| - sign(p_r): no overflow of the difference near 1e308
     error = sign * (float(p_o) / abs(float(p_r)) - math.copysign(1.0, p_r)) if p_r != 0 else None
-    return Score(name, unit_of(name), p_r, p_o, error,
-                 tp_r, tp_o, dt_peak, l2, coverage, shift, at_limit, l2s)
+    return Score(name, unit_of(name), p_r, p_o, error, tp_r, tp_o, dt_peak, l2, coverage, shift, at_limit, l2s)
 
 
-def time_unit_hint(ref: TimeSeries, other: TimeSeries) -> Optional[str]:
+def time_unit_hint(ref: TimeSeries, other: TimeSeries) -> str | None:
     """A warning when the other's time span is 100x the reference's or more (or 1/100 or less):
     its time_s is likely in ms or µs (scored as seconds, a pulse 1000x too long leaves the
     reference's window nearly empty: peak -100 %). None otherwise."""
@@ -261,8 +278,10 @@ def time_unit_hint(ref: TimeSeries, other: TimeSeries) -> Optional[str]:
     if 1e-2 < ratio < 1e2:
         return None
     likely = {3: " (in ms?)", 6: " (in \u00b5s?)"}.get(round(math.log10(ratio) / 3) * 3, "") if ratio > 1 else ""
-    return (f"the other's time_s spans {span_o:.3g}, {ratio:.3g}x the reference's {span_r:.3g} s{likely}: "
-            "time_s must be in seconds (scale the column, or see --time-offset for a shifted start)")
+    return (
+        f"the other's time_s spans {span_o:.3g}, {ratio:.3g}x the reference's {span_r:.3g} s{likely}: "
+        "time_s must be in seconds (scale the column, or see --time-offset for a shifted start)"
+    )
 
 
 def default_max_shift(ref: TimeSeries) -> float:
@@ -282,8 +301,10 @@ def match_columns(ref: TimeSeries, other: TimeSeries) -> tuple[list[str], dict[s
 
     common = [n for n in ref.columns if n != "time_s" and n in other]
     extra = [n for n in other.columns if n != "time_s" and n not in ref]
-    ignored = {"not in the reference": [n for n in extra if is_known_column(n)],
-               "unknown column": [n for n in extra if not is_known_column(n)]}
+    ignored = {
+        "not in the reference": [n for n in extra if is_known_column(n)],
+        "unknown column": [n for n in extra if not is_known_column(n)],
+    }
     return common, {k: v for k, v in ignored.items() if v}
 
 
@@ -300,7 +321,7 @@ def not_modelled(ref: TimeSeries, other: TimeSeries, names: list[str]) -> list[s
 KINEMATICS_COLUMNS = ("contact_point_velocity_m_s", "contact_point_acceleration_m_s2")
 
 
-def method_of(path: Path, meta: Optional[dict] = None) -> Optional[str]:
+def method_of(path: Path, meta: dict | None = None) -> str | None:
     """The millimpact method that wrote ``path``: from its metadata (a reference file's), else the
     ``summary.json`` of the run folder that holds it; None for a file from elsewhere."""
     if meta and meta.get("method"):
@@ -312,7 +333,7 @@ def method_of(path: Path, meta: Optional[dict] = None) -> Optional[str]:
         return None
 
 
-def kinematics_differ(ref_method: Optional[str], other_method: Optional[str]) -> bool:
+def kinematics_differ(ref_method: str | None, other_method: str | None) -> bool:
     """True when one file's contact-point velocity and acceleration are the FE patch's centre of
     mass and the other's the Hertz surface point (different quantities: not scored)."""
     from ..methods.registry import METHODS
@@ -322,8 +343,9 @@ def kinematics_differ(ref_method: Optional[str], other_method: Optional[str]) ->
     return a is not None and b is not None and a != b
 
 
-def compare_series(ref: TimeSeries, other: TimeSeries, max_shift: Optional[float] = None,
-                   skip: tuple[str, ...] = ()) -> list[Score]:
+def compare_series(
+    ref: TimeSeries, other: TimeSeries, max_shift: float | None = None, skip: tuple[str, ...] = ()
+) -> list[Score]:
     """Score every column ``other`` shares with ``ref`` and models (:func:`not_modelled`), except
     those in ``skip``."""
     common, _ = match_columns(ref, other)
@@ -336,14 +358,16 @@ def compare_series(ref: TimeSeries, other: TimeSeries, max_shift: Optional[float
 _FIELDS = [f.name for f in Score.__dataclass_fields__.values()]
 
 
-def _pct(x: Optional[float]) -> str:
+def _pct(x: float | None) -> str:
     return "     -" if x is None or not math.isfinite(x) else f"{100 * x:+7.2f}"
 
 
 def format_table(scores: list[Score]) -> str:
     """The stdout table: peak (reference, other, error), time-of-peak error, L2, shift, L2 shifted."""
-    head = (f"{'quantity':<34s} {'unit':<6s} {'peak ref':>11s} {'peak other':>11s} {'peak %':>7s} "
-            f"{'dt_peak us':>10s} {'L2 %':>7s} {'shift us':>9s} {'L2 sh %':>7s} {'cover':>6s}")
+    head = (
+        f"{'quantity':<34s} {'unit':<6s} {'peak ref':>11s} {'peak other':>11s} {'peak %':>7s} "
+        f"{'dt_peak us':>10s} {'L2 %':>7s} {'shift us':>9s} {'L2 sh %':>7s} {'cover':>6s}"
+    )
     lines = [head, "-" * len(head)]
     for s in scores:
         l2 = "     -" if s.l2_error is None else f"{100 * s.l2_error:7.2f}"
@@ -351,8 +375,10 @@ def format_table(scores: list[Score]) -> str:
         lim = "*" if s.shift_at_limit else " "
         dtp = f"{'-':>10s}" if s.time_of_peak_error_s is None else f"{1e6 * s.time_of_peak_error_s:10.4g}"
         sh = f"{'-':>8s}" if s.shift_s is None else f"{1e6 * s.shift_s:8.4g}"
-        lines.append(f"{s.quantity:<34s} {s.unit:<6s} {s.peak_reference:11.4g} {s.peak_other:11.4g} "
-                     f"{_pct(s.peak_error)} {dtp} {l2} {sh}{lim} {l2s} {s.coverage:6.3f}")
+        lines.append(
+            f"{s.quantity:<34s} {s.unit:<6s} {s.peak_reference:11.4g} {s.peak_other:11.4g} "
+            f"{_pct(s.peak_error)} {dtp} {l2} {sh}{lim} {l2s} {s.coverage:6.3f}"
+        )
     if any(s.shift_s is None for s in scores):
         lines.append(f"- flat (varies by < {100 * FLAT:g} % of its size): no time of peak or shift")
     if any(s.shift_at_limit for s in scores):
@@ -378,8 +404,9 @@ def _title(column: str) -> str:
     return column.replace("_", " ")
 
 
-def plot_compare(ref: TimeSeries, other: TimeSeries, scores: list[Score], path: Path,
-                 ref_label: str, other_label: str) -> None:
+def plot_compare(
+    ref: TimeSeries, other: TimeSeries, scores: list[Score], path: Path, ref_label: str, other_label: str
+) -> None:
     """One panel per quantity: reference and other overlaid over the span they share, the error
     figures in the legend (:func:`compare_figure`), written to ``path``."""
     import matplotlib.pyplot as plt
@@ -415,12 +442,24 @@ def compare_figure(ref: TimeSeries, other: TimeSeries, scores: list[Score], ref_
         shown = np.concatenate([ref[s.quantity][mr], other[s.quantity][mo]])
         vscale, vunit = value_unit(s.quantity, shown[np.isfinite(shown)])
         ax.plot(scale * ref.time[mr], vscale * ref[s.quantity][mr], "k-", lw=1.6, label=f"reference ({ref_label})")
+
         def fmt(x):
             return "-" if x is None else f"{100 * x:.2f} %"
-        ax.plot(scale * other.time[mo], vscale * other[s.quantity][mo], "C3--", lw=1.3,
-                label=(f"{other_label}\npeak {fmt(s.peak_error)}, L2 {fmt(s.l2_error)}"
-                       + ("" if s.shift_s is None else
-                          f"\nshift {scale * s.shift_s:.3g} {tunit}, L2 after shift {fmt(s.l2_error_shifted)}")))
+
+        ax.plot(
+            scale * other.time[mo],
+            vscale * other[s.quantity][mo],
+            "C3--",
+            lw=1.3,
+            label=(
+                f"{other_label}\npeak {fmt(s.peak_error)}, L2 {fmt(s.l2_error)}"
+                + (
+                    ""
+                    if s.shift_s is None
+                    else f"\nshift {scale * s.shift_s:.3g} {tunit}, L2 after shift {fmt(s.l2_error_shifted)}"
+                )
+            ),
+        )
         ax.set_title(_title(s.quantity), fontsize=10)
         ax.set_xlabel(f"time [{tunit}]")
         ax.set_ylabel(f"{_title(s.quantity)} [{vunit}]" if vunit else _title(s.quantity))
@@ -440,11 +479,11 @@ def compare_figure(ref: TimeSeries, other: TimeSeries, scores: list[Score], ref_
 def main(args: argparse.Namespace) -> int:
     """``millimpact compare``: read, score, print the table, write compare.json/.csv/.png."""
     from ..results.reference import read_history_csv, read_reference
-    from ..results.timeseries import contact_metrics, jsonable, unit_of
+    from ..results.timeseries import jsonable
 
     other_path = Path(args.other)
     out = args.out if args.out is not None else default_out(other_path.stem, prefix="compare-")
-    target = claim_output(out, "compare", force=args.force)   # before reading: a typo costs nothing
+    target = claim_output(out, "compare", force=args.force)  # before reading: a typo costs nothing
     ref = read_reference(Path(args.reference))
     if other_path.is_dir() or not other_path.exists():
         raise InputError(f"other {other_path}: no such file (expected a CSV with a time_s column)")
@@ -474,42 +513,55 @@ def main(args: argparse.Namespace) -> int:
     if kinematics_differ(method_of(ref.path, ref.meta), method_of(other_path, other_meta)):
         differ = tuple(n for n in KINEMATICS_COLUMNS if n in common)
         if differ:
-            ignored["defined differently: FE centre of mass of the half-ball of radius a_max, Hertz surface point"] = \
+            ignored["defined differently: FE centre of mass of the half-ball of radius a_max, Hertz surface point"] = (
                 list(differ)
+            )
     if not common:
-        raise InputError(f"other {other_path}: no column in common with the reference (it has "
-                         f"{', '.join(n for n in ref.series.columns if n != 'time_s')})")
+        raise InputError(
+            f"other {other_path}: no column in common with the reference (it has "
+            f"{', '.join(n for n in ref.series.columns if n != 'time_s')})"
+        )
     if other.time[-1] < ref.series.time[0] or other.time[0] > ref.series.time[-1]:
-        raise InputError(f"other {other_path}: time_s {other.time[0]:g}..{other.time[-1]:g} s does not overlap the "
-                         f"reference's {ref.series.time[0]:g}..{ref.series.time[-1]:g} s (see --time-offset)")
+        raise InputError(
+            f"other {other_path}: time_s {other.time[0]:g}..{other.time[-1]:g} s does not overlap the "
+            f"reference's {ref.series.time[0]:g}..{ref.series.time[-1]:g} s (see --time-offset)"
+        )
     max_shift = default_max_shift(ref.series) if args.max_shift is None else args.max_shift
     scores = compare_series(ref.series, other, max_shift, skip=differ)
 
     say(f"reference {ref.path} ({ref.label}), other {other_path}: {len(common)} histories compared")
     if not ref.is_reference_file:
-        say(f"warning: {ref.path.name} is a run's time series, not a reference file: scored without the "
-            "reference metadata (first contact, Hertz values); 'millimpact run SCENE --reference' writes one")
+        say(
+            f"warning: {ref.path.name} is a run's time series, not a reference file: scored without the "
+            "reference metadata (first contact, Hertz values); 'millimpact run SCENE --reference' writes one"
+        )
     say(format_table(scores))
     for reason, names in ignored.items():
         say(f"ignored ({reason}): {', '.join(names)}")
     low = [s.quantity for s in scores if s.coverage < 0.999]
     if low:
-        say(f"note: the other covers less than 99.9 % of the reference's int y^2 dt for {', '.join(low)}: "
-             "their L2 errors are over the covered part only (column 'cover')")
+        say(
+            f"note: the other covers less than 99.9 % of the reference's int y^2 dt for {', '.join(low)}: "
+            "their L2 errors are over the covered part only (column 'cover')"
+        )
     hint = time_unit_hint(ref.series, other)
     if hint:
         say(f"warning: {hint}")
     if world_rank() != 0:
         return 0
     result = {
-        "format": "millimpact-compare", "format_version": 1,
-        "reference": str(ref.path), "reference_scene": ref.meta.get("scene"),
-        "reference_method": ref.meta.get("method"), "other": str(other_path),
-        "time_offset_s": args.time_offset, "max_shift_s": max_shift,
+        "format": "millimpact-compare",
+        "format_version": 1,
+        "reference": str(ref.path),
+        "reference_scene": ref.meta.get("scene"),
+        "reference_method": ref.meta.get("method"),
+        "other": str(other_path),
+        "time_offset_s": args.time_offset,
+        "max_shift_s": max_shift,
         "ignored_columns": ignored,
         "definitions": {
             "peak_error": "s (P_other - P_ref) / |P_ref|; P the extreme sample of s y in the common window, "
-                          "s = +1 (maximum) or -1 (minimum) by the column's physics or the reference's sign",
+            "s = +1 (maximum) or -1 (minimum) by the column's physics or the reference's sign",
             "time_of_peak_error_s": "t_peak,other - t_peak,ref, times parabola-refined; null for a flat history",
             "l2_error": "sqrt(int (y_o - y_r)^2 dt / int y_r^2 dt) on the reference grid where the other covers it",
             "coverage": "share of the reference's int y_r^2 dt inside the other's time span",
@@ -523,6 +575,8 @@ def main(args: argparse.Namespace) -> int:
         write_csv(scores, stage / "compare.csv")
         if not args.no_plots:
             plot_compare(ref.series, other, scores, stage / "compare.png", ref.label, other_path.name)
-    say(f"results in {target.shown}/ (compare.json, compare.csv{', compare.png' if not args.no_plots else ''})"
-        + target.replaced_note())
+    say(
+        f"results in {target.shown}/ (compare.json, compare.csv{', compare.png' if not args.no_plots else ''})"
+        + target.replaced_note()
+    )
     return 0

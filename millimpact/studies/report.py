@@ -2,19 +2,20 @@
 the paper's conclusions (2)-(5) checked one by one, and the written report (peaks.csv / peaks.md, study.md,
 study.json, figures through :mod:`millimpact.studies.study_figures`).
 """
+
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional, Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from ..commandkit.store import write_atomic
 from .sweep import CaseRun, Study, describe_reuse
-
 
 LITTLE = 0.10
 #: a monotone trend must change by more than this over the range to count as a rise or a fall
@@ -62,8 +63,8 @@ def case_peaks(run: CaseRun) -> dict[str, float]:
     noise; the acceleration "in contact" is the velocity's slope over windows of t_c / 8 between
     10 % and 90 % of the pulse, the smooth part (~ share * F / m at the peak in Hertz's model).
     """
-    from ..scene.plan import scene_hertz
     from ..results.timeseries import contact_metrics
+    from ..scene.plan import scene_hertz
 
     ts, s, scene = run.series, run.summary, run.case.scene
     assert s is not None, "a finished case has its summary"
@@ -99,21 +100,27 @@ def case_peaks(run: CaseRun) -> dict[str, float]:
     blk = scene.block.material
     share = (1 - blk.poisson**2) / blk.youngs_modulus * h.e_star  # the block's share of the approach
     p = {
-        "F_max": m["peak_contact_force_N"], "t_c": tc,
+        "F_max": m["peak_contact_force_N"],
+        "t_c": tc,
         "displacement": peak(col("contact_point_displacement_m")),
         "velocity": peak(np.abs(col("contact_point_velocity_m_s"))),
         "acceleration": acc_contact,
         "acceleration_raw": peak(acc),
         "t_acceleration": t_acc,
-        "displacement_after": disp_after, "acceleration_after": acc_after,
+        "displacement_after": disp_after,
+        "acceleration_after": acc_after,
         "stress": peak(-col("contact_point_stress_Pa")),
         "von_mises": peak(col("contact_point_von_mises_Pa")),
         "restitution": s.get("restitution") if s.get("restitution") is not None else math.nan,
         "vibration_share": s.get("vibration_energy_share_end", math.nan),
         "wall": run.wall_time_s,
-        "F_max_hertz": h.force_max, "t_c_hertz": h.contact_time, "stress_hertz": h.p0,
-        "displacement_hertz": share * h.delta_max, "velocity_hertz": share * h.speed,
-        "acceleration_hertz": share * h.force_max / h.mass, "e_star": h.e_star,
+        "F_max_hertz": h.force_max,
+        "t_c_hertz": h.contact_time,
+        "stress_hertz": h.p0,
+        "displacement_hertz": share * h.delta_max,
+        "velocity_hertz": share * h.speed,
+        "acceleration_hertz": share * h.force_max / h.mass,
+        "e_star": h.e_star,
     }
     return {k: (float(v) if v is not None else math.nan) for k, v in p.items()}
 
@@ -129,7 +136,7 @@ def fit_exponent(x: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarra
 
 def local_exponents(x: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray) -> list[float]:
     """Slopes of log|y| against log x between neighbouring cases."""
-    return [fit_exponent(x[i:i + 2], y[i:i + 2]) for i in range(len(x) - 1)]
+    return [fit_exponent(x[i : i + 2], y[i : i + 2]) for i in range(len(x) - 1)]
 
 
 @dataclass
@@ -154,10 +161,18 @@ def analyse(study: Study, runs: Sequence[CaseRun]) -> StudyAnalysis:
         for key, name, hkey, law in FITTED:
             sim, hz = a.values(key), a.values(hkey)
             k, kh = fit_exponent(x, sim), fit_exponent(x, hz)
-            a.fits.append({"quantity": key, "name": name, "k": k, "k_hertz": kh, "law": law,
-                           "local_k": local_exponents(x, sim),
-                           "change": float(sim[-1] / sim[0] - 1.0) if sim[0] else math.nan,
-                           "change_hertz": float(hz[-1] / hz[0] - 1.0) if hz[0] else math.nan})
+            a.fits.append(
+                {
+                    "quantity": key,
+                    "name": name,
+                    "k": k,
+                    "k_hertz": kh,
+                    "law": law,
+                    "local_k": local_exponents(x, sim),
+                    "change": float(sim[-1] / sim[0] - 1.0) if sim[0] else math.nan,
+                    "change_hertz": float(hz[-1] / hz[0] - 1.0) if hz[0] else math.nan,
+                }
+            )
     if study.paper is not None and len(ok) == len(study.cases) == len(study.paper.values):
         a.paper_checks = paper_checks(study, a)
     return a
@@ -165,35 +180,48 @@ def analyse(study: Study, runs: Sequence[CaseRun]) -> StudyAnalysis:
 
 #: the paper's conclusions (2)-(5) as checkable statements: (quantity, expectation, the paper's words)
 PAPER_CLAIMS = {
-    "poisson": [("displacement", "little", "little effect on the displacement"),
-                ("velocity", "little", "little effect on the velocity"),
-                ("acceleration", "little", "little effect on the acceleration"),
-                ("stress", "rises", "the stress changes greatly (its amplitude increases)"),
-                ("stress", "slower", "above u = 1.0 the increase of the stress becomes smaller")],
-    "velocity": [("displacement", "rises", "the displacement increases"),
-                 ("velocity", "rises", "the velocity increases"),
-                 ("acceleration", "rises", "the acceleration increases"),
-                 ("stress", "rises", "the stress increases"),
-                 ("displacement", "slower", "above 3 m/s the increase of the displacement is smaller"),
-                 ("stress", "slower", "above 3 m/s the increase of the stress is smaller"),
-                 ("acceleration", "slower", "above 3 m/s the increase of the acceleration is smaller")],
-    "radius": [("displacement", "rises", "the displacement increases"),
-               ("velocity", "rises", "the velocity increases"),
-               ("stress", "rises", "the stress amplitude increases"),
-               ("acceleration", "little", "the acceleration amplitude changes little"),
-               ("stress", "faster", "above 20 mm the stress changes greatly"),
-               ("t_acceleration", "falls", "the maximum acceleration occurs earlier")],
-    "thickness": [("displacement", "rises", "the displacement increases"),
-                  ("acceleration", "rises", "the acceleration increases"),
-                  ("stress", "falls", "the stress amplitude decreases"),
-                  ("velocity", "little", "the velocity does not increase significantly"),
-                  ("t_acceleration", "settles", "above 40 mm the time of the maximum acceleration hardly changes")],
+    "poisson": [
+        ("displacement", "little", "little effect on the displacement"),
+        ("velocity", "little", "little effect on the velocity"),
+        ("acceleration", "little", "little effect on the acceleration"),
+        ("stress", "rises", "the stress changes greatly (its amplitude increases)"),
+        ("stress", "slower", "above u = 1.0 the increase of the stress becomes smaller"),
+    ],
+    "velocity": [
+        ("displacement", "rises", "the displacement increases"),
+        ("velocity", "rises", "the velocity increases"),
+        ("acceleration", "rises", "the acceleration increases"),
+        ("stress", "rises", "the stress increases"),
+        ("displacement", "slower", "above 3 m/s the increase of the displacement is smaller"),
+        ("stress", "slower", "above 3 m/s the increase of the stress is smaller"),
+        ("acceleration", "slower", "above 3 m/s the increase of the acceleration is smaller"),
+    ],
+    "radius": [
+        ("displacement", "rises", "the displacement increases"),
+        ("velocity", "rises", "the velocity increases"),
+        ("stress", "rises", "the stress amplitude increases"),
+        ("acceleration", "little", "the acceleration amplitude changes little"),
+        ("stress", "faster", "above 20 mm the stress changes greatly"),
+        ("t_acceleration", "falls", "the maximum acceleration occurs earlier"),
+    ],
+    "thickness": [
+        ("displacement", "rises", "the displacement increases"),
+        ("acceleration", "rises", "the acceleration increases"),
+        ("stress", "falls", "the stress amplitude decreases"),
+        ("velocity", "little", "the velocity does not increase significantly"),
+        ("t_acceleration", "settles", "above 40 mm the time of the maximum acceleration hardly changes"),
+    ],
 }
 
-QUANTITY_NAMES = {"displacement": "peak contact-point displacement", "velocity": "peak contact-point velocity",
-                  "acceleration": "peak contact-point acceleration (in contact)", "stress": "peak normal stress at the contact point",
-                  "t_acceleration": "time of the peak acceleration after first contact",
-                  "F_max": "peak contact force", "t_c": "contact duration"}
+QUANTITY_NAMES = {
+    "displacement": "peak contact-point displacement",
+    "velocity": "peak contact-point velocity",
+    "acceleration": "peak contact-point acceleration (in contact)",
+    "stress": "peak normal stress at the contact point",
+    "t_acceleration": "time of the peak acceleration after first contact",
+    "F_max": "peak contact force",
+    "t_c": "contact duration",
+}
 
 
 def _fmt_values(key: str, v: np.ndarray) -> str:
@@ -222,14 +250,16 @@ def paper_checks(study: Study, a: StudyAnalysis) -> list[dict[str, str]]:
         d = np.diff(v)
         rel = float(v[-1] / v[0] - 1.0) if v[0] else math.nan
         ours = f"{QUANTITY_NAMES[key]}: {_fmt_values(key, v)}"
-        ok: bool | str       # "relative": agrees in relative terms only
+        ok: bool | str  # "relative": agrees in relative terms only
         if expect in ("rises", "falls"):
             ok = bool(np.all(d > 0) and rel > TREND) if expect == "rises" else bool(np.all(d < 0) and rel < -TREND)
             found = f"{_trend_word(v)} ({100 * rel:+.1f} % over the range)"
         elif expect == "little":
             ok = bool(abs(rel) < LITTLE)
-            found = (f"changes by {100 * rel:+.1f} % over the range "
-                     f"({'little' if ok else 'not little'}: threshold {100 * LITTLE:.0f} %)")
+            found = (
+                f"changes by {100 * rel:+.1f} % over the range "
+                f"({'little' if ok else 'not little'}: threshold {100 * LITTLE:.0f} %)"
+            )
         elif expect in ("slower", "faster"):
             inc1, inc2 = v[1] - v[0], v[2] - v[1]
             r1, r2 = v[1] / v[0] - 1.0, v[2] / v[1] - 1.0
@@ -238,11 +268,16 @@ def paper_checks(study: Study, a: StudyAnalysis) -> list[dict[str, str]]:
             ok = smaller if expect == "slower" else (not smaller and abs(r2) >= LITTLE)
             if expect == "slower" and not smaller and abs(r2) < abs(r1):
                 ok = "relative"
-            found = (f"change {_fmt_values(key, np.array([inc1]))} then {_fmt_values(key, np.array([inc2]))} "
-                     f"(relative {100 * r1:+.1f} % then {100 * r2:+.1f} %): the second step is "
-                     f"{'smaller' if smaller else 'larger'} in absolute terms"
-                     + ("" if (abs(r2) < abs(r1)) == smaller else
-                        f", {'smaller' if abs(r2) < abs(r1) else 'larger'} in relative terms"))
+            found = (
+                f"change {_fmt_values(key, np.array([inc1]))} then {_fmt_values(key, np.array([inc2]))} "
+                f"(relative {100 * r1:+.1f} % then {100 * r2:+.1f} %): the second step is "
+                f"{'smaller' if smaller else 'larger'} in absolute terms"
+                + (
+                    ""
+                    if (abs(r2) < abs(r1)) == smaller
+                    else f", {'smaller' if abs(r2) < abs(r1) else 'larger'} in relative terms"
+                )
+            )
         elif expect == "settles":
             s1, s2 = abs(v[1] - v[0]), abs(v[2] - v[1])
             ok = bool(s2 < 0.5 * s1 or s2 < 0.05 * abs(v[1]))
@@ -260,16 +295,35 @@ def peaks_table(study: Study, runs: Sequence[CaseRun], a: StudyAnalysis) -> tupl
     ok = [r for r in runs if r.series is not None]
     keys = list(PEAK_COLUMNS)
     csv_lines = [",".join(["case", study.param, "status"] + [PEAK_COLUMNS[k][0] for k in keys])]
-    md_keys = ["F_max", "F_max_hertz", "t_c", "t_c_hertz", "displacement", "velocity", "acceleration",
-               "acceleration_raw", "t_acceleration", "stress", "stress_hertz", "von_mises", "displacement_after",
-               "acceleration_after", "restitution", "vibration_share", "wall"]
-    md = ["| case | " + " | ".join(PEAK_COLUMNS[k][1] for k in md_keys) + " | status |",
-          "|---|" + "---|" * (len(md_keys) + 1)]
+    md_keys = [
+        "F_max",
+        "F_max_hertz",
+        "t_c",
+        "t_c_hertz",
+        "displacement",
+        "velocity",
+        "acceleration",
+        "acceleration_raw",
+        "t_acceleration",
+        "stress",
+        "stress_hertz",
+        "von_mises",
+        "displacement_after",
+        "acceleration_after",
+        "restitution",
+        "vibration_share",
+        "wall",
+    ]
+    md = [
+        "| case | " + " | ".join(PEAK_COLUMNS[k][1] for k in md_keys) + " | status |",
+        "|---|" + "---|" * (len(md_keys) + 1),
+    ]
     for r, p in zip(ok, a.peaks):
         val = r.case.value
         vtext = json.dumps(val) if isinstance(val, (list, str)) else f"{val:g}"
-        csv_lines.append(",".join([r.case.folder, f'"{vtext}"' if "," in vtext else vtext, r.status]
-                                  + [f"{p[k]:.8g}" for k in keys]))
+        csv_lines.append(
+            ",".join([r.case.folder, f'"{vtext}"' if "," in vtext else vtext, r.status] + [f"{p[k]:.8g}" for k in keys])
+        )
         cells = []
         for k in md_keys:
             v = p[k] * PEAK_COLUMNS[k][2]
@@ -321,7 +375,8 @@ def _explain(study: Study, a: StudyAnalysis) -> list[str]:
             "Since 1/E* = (1 - nu_ball)/(2G) + const, E* grows faster than linearly in nu_ball, so in Hertz's model "
             f"each step of u adds more stress than the one before ({(p0[1] - p0[0]) / 1e9:+.3g} then "
             f"{(p0[2] - p0[1]) / 1e9:+.3g} GPa): the paper's 'smaller increase above u = 1' is not what elastic contact "
-            "predicts.")
+            "predicts."
+        )
     elif name == "velocity":
         lines.append(
             "Hertz: F ~ v^(6/5), t_c ~ v^(-1/5), p0 ~ v^(2/5), contact-point displacement ~ v^(4/5), velocity ~ v, "
@@ -331,7 +386,8 @@ def _explain(study: Study, a: StudyAnalysis) -> list[str]:
             "force or the acceleration (6/5). So the paper's 'smaller increase above 3 m/s' holds in relative terms "
             "for all quantities and in absolute terms only for the displacement and the stress; our sampled stress "
             "carries several percent of mesh noise (below), enough to flip that absolute comparison. "
-            f"F_max against Hertz: {pct('F_max')} (the block is finite, clamped at its base and bends).")
+            f"F_max against Hertz: {pct('F_max')} (the block is finite, clamped at its base and bends)."
+        )
     elif name == "radius":
         lines.append(
             "Hertz: F ~ R^2, t_c ~ R, contact radius a ~ R, so the mean pressure F / (pi a^2) and p0 do not depend on R "
@@ -340,14 +396,16 @@ def _explain(study: Study, a: StudyAnalysis) -> list[str]:
             f"(ours: {chg('stress')}), while the paper reports that it grows, strongly above 20 mm; and the peak "
             "acceleration comes later for a larger ball (t_c ~ R), not earlier (ours: t(acc.) "
             f"{vals('t_acceleration', '{:.3g}', 1e6)} us). We cannot reproduce those statements; the paper does not "
-            "say how its contact-point stress is sampled.")
+            "say how its contact-point stress is sampled."
+        )
         if "F_max" in fit:
             lines.append(
                 f"Our F_max exponent {fit['F_max']['k']:.2f} lies below Hertz's 2 because the rig's block is no "
                 "half-space: clamped at its base and struck on its side it bends, and a heavier ball (m ~ r^3, a "
                 "longer pulse nearer the block's low modes) drives it harder: the share of the impact energy left in "
                 f"vibration goes {vals('vibration_share', '{:.0f}', 100)} % and F_max against Hertz "
-                f"{pct('F_max')}.")
+                f"{pct('F_max')}."
+            )
     elif name == "thickness":
         lines.append(
             "Hertz has no b: the local contact (F, t_c, p0) is that of a half-space. b enters only through the rig's "
@@ -361,61 +419,79 @@ def _explain(study: Study, a: StudyAnalysis) -> list[str]:
             f"({vals('stress', '{:.3g}', 1e-9)} GPa), where the paper finds it falling. After the contact the "
             f"contact point rings with amplitudes {vals('displacement_after', '{:.3g}', 1e6)} um and "
             f"{vals('acceleration_after', '{:.3g}', 1e-3)} km/s^2 (the block's free vibration; the paper's curves "
-            "over 40 ms may show these rather than the contact peaks).")
+            "over 40 ms may show these rather than the contact peaks)."
+        )
     if fit.get("acceleration") is not None:
         lines.append(
             "Acceleration: the table also gives the raw peak of the contact-point acceleration; it occurs at first "
             "contact or at release, where the point takes the block's share of the ball's speed within about one "
             "step, so it scales as ~ share * v / dt (a resolution value; infinite in the quasi-static limit). The "
             "trends use the acceleration in contact: the velocity's slope over windows of t_c / 8 between 10 % and "
-            "90 % of the pulse.")
+            "90 % of the pulse."
+        )
         lines.append(
             "Stress: the normal stress is sampled just below the contact point in a P1 mesh, where it is constant per "
             "element and comes from the few ball nodes nearest the centre (h_contact = a_max / 4 by default), so it "
             "is off Hertz's p0 by up to ~10 %, differently for each case (see the Hertz p0 column); trends in it "
-            "smaller than that are not resolved (docs: design, section 3: the pressure peak needs ~16 elements across a_max).")
+            "smaller than that are not resolved (docs: design, section 3: the pressure peak needs ~16 elements across a_max)."
+        )
     return lines
 
 
-def study_markdown(study: Study, runs: Sequence[CaseRun], a: StudyAnalysis, method: str, method_note: str,
-                   md_table: str, wall: float) -> str:
+def study_markdown(
+    study: Study, runs: Sequence[CaseRun], a: StudyAnalysis, method: str, method_note: str, md_table: str, wall: float
+) -> str:
     """``study.md``: setup, the peaks table, fitted trends beside Hertz, the paper's conclusions."""
     n_comp = sum(r.status == "computed" for r in runs)
     n_cache = sum(r.status == "cached" for r in runs)
     values = ", ".join(r.case.label.split("= ", 1)[-1] for r in runs)
-    lines = [f"# Study `{study.name}`: {study.symbol} = {values}",
-             "",
-             f"Base scene `{study.base}`, parameter `{study.param}`; method `{method}` ({method_note}). "
-             f"{len(runs)} cases: {n_comp} computed, {n_cache} from the cache; study wall time {wall:.1f} s "
-             f"(sum of case wall times {sum(p['wall'] for p in a.peaks if math.isfinite(p['wall'])):.1f} s).",
-             f"Simulated time {runs[0].case.scene.time.end * 1e3:g} ms per case. Figures: `contact_point.png` "
-             "(the paper's four panels around the impact), `contact_point_run.png` (impact and ringing, first 2 ms), `contact_force.png` "
-             "(with Hertz), `trends.png`.",
-             "", "## Peaks", "", md_table,
-             "disp., vel., acc.: the liner's contact point along the impact direction; |sigma_n|: compressive normal "
-             "stress just below it; t(acc.): time of the in-contact acceleration peak after first contact; "
-             "disp./acc. after: amplitude of the contact point's ringing after the contact (the block's free "
-             "vibration, undamped in this elastic model); e: restitution; vib. share: share of the impact energy left "
-             "in the bodies' vibration at the end.", ""]
+    lines = [
+        f"# Study `{study.name}`: {study.symbol} = {values}",
+        "",
+        f"Base scene `{study.base}`, parameter `{study.param}`; method `{method}` ({method_note}). "
+        f"{len(runs)} cases: {n_comp} computed, {n_cache} from the cache; study wall time {wall:.1f} s "
+        f"(sum of case wall times {sum(p['wall'] for p in a.peaks if math.isfinite(p['wall'])):.1f} s).",
+        f"Simulated time {runs[0].case.scene.time.end * 1e3:g} ms per case. Figures: `contact_point.png` "
+        "(the paper's four panels around the impact), `contact_point_run.png` (impact and ringing, first 2 ms), `contact_force.png` "
+        "(with Hertz), `trends.png`.",
+        "",
+        "## Peaks",
+        "",
+        md_table,
+        "disp., vel., acc.: the liner's contact point along the impact direction; |sigma_n|: compressive normal "
+        "stress just below it; t(acc.): time of the in-contact acceleration peak after first contact; "
+        "disp./acc. after: amplitude of the contact point's ringing after the contact (the block's free "
+        "vibration, undamped in this elastic model); e: restitution; vib. share: share of the impact energy left "
+        "in the bodies' vibration at the end.",
+        "",
+    ]
     if a.fits:
         words = []
         for f in a.fits[:3]:
-            words.append(f"the {f['name']} {_trend_word(a.values(f['quantity']))}, {100 * f['change']:+.1f} % over "
-                         f"the range (fit ~ {study.symbol}^{f['k']:.2f}; Hertz ~ {study.symbol}^{round(f['k_hertz'], 2) + 0.0:.2f})")
+            words.append(
+                f"the {f['name']} {_trend_word(a.values(f['quantity']))}, {100 * f['change']:+.1f} % over "
+                f"the range (fit ~ {study.symbol}^{f['k']:.2f}; Hertz ~ {study.symbol}^{round(f['k_hertz'], 2) + 0.0:.2f})"
+            )
         lines += ["## Summary", "", "Over the cases " + "; ".join(words) + ".", ""]
-        lines += ["## Trends (power laws y ~ x^k fitted over the cases)", "",
-                  f"x = {study.xlabel}. 'Hertz k' is the same fit of Hertz's values for the same scenes "
-                  "(quasi-static, half-space).", "",
-                  "| quantity | k (ours) | k (Hertz) | local k | change over the range | Hertz law |",
-                  "|---|---|---|---|---|---|"]
+        lines += [
+            "## Trends (power laws y ~ x^k fitted over the cases)",
+            "",
+            f"x = {study.xlabel}. 'Hertz k' is the same fit of Hertz's values for the same scenes "
+            "(quasi-static, half-space).",
+            "",
+            "| quantity | k (ours) | k (Hertz) | local k | change over the range | Hertz law |",
+            "|---|---|---|---|---|---|",
+        ]
         for f in a.fits:
             loc = ", ".join(f"{k:.3f}" for k in f["local_k"])
-            lines.append(f"| {f['name']} | {f['k']:.3f} | {round(f['k_hertz'], 3) + 0.0:.3f} | {loc} | {100 * f['change']:+.1f} % "
-                         f"| {f['law']} |")
+            lines.append(
+                f"| {f['name']} | {f['k']:.3f} | {round(f['k_hertz'], 3) + 0.0:.3f} | {loc} | {100 * f['change']:+.1f} % "
+                f"| {f['law']} |"
+            )
         lines.append("")
     if a.paper_checks:
         assert study.paper is not None, "only a study of the paper's is checked against it"
-        lines += [f"## Against the paper's conclusion", "", f"> {study.paper.paper_conclusion}", ""]
+        lines += ["## Against the paper's conclusion", "", f"> {study.paper.paper_conclusion}", ""]
         for c in a.paper_checks:
             lines.append(f"- Paper: {c['claim']}. Ours: {c['found']} -- **{c['verdict']}**. ({c['ours']})")
         lines.append("")
@@ -428,7 +504,7 @@ def study_markdown(study: Study, runs: Sequence[CaseRun], a: StudyAnalysis, meth
     return "\n".join(lines)
 
 
-def thornton_curve(scene) -> Optional[tuple[float, str]]:
+def thornton_curve(scene) -> tuple[float, str] | None:
     """(V_y, label) of Thornton's curve for a scene whose materials yield: the yield-onset speed of
     the softer plastic material (theory/thornton.py); None when both are elastic."""
     from ..theory.hertz import effective_modulus
@@ -438,16 +514,20 @@ def thornton_curve(scene) -> Optional[tuple[float, str]]:
     if not ys:
         return None
     y = min(ys)
-    vy = yield_onset_velocity(y, effective_modulus(scene.ball.material, scene.target_material), scene.ball.effective_density)
+    vy = yield_onset_velocity(
+        y, effective_modulus(scene.ball.material, scene.target_material), scene.ball.effective_density
+    )
     return vy, f"Thornton 1997 (Y = {y / 1e9:.3g} GPa, V_y = {vy:.3g} m/s; a lower bound of FE)"
 
 
-def write_study(study: Study, runs: Sequence[CaseRun], out: Path, method: str, method_note: str, wall: float) -> StudyAnalysis:
+def write_study(
+    study: Study, runs: Sequence[CaseRun], out: Path, method: str, method_note: str, wall: float
+) -> StudyAnalysis:
     """The study's figures, tables, text and ``study.json`` (last) in ``out`` (rank 0)."""
-    from . import study_figures as study_plots
+    from ..results.timeseries import contact_metrics, jsonable
     from ..scene.plan import scene_hertz
     from ..theory.hertz import hertz_history
-    from ..results.timeseries import jsonable, contact_metrics
+    from . import study_figures as study_plots
 
     a = analyse(study, runs)
     ok = [r for r in runs if r.series is not None]
@@ -457,37 +537,59 @@ def write_study(study: Study, runs: Sequence[CaseRun], out: Path, method: str, m
         for r in ok:
             m = contact_metrics(r.series)
             cp.append((r.case.label, r.series, m.get("contact_start_s", 0.0), m["contact_duration_s"]))
-        study_plots.plot_study_contact_point(cp, out / "contact_point.png",
-                                             f"{title}: liner contact point around the impact")
-        study_plots.plot_study_contact_point(cp, out / "contact_point_run.png",
-                                             f"{title}: liner contact point, impact and ringing "
-                                             f"(first {min(study_plots.RUN_WINDOW, study.cases[0].scene.time.end) * 1e3:g} ms)",
-                                             whole_run=True)
-        study_plots.plot_study_force([(lab, ts, t0, hertz_history(scene_hertz(r.case.scene)))
-                                      for (lab, ts, t0, _), r in zip(cp, ok)],
-                                     out / "contact_force.png", f"{title}: contact force")
+        study_plots.plot_study_contact_point(
+            cp, out / "contact_point.png", f"{title}: liner contact point around the impact"
+        )
+        study_plots.plot_study_contact_point(
+            cp,
+            out / "contact_point_run.png",
+            f"{title}: liner contact point, impact and ringing "
+            f"(first {min(study_plots.RUN_WINDOW, study.cases[0].scene.time.end) * 1e3:g} ms)",
+            whole_run=True,
+        )
+        study_plots.plot_study_force(
+            [(lab, ts, t0, hertz_history(scene_hertz(r.case.scene))) for (lab, ts, t0, _), r in zip(cp, ok)],
+            out / "contact_force.png",
+            f"{title}: contact force",
+        )
         if len(ok) >= 2 and np.all(np.isfinite(a.x)):
             quantities = [(name, a.values(key), a.values(hkey)) for key, name, hkey, _ in FITTED]
-            study_plots.plot_study_trends(a.x, study.xlabel, quantities, out / "trends.png",
-                                          f"{title}: peaks against {study.symbol}")
+            study_plots.plot_study_trends(
+                a.x, study.xlabel, quantities, out / "trends.png", f"{title}: peaks against {study.symbol}"
+            )
         e = a.values("restitution")
         if study.param == "impact.velocity" and len(ok) >= 2 and np.sum(np.isfinite(e)) >= 2:
             speeds = np.array([r.case.scene.normal_speed for r in ok])
-            study_plots.plot_study_restitution(speeds, e, out / "restitution.png", f"{title}: restitution",
-                                               thornton_curve(study.cases[0].scene))
+            study_plots.plot_study_restitution(
+                speeds, e, out / "restitution.png", f"{title}: restitution", thornton_curve(study.cases[0].scene)
+            )
     csv_text, md_table = peaks_table(study, runs, a)
     write_atomic(out / "peaks.csv", csv_text)
     write_atomic(out / "peaks.md", md_table)
     write_atomic(out / "study.md", study_markdown(study, runs, a, method, method_note, md_table, wall))
-    data = {"study": study.name, "param": study.param, "base": study.base, "method": method,
-            "method_note": method_note, "wall_time_s": wall,
-            "cases": [{"folder": r.case.folder, "label": r.case.label, "value": r.case.value, "x": r.case.x,
-                       "status": r.status, "error": r.error,
-                       "peaks": a.peaks[[q.case.index for q in ok].index(r.case.index)] if r.series is not None else None}
-                      for r in runs],
-            "reuse": describe_reuse(runs)[0], "fits": a.fits, "paper_checks": a.paper_checks,
-            "paper_conclusion": study.paper.paper_conclusion if study.paper else None}
+    data = {
+        "study": study.name,
+        "param": study.param,
+        "base": study.base,
+        "method": method,
+        "method_note": method_note,
+        "wall_time_s": wall,
+        "cases": [
+            {
+                "folder": r.case.folder,
+                "label": r.case.label,
+                "value": r.case.value,
+                "x": r.case.x,
+                "status": r.status,
+                "error": r.error,
+                "peaks": a.peaks[[q.case.index for q in ok].index(r.case.index)] if r.series is not None else None,
+            }
+            for r in runs
+        ],
+        "reuse": describe_reuse(runs)[0],
+        "fits": a.fits,
+        "paper_checks": a.paper_checks,
+        "paper_conclusion": study.paper.paper_conclusion if study.paper else None,
+    }
     write_atomic(out / "study.json", json.dumps(jsonable(data), indent=2) + "\n")
     return a
-
-

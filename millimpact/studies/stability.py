@@ -20,7 +20,8 @@ force drops to zero and comes back within the first pulse); force roughness
 ||F - median5(F)|| / ||F|| (a 5-sample median filter keeps a smooth pulse and the bar's step
 edges but removes chatter); the contact duration and peak force errors (bar: exact; sphere:
 the same mesh's newmark-mr run at the smallest step, so that the coarse mesh's own error against
-Hertz does not hide the integrators'; the Hertz error is in the CSV's note); failure (exception, NaN, the explicit method's divergence flag, energy growth > 50 %).
+Hertz does not hide the integrators'; the Hertz error is in the CSV's note); failure (exception,
+NaN, the explicit method's divergence flag, energy growth > 50 %).
 
 Status: ``failed`` as above; ``degraded`` if energy drift > 5 %, any pulse break, roughness > 5 %,
 penetration > 5 %, or the duration (bar) / peak force (sphere) off by > 10 % / 15 %; else ``pass``
@@ -38,6 +39,7 @@ Output under ``--out``: ``stability.csv`` (a row per run, units in the header), 
 (pass / degraded / failed over step and velocity, a panel per problem), ``critical_step.json``
 (the explicit method's measured boundary against theory).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,9 +50,9 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Optional, TypedDict
+from typing import TYPE_CHECKING, Any, TypedDict
 
-if TYPE_CHECKING:   # numpy is imported where the command computes (`millimpact --help` stays fast)
+if TYPE_CHECKING:  # numpy is imported where the command computes (`millimpact --help` stays fast)
     import numpy as np
 
 from ..console import sayer
@@ -64,15 +66,16 @@ DESCRIPTION = __doc__
 
 INTEGRATORS = ("newmark-mr", "newmark", "central-penalty")
 #: thresholds of the classification (module docstring)
-DEGRADED = {"energy_drift": 0.05, "roughness": 0.05, "penetration": 0.05, "bar_duration": 0.10,
-            "sphere_force": 0.15}
+DEGRADED = {"energy_drift": 0.05, "roughness": 0.05, "penetration": 0.05, "bar_duration": 0.10, "sphere_force": 0.15}
 FAILED_ENERGY_GROWTH = 0.5
 
 BAR_COURANT = (0.25, 0.5, 0.8, 0.9, 0.91, 0.92, 0.95, 1.0, 1.1, 1.5, 2.0, 4.0)
 BAR_VELOCITIES = (0.01, 0.1, 1.0, 5.0, 20.0)
-SPHERE_DT = (0.5, 1.0, 2.0, 4.0, 8.0)          # x t_c / 100
+SPHERE_DT = (0.5, 1.0, 2.0, 4.0, 8.0)  # x t_c / 100
 SPHERE_DT_EXPLICIT = (0.5, 0.7, 0.8, 0.9, 1.1)  # x dt_crit
 SPHERE_VELOCITIES = (0.1, 3.0, 20.0)
+
+
 class SweepSettings(TypedDict, total=False):
     """Settings of a sweep that differ from the full one's (the module constants)."""
 
@@ -84,8 +87,14 @@ class SweepSettings(TypedDict, total=False):
     sphere_velocities: tuple[float, ...]
 
 
-QUICK: SweepSettings = {"bar_courant": (0.5, 0.9, 1.1, 2.0), "bar_velocities": (0.01, 1.0, 20.0), "bar_n_el": 50,
-         "sphere_dt": (1.0, 4.0), "sphere_dt_explicit": (0.7, 1.1), "sphere_velocities": (3.0,)}
+QUICK: SweepSettings = {
+    "bar_courant": (0.5, 0.9, 1.1, 2.0),
+    "bar_velocities": (0.01, 1.0, 20.0),
+    "bar_n_el": 50,
+    "sphere_dt": (1.0, 4.0),
+    "sphere_dt_explicit": (0.7, 1.1),
+    "sphere_velocities": (3.0,),
+}
 
 
 @dataclass
@@ -96,7 +105,7 @@ class Case:
     integrator: str
     velocity_m_s: float
     dt_s: float
-    dt_rel: float                  #: bar: Courant; sphere: dt / (t_c/100) or dt / dt_crit (explicit)
+    dt_rel: float  #: bar: Courant; sphere: dt / (t_c/100) or dt / dt_crit (explicit)
     dt_axis: str
     status: str = "pass"
     reason: str = ""
@@ -119,13 +128,12 @@ def force_measures(force: np.ndarray) -> tuple[int, float]:
     """(pulse breaks, roughness) of a force history on a uniform step: breaks are returns to zero
     between the first and last positive samples; roughness ||F - median5(F)|| / ||F||."""
     import numpy as np
-
     from scipy.ndimage import median_filter
 
     pos = np.flatnonzero(force > 0)
     if pos.size == 0:
         return 0, 0.0
-    seg = force[pos[0]:pos[-1] + 1] > 0
+    seg = force[pos[0] : pos[-1] + 1] > 0
     breaks = int(np.count_nonzero(seg[1:] & ~seg[:-1]))
     f = np.asarray(force, float)
     dev = f - median_filter(f, size=5, mode="nearest")
@@ -169,7 +177,7 @@ def bar_critical_step_theory(n_el: int = 100, penalty_factor: float = 1.0) -> di
     n = n_el + 1
     K = np.zeros((n, n))
     for e in range(n_el):
-        K[e:e + 2, e:e + 2] += np.array([[1.0, -1.0], [-1.0, 1.0]])
+        K[e : e + 2, e : e + 2] += np.array([[1.0, -1.0], [-1.0, 1.0]])
     m = np.full(n, 1.0)
     m[0] = m[-1] = 0.5
     d = 1.0 / np.sqrt(m)
@@ -198,7 +206,7 @@ def run_bar_case(integrator: str, courant: float, v0: float, n_el: int = 100) ->
     t0 = time.perf_counter()
     try:
         res = run_bar(case, integrator, dt_contact=dt, dt_free=dt, t_end=t_end, options=opts)
-    except Exception as exc:          # a sweep looks for failures: record them, don't stop
+    except Exception as exc:  # a sweep looks for failures: record them, don't stop
         c.status, c.reason = "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0][:120]}"
         c.wall_s = time.perf_counter() - t0
         return c
@@ -243,8 +251,8 @@ class _SphereSetup:
         from mpi4py import MPI
 
         from ..fem.contact import create_contact
-        from ..geometry.mesh import create_mesh
         from ..fem.model import create_fe_model
+        from ..geometry.mesh import create_mesh
         from ..scene.plan import make_plan
 
         self.scene = sphere_scene(scene, v)
@@ -261,8 +269,14 @@ class _SphereSetup:
         from ..integration import integrators as I
 
         m = self.model
-        system = I.LinearDynamics(M=m.M, K=m.K, B=self.contact.B, g0=self.contact.g0, fixed_dofs=m.fixed_dofs,
-                                  contact_dofs=self.contact.contact_dofs)
+        system = I.LinearDynamics(
+            M=m.M,
+            K=m.K,
+            B=self.contact.B,
+            g0=self.contact.g0,
+            fixed_dofs=m.fixed_dofs,
+            contact_dofs=self.contact.contact_dofs,
+        )
         u0 = m.M.createVecRight()
         u0.set(0.0)
         v0 = m.ball_velocity(self.scene.impact.velocity)
@@ -270,17 +284,25 @@ class _SphereSetup:
 
         def observe(st) -> None:
             e = I.kinetic_energy(st.mass, st.v) + I.strain_energy(m.K, st.u, m.fixed_dofs) + st.penalty_energy
-            rows.append((st.t, m.sym_factor * float(np.sum(st.lam)), m.sym_factor * e,
-                         float(np.min(st.gap)) if len(st.gap) else math.inf))
+            rows.append(
+                (
+                    st.t,
+                    m.sym_factor * float(np.sum(st.lam)),
+                    m.sym_factor * e,
+                    float(np.min(st.gap)) if len(st.gap) else math.inf,
+                )
+            )
 
-        stats = I.integrate(system, u0, v0, I.TimeSchedule(self.t_end, dt, dt), method=integrator, observer=observe,
-                            options=options)
+        stats = I.integrate(
+            system, u0, v0, I.TimeSchedule(self.t_end, dt, dt), method=integrator, observer=observe, options=options
+        )
         a = np.array(rows)
         return {"t": a[:, 0], "force": a[:, 1], "energy": a[:, 2], "gap": a[:, 3], "stats": stats}
 
 
-def run_sphere_case(setup: _SphereSetup, integrator: str, dt: float, dt_rel: float, axis: str,
-                    options: Optional[dict] = None) -> Case:
+def run_sphere_case(
+    setup: _SphereSetup, integrator: str, dt: float, dt_rel: float, axis: str, options: dict | None = None
+) -> Case:
     """One sphere run with a fixed step ``dt`` (s)."""
     import numpy as np
 
@@ -291,7 +313,7 @@ def run_sphere_case(setup: _SphereSetup, integrator: str, dt: float, dt_rel: flo
     t0 = time.perf_counter()
     try:
         r = setup.run(integrator, dt, dict(options or {}))
-    except Exception as exc:          # a sweep looks for failures: record them, don't stop
+    except Exception as exc:  # a sweep looks for failures: record them, don't stop
         c.status, c.reason = "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0][:120]}"
         c.wall_s = time.perf_counter() - t0
         return c
@@ -309,8 +331,9 @@ def run_sphere_case(setup: _SphereSetup, integrator: str, dt: float, dt_rel: flo
         m = contact_metrics(TimeSeries({"time_s": r["t"], "contact_force_N": f}))
         c.duration_rel_error = m["contact_duration_s"] / h.contact_time - 1.0
         c.peak_force_rel_error = m["peak_contact_force_N"] / h.force_max - 1.0
-        c.extra.update(F_max_N=m["peak_contact_force_N"], t_c_s=m["contact_duration_s"],
-                       F_max_vs_hertz=c.peak_force_rel_error)
+        c.extra.update(
+            F_max_N=m["peak_contact_force_N"], t_c_s=m["contact_duration_s"], F_max_vs_hertz=c.peak_force_rel_error
+        )
     c.steps = int(st.n_steps)
     c.dt_critical_s = float(st.dt_critical)
     c.extra.update(max_active=int(st.max_active), dofs=int(setup.model.n_dofs_global))
@@ -326,8 +349,7 @@ def rescore_sphere(cases: list[Case]) -> None:
     smallest step (the coarse mesh's own error against Hertz, e.g. +46 % on F_max at 0.1 m/s
     where h_far / h_contact is 80, would otherwise mask the integrators' differences): F_max and
     t_c relative to that run; then classify again."""
-    refs = sorted((c for c in cases if c.integrator == "newmark-mr" and "F_max_N" in c.extra),
-                  key=lambda c: c.dt_rel)
+    refs = sorted((c for c in cases if c.integrator == "newmark-mr" and "F_max_N" in c.extra), key=lambda c: c.dt_rel)
     if not refs:
         return
     ref = refs[0]
@@ -342,8 +364,9 @@ def rescore_sphere(cases: list[Case]) -> None:
 
 
 # --- the sweep -------------------------------------------------------------------------------------
-def sweep(integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = False, scene=None,
-          say=print) -> list[Case]:
+def sweep(
+    integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = False, scene=None, say=print
+) -> list[Case]:
     """Run the sweep; returns the cases in order."""
     cfg: SweepSettings = QUICK if quick else {}
     cases: list[Case] = []
@@ -357,8 +380,10 @@ def sweep(integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = Fal
                     c = run_bar_case(integ, cr, v, n_el)
                     c.extra["n_el"] = n_el
                     cases.append(c)
-                say(f"  bar {integ:16s} v {v:6g} m/s: " + " ".join(
-                    f"{x.dt_rel:g}:{x.status[0].upper()}" for x in cases[-len(courants):]))
+                say(
+                    f"  bar {integ:16s} v {v:6g} m/s: "
+                    + " ".join(f"{x.dt_rel:g}:{x.status[0].upper()}" for x in cases[-len(courants) :])
+                )
     if "sphere" in problems:
         from ..scene.builtin import resolve_scene
 
@@ -370,8 +395,9 @@ def sweep(integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = Fal
                 # a velocity the scene cannot model (e.g. the contact patch outgrows the ball):
                 # recorded as failed set-ups, the sweep goes on
                 for integ in integrators:
-                    cases.append(Case("sphere", integ, v, math.nan, math.nan, "-", "failed",
-                                      f"set-up: {str(exc)[:120]}"))
+                    cases.append(
+                        Case("sphere", integ, v, math.nan, math.nan, "-", "failed", f"set-up: {str(exc)[:120]}")
+                    )
                 say(f"  sphere v {v:g} m/s: set-up failed: {exc}")
                 continue
             dt_c = setup.plan.dt_contact
@@ -383,8 +409,9 @@ def sweep(integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = Fal
                     if crit is None:
                         crit = _sphere_dt_crit(setup)
                     for fac in cfg.get("sphere_dt_explicit", SPHERE_DT_EXPLICIT):
-                        cases.append(run_sphere_case(setup, integ, fac * crit, fac, "dt / dt_crit",
-                                                     {"limit_step": False}))
+                        cases.append(
+                            run_sphere_case(setup, integ, fac * crit, fac, "dt / dt_crit", {"limit_step": False})
+                        )
                 else:
                     for fac in cfg.get("sphere_dt", SPHERE_DT):
                         cases.append(run_sphere_case(setup, integ, fac * dt_c, fac, "dt / (t_c/100)"))
@@ -393,7 +420,9 @@ def sweep(integrators=INTEGRATORS, problems=("bar", "sphere"), quick: bool = Fal
             rescore_sphere(cases[n_v:])
             for integ in integrators:
                 cs = [x for x in cases[n_v:] if x.integrator == integ]
-                say(f"  sphere {integ:16s} v {v:6g} m/s: " + " ".join(f"{x.dt_rel:g}:{x.status[0].upper()}" for x in cs))
+                say(
+                    f"  sphere {integ:16s} v {v:6g} m/s: " + " ".join(f"{x.dt_rel:g}:{x.status[0].upper()}" for x in cs)
+                )
     return cases
 
 
@@ -402,8 +431,14 @@ def _sphere_dt_crit(setup: _SphereSetup) -> float:
     from ..integration import integrators as I
 
     m = setup.model
-    system = I.LinearDynamics(M=m.M, K=m.K, B=setup.contact.B, g0=setup.contact.g0, fixed_dofs=m.fixed_dofs,
-                              contact_dofs=setup.contact.contact_dofs)
+    system = I.LinearDynamics(
+        M=m.M,
+        K=m.K,
+        B=setup.contact.B,
+        g0=setup.contact.g0,
+        fixed_dofs=m.fixed_dofs,
+        contact_dofs=setup.contact.contact_dofs,
+    )
     u0 = m.M.createVecRight()
     u0.set(0.0)
     stats = I.integrate(system, u0, u0.copy(), I.TimeSchedule(1e-12, 1e-12), method="central-penalty")
@@ -417,9 +452,11 @@ def critical_step_report(cases: list[Case], n_el: int) -> dict[str, Any]:
     import numpy as np
 
     th = bar_critical_step_theory(n_el)
-    out: dict[str, Any] = {"bar_theory_courant": th,
-                           "theory": "lumped P1 bar: dt_crit = h/c free; with the tip penalty k_p = E/h "
-                                     "2/sqrt(lambda_max(M_L^-1 (K + k_p e e^T))) (dense eigenvalues)"}
+    out: dict[str, Any] = {
+        "bar_theory_courant": th,
+        "theory": "lumped P1 bar: dt_crit = h/c free; with the tip penalty k_p = E/h "
+        "2/sqrt(lambda_max(M_L^-1 (K + k_p e e^T))) (dense eigenvalues)",
+    }
     bar = [c for c in cases if c.problem == "bar" and c.integrator == "central-penalty"]
     if bar:
         ok = [c.dt_rel for c in bar if c.status != "failed"]
@@ -435,19 +472,38 @@ def critical_step_report(cases: list[Case], n_el: int) -> dict[str, Any]:
             cs = [c for c in sph if c.velocity_m_s == v]
             ok = [c.dt_rel for c in cs if c.status != "failed"]
             bad = [c.dt_rel for c in cs if c.status == "failed"]
-            rows[f"{v:g}"] = {"dt_crit_estimate_s": cs[0].dt_s / cs[0].dt_rel,
-                              "largest_stable_rel": max(ok, default=math.nan),
-                              "smallest_failed_rel": min(bad, default=math.nan)}
+            rows[f"{v:g}"] = {
+                "dt_crit_estimate_s": cs[0].dt_s / cs[0].dt_rel,
+                "largest_stable_rel": max(ok, default=math.nan),
+                "smallest_failed_rel": min(bad, default=math.nan),
+            }
         out["sphere"] = rows
     return out
 
 
 # --- output ----------------------------------------------------------------------------------------
-CSV_FIELDS = [("problem", ""), ("integrator", ""), ("velocity_m_s", "m/s"), ("dt_s", "s"), ("dt_rel", ""),
-              ("dt_axis", ""), ("status", ""), ("reason", ""), ("energy_drift_rel", ""), ("energy_growth_rel", ""),
-              ("penetration_rel", ""), ("status_switches", ""), ("pulse_breaks", ""), ("force_roughness_rel", ""),
-              ("duration_rel_error", ""), ("peak_force_rel_error", ""), ("dt_critical_s", "s"), ("steps", ""),
-              ("wall_s", "s"), ("F_max_vs_hertz", "")]
+CSV_FIELDS = [
+    ("problem", ""),
+    ("integrator", ""),
+    ("velocity_m_s", "m/s"),
+    ("dt_s", "s"),
+    ("dt_rel", ""),
+    ("dt_axis", ""),
+    ("status", ""),
+    ("reason", ""),
+    ("energy_drift_rel", ""),
+    ("energy_growth_rel", ""),
+    ("penetration_rel", ""),
+    ("status_switches", ""),
+    ("pulse_breaks", ""),
+    ("force_roughness_rel", ""),
+    ("duration_rel_error", ""),
+    ("peak_force_rel_error", ""),
+    ("dt_critical_s", "s"),
+    ("steps", ""),
+    ("wall_s", "s"),
+    ("F_max_vs_hertz", ""),
+]
 
 
 def write_csv(cases: list[Case], path: Path) -> None:
@@ -490,8 +546,11 @@ def plot_maps(cases: list[Case], folder: Path, crit: dict[str, Any]) -> list[str
             for c in cs:
                 i, j = xs.index(c.dt_rel), vs.index(c.velocity_m_s)
                 ax.add_patch(plt.Rectangle((i - 0.5, j - 0.5), 1, 1, color=STATUS_COLOURS[c.status], ec="white"))
-                label = "NaN" if not math.isfinite(c.energy_drift_rel) else (
-                    f"{100 * c.energy_drift_rel:.2g}" if c.energy_drift_rel < 10 else ">1e3")
+                label = (
+                    "NaN"
+                    if not math.isfinite(c.energy_drift_rel)
+                    else (f"{100 * c.energy_drift_rel:.2g}" if c.energy_drift_rel < 10 else ">1e3")
+                )
                 ax.text(i, j, label, ha="center", va="center", fontsize=7)
             ax.set_xlim(-0.5, len(xs) - 0.5)
             ax.set_ylim(-0.5, len(vs) - 0.5)
@@ -525,8 +584,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", help=OUT_HELP.format(default="out/stability"))
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--quick", action="store_true", help="tiny sweep (tests): fewer steps and velocities")
-    p.add_argument("--integrators", default=",".join(INTEGRATORS),
-                   help=f"comma-separated subset of {', '.join(INTEGRATORS)}")
+    p.add_argument(
+        "--integrators", default=",".join(INTEGRATORS), help=f"comma-separated subset of {', '.join(INTEGRATORS)}"
+    )
     p.add_argument("--problems", default="bar,sphere", help="comma-separated subset of bar, sphere")
 
 
@@ -546,11 +606,15 @@ def main(args: argparse.Namespace) -> int:
     scene = resolve_scene(args.scene) if "sphere" in probs else None
     comm = MPI.COMM_WORLD
     say = sayer(comm=comm)
-    target = claim_output(args.out if args.out is not None else "out/stability", "stability", force=args.force,
-                          comm=comm)   # before the sweep
+    target = claim_output(
+        args.out if args.out is not None else "out/stability", "stability", force=args.force, comm=comm
+    )  # before the sweep
     out = target.shown
-    say(f"stability sweep: integrators {', '.join(integ)}; problems {', '.join(probs)}"
-        + (" (quick)" if args.quick else "") + f" -> {out}/  (letters: P pass, D degraded, F failed)")
+    say(
+        f"stability sweep: integrators {', '.join(integ)}; problems {', '.join(probs)}"
+        + (" (quick)" if args.quick else "")
+        + f" -> {out}/  (letters: P pass, D degraded, F failed)"
+    )
     t0 = time.perf_counter()
     cases = sweep(integ, probs, args.quick, scene, say)
     n_el = QUICK["bar_n_el"] if args.quick else 100
@@ -558,13 +622,15 @@ def main(args: argparse.Namespace) -> int:
     with target.staged() as stage:
         if comm.rank == 0:
             write_csv(cases, stage / "stability.csv")
-            files = plot_maps(cases, stage, crit)
+            plot_maps(cases, stage, crit)
             (stage / "critical_step.json").write_text(json.dumps(crit, indent=2, default=float))
     counts = {s: sum(c.status == s for c in cases) for s in STATUS_COLOURS}
     say(f"{len(cases)} runs in {time.perf_counter() - t0:.0f} s: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
     if "bar_measured_courant" in crit:
         m, th = crit["bar_measured_courant"], crit["bar_theory_courant"]
-        say(f"explicit critical step on the bar: stable up to Courant {m['largest_stable']:g}, failed from "
-            f"{m['smallest_failed']:g}; theory {th['free']:.3f} (free), {th['contact']:.3f} (in contact, penalty)")
+        say(
+            f"explicit critical step on the bar: stable up to Courant {m['largest_stable']:g}, failed from "
+            f"{m['smallest_failed']:g}; theory {th['free']:.3f} (free), {th['contact']:.3f} (in contact, penalty)"
+        )
     say(f"results in {out}/ (stability.csv, critical_step.json, map_*.png)" + target.replaced_note())
     return 0

@@ -7,32 +7,34 @@ the same over the whole run, ``contact_force.png`` the contact force of each cas
 elastic-plastic curve and the elastic line.
 Called by rank 0 after the cases are computed.
 """
+
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Optional, Sequence
 
 import numpy as np
 
-from ..theory.hertz import HertzHistory
 from ..results.plots import CONTACT_POINT_PANELS, pyplot
 from ..results.timeseries import TimeSeries
-
+from ..theory.hertz import HertzHistory
 
 #: the "whole run" figure shows the first RUN_WINDOW seconds: the impact and the block's first
 #: vibration periods (the undamped ringing then repeats to the end of the run)
 RUN_WINDOW = 2e-3
 
 
-def _case_window(series: Sequence[TimeSeries], t_starts: Sequence[float], t_cs: Sequence[float],
-                 pad: float = 0.6) -> tuple[float, float]:
+def _case_window(
+    series: Sequence[TimeSeries], t_starts: Sequence[float], t_cs: Sequence[float], pad: float = 0.6
+) -> tuple[float, float]:
     """A window (s, relative to each case's first contact) that holds every case's pulse, padded."""
     longest = max(t_cs) if len(t_cs) else 1e-4
     return -0.1 * longest, (1.0 + pad) * longest
 
 
-def plot_study_contact_point(cases: Sequence[tuple[str, TimeSeries, float, float]], path: Path, title: str,
-                             whole_run: bool = False) -> None:
+def plot_study_contact_point(
+    cases: Sequence[tuple[str, TimeSeries, float, float]], path: Path, title: str, whole_run: bool = False
+) -> None:
     """The paper's four panels (liner contact point: normal displacement, velocity, acceleration,
     normal stress) with one line per case.
 
@@ -56,8 +58,13 @@ def plot_study_contact_point(cases: Sequence[tuple[str, TimeSeries, float, float
         for i, (ax, (col, scale, ylabel)) in enumerate(zip(axes.flat, CONTACT_POINT_PANELS)):
             if col in ts:
                 thin = whole_run or i == 2  # the raw acceleration is noisy: keep it behind its smooth part
-                line, = ax.plot(x, ts[col][sel] * scale, lw=0.8 if thin else 1.4,
-                                alpha=0.5 if i == 2 and not whole_run else (0.85 if whole_run else 1.0), label=label)
+                (line,) = ax.plot(
+                    x,
+                    ts[col][sel] * scale,
+                    lw=0.8 if thin else 1.4,
+                    alpha=0.5 if i == 2 and not whole_run else (0.85 if whole_run else 1.0),
+                    label=label,
+                )
                 if i == 2 and not whole_run and tc > 0 and "contact_point_velocity_m_s" in ts:
                     # the smooth part: the velocity's slope over windows of t_c / 8, 10-90 % of the pulse
                     w = tc / 8.0
@@ -74,8 +81,14 @@ def plot_study_contact_point(cases: Sequence[tuple[str, TimeSeries, float, float
         if raw_peak > 5 * smooth_peak:
             # the one-step jumps at first contact and release (a resolution value) would flatten the rest
             ax.set_ylim(-5 * smooth_peak, 5 * smooth_peak)
-            ax.text(0.02, 0.03, f"clipped: one-step spikes at first contact / release up to {raw_peak:.3g} km/s^2",
-                    transform=ax.transAxes, fontsize=7, color="0.3")
+            ax.text(
+                0.02,
+                0.03,
+                f"clipped: one-step spikes at first contact / release up to {raw_peak:.3g} km/s^2",
+                transform=ax.transAxes,
+                fontsize=7,
+                color="0.3",
+            )
     for ax, letter, (col, _, _) in zip(axes.flat, "abcd", CONTACT_POINT_PANELS):
         ax.set_xlabel("time [ms]" if whole_run else "time since first contact [us]")
         ax.grid(alpha=0.3)
@@ -98,8 +111,9 @@ def plot_study_force(cases: Sequence[tuple[str, TimeSeries, float, HertzHistory]
         rel = ts.time - t0
         sel = (rel >= -0.1 * longest) & (rel <= 1.3 * longest)
         ax.plot(rel[sel] * 1e6, ts["contact_force_N"][sel] / 1e3, color=color, lw=1.8, label=f"{label}")
-        ax.plot(hist.time * 1e6, hist.force / 1e3, "--", color=color, lw=1.0,
-                label=f"{label}, Hertz" if i == 0 else None)
+        ax.plot(
+            hist.time * 1e6, hist.force / 1e3, "--", color=color, lw=1.0, label=f"{label}, Hertz" if i == 0 else None
+        )
     ax.plot([], [], "k--", lw=1.0, label="dashed: Hertz (quasi-static, half-space)")
     ax.set_xlabel("time since first contact [us]")
     ax.set_ylabel("contact force [kN]")
@@ -112,8 +126,13 @@ def plot_study_force(cases: Sequence[tuple[str, TimeSeries, float, HertzHistory]
     plt.close(fig)
 
 
-def plot_study_trends(x: np.ndarray, xlabel: str, quantities: Sequence[tuple[str, np.ndarray, Optional[np.ndarray]]],
-                      path: Path, title: str) -> None:
+def plot_study_trends(
+    x: np.ndarray,
+    xlabel: str,
+    quantities: Sequence[tuple[str, np.ndarray, np.ndarray | None]],
+    path: Path,
+    title: str,
+) -> None:
     """Peaks against the parameter on log-log axes, each normalised by its value at the first case:
     simulation (markers and line) beside Hertz's prediction for the same scenes (dashed).
 
@@ -151,8 +170,9 @@ def plot_study_trends(x: np.ndarray, xlabel: str, quantities: Sequence[tuple[str
     plt.close(fig)
 
 
-def plot_study_restitution(speed: np.ndarray, e: np.ndarray, path: Path, title: str,
-                           thornton: Optional[tuple[float, str]] = None) -> None:
+def plot_study_restitution(
+    speed: np.ndarray, e: np.ndarray, path: Path, title: str, thornton: tuple[float, str] | None = None
+) -> None:
     """Restitution against impact speed (log axis), with Thornton's 1997 curve for the yield-onset
     speed ``thornton = (V_y in m/s, label)`` (none for elastic materials) and the elastic e = 1."""
     from ..theory.thornton import restitution_thornton

@@ -3,6 +3,7 @@ one ordinary run written as a run folder, keyed by a hash of what determines its
 options) so a re-run computes only what changed. Cases run one after another, ``jobs`` at a time as processes,
 or under ``mpirun`` on all ranks. :func:`run_cases` returns the cases' summaries and series (:class:`CaseRun`).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -12,18 +13,18 @@ import os
 import re
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional, Sequence
-
+from typing import Any
 
 from .. import share_blas_threads
 from ..commandkit.settings import apply_sets
 from ..commandkit.store import piece_key
 from ..console import sayer
 from ..errors import InputError, MillimpactError
-from ..scene.schema import Scene, parse_value
 from ..scene.builtin import BUILTIN_STUDIES, StudySpec, resolve_scene, study_scene
+from ..scene.schema import Scene, parse_value
 from ..scene.toml_io import dump_scene
 
 
@@ -34,9 +35,9 @@ class StudyCase:
 
     index: int
     folder: str
-    label: str              #: legend label, e.g. "v = 3 m/s"
-    value: Any              #: the value given to the scene field
-    x: float                #: the abscissa of trends and fits (the shown value); nan if not numeric
+    label: str  #: legend label, e.g. "v = 3 m/s"
+    value: Any  #: the value given to the scene field
+    x: float  #: the abscissa of trends and fits (the shown value); nan if not numeric
     scene: Scene
 
 
@@ -47,11 +48,11 @@ class Study:
 
     name: str
     param: str
-    symbol: str             #: short name of the parameter (u, v, r, b or the field's last part)
-    xlabel: str             #: axis label with unit
+    symbol: str  #: short name of the parameter (u, v, r, b or the field's last part)
+    xlabel: str  #: axis label with unit
     base: str
     cases: tuple[StudyCase, ...]
-    paper: Optional[StudySpec] = None
+    paper: StudySpec | None = None
 
 
 def safe_name(text: str) -> str:
@@ -91,8 +92,9 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
     if any(not r for r in raw):
         raise InputError(f"--param {text!r}: an empty value in the list")
     if len(raw) < 2:
-        raise InputError(f"--param {text!r}: a study needs at least two values (one value: millimpact run --set "
-                         f"{field_}={raw[0]})")
+        raise InputError(
+            f"--param {text!r}: a study needs at least two values (one value: millimpact run --set {field_}={raw[0]})"
+        )
     return field_, [parse_value(r) for r in raw]
 
 
@@ -102,14 +104,14 @@ def apply_study_sets(scene: Scene, sets: Sequence[str], param: str) -> Scene:
     return apply_sets(scene, sets, {param: f"the study parameter {param}"})
 
 
-def study_base(name: Optional[str], param: Optional[str], base: Optional[str], sets: Sequence[str]) -> Scene:
+def study_base(name: str | None, param: str | None, base: str | None, sets: Sequence[str]) -> Scene:
     """The scene a study's cases vary, with the ``--set`` assignments: ``base`` (default
     study-base) for a ``--param`` sweep, the built-in study ``name``'s own base otherwise."""
     if param is not None:
         return apply_study_sets(resolve_scene(base or "study-base"), sets, parse_param(param)[0])
     spec = BUILTIN_STUDIES.get(name or "")
     if spec is None:
-        define_study(name, param, base, sets)   # the one line saying what is wrong
+        define_study(name, param, base, sets)  # the one line saying what is wrong
         raise AssertionError(f"define_study accepted the unknown study {name!r}")
     return apply_study_sets(resolve_scene(spec.base), sets, spec.param)
 
@@ -123,20 +125,28 @@ def with_param(base: Scene, param: str, value: Any) -> Scene:
     return base.with_value(param, value)
 
 
-def define_study(name: Optional[str], param: Optional[str] = None, base: Optional[str] = None,
-                 sets: Sequence[str] = (), end: Optional[float] = None,
-                 subset: Optional[Sequence[int]] = None) -> Study:
+def define_study(
+    name: str | None,
+    param: str | None = None,
+    base: str | None = None,
+    sets: Sequence[str] = (),
+    end: float | None = None,
+    subset: Sequence[int] | None = None,
+) -> Study:
     """The cases of a built-in study ``name`` or of a sweep ``param = "FIELD=v1,v2,..."`` of any
     scene field on ``base`` (default study-base), with the ``--set`` overrides and an optional end
     time (s) applied to every case; ``subset``: indices of the values to keep (reduced-size demos).
     Every case scene is validated (and planned) here, so bad input is refused before anything runs."""
     if param is None:
         if name is None:
-            raise InputError("study: give a built-in study (" + ", ".join(BUILTIN_STUDIES)
-                             + ") or --param FIELD=v1,v2,...")
+            raise InputError(
+                "study: give a built-in study (" + ", ".join(BUILTIN_STUDIES) + ") or --param FIELD=v1,v2,..."
+            )
         if name not in BUILTIN_STUDIES:
-            raise InputError(f"study {name!r}: unknown; built-in studies are {', '.join(BUILTIN_STUDIES)} "
-                             "(or use --param FIELD=v1,v2,...)")
+            raise InputError(
+                f"study {name!r}: unknown; built-in studies are {', '.join(BUILTIN_STUDIES)} "
+                "(or use --param FIELD=v1,v2,...)"
+            )
         if base is not None:
             raise InputError(f"--base: the built-in study {name} runs on its own base ({BUILTIN_STUDIES[name].base})")
         spec = BUILTIN_STUDIES[name]
@@ -145,7 +155,9 @@ def define_study(name: Optional[str], param: Optional[str] = None, base: Optiona
         for v, shown in zip(spec.values, spec.display):
             scene = apply_study_sets(study_scene(spec, v), sets, spec.param)
             unit = f" {spec.unit}" if spec.unit else ""
-            entries.append((v, float(shown), f"{symbol} = {shown:g}{unit}", safe_name(f"{symbol}{shown:g}{spec.unit}"), scene))
+            entries.append(
+                (v, float(shown), f"{symbol} = {shown:g}{unit}", safe_name(f"{symbol}{shown:g}{spec.unit}"), scene)
+            )
         xlabel = f"{spec.label}" + (f" [{spec.unit}]" if spec.unit else "")
         study_name, param_name, base_name, paper = name, spec.param, spec.base, spec if spec.paper_conclusion else None
     else:
@@ -159,7 +171,11 @@ def define_study(name: Optional[str], param: Optional[str] = None, base: Optiona
         for v in values:
             scene = with_param(base_scene, field_, v)
             shown = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
-            text = f"{v:g}" if not math.isnan(shown) else (",".join(f"{c:g}" for c in v) if isinstance(v, list) else str(v))
+            text = (
+                f"{v:g}"
+                if not math.isnan(shown)
+                else (",".join(f"{c:g}" for c in v) if isinstance(v, list) else str(v))
+            )
             entries.append((v, shown, f"{symbol} = {text}", safe_name(f"{symbol}={text}"), scene))
         if len({e[3] for e in entries}) != len(entries):
             raise InputError(f"--param {param!r}: repeated values")
@@ -167,7 +183,7 @@ def define_study(name: Optional[str], param: Optional[str] = None, base: Optiona
         xlabel, param_name, paper = field_, field_, None
     if subset is not None:
         entries = [entries[i] for i in subset]
-    from ..scene.plan import make_plan   # numpy and scipy: once the names and values are read
+    from ..scene.plan import make_plan  # numpy and scipy: once the names and values are read
 
     cases = []
     for i, (v, shown, label, folder, scene) in enumerate(entries):
@@ -185,7 +201,7 @@ def case_key(scene: Scene, method: str, options: dict) -> str:
     return piece_key({"scene": dump_scene(scene), "method": method, "options": options})
 
 
-def cached_summary(folder: Path, key: str) -> Optional[dict]:
+def cached_summary(folder: Path, key: str) -> dict | None:
     """The summary of a complete case folder computed with ``key``, else None."""
     try:
         s = json.loads((folder / "summary.json").read_text())
@@ -214,8 +230,8 @@ def compute_case(task: CaseTask, comm=None) -> dict:
     """Compute one case and write its run folder (staged: complete or absent). Returns a small
     report: ``{"ok": True, "wall_time_s": ...}`` or ``{"ok": False, "error": ..., "input": bool}``
     (errors are returned, not raised, so they cross process boundaries intact)."""
-    from ..results.output_folder import staged_output
     from ..methods.run import build_summary, compute, write_run
+    from ..results.output_folder import staged_output
 
     try:
         t0 = time.perf_counter()
@@ -235,18 +251,17 @@ def compute_case(task: CaseTask, comm=None) -> dict:
 
 def _worker(task: CaseTask) -> dict:
     """Process-pool entry: one case, serial."""
+    import faulthandler
     import logging
     import signal
 
-    import faulthandler
-
     # Ctrl-C reaches the whole process group: the parent stops the workers, they stay quiet
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    faulthandler.enable()      # a worker's native crash says where (the parent sees only a broken pool)
+    faulthandler.enable()  # a worker's native crash says where (the parent sees only a broken pool)
 
     logging.basicConfig(level=logging.WARNING)
     if os.environ.get("MILLIMPACT_TEST_WORKER_EXIT") == os.path.basename(task.folder):
-        os._exit(1)     # tests/studies/test_study.py: a worker that ends without a word
+        os._exit(1)  # tests/studies/test_study.py: a worker that ends without a word
     return compute_case(task, None)
 
 
@@ -279,8 +294,9 @@ def lost_worker_codes(procs: list, killed: list) -> list[int]:
     2026-11-28: the lost worker's [1] was missing and [-15] said alone)."""
     import signal
 
-    codes = {p.exitcode for p in procs if p.exitcode not in (None, 0)
-             and not (p in killed and p.exitcode == -signal.SIGKILL)}
+    codes = {
+        p.exitcode for p in procs if p.exitcode not in (None, 0) and not (p in killed and p.exitcode == -signal.SIGKILL)
+    }
     return sorted({c for c in codes if c != -signal.SIGTERM} or codes)
 
 
@@ -299,11 +315,11 @@ class CaseRun:
     """A case after the run: computed or taken from the cache, its summary and time series."""
 
     case: StudyCase
-    status: str                         #: computed | cached | failed
-    summary: Optional[dict] = None
+    status: str  #: computed | cached | failed
+    summary: dict | None = None
     series: Any = None
     error: str = ""
-    wall_time_s: float = math.nan       #: wall time of the computation (from the summary if cached)
+    wall_time_s: float = math.nan  #: wall time of the computation (from the summary if cached)
 
 
 def describe_reuse(runs: Sequence[CaseRun]) -> tuple[dict, str]:
@@ -329,13 +345,25 @@ class StudyInterrupted(KeyboardInterrupt):
     absent), the workers are stopped; the message says how many cases are done."""
 
     def __init__(self, done: int, total: int, code: int):
-        super().__init__(f"{done} of {total} cases done (their folders are complete); rerun the same command to "
-                         "finish the rest" + (" and write the study's report" if done == total else ""))
+        super().__init__(
+            f"{done} of {total} cases done (their folders are complete); rerun the same command to "
+            "finish the rest" + (" and write the study's report" if done == total else "")
+        )
         self.exit_code = code
 
 
-def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1, progress: bool = True,
-              force: bool = False, figures: bool = True, comm=None, quiet: bool = False) -> list[CaseRun]:
+def run_cases(
+    study: Study,
+    out: Path,
+    method: str,
+    options: dict,
+    jobs: int = 1,
+    progress: bool = True,
+    force: bool = False,
+    figures: bool = True,
+    comm=None,
+    quiet: bool = False,
+) -> list[CaseRun]:
     """Run (or take from the cache) every case of ``study`` into ``out/<case>``; prints one line a
     case with the overall progress. ``comm`` (size > 1): each case runs on all its ranks."""
     n = len(study.cases)
@@ -356,17 +384,25 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
     t_start = time.perf_counter()
     done = 0
     say = sayer(quiet, comm)
-    for i, r in enumerate(runs):
+    for r in runs:
         if r.status == "cached":
             done += 1
             say(f"  [{done}/{n}] {r.case.label:<22s} cached ({out / r.case.folder})")
 
     def task(i: int) -> CaseTask:
         c = study.cases[i]
-        meta = {"name": study.name, "param": study.param, "value": c.value, "x": c.x, "label": c.label,
-                "method_options": options, "cache_key": keys[i]}
-        return CaseTask(c.scene, method, dict(options), str(out / c.folder), meta, figures,
-                        progress and jobs == 1 and not quiet)
+        meta = {
+            "name": study.name,
+            "param": study.param,
+            "value": c.value,
+            "x": c.x,
+            "label": c.label,
+            "method_options": options,
+            "cache_key": keys[i],
+        }
+        return CaseTask(
+            c.scene, method, dict(options), str(out / c.folder), meta, figures, progress and jobs == 1 and not quiet
+        )
 
     computed_walls: list[float] = []
     warned: set[str] = set()
@@ -375,7 +411,7 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
         nonlocal done
         done += 1
         r = runs[i]
-        for w in res.get("warnings", []):   # the same for every case: said once, even with -q
+        for w in res.get("warnings", []):  # the same for every case: said once, even with -q
             if w not in warned and rank0:
                 warned.add(w)
                 print(f"millimpact: {w}", file=sys.stderr, flush=True)
@@ -386,15 +422,17 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
             elapsed = time.perf_counter() - t_start
             # cases finish about jobs at a time: the time per finished case already includes that
             eta = f", ~{elapsed / len(computed_walls) * left:.0f} s left" if left else ""
-            say(f"  [{done}/{n}] {r.case.label:<22s} computed in {res['wall_time_s']:.1f} s "
-                f"(elapsed {elapsed:.0f} s{eta})")
+            say(
+                f"  [{done}/{n}] {r.case.label:<22s} computed in {res['wall_time_s']:.1f} s "
+                f"(elapsed {elapsed:.0f} s{eta})"
+            )
         else:
             r.status, r.error = "failed", res["error"]
             say(f"  [{done}/{n}] {r.case.label:<22s} FAILED: {res['error']}")
             if res.get("input"):
                 raise InputError(f"case {r.case.label}: {res['error']}")
 
-    serial = list(todo)     # the cases this process computes itself, one after the other
+    serial = list(todo)  # the cases this process computes itself, one after the other
     if todo and jobs > 1 and len(todo) > 1:
         import concurrent.futures as cf
         import multiprocessing as mp
@@ -419,14 +457,17 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
                 # once, the codes were [1], [-15], [-15, 1] or unknown from run to run)
                 procs = list((getattr(pool, "_processes", None) or {}).values())
                 killed = stop_workers(procs)
-                pool.shutdown(wait=True)    # its thread joins every worker
+                pool.shutdown(wait=True)  # its thread joins every worker
                 codes = lost_worker_codes(procs, killed)
                 serial = [i for i in todo if runs[i].status == "pending"]
                 remove_stages(out, [study.cases[i].folder for i in serial])
                 if rank0:
-                    print(f"millimpact: warning: a study worker process ended without a word (exit codes "
-                          f"{codes or 'unknown'}); computing its {len(serial)} unfinished case(s) in this process",
-                          file=sys.stderr, flush=True)
+                    print(
+                        f"millimpact: warning: a study worker process ended without a word (exit codes "
+                        f"{codes or 'unknown'}); computing its {len(serial)} unfinished case(s) in this process",
+                        file=sys.stderr,
+                        flush=True,
+                    )
             except BaseException as exc:
                 for f in futures:
                     f.cancel()
@@ -436,8 +477,9 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
                 pool.shutdown(wait=True, cancel_futures=True)
                 remove_stages(out, [study.cases[i].folder for i in todo])
                 if isinstance(exc, KeyboardInterrupt):
-                    raise StudyInterrupted(done, n, getattr(exc, "exit_code", 143 if type(exc).__name__ == "Terminated"
-                                                            else 130)) from None
+                    raise StudyInterrupted(
+                        done, n, getattr(exc, "exit_code", 143 if type(exc).__name__ == "Terminated" else 130)
+                    ) from None
                 raise
     try:
         for i in serial:
@@ -456,5 +498,3 @@ def run_cases(study: Study, out: Path, method: str, options: dict, jobs: int = 1
                     r.summary = json.loads((folder / "summary.json").read_text())
                 r.series = TimeSeries.read_csv(folder / "timeseries.csv")
     return runs
-
-

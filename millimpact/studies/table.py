@@ -33,23 +33,25 @@ group stays on its band while it has cases and then starts a band no group works
 band; each keeps the reduced model of its current band only. Rank 0 gathers the rows and prints
 the progress.
 """
+
 from __future__ import annotations
 
 import math
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Optional, Sequence
+from typing import TYPE_CHECKING, Any
 
 from .. import __version__
 from ..commandkit.settings import command_scene
 from ..commandkit.store import PieceStore, kept_note, piece_key
 from ..console import sayer
 from ..errors import InputError, MillimpactError
-from ..scene.schema import Scene
 from ..results.output_folder import OutputFolder, claim_output
 from ..scene.impact_direction import oblique_velocity
+from ..scene.schema import Scene
 from ..scene.toml_io import dump_scene
 
 if TYPE_CHECKING:
@@ -82,31 +84,43 @@ class TableCase:
     band: int
     scene: Scene
     key: str
-    band_scene: Optional[Scene] = None   #: the band's fastest case: its reduction serves the band
+    band_scene: Scene | None = None  #: the band's fastest case: its reduction serves the band
 
 
-def table_scene(name: Optional[str], sets: Sequence[str] = ()) -> Scene:
+def table_scene(name: str | None, sets: Sequence[str] = ()) -> Scene:
     """The scene a table starts from: ``name`` (None: the default scene) with the ``--set``
     assignments, validated together; the cases set the impact velocity themselves."""
     return command_scene(name, sets, {"impact.velocity": "the table's --velocity and --angle"})
 
 
-case_velocity = oblique_velocity   # the name the table and the damage map call it by
+case_velocity = oblique_velocity  # the name the table and the damage map call it by
 
 
-def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], radii: Sequence[float],
-                 method: str, options: dict,
-                 pairs: Optional[Sequence[tuple[float, float]]] = None) -> list[TableCase]:
+def define_cases(
+    base: Scene,
+    speeds: Sequence[float],
+    angles: Sequence[float],
+    radii: Sequence[float],
+    method: str,
+    options: dict,
+    pairs: Sequence[tuple[float, float]] | None = None,
+) -> list[TableCase]:
     """The table's cases, grouped in bands that share a mesh (module docstring), each case's scene
     carrying its band's h_contact, zone radius, gap and symmetry. ``pairs`` (speed, angle), when
     given, replace the product speeds x angles (the damage map's bins)."""
-    from ..scene.plan import (ELEMENTS_ACROSS_CONTACT, F_CUT_FACTOR, GAP_FACTOR, STEPS_PER_CONTACT, make_plan,
-                              scene_hertz)
+    from ..scene.plan import (
+        ELEMENTS_ACROSS_CONTACT,
+        F_CUT_FACTOR,
+        GAP_FACTOR,
+        STEPS_PER_CONTACT,
+        make_plan,
+        scene_hertz,
+    )
 
     raw = []
     for r in radii:
         b = base.with_value("ball.radius", r) if r != base.ball.radius else base
-        for v, a in (pairs if pairs is not None else [(v, a) for v in speeds for a in angles]):
+        for v, a in pairs if pairs is not None else [(v, a) for v in speeds for a in angles]:
             raw.append((v, a, r, b.with_value("impact.velocity", case_velocity(b, v, a))))
     # bands per radius by normal speed
     cases, band = [], -1
@@ -124,12 +138,14 @@ def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], 
             slow = min(g, key=lambda c: c[3].normal_speed)[3]
             fast = max(g, key=lambda c: c[3].normal_speed)[3]
             hs, hf = scene_hertz(slow), scene_hertz(fast)
-            sets = {"model.h_contact": base.model.h_contact or hs.a_max / ELEMENTS_ACROSS_CONTACT,
-                    "impact.gap": base.impact.gap or GAP_FACTOR * hs.delta_max,
-                    # the reduction's cutoff and the time step for the shortest contact of the band:
-                    # one step size, so the cases share the factorized step operators too
-                    "model.f_cut": base.model.f_cut or F_CUT_FACTOR / hf.contact_time,
-                    "time.dt_contact": base.time.dt_contact or hf.contact_time / STEPS_PER_CONTACT}
+            sets = {
+                "model.h_contact": base.model.h_contact or hs.a_max / ELEMENTS_ACROSS_CONTACT,
+                "impact.gap": base.impact.gap or GAP_FACTOR * hs.delta_max,
+                # the reduction's cutoff and the time step for the shortest contact of the band:
+                # one step size, so the cases share the factorized step operators too
+                "model.f_cut": base.model.f_cut or F_CUT_FACTOR / hf.contact_time,
+                "time.dt_contact": base.time.dt_contact or hf.contact_time / STEPS_PER_CONTACT,
+            }
             syms = {make_plan(c[3]).symmetry for c in g}
             sym = "full" if "full" in syms else ("half" if "half" in syms else "quarter")
             sets["model.symmetry"] = sym
@@ -142,11 +158,13 @@ def define_cases(base: Scene, speeds: Sequence[float], angles: Sequence[float], 
                     sc = sc.with_value(k, val)
                 cases.append((v, a, rr, band, sc, fast))
     cases.sort(key=lambda c: (c[2], c[0], c[1]))
-    return [TableCase(i, v, a, r, b, sc, case_key(sc, method, options), fast)
-            for i, (v, a, r, b, sc, fast) in enumerate(cases)]
+    return [
+        TableCase(i, v, a, r, b, sc, case_key(sc, method, options), fast)
+        for i, (v, a, r, b, sc, fast) in enumerate(cases)
+    ]
 
 
-def _band_zone(fast: Scene, sets: dict, method: str) -> Optional[float]:
+def _band_zone(fast: Scene, sets: dict, method: str) -> float | None:
     """The contact-zone radius of a band: the method's zone for its fastest case (m)."""
     from ..scene.plan import make_plan
 
@@ -163,8 +181,9 @@ def _band_zone(fast: Scene, sets: dict, method: str) -> Optional[float]:
 
 def case_key(scene: Scene, method: str, options: dict) -> str:
     """The key a finished case is stored under: its resolved scene, method, options and version."""
-    return piece_key({"scene": dump_scene(scene), "method": method, "options": sorted(options.items()),
-                      "version": __version__})
+    return piece_key(
+        {"scene": dump_scene(scene), "method": method, "options": sorted(options.items()), "version": __version__}
+    )
 
 
 # --- one case -----------------------------------------------------------------------------------------
@@ -201,14 +220,16 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
         if case.band not in setups:
             # built for the band's fastest case: its contact candidates cover every case's patch
             fast = case.band_scene.with_value("outputs.xdmf", False).with_value("time.end", scene.time.end)
-            setups[case.band] = build_reduced_setup(fast, make_plan(fast), dict(options), method, comm,
-                                                    share_operators=True)
+            setups[case.band] = build_reduced_setup(
+                fast, make_plan(fast), dict(options), method, comm, share_operators=True
+            )
         else:
             reused = True
         # the case's scene carries the band's mesh sizes, zone, gap, cutoff and symmetry: its plan
         # describes the setup's mesh with its own velocity, time steps and probes
-        out = run_reduced_case(setups[case.band], scene, plan, dict(options), False, t_end=scene.time.end,
-                               impact_only=True)
+        out = run_reduced_case(
+            setups[case.band], scene, plan, dict(options), False, t_end=scene.time.end, impact_only=True
+        )
     else:
         out, _ = compute(scene, method, dict(options), False)
     row = case_row(case, plan, out, time.perf_counter() - t0)
@@ -220,9 +241,18 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
 
 
 # --- the table ----------------------------------------------------------------------------------------
-def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequence[float],
-              radii: Optional[Sequence[float]], method: str, options: dict, out: Path | OutputFolder,
-              sets: Sequence[str] = (), ranks_per_case: int = 1, quiet: bool = False) -> list[dict]:
+def run_table(
+    scene_name: str | None,
+    speeds: Sequence[float],
+    angles: Sequence[float],
+    radii: Sequence[float] | None,
+    method: str,
+    options: dict,
+    out: Path | OutputFolder,
+    sets: Sequence[str] = (),
+    ranks_per_case: int = 1,
+    quiet: bool = False,
+) -> list[dict]:
     """Compute (or take from ``out/cases``) every case and write the table (rank 0) into ``out``, a
     folder or one claimed with :func:`~millimpact.results.output_folder.claim_output`. Returns the rows."""
     from mpi4py import MPI
@@ -232,13 +262,17 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
 
     world = MPI.COMM_WORLD
     if ranks_per_case < 1 or ranks_per_case > world.size or world.size % ranks_per_case:
-        raise InputError(f"--ranks-per-case {ranks_per_case}: must divide the number of ranks ({world.size}) "
-                         f"and be between 1 and {world.size}")
+        raise InputError(
+            f"--ranks-per-case {ranks_per_case}: must divide the number of ranks ({world.size}) "
+            f"and be between 1 and {world.size}"
+        )
     method_entry(method)
     if method not in REUSED_METHODS and method != "hertz" and world.size // ranks_per_case > 1:
         # full and hertz-modal run on MPI_COMM_WORLD, not on a group: cases cannot be spread
-        raise InputError(f"--method {method} with {world.size // ranks_per_case} groups: this method runs on all "
-                         f"ranks; use --ranks-per-case {world.size} (or a reduced method, or hertz)")
+        raise InputError(
+            f"--method {method} with {world.size // ranks_per_case} groups: this method runs on all "
+            f"ranks; use --ranks-per-case {world.size} (or a reduced method, or hertz)"
+        )
     base = table_scene(scene_name, sets)
     cases = define_cases(base, speeds, angles, radii or [base.ball.radius], method, options)
     target = out if isinstance(out, OutputFolder) else claim_output(out, "table")
@@ -252,9 +286,11 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
     # computed band after band (a group keeps only its current band's reduction), listed by speed
     todo = sorted([c for c in cases if c.index not in done], key=lambda c: (c.band, c.index))
     n_bands = len({c.band for c in cases})
-    say(f"table {base.name}: {len(speeds)} speeds x {len(angles)} angles x {len(radii or [0])} radii = {len(cases)} "
+    say(
+        f"table {base.name}: {len(speeds)} speeds x {len(angles)} angles x {len(radii or [0])} radii = {len(cases)} "
         f"cases in {n_bands} mesh band(s), method {method}; {len(done)} from {folder}, {len(todo)} to compute "
-        f"on {world.size // ranks_per_case} group(s) of {ranks_per_case} rank(s)")
+        f"on {world.size // ranks_per_case} group(s) of {ranks_per_case} rank(s)"
+    )
     group = world.Split(world.rank // ranks_per_case, world.rank)
     rows = compute_cases(todo, method, options, folder, world, group, say)
     gathered = world.gather(rows, root=0)
@@ -271,11 +307,13 @@ def run_table(scene_name: Optional[str], speeds: Sequence[float], angles: Sequen
 
 def kept_cases_note(target: OutputFolder) -> str:
     """What an interrupted table leaves: its finished cases, reused by a rerun."""
-    return kept_note([(PieceStore(target.path / "cases").count(), "case", f"{target.shown}/cases/")],
-                     "the table itself is not written")
+    return kept_note(
+        [(PieceStore(target.path / "cases").count(), "case", f"{target.shown}/cases/")],
+        "the table itself is not written",
+    )
 
 
-def next_case(state: np.ndarray, band_sizes: Sequence[int], current: Optional[int]) -> Optional[tuple[int, int]]:
+def next_case(state: np.ndarray, band_sizes: Sequence[int], current: int | None) -> tuple[int, int] | None:
     """Pick a group's next case from the shared ``state`` = [done, taken per band..., groups per
     band...] (updated in place): (band, index within the band), or None when all are taken.
 
@@ -285,7 +323,7 @@ def next_case(state: np.ndarray, band_sizes: Sequence[int], current: Optional[in
     bands); only when every band with cases left has a group does it join the one with the most
     cases left per group."""
     nb = len(band_sizes)
-    taken, groups = state[1:1 + nb], state[1 + nb:1 + 2 * nb]
+    taken, groups = state[1 : 1 + nb], state[1 + nb : 1 + 2 * nb]
     left = [band_sizes[b] - int(taken[b]) for b in range(nb)]
     if current is not None and left[current] > 0:
         band = current
@@ -323,8 +361,7 @@ def costliest_first(todo: Sequence[TableCase]) -> list[list[TableCase]]:
     return [sorted(g, key=lambda c: -c.scene.normal_speed) for g in order]
 
 
-def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Path, world, group,
-                  say) -> list[dict]:
+def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
     """This group's share of ``todo`` (``group``: this rank's group of ranks of ``world``): cases
     taken from a shared state (:func:`next_case`) on world rank 0 until none is left, each finished
     case stored as ``folder/<key>.json``; the rows this group computed (the table's and the damage
@@ -347,7 +384,7 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
     world.barrier()
     one, got = np.ones(1, dtype="i8"), np.zeros(1, dtype="i8")
     state = np.zeros(n_state, dtype="i8")
-    current: Optional[int] = None
+    current: int | None = None
     setups: dict = {}
     rows = []
     warned = False
@@ -372,8 +409,8 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
             for band in [b for b in setups if b != case.band]:
                 dropped = setups.pop(band)
                 release_petsc_garbage(dropped.model.V.mesh.comm)
-                destroy_petsc_tree(dropped)   # its Python handles alone would keep it (see there)
-                del dropped                   # and its mesh, spaces and forms with the name
+                destroy_petsc_tree(dropped)  # its Python handles alone would keep it (see there)
+                del dropped  # and its mesh, spaces and forms with the name
             # the last case's dropped objects: parked on the communicator they were made on (the
             # mesh's), not the group's; 17.5 MB a case on a coarse hertz-halfspace table until freed
             release_petsc_garbage(group)
@@ -383,30 +420,40 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
             try:
                 row = run_case(case, method, options, setups, group)
             except (MillimpactError, RuntimeError, ValueError, ArithmeticError) as exc:
-                row = {"case": case.index, "key": case.key, "impact_speed_m_s": case.speed,
-                       "impact_angle_deg": case.angle, "ball_radius_m": case.radius,
-                       "status": f"failed: {type(exc).__name__}: {str(exc).splitlines()[0][:300]}"}
+                row = {
+                    "case": case.index,
+                    "key": case.key,
+                    "impact_speed_m_s": case.speed,
+                    "impact_angle_deg": case.angle,
+                    "ball_radius_m": case.radius,
+                    "status": f"failed: {type(exc).__name__}: {str(exc).splitlines()[0][:300]}",
+                }
             # a case that reused its band's reduction did not read the options of building it
             ran = str(row.get("status", "")).startswith("ok") and not row.get("reduction_reused")
             unused = unused_options(options) if ran and not warned else None
-            if unused:   # as study and run: said once, after the first case that ran (even with -q)
+            if unused:  # as study and run: said once, after the first case that ran (even with -q)
                 warned = True
                 if world.rank == 0:
-                    print(f"millimpact: warning: options that nothing in this table's runs used (misspelled, or for "
-                          f"a solver method {method} does not have): {', '.join('-' + k for k in unused)}",
-                          file=sys.stderr, flush=True)
+                    print(
+                        f"millimpact: warning: options that nothing in this table's runs used (misspelled, or for "
+                        f"a solver method {method} does not have): {', '.join('-' + k for k in unused)}",
+                        file=sys.stderr,
+                        flush=True,
+                    )
             if group.rank == 0:
                 PieceStore(folder).save(case.key, row)
                 win.Lock(0)
-                win.Fetch_and_op(one, got, 0, 0, MPI.SUM)   # state[0]: cases done
+                win.Fetch_and_op(one, got, 0, 0, MPI.SUM)  # state[0]: cases done
                 win.Unlock(0)
                 rows.append(row)
                 n_done = int(got[0]) + 1
                 el = time.perf_counter() - t0
-                say(f"  [{n_done}/{len(todo)}] v = {case.speed:g} m/s, angle {case.angle:g} deg: e_n "
+                say(
+                    f"  [{n_done}/{len(todo)}] v = {case.speed:g} m/s, angle {case.angle:g} deg: e_n "
                     f"{row.get('restitution_normal', float('nan')):.4f}, {row['status']}, "
                     f"{row.get('wall_time_s', 0.0):.1f} s{' (reduction reused)' if row.get('reduction_reused') else ''}"
-                    f" (elapsed {el:.0f} s, ~{el / n_done * (len(todo) - n_done):.0f} s left)")
+                    f" (elapsed {el:.0f} s, ~{el / n_done * (len(todo) - n_done):.0f} s left)"
+                )
     finally:
         world.barrier()
         win.Free()

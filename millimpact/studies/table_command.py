@@ -1,12 +1,12 @@
 """``millimpact table``: the command line of the contact table (its arguments, checked, and the
 lines it prints); the engine that defines and computes the cases is :mod:`.table`.
 """
+
 from __future__ import annotations
 
 import argparse
 import math
 from pathlib import Path
-from typing import Optional
 
 from ..commandkit.settings import parse_options
 from ..errors import InputError, MillimpactError
@@ -32,8 +32,9 @@ Examples:
 """
 
 
-def parse_list(text: Optional[str], option: str, low: float, high: float, low_open: bool, high_open: bool,
-               unit: str) -> list[float]:
+def parse_list(
+    text: str | None, option: str, low: float, high: float, low_open: bool, high_open: bool, unit: str
+) -> list[float]:
     """Comma-separated numbers of ``option``, each in the range; one :class:`InputError` line otherwise."""
     rng = f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'} {unit}".rstrip()
     if text is None or not text.strip():
@@ -43,12 +44,15 @@ def parse_list(text: Optional[str], option: str, low: float, high: float, low_op
         try:
             v = float(part)
         except ValueError:
-            raise InputError(f"{option} {text!r}: {part.strip()!r} is not a number (a comma-separated list in {rng})") from None
+            raise InputError(
+                f"{option} {text!r}: {part.strip()!r} is not a number (a comma-separated list in {rng})"
+            ) from None
         if not math.isfinite(v) or v < low or v > high or (low_open and v == low) or (high_open and v == high):
             raise InputError(f"{option} {text!r}: {v:g} is outside {rng}")
-        if v in out:   # a repeated case would be a duplicate row, weighting the fitted laws
-            raise InputError(f"{option} {text!r}: {v:g} is repeated (each value once: a duplicate row would "
-                             "weight the fitted laws)")
+        if v in out:  # a repeated case would be a duplicate row, weighting the fitted laws
+            raise InputError(
+                f"{option} {text!r}: {v:g} is repeated (each value once: a duplicate row would weight the fitted laws)"
+            )
         out.append(v)
     return out
 
@@ -56,17 +60,26 @@ def parse_list(text: Optional[str], option: str, low: float, high: float, low_op
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", help="built-in scene name or TOML file (default: paper-rig)")
     p.add_argument("--velocity", required=True, metavar="V1,V2,...", help="impact speeds, m/s (> 0, <= 100)")
-    p.add_argument("--angle", default="0", metavar="A1,A2,...",
-                   help="angles from the face normal, deg, in [0, 90) (default 0)")
+    p.add_argument(
+        "--angle", default="0", metavar="A1,A2,...", help="angles from the face normal, deg, in [0, 90) (default 0)"
+    )
     p.add_argument("--radius", metavar="R1,R2,...", help="ball radii, m (default the scene's)")
-    p.add_argument("--method", default="improved", help="solution method (default improved; the reduced methods "
-                                                        "reuse one reduction per mesh band)")
+    p.add_argument(
+        "--method",
+        default="improved",
+        help="solution method (default improved; the reduced methods reuse one reduction per mesh band)",
+    )
     p.add_argument("--out", help=OUT_HELP.format(default="out/table-SCENE") + "; finished cases in it are reused")
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="override a scene field")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a method option")
-    p.add_argument("--ranks-per-case", type=int, default=1, metavar="K",
-                   help="under mpirun: ranks per case (divides the rank count; default 1)")
+    p.add_argument(
+        "--ranks-per-case",
+        type=int,
+        default=1,
+        metavar="K",
+        help="under mpirun: ranks per case (divides the rank count; default 1)",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
@@ -82,15 +95,22 @@ def main(args: argparse.Namespace) -> int:
     radii = parse_list(args.radius, "--radius", 1e-4, 1.0, False, False, "m") if args.radius else None
     options = parse_options(args.option)
     name = args.scene or "paper-rig"
-    target = claim_output(args.out if args.out is not None else default_out(Path(name).stem, prefix="table-"), "table",
-                          force=args.force)   # before any computing
+    target = claim_output(
+        args.out if args.out is not None else default_out(Path(name).stem, prefix="table-"), "table", force=args.force
+    )  # before any computing
     out = target.shown
-    rows = run_table(args.scene, speeds, angles, radii, args.method, options, target, args.set,
-                     args.ranks_per_case, args.quiet)
+    rows = run_table(
+        args.scene, speeds, angles, radii, args.method, options, target, args.set, args.ranks_per_case, args.quiet
+    )
     failed = [r for r in rows if not str(r.get("status", "")).startswith("ok")]
     if rows and not args.quiet:
-        print(f"  results in {out}/ (contact_table.csv, contact_table.json, contact_table.h5, contact_laws.json, "
-              f"e_n_speed.png, e_t_angle.png, force_speed.png){target.replaced_note()}", flush=True)
+        print(
+            f"  results in {out}/ (contact_table.csv, contact_table.json, contact_table.h5, contact_laws.json, "
+            f"e_n_speed.png, e_t_angle.png, force_speed.png){target.replaced_note()}",
+            flush=True,
+        )
     if failed:
-        raise MillimpactError(f"{len(failed)} of {len(rows)} case(s) failed; see the status column of {out}/contact_table.csv")
+        raise MillimpactError(
+            f"{len(failed)} of {len(rows)} case(s) failed; see the status column of {out}/contact_table.csv"
+        )
     return 0

@@ -19,13 +19,15 @@ e(V; V_y) with V_y fitted (plastic tables), and a Hertz stiffness: the contact m
 F_max = (4/3) E* R^(1/2) delta_max^(3/2) of a Hertz impact match the peak forces (least squares in
 log F), k_n = (4/3) E* R^(1/2); each with its RMS relative error over the cases.
 """
+
 from __future__ import annotations
 
 import csv
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -44,16 +46,28 @@ COLUMNS = [
     ("normal_velocity_in_m_s", "m/s", "normal approach speed -v.n"),
     ("tangential_velocity_in_m_s", "m/s", "tangential speed |v - (v.n) n|"),
     ("restitution_normal", "-", "normal rebound speed of the ball's centre over the approach speed"),
-    ("restitution_tangential", "-", "contact point's tangential velocity out over in (Maw-Barber-Fawcett; rigid-ball spin)"),
+    (
+        "restitution_tangential",
+        "-",
+        "contact point's tangential velocity out over in (Maw-Barber-Fawcett; rigid-ball spin)",
+    ),
     ("rebound_spin_rad_s", "rad/s", "ball spin after the impact, -5 J_t / (2 m R) (positive: rolling forward)"),
     ("peak_normal_force_N", "N", "largest normal contact force"),
     ("peak_tangential_force_N", "N", "largest tangential contact force magnitude"),
     ("contact_duration_s", "s", "time the contact force is positive"),
     ("normal_impulse_N_s", "N s", "time integral of the normal contact force"),
-    ("tangential_impulse_N_s", "N s", "time integral of the tangential force on the ball along the tangential direction"),
+    (
+        "tangential_impulse_N_s",
+        "N s",
+        "time integral of the tangential force on the ball along the tangential direction",
+    ),
     ("max_approach_m", "m", "largest approach of the ball's centre after first contact"),
-    ("energy_to_liner_J", "J", "impact energy not returned to the ball's translation and spin nor dissipated: the "
-                               "bodies' vibration after the impact (mostly the struck body's)"),
+    (
+        "energy_to_liner_J",
+        "J",
+        "impact energy not returned to the ball's translation and spin nor dissipated: the "
+        "bodies' vibration after the impact (mostly the struck body's)",
+    ),
     ("friction_dissipation_J", "J", "work of friction"),
     ("plastic_dissipation_J", "J", "plastic work (0 for elastic materials)"),
     ("residual_dent_depth_m", "m", "depth of the residual dent (0 for elastic materials)"),
@@ -85,18 +99,32 @@ def case_row(case, plan, out, wall: float) -> dict[str, Any]:
     e_in = 0.5 * m * (v_n**2 + v_t**2)
     e_ball = 0.5 * m * ((e_n * v_n) ** 2 + v_t_out**2) + 0.5 * (0.4 * m * R * R) * omega**2
     status = "ok" if fn[-1] <= 1e-6 * max(float(fn.max()), 1e-300) else "ok (contact not ended)"
-    return {"case": case.index, "key": case.key,
-            "impact_speed_m_s": case.speed, "impact_angle_deg": case.angle, "ball_radius_m": case.radius,
-            "normal_velocity_in_m_s": v_n, "tangential_velocity_in_m_s": v_t,
-            "restitution_normal": e_n, "restitution_tangential": e_t, "rebound_spin_rad_s": omega,
-            "peak_normal_force_N": float(fn.max()), "peak_tangential_force_N": float(np.abs(ft).max()),
-            "contact_duration_s": float(metrics["contact_duration_s"]),
-            "normal_impulse_N_s": j_n, "tangential_impulse_N_s": j_t,
-            "max_approach_m": float(metrics.get("max_approach_m", math.nan)),
-            "energy_to_liner_J": e_in - e_ball - w_f - w_p, "friction_dissipation_J": w_f,
-            "plastic_dissipation_J": w_p, "residual_dent_depth_m": float(res.get("residual_dent_depth_m", 0.0)),
-            "status": status, "wall_time_s": wall, "band": case.band,
-            "hertz_peak_force_N": plan.hertz.force_max}
+    return {
+        "case": case.index,
+        "key": case.key,
+        "impact_speed_m_s": case.speed,
+        "impact_angle_deg": case.angle,
+        "ball_radius_m": case.radius,
+        "normal_velocity_in_m_s": v_n,
+        "tangential_velocity_in_m_s": v_t,
+        "restitution_normal": e_n,
+        "restitution_tangential": e_t,
+        "rebound_spin_rad_s": omega,
+        "peak_normal_force_N": float(fn.max()),
+        "peak_tangential_force_N": float(np.abs(ft).max()),
+        "contact_duration_s": float(metrics["contact_duration_s"]),
+        "normal_impulse_N_s": j_n,
+        "tangential_impulse_N_s": j_t,
+        "max_approach_m": float(metrics.get("max_approach_m", math.nan)),
+        "energy_to_liner_J": e_in - e_ball - w_f - w_p,
+        "friction_dissipation_J": w_f,
+        "plastic_dissipation_J": w_p,
+        "residual_dent_depth_m": float(res.get("residual_dent_depth_m", 0.0)),
+        "status": status,
+        "wall_time_s": wall,
+        "band": case.band,
+        "hertz_peak_force_N": plan.hertz.force_max,
+    }
 
 
 # --- fits ---------------------------------------------------------------------------------------------
@@ -112,30 +140,41 @@ def fit_laws(rows: Sequence[dict], base: Scene) -> dict[str, Any]:
     if good.sum() >= 2 and np.ptp(np.log(vn[good])) > 0:
         k, lnA = np.polyfit(np.log(vn[good]), np.log(e[good]), 1)
         pred = np.exp(lnA) * vn[good] ** k
-        laws["restitution_power_law"] = {"form": "e_n = A v_n^k", "A": float(np.exp(lnA)), "k": float(k),
-                                         "rms_rel_error": float(np.sqrt(np.mean((pred / e[good] - 1) ** 2))),
-                                         "cases": int(good.sum())}
+        laws["restitution_power_law"] = {
+            "form": "e_n = A v_n^k",
+            "A": float(np.exp(lnA)),
+            "k": float(k),
+            "rms_rel_error": float(np.sqrt(np.mean((pred / e[good] - 1) ** 2))),
+            "cases": int(good.sum()),
+        }
         plastic = base.ball.material.plastic or base.target_material.plastic
         if plastic:
             grid = np.geomspace(1e-3, max(vn.max(), 1e-2), 400)
             errs = [np.sqrt(np.mean((restitution_thornton(vn[good], vy) / e[good] - 1) ** 2)) for vy in grid]
             i = int(np.argmin(errs))
-            laws["restitution_thornton"] = {"form": "Thornton 1997 e(V; V_y)", "V_y_m_s": float(grid[i]),
-                                            "rms_rel_error": float(errs[i]), "cases": int(good.sum())}
+            laws["restitution_thornton"] = {
+                "form": "Thornton 1997 e(V; V_y)",
+                "V_y_m_s": float(grid[i]),
+                "rms_rel_error": float(errs[i]),
+                "cases": int(good.sum()),
+            }
     f = np.array([r["peak_normal_force_N"] for r in ok])
     rad = np.array([r["ball_radius_m"] for r in ok])
     fine = f > 0
     if fine.any():
-        m_of = lambda R: base.ball.material.density * 4.0 / 3.0 * math.pi * R**3   # noqa: E731
+        m_of = lambda R: base.ball.material.density * 4.0 / 3.0 * math.pi * R**3  # noqa: E731
         # F_max ~ E*^(2/5): log F = 0.4 log E* + log F(E* = 1)
         unit = np.array([hertz_impact(R, m_of(R), v, 1.0).force_max for R, v in zip(rad[fine], vn[fine])])
         ln_e = float(np.mean(np.log(f[fine] / unit))) / 0.4
         e_star = math.exp(ln_e)
         pred = unit * e_star**0.4
-        laws["hertz_stiffness"] = {"form": "F = (4/3) E* R^(1/2) delta^(3/2)", "E_star_Pa": e_star,
-                                   "k_n_N_m1_5": {f"R={R:g}": 4.0 / 3.0 * e_star * math.sqrt(R) for R in sorted(set(rad))},
-                                   "rms_rel_error": float(np.sqrt(np.mean((pred / f[fine] - 1) ** 2))),
-                                   "cases": int(fine.sum())}
+        laws["hertz_stiffness"] = {
+            "form": "F = (4/3) E* R^(1/2) delta^(3/2)",
+            "E_star_Pa": e_star,
+            "k_n_N_m1_5": {f"R={R:g}": 4.0 / 3.0 * e_star * math.sqrt(R) for R in sorted(set(rad))},
+            "rms_rel_error": float(np.sqrt(np.mean((pred / f[fine] - 1) ** 2))),
+            "cases": int(fine.sum()),
+        }
     return laws
 
 
@@ -146,8 +185,10 @@ def write_table(out: Path, base: Scene, cases, rows: Sequence[dict], method: str
 
     out.mkdir(parents=True, exist_ok=True)
     names = [c[0] for c in COLUMNS]
-    head = [f"# millimpact {__version__} contact table: scene {base.name}, method {method}, options {json.dumps(options)}",
-            f"# {len(rows)} impacts; the angle is measured from the face normal; SI units (in the column names)"]
+    head = [
+        f"# millimpact {__version__} contact table: scene {base.name}, method {method}, options {json.dumps(options)}",
+        f"# {len(rows)} impacts; the angle is measured from the face normal; SI units (in the column names)",
+    ]
     head += [f"# {n} [{u}]: {d}" for n, u, d in COLUMNS]
     tmp = out / ".contact_table.csv.tmp"
     with open(tmp, "w", newline="") as fh:
@@ -158,13 +199,20 @@ def write_table(out: Path, base: Scene, cases, rows: Sequence[dict], method: str
             w.writerow([r.get(n, "") if not isinstance(r.get(n), float) else repr(r[n]) for n in names])
     tmp.replace(out / "contact_table.csv")
     laws = fit_laws(rows, base)
-    doc = {"millimpact_version": __version__, "scene": base.name, "method": method, "options": options,
-           "columns": [{"name": n, "unit": u, "definition": d} for n, u, d in COLUMNS],
-           "scene_resolved": dump_scene(base), "case_keys": {str(c.index): c.key for c in cases},
-           "rows": list(rows), "laws": laws}
+    doc = {
+        "millimpact_version": __version__,
+        "scene": base.name,
+        "method": method,
+        "options": options,
+        "columns": [{"name": n, "unit": u, "definition": d} for n, u, d in COLUMNS],
+        "scene_resolved": dump_scene(base),
+        "case_keys": {str(c.index): c.key for c in cases},
+        "rows": list(rows),
+        "laws": laws,
+    }
     (out / "contact_table.json").write_text(json.dumps(jsonable(doc), indent=1) + "\n")
     (out / "contact_laws.json").write_text(json.dumps(jsonable(laws), indent=1) + "\n")
-    with hdf5_file(out / "contact_table.h5") as h5:   # in memory, one write: a full disk is one line
+    with hdf5_file(out / "contact_table.h5") as h5:  # in memory, one write: a full disk is one line
         h5.attrs["millimpact_version"] = __version__
         h5.attrs["scene"] = base.name
         h5.attrs["method"] = method
@@ -187,11 +235,18 @@ def plot_table(out: Path, base: Scene, rows: Sequence[dict], laws: dict) -> None
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     for i, a in enumerate(angles):
         rr = sorted([r for r in ok if r["impact_angle_deg"] == a], key=lambda r: r["normal_velocity_in_m_s"])
-        ax.plot([r["normal_velocity_in_m_s"] for r in rr], [r["restitution_normal"] for r in rr], "o-",
-                color=f"C{i % 10}", label=f"{a:g} deg")
+        ax.plot(
+            [r["normal_velocity_in_m_s"] for r in rr],
+            [r["restitution_normal"] for r in rr],
+            "o-",
+            color=f"C{i % 10}",
+            label=f"{a:g} deg",
+        )
     if "restitution_thornton" in laws:
         vy = laws["restitution_thornton"]["V_y_m_s"]
-        v = np.geomspace(min(r["normal_velocity_in_m_s"] for r in ok) / 1.3, max(r["normal_velocity_in_m_s"] for r in ok) * 1.3, 100)
+        v = np.geomspace(
+            min(r["normal_velocity_in_m_s"] for r in ok) / 1.3, max(r["normal_velocity_in_m_s"] for r in ok) * 1.3, 100
+        )
         ax.plot(v, restitution_thornton(v, vy), "k--", lw=1, label=f"Thornton 1997, fitted V_y = {vy:.3g} m/s")
     ax.axhline(1.0, color="0.6", ls=":", lw=1, label="elastic, quasi-static")
     ax.set_xscale("log")
@@ -230,8 +285,9 @@ def plot_table(out: Path, base: Scene, rows: Sequence[dict], laws: dict) -> None
     vn = np.array([r["normal_velocity_in_m_s"] for r in ok])
     ax.plot(vn, [r["peak_normal_force_N"] / 1e3 for r in ok], "o", label="millimpact")
     order = np.argsort(vn)
-    ax.plot(vn[order], np.array([r["hertz_peak_force_N"] for r in ok])[order] / 1e3, "k--", lw=1,
-            label="Hertz, F ~ v^(6/5)")
+    ax.plot(
+        vn[order], np.array([r["hertz_peak_force_N"] for r in ok])[order] / 1e3, "k--", lw=1, label="Hertz, F ~ v^(6/5)"
+    )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("normal impact speed [m/s]")

@@ -8,10 +8,12 @@ stresses on the axis, eq. 3.45) and 11.4 (quasi-static impact). All quantities S
   p0 = 3 F / (2 pi a^2), t_c = 2.9432 delta_max / v
 - the force history integrates m x'' = -k x^(3/2) (scipy), from first touch to separation.
 """
+
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from scipy import integrate, optimize
@@ -46,6 +48,7 @@ def max_shear_on_axis(nu: float) -> tuple[float, float]:
 
     Returns (tau_max / p0, depth / a); (0.31, 0.48) for nu = 0.3.
     """
+
     def minus_tau(zeta: float) -> float:
         sz = -1.0 / (1.0 + zeta**2)
         sr = -(1.0 + nu) * (1.0 - zeta * math.atan(1.0 / zeta)) + 0.5 / (1.0 + zeta**2)
@@ -58,19 +61,19 @@ def max_shear_on_axis(nu: float) -> tuple[float, float]:
 class HertzImpact(NamedTuple):
     """Quasi-static Hertz impact of a sphere on a half-space (SI units)."""
 
-    radius: float          #: ball radius R, m
-    mass: float            #: (effective) impacting mass, kg
-    speed: float           #: normal approach speed v, m/s
-    e_star: float          #: contact modulus E*, Pa
-    k: float               #: Hertz stiffness (4/3) E* sqrt(R), N/m^1.5
-    delta_max: float       #: maximum approach, m
-    force_max: float       #: peak contact force, N
-    contact_time: float    #: contact duration t_c, s
-    a_max: float           #: maximum contact radius, m
-    p0: float              #: peak contact pressure, Pa
-    tau_max: float         #: maximum subsurface principal shear (target side), Pa
-    tau_depth: float       #: its depth below the surface, m
-    energy: float          #: impact kinetic energy m v^2 / 2, J
+    radius: float  #: ball radius R, m
+    mass: float  #: (effective) impacting mass, kg
+    speed: float  #: normal approach speed v, m/s
+    e_star: float  #: contact modulus E*, Pa
+    k: float  #: Hertz stiffness (4/3) E* sqrt(R), N/m^1.5
+    delta_max: float  #: maximum approach, m
+    force_max: float  #: peak contact force, N
+    contact_time: float  #: contact duration t_c, s
+    a_max: float  #: maximum contact radius, m
+    p0: float  #: peak contact pressure, Pa
+    tau_max: float  #: maximum subsurface principal shear (target side), Pa
+    tau_depth: float  #: its depth below the surface, m
+    energy: float  #: impact kinetic energy m v^2 / 2, J
 
     def table(self) -> list[tuple[str, float, str, float]]:
         """Rows (name, value in display unit, unit, SI value) for printing."""
@@ -98,21 +101,34 @@ def hertz_impact(radius: float, mass: float, speed: float, e_star: float, nu_tar
     a = math.sqrt(radius * delta)
     p0 = 3.0 * f_max / (2.0 * math.pi * a * a)
     tau_ratio, depth_ratio = max_shear_on_axis(nu_target)
-    return HertzImpact(radius, mass, speed, e_star, k, delta, f_max, T_C_FACTOR * delta / speed, a, p0,
-                       tau_ratio * p0, depth_ratio * a, 0.5 * mass * speed**2)
+    return HertzImpact(
+        radius,
+        mass,
+        speed,
+        e_star,
+        k,
+        delta,
+        f_max,
+        T_C_FACTOR * delta / speed,
+        a,
+        p0,
+        tau_ratio * p0,
+        depth_ratio * a,
+        0.5 * mass * speed**2,
+    )
 
 
 class HertzHistory(NamedTuple):
     """Force-time history of a Hertz impact (time from first touch, s)."""
 
-    time: np.ndarray           #: s
-    force: np.ndarray          #: N
-    approach: np.ndarray       #: m (>= 0 in contact)
-    velocity: np.ndarray       #: approach rate, m/s (positive towards the target)
-    acceleration: np.ndarray   #: of the ball towards the target, m/s^2
+    time: np.ndarray  #: s
+    force: np.ndarray  #: N
+    approach: np.ndarray  #: m (>= 0 in contact)
+    velocity: np.ndarray  #: approach rate, m/s (positive towards the target)
+    acceleration: np.ndarray  #: of the ball towards the target, m/s^2
     contact_radius: np.ndarray  #: m
-    contact_time: float        #: s, from the integration (not the closed form)
-    rebound_speed: float       #: m/s
+    contact_time: float  #: s, from the integration (not the closed form)
+    rebound_speed: float  #: m/s
 
 
 class FallingZeroEvent:
@@ -139,19 +155,35 @@ def hertz_history(h: HertzImpact, n: int = 401, rtol: float = 1e-11) -> HertzHis
     def rhs(_t: float, y: np.ndarray) -> list[float]:
         return [y[1], -c * max(y[0], 0.0) ** 1.5]
 
-    separated = FallingZeroEvent(lambda _t, y: y[0])     # the approach x = y[0] back to 0
+    separated = FallingZeroEvent(lambda _t, y: y[0])  # the approach x = y[0] back to 0
 
     t_guess = 1.5 * h.contact_time
-    sol = integrate.solve_ivp(rhs, (0.0, t_guess), [0.0, h.speed], method="DOP853", rtol=rtol,
-                              atol=1e-14 * h.speed, events=separated, dense_output=True,
-                              first_step=1e-4 * h.contact_time)
+    sol = integrate.solve_ivp(
+        rhs,
+        (0.0, t_guess),
+        [0.0, h.speed],
+        method="DOP853",
+        rtol=rtol,
+        atol=1e-14 * h.speed,
+        events=separated,
+        dense_output=True,
+        first_step=1e-4 * h.contact_time,
+    )
     tc = float(sol.t_events[0][0]) if len(sol.t_events[0]) else float(sol.t[-1])
     t = np.linspace(0.0, tc, n)
     x, v = sol.sol(t)
     x = np.maximum(x, 0.0)
     f = h.k * x**1.5
-    return HertzHistory(t, f, x, v, -f / h.mass, np.sqrt(h.radius * x), tc,
-                        float(-sol.y_events[0][0][1]) if len(sol.t_events[0]) else float("nan"))
+    return HertzHistory(
+        t,
+        f,
+        x,
+        v,
+        -f / h.mass,
+        np.sqrt(h.radius * x),
+        tc,
+        float(-sol.y_events[0][0][1]) if len(sol.t_events[0]) else float("nan"),
+    )
 
 
 #: the mean over the half-ball of radius R of the Boussinesq displacement under a Hertz pressure of

@@ -28,6 +28,7 @@ Sources (the 1993 thesis and the 1996 papers themselves were not at hand; what w
 
 Where the sources disagree or only one was read, the function's docstring says so.
 """
+
 from __future__ import annotations
 
 import math
@@ -67,8 +68,8 @@ def centrifuging_speed(fill: float) -> float:
 class ChargeShape:
     """Toe and shoulder of the charge at the shell (rad, Morrell's convention) and phi_c."""
 
-    toe: float                 #: theta_T, rad
-    shoulder: float            #: theta_S, rad
+    toe: float  #: theta_T, rad
+    shoulder: float  #: theta_S, rad
     centrifuging_speed: float  #: phi_c, fraction of critical speed
 
     @property
@@ -104,8 +105,15 @@ def charge_shape(speed: float, fill: float) -> ChargeShape:
     return ChargeShape(toe, 0.5 * math.pi - (toe - 0.5 * math.pi) * lift, phi_c)
 
 
-def charge_density(fill: float, ball_fill: float, ore_density: float, ball_density: float,
-                   slurry_density: float, slurry_filling: float = 1.0, porosity: float = BED_POROSITY) -> float:
+def charge_density(
+    fill: float,
+    ball_fill: float,
+    ore_density: float,
+    ball_density: float,
+    slurry_density: float,
+    slurry_filling: float = 1.0,
+    porosity: float = BED_POROSITY,
+) -> float:
     """rho_c (kg/m^3), the C-model's charge density: rock and balls filling 1 - E of the bed, a
     fraction U (slurry_filling) of the voids E filled with slurry of density rho_p:
 
@@ -122,12 +130,12 @@ def charge_density(fill: float, ball_fill: float, ore_density: float, ball_densi
 class MorrellPower:
     """Morrell's C-model net power (W) and the geometry behind it."""
 
-    cylinder: float      #: net power of the cylindrical section (potential + kinetic), W
-    potential: float     #: its lifting part, W
-    kinetic: float       #: its kinetic part, W
-    cone: float          #: of the two cone ends (0 without cones), W
+    cylinder: float  #: net power of the cylindrical section (potential + kinetic), W
+    potential: float  #: its lifting part, W
+    kinetic: float  #: its kinetic part, W
+    cone: float  #: of the two cone ends (0 without cones), W
     inner_radius: float  #: r_i, the charge's inner surface, m
-    z: float             #: (1 - J)^0.4532: the charge's speed is zero at radius z r_i
+    z: float  #: (1 - J)^0.4532: the charge's speed is zero at radius z r_i
     shape: ChargeShape
 
     @property
@@ -136,9 +144,17 @@ class MorrellPower:
         return self.cylinder + self.cone
 
 
-def morrell_net_power(diameter: float, length: float, speed: float, fill: float, charge_density: float,
-                      slurry_density: float = 0.0, slurry_toe: float | None = None,
-                      cone_length: float = 0.0, trunnion_diameter: float = 0.0) -> MorrellPower:
+def morrell_net_power(
+    diameter: float,
+    length: float,
+    speed: float,
+    fill: float,
+    charge_density: float,
+    slurry_density: float = 0.0,
+    slurry_toe: float | None = None,
+    cone_length: float = 0.0,
+    trunnion_diameter: float = 0.0,
+) -> MorrellPower:
     """Morrell's C-model (Morrell 1996 Part 1): the rate at which the shell lifts the charge from
     toe to shoulder and gives it kinetic energy, the charge's tangential speed falling linearly
     from the shell's V_m = 2 pi N_m r_m to zero at radius z r_i (N_m = phi N_c, rev/s)::
@@ -181,16 +197,25 @@ def morrell_net_power(diameter: float, length: float, speed: float, fill: float,
     theta_to = shape.toe if slurry_toe is None else slurry_toe
     bracket = charge_density * lift + slurry_density * (math.sin(shape.toe) - math.sin(theta_to))
     d = r_m - z * r_i
-    potential = (math.pi * G * length * n_m * r_m / (3.0 * d)
-                 * (2.0 * r_m**3 - 3.0 * z * r_m**2 * r_i + r_i**3 * (3.0 * z - 2.0)) * bracket)
+    potential = (
+        math.pi
+        * G
+        * length
+        * n_m
+        * r_m
+        / (3.0 * d)
+        * (2.0 * r_m**3 - 3.0 * z * r_m**2 * r_i + r_i**3 * (3.0 * z - 2.0))
+        * bracket
+    )
     kinetic = length * charge_density * (math.pi * n_m * r_m / d) ** 3 * (d**4 - r_i**4 * (z - 1.0) ** 4)
     cone = 0.0
     if cone_length > 0.0:
         r_t = 0.5 * trunnion_diameter
-        cone = (math.pi * G * cone_length * n_m / (3.0 * (r_m - r_t))
-                * (r_m**4 - 4.0 * r_m * r_i**3 + 3.0 * r_i**4) * bracket
-                + 2.0 * math.pi**3 * n_m**3 * cone_length * charge_density / (5.0 * (r_m - r_t))
-                * (r_m**5 - 5.0 * r_m * r_i**4 + 4.0 * r_i**5))
+        cone = math.pi * G * cone_length * n_m / (3.0 * (r_m - r_t)) * (
+            r_m**4 - 4.0 * r_m * r_i**3 + 3.0 * r_i**4
+        ) * bracket + 2.0 * math.pi**3 * n_m**3 * cone_length * charge_density / (5.0 * (r_m - r_t)) * (
+            r_m**5 - 5.0 * r_m * r_i**4 + 4.0 * r_i**5
+        )
     return MorrellPower(potential + kinetic, potential, kinetic, cone, r_i, z, shape)
 
 
@@ -208,9 +233,17 @@ def morrell_gross_power(net: float, no_load: float, k: float = MORRELL_GROSS_FAC
     return no_load + k * net
 
 
-def austin_power(diameter: float, length: float, speed: float, fill: float, ball_fill: float,
-                 ore_density: float, ball_density: float, porosity: float = AUSTIN_POROSITY,
-                 solids_fraction: float = AUSTIN_SOLIDS) -> float:
+def austin_power(
+    diameter: float,
+    length: float,
+    speed: float,
+    fill: float,
+    ball_fill: float,
+    ore_density: float,
+    ball_density: float,
+    porosity: float = AUSTIN_POROSITY,
+    solids_fraction: float = AUSTIN_SOLIDS,
+) -> float:
     """Austin's SAG-mill power (W), at the pinion per the IMPC 2024 restatement:
 
         P = K D^2.5 L (1 - A J) [(1 - eps_B) (rho_s / w_C) J + 0.6 J_B (rho_b - rho_s / w_C)]
@@ -224,5 +257,12 @@ def austin_power(diameter: float, length: float, speed: float, fill: float, ball
     8.05 MW gross, so a shell (net) power compares with it only through the drive's losses."""
     rho_rock = ore_density / solids_fraction
     bed = (1.0 - porosity) * rho_rock * fill + 0.6 * ball_fill * (ball_density - rho_rock)
-    return (AUSTIN_K * diameter**2.5 * length * (1.0 - AUSTIN_A * fill) * bed
-            * speed * (1.0 - 0.1 / 2.0 ** (9.0 - 10.0 * speed)))
+    return (
+        AUSTIN_K
+        * diameter**2.5
+        * length
+        * (1.0 - AUSTIN_A * fill)
+        * bed
+        * speed
+        * (1.0 - 0.1 / 2.0 ** (9.0 - 10.0 * speed))
+    )

@@ -13,6 +13,7 @@ Young's modulus says; with a very large shape factor its stiffness approaches th
   thickness t.
 - The Winkler (bed-of-springs) stiffness of the sheet per area: k_n = E_c / t (Pa/m).
 """
+
 from __future__ import annotations
 
 import math
@@ -36,8 +37,9 @@ def sheet_shape_factor(a: float, b: float, t: float) -> float:
     return a * b / (2.0 * (a + b) * t)
 
 
-def compression_modulus(youngs: float, shape_factor: float, bulk: float = RUBBER_BULK_MODULUS,
-                        beta: float = SHAPE_BETA) -> float:
+def compression_modulus(
+    youngs: float, shape_factor: float, bulk: float = RUBBER_BULK_MODULUS, beta: float = SHAPE_BETA
+) -> float:
     """Effective compression modulus E_c (Pa) of a bonded rubber sheet: 1/E_c = 1/(E (1 + beta S^2)) + 1/B
     (Gent and Lindley 1959)."""
     apparent = youngs * (1.0 + beta * shape_factor**2)

@@ -19,6 +19,7 @@ finite-element restitutions of steel spheres lie markedly higher (tens of percen
 Wu, Li & Thornton, Int. J. Impact Eng. 32 (2005) 593-604), so the curve is a lower bound to read
 finite-element results against, not their target.
 """
+
 from __future__ import annotations
 
 import math
@@ -29,8 +30,9 @@ import numpy as np
 FIRST_YIELD_PRESSURE_FACTOR = 1.60
 
 
-def yield_onset_velocity(yield_stress: float, e_star: float, density: float,
-                         pressure_factor: float = FIRST_YIELD_PRESSURE_FACTOR) -> float:
+def yield_onset_velocity(
+    yield_stress: float, e_star: float, density: float, pressure_factor: float = FIRST_YIELD_PRESSURE_FACTOR
+) -> float:
     """V_y (m/s) of a sphere of ``density`` (kg/m^3) on a flat, contact modulus ``e_star`` (Pa):
     the Hertz peak pressure reaches p_y = pressure_factor * yield_stress (Pa)."""
     p_y = pressure_factor * yield_stress
@@ -42,8 +44,11 @@ def restitution_thornton(speed, v_y: float):
     (1 at or below it). Accepts a number or an array."""
     v = np.asarray(speed, dtype=float)
     r = np.minimum(v_y / np.maximum(v, 1e-300), 1.0)
-    e = (math.sqrt(6.0 * math.sqrt(3.0) / 5.0) * np.sqrt(1.0 - r**2 / 6.0)
-         * (r / (r + 2.0 * np.sqrt(6.0 / 5.0 - r**2 / 5.0))) ** 0.25)
+    e = (
+        math.sqrt(6.0 * math.sqrt(3.0) / 5.0)
+        * np.sqrt(1.0 - r**2 / 6.0)
+        * (r / (r + 2.0 * np.sqrt(6.0 / 5.0 - r**2 / 5.0))) ** 0.25
+    )
     e = np.where(v <= v_y, 1.0, e)
     return float(e) if e.ndim == 0 else e
 
@@ -68,8 +73,9 @@ def max_approach_thornton(radius: float, mass: float, speed: float, e_star: floa
     return d_y + s
 
 
-def plastic_zone_radius(radius: float, mass: float, speed: float, e_star: float, yield_stress: float,
-                        nu: float = 0.3) -> tuple[float, float]:
+def plastic_zone_radius(
+    radius: float, mass: float, speed: float, e_star: float, yield_stress: float, nu: float = 0.3
+) -> tuple[float, float]:
     """(a_p, c): the largest contact radius a_p = (R delta_max)^(1/2) of Thornton's law
     (:func:`max_approach_thornton`, p_y = 1.6 Y) and the radius c of the plastic zone under it
     from Johnson's expanding-cavity model of a spherical indenter (Johnson, Contact Mechanics,

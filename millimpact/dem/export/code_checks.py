@@ -6,11 +6,12 @@
 stress fitted to the table's e_n, :mod:`.mdr_fit`) and, checked, ``roundtrip_mdr.csv`` / ``.png``.
 A code that is not installed is refused before any output (one line: how to install it).
 """
+
 from __future__ import annotations
 
 import shutil
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -58,7 +59,9 @@ def extra_law_files(code: str, law: ExportedLaw, stage: Path, talk: Callable[...
     work = stage / "lammps_mdr_fit"
     mdr = fit_mdr(law, work, on_progress=lambda line: talk(f"    {line}"))
     shutil.rmtree(work)
-    talk(f"  LAMMPS mdr: yield stress {mdr.yield_stress:.4g} Pa, eta_n0 {mdr.damping:.3g}, e_n residual rms {mdr.rms:.4f}, largest {mdr.worst:.4f}")
+    talk(
+        f"  LAMMPS mdr: yield stress {mdr.yield_stress:.4g} Pa, eta_n0 {mdr.damping:.3g}, e_n residual rms {mdr.rms:.4f}, largest {mdr.worst:.4f}"
+    )
     return [write_lammps_mdr(stage, law, mdr)]
 
 
@@ -68,8 +71,10 @@ def _errors(rows: Sequence[dict], vn: np.ndarray, band) -> str:
     text = f"largest |e_n difference| {de.max():.4f}, largest F_max difference {100 * df.max():.2f} %"
     if band is not None:
         inside = (vn >= band[0]) & (vn <= band[1])
-        text += (f"; in its band ({band[0]:.3g}-{band[1]:.3g} m/s, {int(inside.sum())} points): {de[inside].max():.4f}"
-                 f" and {100 * df[inside].max():.2f} % (held to {BAND_E_N} and {BAND_F_MAX:.0%})")
+        text += (
+            f"; in its band ({band[0]:.3g}-{band[1]:.3g} m/s, {int(inside.sum())} points): {de[inside].max():.4f}"
+            f" and {100 * df[inside].max():.2f} % (held to {BAND_E_N} and {BAND_F_MAX:.0%})"
+        )
     return text
 
 
@@ -79,7 +84,7 @@ def run_check(code: str, law: ExportedLaw, files: Sequence[Path], stage: Path, t
 
     t = law.table
     vn = t.normal_speed.ravel()
-    progress = lambda line: talk(f"    {line}")       # noqa: E731
+    progress = lambda line: talk(f"    {line}")  # noqa: E731
     talk(f"  --check: {RUNNER[code]}, one ball per table point ({t.e_n.size})")
     if code == "yade":
         from .roundtrip import run_roundtrip

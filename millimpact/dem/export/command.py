@@ -6,6 +6,7 @@ the table's e_n and F_max at each of its points in that code's own damping formu
 files to include. ``--check`` runs them in the code, one ball per table point, and writes
 ``roundtrip.csv`` and ``roundtrip.png`` (:mod:`.code_checks`).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -52,21 +53,25 @@ def main(args: argparse.Namespace) -> int:
     if code not in CODES:
         raise InputError(f"--to {args.to!r}: must be one of {', '.join(CODES)}")
     table = read_table(args.table)
-    require_code(code, args.check)         # not installed: one line and exit 2, before any output
+    require_code(code, args.check)  # not installed: one line and exit 2, before any output
     out = args.out if args.out is not None else default_out(Path(args.table).resolve().name, prefix=f"dem-{code}-")
-    target = claim_output(out, "export", force=args.force)   # before fitting: checks, lock, leftovers
+    target = claim_output(out, "export", force=args.force)  # before fitting: checks, lock, leftovers
     if world_rank() != 0:
-        return 0                           # a serial command: under mpirun rank 0 alone writes
+        return 0  # a serial command: under mpirun rank 0 alone writes
     talk = (lambda *a: None) if args.quiet else say
     law = fit_law(table)
     with target.staged(collective=False) as stage:
         files = [WRITERS[code](stage, law), write_law_json(stage, law, code)]
-        talk(f"export {code}: {len(table.speeds)} speeds x {len(table.angles)} angles of {table.folder} "
-             f"(scene {table.scene_name}, method {table.method})")
+        talk(
+            f"export {code}: {len(table.speeds)} speeds x {len(table.angles)} angles of {table.folder} "
+            f"(scene {table.scene_name}, method {table.method})"
+        )
         if law.band:
             talk(f"  constant law (LIGGGHTS/LAMMPS): valid for normal speeds {law.band[0]:.3g}-{law.band[1]:.3g} m/s")
         files[1:1] = extra_law_files(code, law, stage, talk)
         checked = run_check(code, law, files, stage, talk) if args.check else []
-    talk(f"  results in {target.shown}/ ({', '.join(f.name for f in files)}"
-         f"{''.join(', ' + name for name in checked)})" + target.replaced_note())
+    talk(
+        f"  results in {target.shown}/ ({', '.join(f.name for f in files)}"
+        f"{''.join(', ' + name for name in checked)})" + target.replaced_note()
+    )
     return 0

@@ -36,6 +36,7 @@ which gives e(zeta) = -x' at separation and the peak force F_max = phi(zeta) k_n
 (phi(0) = (5/4)^(3/5), Hertz). Inverting it: zeta from the table's e_n, then k_no (and E*) from its
 F_max, then e_in from (1) - at each of the table's speeds.
 """
+
 from __future__ import annotations
 
 import math
@@ -45,7 +46,7 @@ from typing import NamedTuple
 import numpy as np
 
 #: phi(0): the undamped Hertz impact's peak force in units of k_no^(2/5) (m v^2)^(3/5)
-HERTZ_PEAK = 1.25 ** 0.6
+HERTZ_PEAK = 1.25**0.6
 #: largest damping ratio tabulated (e(ZETA_MAX) ~ 0.1: restitutions below are refused)
 ZETA_MAX = 3.0
 
@@ -143,13 +144,13 @@ def code_restitution(e_in: float) -> float:
 class PointLaw(NamedTuple):
     """The Hertz-dashpot parameters that reproduce one table row (SI units)."""
 
-    zeta: float           #: damping ratio of (2)
-    e_in: float           #: restitution input of relation (1) (Yade en, LIGGGHTS, LAMMPS e)
-    betan: float          #: Yade's betan (zeta / 6^(1/2))
-    k_no: float           #: Hertz coefficient, N/m^1.5 (F = k_no delta^1.5)
-    e_star: float         #: contact modulus E* = k_no / ((4/3) R^(1/2)), Pa
-    restitution: float    #: the law's e_n (= the table's)
-    peak_force: float     #: the law's F_max, N (= the table's)
+    zeta: float  #: damping ratio of (2)
+    e_in: float  #: restitution input of relation (1) (Yade en, LIGGGHTS, LAMMPS e)
+    betan: float  #: Yade's betan (zeta / 6^(1/2))
+    k_no: float  #: Hertz coefficient, N/m^1.5 (F = k_no delta^1.5)
+    e_star: float  #: contact modulus E* = k_no / ((4/3) R^(1/2)), Pa
+    restitution: float  #: the law's e_n (= the table's)
+    peak_force: float  #: the law's F_max, N (= the table's)
 
 
 def point_law(e_n: float, peak_force: float, normal_speed: float, mass: float, radius: float) -> PointLaw:
@@ -160,5 +161,12 @@ def point_law(e_n: float, peak_force: float, normal_speed: float, mass: float, r
     phi = peak_force_factor(zeta)
     k_no = (peak_force / (phi * (mass * normal_speed**2) ** 0.6)) ** 2.5
     e_star = k_no / (4.0 / 3.0 * math.sqrt(radius))
-    return PointLaw(zeta, code_restitution_for_damping(zeta), zeta / math.sqrt(6.0), k_no, e_star,
-                    restitution_of_damping(zeta), phi * k_no**0.4 * (mass * normal_speed**2) ** 0.6)
+    return PointLaw(
+        zeta,
+        code_restitution_for_damping(zeta),
+        zeta / math.sqrt(6.0),
+        k_no,
+        e_star,
+        restitution_of_damping(zeta),
+        phi * k_no**0.4 * (mass * normal_speed**2) ** 0.6,
+    )

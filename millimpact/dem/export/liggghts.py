@@ -7,12 +7,13 @@ LIGGGHTS keeps the dashpot's attractive force at the end of the contact, and a 1
 3 m/s with ``coefficientRestitution 0.8`` rebounds at e = 0.8000 instead of relation (1)'s 0.8081
 (measured both ways; docs/dem.md).
 """
+
 from __future__ import annotations
 
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 from ...errors import InputError
 from .files import ExportedLaw
@@ -21,8 +22,10 @@ from .wall_impacts import impact_cases, run_cases
 #: how a user gets LIGGGHTS on this project's machines (Debian 12)
 INSTALL_HINT = "apt-get install liggghts (Debian 12: LIGGGHTS 3.8.0)"
 #: the wall fix of the round trip: the exported file's model (type 2, the plane z = 0)
-WALL = ("fix liner all wall/gran model hertz tangential history primitive type 2 zplane 0.0 "
-        "limitForce on tangential_damping off")
+WALL = (
+    "fix liner all wall/gran model hertz tangential history primitive type 2 zplane 0.0 "
+    "limitForce on tangential_damping off"
+)
 SETUP = "atom_style granular\nnewton off\ncommunicate single vel yes"
 
 
@@ -34,11 +37,26 @@ def liggghts_executable() -> str:
     return exe
 
 
-def run_liggghts_roundtrip(law: ExportedLaw, law_file: Path, workdir: Path, timeout: float = 1800,
-                           on_progress: Optional[Callable[[str], None]] = None) -> list[dict]:
+def run_liggghts_roundtrip(
+    law: ExportedLaw,
+    law_file: Path,
+    workdir: Path,
+    timeout: float = 1800,
+    on_progress: Callable[[str], None] | None = None,
+) -> list[dict]:
     """LIGGGHTS' e_n, e_t, F_max at every table point with ``law_file``; rows in grid order."""
     t = law.table
     points = [(s, a, t.normal_speed[i, j]) for i, s in enumerate(t.speeds) for j, a in enumerate(t.angles)]
     cases = impact_cases(points, t.ball_mass, t.radius, law.e_star_const)
-    return run_cases([liggghts_executable()], workdir, cases, t.radius, t.ball_density, SETUP,
-                     f"include {law_file.resolve()}", WALL, timeout=timeout, on_progress=on_progress)
+    return run_cases(
+        [liggghts_executable()],
+        workdir,
+        cases,
+        t.radius,
+        t.ball_density,
+        SETUP,
+        f"include {law_file.resolve()}",
+        WALL,
+        timeout=timeout,
+        on_progress=on_progress,
+    )

@@ -9,27 +9,35 @@ delta_0 / v_n): halving it changes e_n by < 1e-5 (yade_drop at 1e-8 and 2.5e-9 s
 ``roundtrip.csv`` puts millimpact's and Yade's e_n, e_t and F_max side by side; ``roundtrip.png``
 plots them.
 """
+
 from __future__ import annotations
 
 import csv
 import json
 import math
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Optional, Sequence
 
 import numpy as np
 
+from ..yade import run_yade
 from .files import ExportedLaw, law_data
 from .table_input import ContactTable
-from ..yade import run_yade
 
 SCRIPT = Path(__file__).with_name("yade_scripts") / "roundtrip.py"
 #: time steps per contact duration
 STEPS_PER_CONTACT = 2000
 #: the columns of roundtrip.csv (docs/dem.md)
-COLUMNS = ("impact_speed_m_s", "impact_angle_deg", "restitution_normal_table", "restitution_normal_dem",
-           "restitution_tangential_table", "restitution_tangential_dem", "peak_normal_force_N_table",
-           "peak_normal_force_N_dem")
+COLUMNS = (
+    "impact_speed_m_s",
+    "impact_angle_deg",
+    "restitution_normal_table",
+    "restitution_normal_dem",
+    "restitution_tangential_table",
+    "restitution_tangential_dem",
+    "peak_normal_force_N_table",
+    "peak_normal_force_N_dem",
+)
 
 
 def _cases(t: ContactTable, e_star: np.ndarray) -> list[dict]:
@@ -39,8 +47,14 @@ def _cases(t: ContactTable, e_star: np.ndarray) -> list[dict]:
             k_no = 4.0 / 3.0 * float(e_star[i, j]) * math.sqrt(t.radius)
             vn = float(t.normal_speed[i, j])
             t_c = 3.2 * (t.ball_mass * vn**2 / k_no) ** 0.4 / vn
-            out.append({"speed_m_s": float(s), "angle_deg": float(a), "dt_s": t_c / STEPS_PER_CONTACT,
-                        "max_steps": 6 * STEPS_PER_CONTACT})
+            out.append(
+                {
+                    "speed_m_s": float(s),
+                    "angle_deg": float(a),
+                    "dt_s": t_c / STEPS_PER_CONTACT,
+                    "max_steps": 6 * STEPS_PER_CONTACT,
+                }
+            )
     return out
 
 
@@ -54,18 +68,32 @@ def constant_law_file(law: ExportedLaw, path: Path) -> Path:
     return path
 
 
-def run_roundtrip(law: ExportedLaw, workdir: Path, mode: str = "law", law_file: Optional[Path] = None,
-                  timeout: float = 1800, on_progress: Optional[Callable[[str], None]] = None) -> list[dict]:
+def run_roundtrip(
+    law: ExportedLaw,
+    workdir: Path,
+    mode: str = "law",
+    law_file: Path | None = None,
+    timeout: float = 1800,
+    on_progress: Callable[[str], None] | None = None,
+) -> list[dict]:
     """Yade's e_n, e_t, F_max at every table point (``mode``: law | naive); rows in grid order."""
     t = law.table
     workdir.mkdir(parents=True, exist_ok=True)
     results_file = workdir / f"yade_{mode}.json"
-    inp = {"mode": mode, "radius_m": t.radius, "density_kg_m3": t.ball_density,
-           "results_file": str(results_file),
-           "law_file": str(law_file) if law_file else None,
-           "naive": {"en": float(np.mean(np.minimum(t.e_n, 0.999))), "young_Pa": t.youngs_modulus,
-                     "poisson": t.poisson, "friction": t.friction},
-           "cases": _cases(t, law.e_star if mode == "law" else np.full(t.e_n.shape, t.e_star_materials))}
+    inp = {
+        "mode": mode,
+        "radius_m": t.radius,
+        "density_kg_m3": t.ball_density,
+        "results_file": str(results_file),
+        "law_file": str(law_file) if law_file else None,
+        "naive": {
+            "en": float(np.mean(np.minimum(t.e_n, 0.999))),
+            "young_Pa": t.youngs_modulus,
+            "poisson": t.poisson,
+            "friction": t.friction,
+        },
+        "cases": _cases(t, law.e_star if mode == "law" else np.full(t.e_n.shape, t.e_star_materials)),
+    }
     path = workdir / f"yade_{mode}_input.json"
     path.write_text(json.dumps(inp, indent=1))
     run_yade(SCRIPT, workdir, [path.name], timeout=timeout, on_progress=on_progress)
@@ -80,18 +108,35 @@ def roundtrip_rows(t: ContactTable, results: Sequence[dict]) -> list[dict]:
         for j, a in enumerate(t.angles):
             r = results[k]
             k += 1
-            rows.append(dict(zip(COLUMNS, (float(s), float(a), float(t.e_n[i, j]), r["restitution_normal"],
-                                           float(t.e_t[i, j]), r["restitution_tangential"], float(t.peak_force[i, j]),
-                                           r["peak_normal_force_N"]))))
+            rows.append(
+                dict(
+                    zip(
+                        COLUMNS,
+                        (
+                            float(s),
+                            float(a),
+                            float(t.e_n[i, j]),
+                            r["restitution_normal"],
+                            float(t.e_t[i, j]),
+                            r["restitution_tangential"],
+                            float(t.peak_force[i, j]),
+                            r["peak_normal_force_N"],
+                        ),
+                    )
+                )
+            )
     return rows
 
 
-def write_roundtrip(folder: Path, t: ContactTable, rows: Sequence[dict], code: str, runner: str = "Yade",
-                    stem: str = "roundtrip") -> None:
+def write_roundtrip(
+    folder: Path, t: ContactTable, rows: Sequence[dict], code: str, runner: str = "Yade", stem: str = "roundtrip"
+) -> None:
     """STEM.csv (a # header naming the table, the law and the code that ran it) and STEM.png."""
     with open(folder / f"{stem}.csv", "w", newline="") as fh:
-        fh.write(f"# millimpact export --check: the {code} law exported from {t.folder.resolve()} (scene "
-                 f"{t.scene_name}, method {t.method}) run in {runner}, one ball on a wall per table point\n")
+        fh.write(
+            f"# millimpact export --check: the {code} law exported from {t.folder.resolve()} (scene "
+            f"{t.scene_name}, method {t.method}) run in {runner}, one ball on a wall per table point\n"
+        )
         fh.write(f"# _table: millimpact's contact table; _dem: {runner}. e_t NaN at normal incidence. SI units\n")
         w = csv.writer(fh)
         w.writerow(COLUMNS)
@@ -109,9 +154,14 @@ def plot_roundtrip(path: Path, t: ContactTable, rows: Sequence[dict], code: str,
         rr = [r for r in rows if r["impact_angle_deg"] == a]
         v = [r["impact_speed_m_s"] for r in rr]
         c = f"C{j % 10}"
-        for ax, key, scale in ((axes[0], "restitution_normal", 1.0), (axes[1], "restitution_tangential", 1.0),
-                               (axes[2], "peak_normal_force_N", 1e-3)):
-            tab = [r[f"{key}_table" if key != "peak_normal_force_N" else "peak_normal_force_N_table"] * scale for r in rr]
+        for ax, key, scale in (
+            (axes[0], "restitution_normal", 1.0),
+            (axes[1], "restitution_tangential", 1.0),
+            (axes[2], "peak_normal_force_N", 1e-3),
+        ):
+            tab = [
+                r[f"{key}_table" if key != "peak_normal_force_N" else "peak_normal_force_N_table"] * scale for r in rr
+            ]
             dem = [r[f"{key}_dem" if key != "peak_normal_force_N" else "peak_normal_force_N_dem"] * scale for r in rr]
             ax.plot(v, tab, "o-", color=c, label=f"millimpact, {a:g} deg")
             ax.plot(v, dem, "x--", color=c, ms=9, label=f"{runner}, {a:g} deg")

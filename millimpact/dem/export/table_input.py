@@ -5,6 +5,7 @@ writes it (the rows, the resolved base scene as TOML, the method) and ``contact_
 export uses the rows whose status is ok, on the grid impact speed x angle of one ball radius (the
 table's first radius when it has several); each grid point must be present once.
 """
+
 from __future__ import annotations
 
 import json
@@ -17,9 +18,17 @@ import numpy as np
 from ...errors import InputError
 
 #: columns of contact_table.json's rows the export reads
-NEEDED = ("impact_speed_m_s", "impact_angle_deg", "ball_radius_m", "normal_velocity_in_m_s",
-          "tangential_velocity_in_m_s", "restitution_normal", "restitution_tangential",
-          "peak_normal_force_N", "status")
+NEEDED = (
+    "impact_speed_m_s",
+    "impact_angle_deg",
+    "ball_radius_m",
+    "normal_velocity_in_m_s",
+    "tangential_velocity_in_m_s",
+    "restitution_normal",
+    "restitution_tangential",
+    "peak_normal_force_N",
+    "status",
+)
 
 
 class ContactTable(NamedTuple):
@@ -29,34 +38,36 @@ class ContactTable(NamedTuple):
     scene_name: str
     method: str
     version: str
-    speeds: np.ndarray          #: impact speeds |v|, m/s (increasing)
-    angles: np.ndarray          #: angles from the face normal, deg (increasing)
-    radius: float               #: ball radius, m
-    ball_density: float         #: kg/m^3
-    ball_mass: float            #: kg
-    target_density: float       #: kg/m^3
-    youngs_modulus: float       #: the ball's E, Pa (the scene's; the law's E* comes from F_max)
-    poisson: float              #: the ball's nu
-    e_star_materials: float     #: the materials' contact modulus, Pa
-    tangential_stiffness_ratio: float   #: Mindlin's k_t / k_n = 4 G* / E* of the materials
-    friction: float             #: Coulomb mu of the scene
-    normal_speed: np.ndarray    #: m/s
+    speeds: np.ndarray  #: impact speeds |v|, m/s (increasing)
+    angles: np.ndarray  #: angles from the face normal, deg (increasing)
+    radius: float  #: ball radius, m
+    ball_density: float  #: kg/m^3
+    ball_mass: float  #: kg
+    target_density: float  #: kg/m^3
+    youngs_modulus: float  #: the ball's E, Pa (the scene's; the law's E* comes from F_max)
+    poisson: float  #: the ball's nu
+    e_star_materials: float  #: the materials' contact modulus, Pa
+    tangential_stiffness_ratio: float  #: Mindlin's k_t / k_n = 4 G* / E* of the materials
+    friction: float  #: Coulomb mu of the scene
+    normal_speed: np.ndarray  #: m/s
     e_n: np.ndarray
-    e_t: np.ndarray             #: NaN at normal incidence
-    peak_force: np.ndarray      #: N
+    e_t: np.ndarray  #: NaN at normal incidence
+    peak_force: np.ndarray  #: N
 
 
 def _not_a_table(folder: Path, why: str) -> InputError:
-    return InputError(f"TABLE_DIR {folder}: not a contact table ({why}); make one with: millimpact table SCENE "
-                      f"--velocity V1,V2 --angle A1,A2 --out DIR")
+    return InputError(
+        f"TABLE_DIR {folder}: not a contact table ({why}); make one with: millimpact table SCENE "
+        f"--velocity V1,V2 --angle A1,A2 --out DIR"
+    )
 
 
 def read_table(folder: Path | str) -> ContactTable:
     """The table in ``folder`` (InputError, one line, if it is not one or its grid is incomplete)."""
+    import tomllib
+
     from ...scene.toml_io import scene_from_dict
     from ...theory.hertz import effective_modulus
-
-    import tomllib
 
     folder = Path(folder)
     if not folder.is_dir():
@@ -71,10 +82,13 @@ def read_table(folder: Path | str) -> ContactTable:
         method, version = str(doc.get("method", "?")), str(doc.get("millimpact_version", "?"))
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise _not_a_table(folder, f"contact_table.json unreadable: {type(exc).__name__}: {str(exc)[:120]}") from None
-    except Exception as exc:               # a scene that no longer validates
+    except Exception as exc:  # a scene that no longer validates
         raise _not_a_table(folder, f"its scene does not load: {str(exc).splitlines()[0][:160]}") from None
-    if not isinstance(rows, list) or not rows or any(not isinstance(r, dict) or any(k not in r for k in NEEDED)
-                                                     for r in rows):
+    if (
+        not isinstance(rows, list)
+        or not rows
+        or any(not isinstance(r, dict) or any(k not in r for k in NEEDED) for r in rows)
+    ):
         raise _not_a_table(folder, f"contact_table.json rows lack the columns {', '.join(NEEDED)}")
     ok = [r for r in rows if str(r["status"]).startswith("ok")]
     if not ok:
@@ -90,8 +104,10 @@ def read_table(folder: Path | str) -> ContactTable:
         for j, a in enumerate(angles):
             r = grid.get((s, a))
             if r is None:
-                raise InputError(f"TABLE_DIR {folder}: the case v = {s:g} m/s, angle {a:g} deg is missing or failed; "
-                                 "rerun millimpact table to complete its grid")
+                raise InputError(
+                    f"TABLE_DIR {folder}: the case v = {s:g} m/s, angle {a:g} deg is missing or failed; "
+                    "rerun millimpact table to complete its grid"
+                )
             vals["vn"][i, j] = r["normal_velocity_in_m_s"]
             vals["en"][i, j] = r["restitution_normal"]
             et = r["restitution_tangential"]
@@ -104,6 +120,24 @@ def read_table(folder: Path | str) -> ContactTable:
     # Mindlin: k_t = 8 G* a, k_n = 2 E* a (tangent), 1/G* = (2 - nu1)/G1 + (2 - nu2)/G2 (Johnson 1985, 7.2)
     g_star = 1.0 / ((2 - ball.poisson) / ball.shear_modulus + (2 - target.poisson) / target.shear_modulus)
     mass = ball.density * 4.0 / 3.0 * math.pi * radius**3
-    return ContactTable(folder, scene.name, method, version, speeds, angles, radius, ball.density, mass,
-                        target.density, ball.youngs_modulus, ball.poisson, e_star, 4.0 * g_star / e_star,
-                        scene.contact.friction, vals["vn"], vals["en"], vals["et"], vals["f"])
+    return ContactTable(
+        folder,
+        scene.name,
+        method,
+        version,
+        speeds,
+        angles,
+        radius,
+        ball.density,
+        mass,
+        target.density,
+        ball.youngs_modulus,
+        ball.poisson,
+        e_star,
+        4.0 * g_star / e_star,
+        scene.contact.friction,
+        vals["vn"],
+        vals["en"],
+        vals["et"],
+        vals["f"],
+    )

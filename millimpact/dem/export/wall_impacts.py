@@ -10,13 +10,14 @@ prints the ball's v_x, v_z, omega_y and the wall's force f_z to ``trace_K.txt``;
 separation e_n = v_z,out / -v_z,in, e_t = u_x,out / u_x,in with u_x = v_x - R omega_y, and F_max
 is the largest f_z. A case whose contact has not ended after its steps is an error, not a result.
 """
+
 from __future__ import annotations
 
 import math
 import os
 import subprocess
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Optional, Sequence
 
 import numpy as np
 
@@ -34,8 +35,9 @@ class DemCodeError(MillimpactError):
     """A LIGGGHTS or LAMMPS run that did not end normally."""
 
 
-def impact_cases(speeds_angles: Sequence[tuple[float, float, float]], mass: float, radius: float,
-                 e_star: float) -> list[dict]:
+def impact_cases(
+    speeds_angles: Sequence[tuple[float, float, float]], mass: float, radius: float, e_star: float
+) -> list[dict]:
     """Cases (speed m/s, angle deg, normal speed m/s) with their time step for a Hertz contact of
     modulus ``e_star`` (Pa): dt = t_c / STEPS_PER_CONTACT, t_c = 3.2 delta_0 / v_n."""
     k_no = 4.0 / 3.0 * e_star * math.sqrt(radius)
@@ -46,13 +48,17 @@ def impact_cases(speeds_angles: Sequence[tuple[float, float, float]], mass: floa
     return out
 
 
-def case_script(k: int, n: int, case: dict, radius: float, density: float, setup: str, law: str, wall: str,
-                halt: bool = False) -> str:
+def case_script(
+    k: int, n: int, case: dict, radius: float, density: float, setup: str, law: str, wall: str, halt: bool = False
+) -> str:
     """The commands of case ``k`` of ``n``: ``setup`` (atom style, newton, communication), ``law``
     (the pair style and its coefficients: the exported file included) and ``wall`` (the wall fix);
     ``halt`` (LAMMPS): the run stops once the ball has left the wall (checked every 20 steps)."""
-    halt_lines = ('variable gone equal "v_vz > 0 && v_fz == 0"\n'
-                  "fix stop all halt 20 v_gone > 0.5 error continue\n") if halt else ""
+    halt_lines = (
+        ('variable gone equal "v_vz > 0 && v_fz == 0"\nfix stop all halt 20 v_gone > 0.5 error continue\n')
+        if halt
+        else ""
+    )
     a = math.radians(case["angle_deg"])
     v = case["speed_m_s"]
     return f"""clear
@@ -70,7 +76,7 @@ create_atoms 1 single 0 0 {radius * (1 + 1e-6)!r} units box
 set atom 1 diameter {2 * radius!r} density {density!r}
 velocity all set {v * math.sin(a)!r} 0 {-v * math.cos(a)!r} units box
 fix integrate all nve/sphere
-timestep {case['dt_s']!r}
+timestep {case["dt_s"]!r}
 variable vx equal vx[1]
 variable vz equal vz[1]
 compute omega all property/atom omegay
@@ -78,9 +84,9 @@ compute spin all reduce sum c_omega
 variable wy equal c_spin
 variable fz equal fz[1]
 fix trace all print 1 "${{vx}} ${{vz}} ${{wy}} ${{fz}}" file trace_{k}.txt screen no
-{halt_lines}thermo {case.get('steps', CASE_STEPS)}
-run {case.get('steps', CASE_STEPS)}
-print "{PROGRESS_PREFIX}case {k + 1}/{n}: v = {v:g} m/s, {case['angle_deg']:g} deg"
+{halt_lines}thermo {case.get("steps", CASE_STEPS)}
+run {case.get("steps", CASE_STEPS)}
+print "{PROGRESS_PREFIX}case {k + 1}/{n}: v = {v:g} m/s, {case["angle_deg"]:g} deg"
 """
 
 
@@ -94,13 +100,23 @@ def measure(trace: Path, case: dict, radius: float) -> dict:
     v = case["speed_m_s"]
     ux_in = v * math.sin(a)
     ux = vx[-1] - radius * wy[-1]
-    return {"speed_m_s": v, "angle_deg": case["angle_deg"], "restitution_normal": float(vz[-1] / (v * math.cos(a))),
-            "restitution_tangential": float(ux / ux_in) if abs(ux_in) > 1e-12 * v else float("nan"),
-            "peak_normal_force_N": float(fz.max())}
+    return {
+        "speed_m_s": v,
+        "angle_deg": case["angle_deg"],
+        "restitution_normal": float(vz[-1] / (v * math.cos(a))),
+        "restitution_tangential": float(ux / ux_in) if abs(ux_in) > 1e-12 * v else float("nan"),
+        "peak_normal_force_N": float(fz.max()),
+    }
 
 
-def run_code(cmd: Sequence[str], workdir: Path, script: str, timeout: Optional[float] = 1800,
-             on_progress: Optional[Callable[[str], None]] = None, env: Optional[dict] = None) -> str:
+def run_code(
+    cmd: Sequence[str],
+    workdir: Path,
+    script: str,
+    timeout: float | None = 1800,
+    on_progress: Callable[[str], None] | None = None,
+    env: dict | None = None,
+) -> str:
     """Write ``in.roundtrip`` to ``workdir`` and run ``cmd -in in.roundtrip`` there; its output.
 
     Raises :class:`DemCodeError` with the output's last lines when the code exits non-zero or
@@ -111,15 +127,21 @@ def run_code(cmd: Sequence[str], workdir: Path, script: str, timeout: Optional[f
     full = [*cmd, "-in", "in.roundtrip", "-log", "log.roundtrip"]
     lines: list[str] = []
     with children_signals():
-        proc = subprocess.Popen(full, cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, text=True, env={**os.environ, "OMP_NUM_THREADS": "1",
-                                                                          **(env or {})})
+        proc = subprocess.Popen(
+            full,
+            cwd=workdir,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            text=True,
+            env={**os.environ, "OMP_NUM_THREADS": "1", **(env or {})},
+        )
     with proc:
         try:
             assert proc.stdout is not None
             for line in proc.stdout:
                 if line.startswith(PROGRESS_PREFIX) and on_progress is not None:
-                    on_progress(line[len(PROGRESS_PREFIX):].strip())
+                    on_progress(line[len(PROGRESS_PREFIX) :].strip())
                 lines.append(line)
             rc = proc.wait(timeout=timeout)
         except BaseException:
@@ -133,17 +155,28 @@ def run_code(cmd: Sequence[str], workdir: Path, script: str, timeout: Optional[f
     return out
 
 
-def run_cases(cmd: Sequence[str], workdir: Path, cases: Sequence[dict], radius: float, density: float,
-              setup: str, law: str | Sequence[str], wall: str | Sequence[str], timeout: Optional[float] = 1800,
-              on_progress: Optional[Callable[[str], None]] = None, halt: bool = False) -> list[dict]:
+def run_cases(
+    cmd: Sequence[str],
+    workdir: Path,
+    cases: Sequence[dict],
+    radius: float,
+    density: float,
+    setup: str,
+    law: str | Sequence[str],
+    wall: str | Sequence[str],
+    timeout: float | None = 1800,
+    on_progress: Callable[[str], None] | None = None,
+    halt: bool = False,
+) -> list[dict]:
     """Every case in one run of the code; the measured rows in the cases' order. ``law`` and
     ``wall``: one for all cases, or one per case."""
     laws = [law] * len(cases) if isinstance(law, str) else list(law)
     walls = [wall] * len(cases) if isinstance(wall, str) else list(wall)
-    script = "".join(case_script(k, len(cases), c, radius, density, setup, laws[k], walls[k], halt)
-                     for k, c in enumerate(cases))
+    script = "".join(
+        case_script(k, len(cases), c, radius, density, setup, laws[k], walls[k], halt) for k, c in enumerate(cases)
+    )
     run_code(cmd, workdir, script, timeout=timeout, on_progress=on_progress)
     rows = [measure(workdir / f"trace_{k}.txt", c, radius) for k, c in enumerate(cases)]
-    for k in range(len(cases)):            # a few MB each; the script and the log stay
+    for k in range(len(cases)):  # a few MB each; the script and the log stay
         (workdir / f"trace_{k}.txt").unlink()
     return rows

@@ -7,6 +7,7 @@ speed (``millimpact/dem/mill/yade_scripts/mill_slice.py``) and logs every new ba
 becomes ``impacts.csv`` (:mod:`~millimpact.dem.mill.log`) and the reports
 (:mod:`~millimpact.dem.mill.report`).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -46,30 +47,63 @@ SCRIPT = Path(__file__).resolve().parent / "yade_scripts" / "mill_slice.py"
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", help="a built-in scene with a liner (liner-segment, liner-panel) or a TOML file")
-    p.add_argument("--revolutions", type=float, required=True, metavar="R",
-                   help="revolutions logged (after the warm-up)")
+    p.add_argument(
+        "--revolutions", type=float, required=True, metavar="R", help="revolutions logged (after the warm-up)"
+    )
     p.add_argument("--balls", type=int, metavar="N", help="number of balls (or --fill)")
-    p.add_argument("--fill", type=float, metavar="F",
-                   help="fraction of the mill's volume the ball bed fills, 0.05-0.5 (default 0.1)")
-    p.add_argument("--speed-fraction", type=float, default=0.75, metavar="S",
-                   help="fraction of the critical speed n_c = 42.3/sqrt(D) rpm, in (0, 2] (default 0.75)")
-    p.add_argument("--restitution", type=float, metavar="E",
-                   help="coefficient of restitution of every contact (default: Thornton's e at the shell speed "
-                        "from the scene's yield stresses)")
-    p.add_argument("--law", metavar="DIR",
-                   help="a contact law exported for Yade (millimpact export TABLE --to yade --out DIR): each "
-                        "ball-liner contact's e_n from its impact speed and angle (instead of --restitution)")
-    p.add_argument("--law-every", type=int, metavar="STEPS",
-                   help="with --law: steps between the law's updates of new contacts (default: the impact "
-                        "check's, 1/8 of the shortest contact)")
-    p.add_argument("--friction", type=float, metavar="MU",
-                   help="Coulomb friction (default: the scene's contact.friction)")
-    p.add_argument("--stiffness-scale", type=float, default=0.01, metavar="K",
-                   help="factor on Young's moduli in the DEM (default 0.01: soft contacts, 6x fewer steps; 1 = steel)")
-    p.add_argument("--warmup", type=float, default=1.0, metavar="REV",
-                   help="revolutions run before logging starts (default 1)")
-    p.add_argument("--thickness", type=float, default=2.0, metavar="DIAMETERS",
-                   help="the slice's thickness along the axis, in ball diameters (default 2)")
+    p.add_argument(
+        "--fill",
+        type=float,
+        metavar="F",
+        help="fraction of the mill's volume the ball bed fills, 0.05-0.5 (default 0.1)",
+    )
+    p.add_argument(
+        "--speed-fraction",
+        type=float,
+        default=0.75,
+        metavar="S",
+        help="fraction of the critical speed n_c = 42.3/sqrt(D) rpm, in (0, 2] (default 0.75)",
+    )
+    p.add_argument(
+        "--restitution",
+        type=float,
+        metavar="E",
+        help="coefficient of restitution of every contact (default: Thornton's e at the shell speed "
+        "from the scene's yield stresses)",
+    )
+    p.add_argument(
+        "--law",
+        metavar="DIR",
+        help="a contact law exported for Yade (millimpact export TABLE --to yade --out DIR): each "
+        "ball-liner contact's e_n from its impact speed and angle (instead of --restitution)",
+    )
+    p.add_argument(
+        "--law-every",
+        type=int,
+        metavar="STEPS",
+        help="with --law: steps between the law's updates of new contacts (default: the impact "
+        "check's, 1/8 of the shortest contact)",
+    )
+    p.add_argument(
+        "--friction", type=float, metavar="MU", help="Coulomb friction (default: the scene's contact.friction)"
+    )
+    p.add_argument(
+        "--stiffness-scale",
+        type=float,
+        default=0.01,
+        metavar="K",
+        help="factor on Young's moduli in the DEM (default 0.01: soft contacts, 6x fewer steps; 1 = steel)",
+    )
+    p.add_argument(
+        "--warmup", type=float, default=1.0, metavar="REV", help="revolutions run before logging starts (default 1)"
+    )
+    p.add_argument(
+        "--thickness",
+        type=float,
+        default=2.0,
+        metavar="DIAMETERS",
+        help="the slice's thickness along the axis, in ball diameters (default 2)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the balls' starting jitter (default 0)")
     p.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
     p.add_argument("--out", help=OUT_HELP.format(default="out/mill-SCENE"))
@@ -90,10 +124,20 @@ def options_from_args(args: argparse.Namespace):
     """The :class:`~millimpact.dem.mill.setup.MillOptions` of the command line, checked."""
     from .setup import MillOptions, check_mill_options
 
-    opts = MillOptions(revolutions=args.revolutions, balls=args.balls, fill=args.fill,
-                       speed_fraction=args.speed_fraction, restitution=args.restitution, friction=args.friction,
-                       stiffness_scale=args.stiffness_scale, warmup=args.warmup, thickness=args.thickness,
-                       seed=args.seed, law=args.law, law_every=args.law_every)
+    opts = MillOptions(
+        revolutions=args.revolutions,
+        balls=args.balls,
+        fill=args.fill,
+        speed_fraction=args.speed_fraction,
+        restitution=args.restitution,
+        friction=args.friction,
+        stiffness_scale=args.stiffness_scale,
+        warmup=args.warmup,
+        thickness=args.thickness,
+        seed=args.seed,
+        law=args.law,
+        law_every=args.law_every,
+    )
     check_mill_options(opts)
     return opts
 
@@ -125,24 +169,32 @@ class _Progress:
 
 def _contact_summary(setup) -> dict:
     if setup.law is None:
-        return {"law": "Yade Hertz-Mindlin (Law2_ScGeom_MindlinPhys_Mindlin)", "restitution": setup.restitution,
-                "restitution_source": setup.restitution_source, "friction": setup.friction,
-                "stiffness_scale": setup.stiffness_scale}
+        return {
+            "law": "Yade Hertz-Mindlin (Law2_ScGeom_MindlinPhys_Mindlin)",
+            "restitution": setup.restitution,
+            "restitution_source": setup.restitution_source,
+            "friction": setup.friction,
+            "stiffness_scale": setup.stiffness_scale,
+        }
     lo, hi = setup.law.restitution_range
-    return {"law": f"exported by millimpact export (Hertz-dashpot, betan per contact): {setup.law.folder}",
-            "source_table": setup.law.data.get("source_table"), "restitution_normal_range": [lo, hi],
-            "restitution_source": setup.restitution_source, "friction": setup.friction,
-            "stiffness_scale": setup.stiffness_scale, "law_update_every_steps": setup.law_every}
+    return {
+        "law": f"exported by millimpact export (Hertz-dashpot, betan per contact): {setup.law.folder}",
+        "source_table": setup.law.data.get("source_table"),
+        "restitution_normal_range": [lo, hi],
+        "restitution_source": setup.restitution_source,
+        "friction": setup.friction,
+        "stiffness_scale": setup.stiffness_scale,
+        "law_update_every_steps": setup.law_every,
+    }
 
 
 def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=None, quiet: bool = False) -> dict:
     """Plan, run and report one mill run into the folder ``stage``; returns the summary."""
     from ..impacts import write_impacts
-    from .log import read_mill_run
-    from .report import (charge_angles, charge_figure, energy_balance, place_table, plot_spectrum,
-                              write_spectrum_csv)
-    from .setup import plan_mill
     from ..yade import run_yade
+    from .log import read_mill_run
+    from .report import charge_angles, charge_figure, energy_balance, place_table, plot_spectrum, write_spectrum_csv
+    from .setup import plan_mill
 
     if setup is None:
         setup = plan_mill(scene, opts)
@@ -166,25 +218,44 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
     angles = charge_angles(run.snapshots, setup)
     balance = energy_balance(run.energy)
     if plots:
-        title = (f"{setup.scene_name}: {setup.n_balls} balls, {100 * setup.speed_fraction:.0f} % of n_c, "
-                 f"{revs:g} revolutions")
+        title = (
+            f"{setup.scene_name}: {setup.n_balls} balls, {100 * setup.speed_fraction:.0f} % of n_c, "
+            f"{revs:g} revolutions"
+        )
         plot_spectrum(stage / "spectrum.png", run.impacts, revs, title)
         charge_figure(stage / "charge.png", run.snapshots, setup, angles)
     p = setup.profile
     summary = {
         "scene": setup.scene_name,
-        "mill": {"diameter_m": p.diameter, "lifters": p.n_lifters, "lifter_height_m": p.lifter_height,
-                 "slice_thickness_m": setup.thickness, "critical_speed_rpm": setup.critical_rpm,
-                 "speed_fraction": setup.speed_fraction, "speed_rpm": setup.speed_fraction * setup.critical_rpm},
-        "charge": {"balls": setup.n_balls, "ball_radius_m": setup.ball_radius, "fill": setup.fill,
-                   "charge_is": "balls alone (no rock, no slurry)"},
+        "mill": {
+            "diameter_m": p.diameter,
+            "lifters": p.n_lifters,
+            "lifter_height_m": p.lifter_height,
+            "slice_thickness_m": setup.thickness,
+            "critical_speed_rpm": setup.critical_rpm,
+            "speed_fraction": setup.speed_fraction,
+            "speed_rpm": setup.speed_fraction * setup.critical_rpm,
+        },
+        "charge": {
+            "balls": setup.n_balls,
+            "ball_radius_m": setup.ball_radius,
+            "fill": setup.fill,
+            "charge_is": "balls alone (no rock, no slurry)",
+        },
         "contact": _contact_summary(setup),
-        "clock": {"dt_s": setup.dt, "contact_time_s": setup.contact_time_s, "v_max_m_s": setup.v_max,
-                  "check_every_steps": setup.check_every, "warmup_revolutions": setup.warmup_s / setup.period_s,
-                  "revolutions": revs, "period_s": setup.period_s},
+        "clock": {
+            "dt_s": setup.dt,
+            "contact_time_s": setup.contact_time_s,
+            "v_max_m_s": setup.v_max,
+            "check_every_steps": setup.check_every,
+            "warmup_revolutions": setup.warmup_s / setup.period_s,
+            "revolutions": revs,
+            "period_s": setup.period_s,
+        },
         "impacts_per_revolution": {row["place"]: row["impacts_per_revolution"] for row in table},
         "energy_per_revolution_J": {row["place"]: row["energy_per_revolution_J"] for row in table},
-        "shoulder_deg": angles["shoulder_deg"], "toe_deg": angles["toe_deg"],
+        "shoulder_deg": angles["shoulder_deg"],
+        "toe_deg": angles["toe_deg"],
         "angles_measured": "from the vertical below the axis, positive in the direction of rotation",
         "centrifuged_fraction": angles["centrifuged_fraction"],
         "energy_balance": balance,
@@ -203,8 +274,8 @@ def _restitution_text(setup) -> str:
 def main(args: argparse.Namespace) -> int:
     from ...results.output_folder import claim_output, default_out
     from ...results.timeseries import write_summary
-    from .setup import plan_mill
     from ..yade import yade_executable
+    from .setup import plan_mill
 
     # every check before any folder is made: options, scene, the plan, Yade, then --out
     opts = options_from_args(args)
@@ -212,28 +283,33 @@ def main(args: argparse.Namespace) -> int:
     setup = plan_mill(scene, opts)
     yade_executable()
     out = args.out if args.out is not None else default_out(scene.name, prefix="mill-")
-    target = claim_output(out, "mill", force=args.force)   # before the DEM run: checks, lock, leftovers
+    target = claim_output(out, "mill", force=args.force)  # before the DEM run: checks, lock, leftovers
     quiet = getattr(args, "quiet", False)
     if not quiet:
-        say(f"mill: scene '{scene.name}', D {setup.profile.diameter:g} m, {setup.profile.n_lifters} lifters, "
-        f"{setup.n_balls} balls of {2e3 * setup.ball_radius:g} mm in a {1e3 * setup.thickness:.0f} mm slice, "
-        f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; "
-        f"{_restitution_text(setup)}, mu {setup.friction:g}, moduli x {setup.stiffness_scale:g}; "
-        f"{(setup.warmup_s + setup.run_s) / setup.dt:.3g} steps of {setup.dt:.3g} s", file=sys.stderr)
+        say(
+            f"mill: scene '{scene.name}', D {setup.profile.diameter:g} m, {setup.profile.n_lifters} lifters, "
+            f"{setup.n_balls} balls of {2e3 * setup.ball_radius:g} mm in a {1e3 * setup.thickness:.0f} mm slice, "
+            f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; "
+            f"{_restitution_text(setup)}, mu {setup.friction:g}, moduli x {setup.stiffness_scale:g}; "
+            f"{(setup.warmup_s + setup.run_s) / setup.dt:.3g} steps of {setup.dt:.3g} s",
+            file=sys.stderr,
+        )
     from .yade import YadeError
 
     try:
         with target.staged(collective=False) as stage:
             summary = run_mill(scene, opts, stage, plots=not args.no_plots, setup=setup, quiet=quiet)
             write_summary(stage, summary)
-    except YadeError as exc:       # say what the folder keeps (nothing of this run is published)
+    except YadeError as exc:  # say what the folder keeps (nothing of this run is published)
         raise YadeError(f"{exc}; {target.note}") from None
     if quiet:
         return 0
     n = summary["impacts_per_revolution"]
-    say(f"impacts per revolution: {n['all']:.4g} (lifter faces {n['lifter_face']:.4g}, tops {n['lifter_top']:.4g}, "
+    say(
+        f"impacts per revolution: {n['all']:.4g} (lifter faces {n['lifter_face']:.4g}, tops {n['lifter_top']:.4g}, "
         f"plate {n['plate']:.4g}); {_charge_text(summary)}; "
-        f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %")
+        f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %"
+    )
     say(f"results in {target.shown}/" + target.replaced_note())
     return 0
 
@@ -242,6 +318,7 @@ def _charge_text(summary: dict) -> str:
     """Shoulder and toe, or that the charge centrifuges (no shoulder: the balls ring the shell)."""
     if summary["shoulder_deg"] is None or summary["toe_deg"] is None:
         share = summary.get("centrifuged_fraction")
-        return ("no shoulder or toe: the charge centrifuges"
-                + (f" ({100 * share:.0f} % of the balls turn with the shell)" if share is not None else ""))
+        return "no shoulder or toe: the charge centrifuges" + (
+            f" ({100 * share:.0f} % of the balls turn with the shell)" if share is not None else ""
+        )
     return f"shoulder {summary['shoulder_deg']:.4g} deg, toe {summary['toe_deg']:.4g} deg"

@@ -23,6 +23,7 @@ The default restitution of a scene's elastic-plastic materials is Thornton's (19
 shell's speed omega R: the impact speeds of a mill's balls are of that order (design.md section 10);
 Thornton's is a lower bound of an elastic-plastic sphere's e (:mod:`millimpact.theory.thornton`).
 """
+
 from __future__ import annotations
 
 import math
@@ -60,10 +61,14 @@ def scene_restitution(scene, speed: float) -> tuple[float, str]:
     ball, liner = scene.ball.material, scene.liner.material
     ys = [y for y in (m.initial_yield_stress for m in (ball, liner)) if y is not None]
     if not ys:
-        raise InputError(f"scene '{scene.name}': ball and liner are elastic (their restitution would be 1); "
-                         "give --restitution E (0 < E < 1, e.g. 0.6 for steel balls on a steel liner)")
+        raise InputError(
+            f"scene '{scene.name}': ball and liner are elastic (their restitution would be 1); "
+            "give --restitution E (0 < E < 1, e.g. 0.6 for steel balls on a steel liner)"
+        )
     y = min(ys)
     v_y = yield_onset_velocity(y, effective_modulus(ball, liner), ball.density)
     e = float(restitution_thornton(speed, v_y))
-    return e, (f"Thornton (1997) e(V) at the shell speed {speed:.3g} m/s, yield {y / 1e9:.3g} GPa "
-               f"(V_y {v_y:.3g} m/s): a lower bound")
+    return e, (
+        f"Thornton (1997) e(V) at the shell speed {speed:.3g} m/s, yield {y / 1e9:.3g} GPa "
+        f"(V_y {v_y:.3g} m/s): a lower bound"
+    )

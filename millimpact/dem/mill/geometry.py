@@ -25,6 +25,7 @@ Every segment carries its ``place`` (``plate``, ``lifter_face``, ``lifter_top``:
 part, each face and each top another, so a ball rolling from one chord of the plate onto the next
 does not count as a new impact.
 """
+
 from __future__ import annotations
 
 import math
@@ -113,7 +114,7 @@ def _foot_on_circle(R: float, top: Point2, foot: Point2) -> Point2:
     b = 2.0 * (z0 * dz + (e0 - R) * de)
     c = z0 * z0 + (e0 - R) ** 2 - R * R
     disc = b * b - 4.0 * a * c
-    t = (-b + math.sqrt(max(disc, 0.0))) / (2.0 * a)    # the crossing beyond the top (t > 0)
+    t = (-b + math.sqrt(max(disc, 0.0))) / (2.0 * a)  # the crossing beyond the top (t > 0)
     return z0 + t * dz, e0 + t * de
 
 
@@ -122,8 +123,10 @@ def build_profile(liner: LinerShape, ball_radius: float) -> MillProfile:
     longer than :func:`plate_chord` for balls of ``ball_radius`` (m)."""
     R = float(liner.mill_radius)
     if not R > 0:
-        raise InputError(f"liner.mill_radius = {liner.mill_radius!r}: a mill run needs a curved liner "
-                         "(mill_radius > 0 m, the shell's inner radius)")
+        raise InputError(
+            f"liner.mill_radius = {liner.mill_radius!r}: a mill run needs a curved liner "
+            "(mill_radius > 0 m, the shell's inner radius)"
+        )
     n = lifter_count(liner)
     h, ht = liner.lifter_height, 0.5 * liner.lifter_top_width
     hb = 0.5 * liner.lifter_base_width
@@ -133,10 +136,12 @@ def build_profile(liner: LinerShape, ball_radius: float) -> MillProfile:
     foot_t = _foot_on_circle(R, (-ht, h), (-hb, 0.0))
     foot_l = _foot_on_circle(R, (ht, h), (hb, 0.0))
     outline = [foot_t, (-ht, h), (ht, h), foot_l]
-    half_foot = math.atan2(foot_l[0], R - foot_l[1])              # angle of the foot from the centre line
+    half_foot = math.atan2(foot_l[0], R - foot_l[1])  # angle of the foot from the centre line
     if 2.0 * half_foot >= pitch:
-        raise InputError(f"liner.lifter_spacing = {liner.lifter_spacing!r}: {n} lifters round a shell of radius "
-                         f"{R:g} m overlap (each is {2 * hb:g} m wide at its foot)")
+        raise InputError(
+            f"liner.lifter_spacing = {liner.lifter_spacing!r}: {n} lifters round a shell of radius "
+            f"{R:g} m overlap (each is {2 * hb:g} m wide at its foot)"
+        )
     gap = pitch - 2.0 * half_foot
     n_chords = max(1, math.ceil(R * gap / plate_chord(R, ball_radius)))
 
@@ -158,8 +163,7 @@ def build_profile(liner: LinerShape, ball_radius: float) -> MillProfile:
         # the plate from this lifter's leading foot to the next lifter's trailing foot
         a0 = k * pitch + half_foot
         arc = [a0 + gap * i / n_chords for i in range(n_chords + 1)]
-        ring = [pts[3]] + [(R * math.cos(a), R * math.sin(a)) for a in arc[1:-1]] + \
-            [to_global(k + 1, *foot_t)]
+        ring = [pts[3]] + [(R * math.cos(a), R * math.sin(a)) for a in arc[1:-1]] + [to_global(k + 1, *foot_t)]
         mid = a0 + 0.5 * gap
         for i, (p, q) in enumerate(zip(ring, ring[1:])):
             a_mid = a0 + gap * (i + 0.5) / n_chords

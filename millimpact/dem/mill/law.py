@@ -22,6 +22,7 @@ angle) over the table's grid.
   rebound within 0.003 of the table's e_n).
 - The law was fitted for the table's ball: a mill with balls of another radius is refused.
 """
+
 from __future__ import annotations
 
 import json
@@ -102,8 +103,15 @@ def read_mill_law(folder) -> MillLaw:
     key = "MILLIMPACT_LAW = "
     try:
         data, _ = json.JSONDecoder().raw_decode(text, text.index(key) + len(key))
-        for k in ("speeds_m_s", "angles_deg", "zeta", "e_star_Pa", "restitution_normal_table", "friction",
-                  "ball_radius_m"):
+        for k in (
+            "speeds_m_s",
+            "angles_deg",
+            "zeta",
+            "e_star_Pa",
+            "restitution_normal_table",
+            "friction",
+            "ball_radius_m",
+        ):
             data[k]
         for k in ("young_Pa", "poisson", "ball_material", "liner_material"):
             data["yade"][k]
@@ -117,6 +125,8 @@ def read_mill_law(folder) -> MillLaw:
 def check_law_ball(law: MillLaw, ball_radius: float) -> None:
     """Refuse a mill whose balls are not the table's (radius within RADIUS_TOLERANCE)."""
     if abs(ball_radius / law.ball_radius - 1.0) > RADIUS_TOLERANCE:
-        raise InputError(f"--law {law.folder}: its table is for balls of radius {law.ball_radius:g} m, the "
-                         f"scene's are {ball_radius:g} m; export a table of this ball "
-                         f"(or --set ball.radius={law.ball_radius:g})")
+        raise InputError(
+            f"--law {law.folder}: its table is for balls of radius {law.ball_radius:g} m, the "
+            f"scene's are {ball_radius:g} m; export a table of this ball "
+            f"(or --set ball.radius={law.ball_radius:g})"
+        )

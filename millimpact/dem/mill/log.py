@@ -18,6 +18,7 @@ speed in the first steps of a contact.) The impact's arc position is its contact
 by the liner's angle omega t (the liner starts at angle 0 at t = 0), measured by
 :meth:`~millimpact.dem.mill.geometry.MillProfile.arc_position`.
 """
+
 from __future__ import annotations
 
 import csv
@@ -80,10 +81,17 @@ def impacts_from_raw(raw: dict[str, np.ndarray], setup: MillSetup) -> list[Impac
     out = []
     keep = t >= setup.warmup_s
     for k in np.flatnonzero(keep):
-        out.append(Impact(time_s=float(t[k] - setup.warmup_s), ball_radius_m=setup.ball_radius,
-                          normal_speed_m_s=float(v_n0[k]), tangential_speed_m_s=float(v_t[k]),
-                          impact_energy_J=float(energy[k]), place=place_of[int(raw["part"][k])],
-                          arc_position_m=float(setup.profile.arc_position(xl[k], yl[k]))))
+        out.append(
+            Impact(
+                time_s=float(t[k] - setup.warmup_s),
+                ball_radius_m=setup.ball_radius,
+                normal_speed_m_s=float(v_n0[k]),
+                tangential_speed_m_s=float(v_t[k]),
+                impact_energy_J=float(energy[k]),
+                place=place_of[int(raw["part"][k])],
+                arc_position_m=float(setup.profile.arc_position(xl[k], yl[k])),
+            )
+        )
     return out
 
 
@@ -91,6 +99,10 @@ def read_mill_run(folder: Path, setup: MillSetup) -> MillRun:
     """The files ``mill_slice.py`` wrote in ``folder``."""
     folder = Path(folder)
     raw = _read_columns(folder / "impacts_raw.csv")
-    return MillRun(impacts=impacts_from_raw(raw, setup), snapshots=_read_columns(folder / "charge.csv"),
-                   energy=_read_columns(folder / "energy.csv"), trace=_read_columns(folder / "trace.csv"),
-                   info=json.loads((folder / "run.json").read_text()))
+    return MillRun(
+        impacts=impacts_from_raw(raw, setup),
+        snapshots=_read_columns(folder / "charge.csv"),
+        energy=_read_columns(folder / "energy.csv"),
+        trace=_read_columns(folder / "trace.csv"),
+        info=json.loads((folder / "run.json").read_text()),
+    )

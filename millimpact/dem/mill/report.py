@@ -19,6 +19,7 @@ shoulder and toe, the centrifuged share and the energy balance.
   dissipated in the contacts (normal and tangential damping, sliding friction) and the change of
   the energy stored in them.
 """
+
 from __future__ import annotations
 
 import math
@@ -47,12 +48,16 @@ def place_table(impacts: list[Impact], revolutions: float) -> list[dict]:
         sel = [i for i in impacts if place == "all" or i.place == place]
         n = len(sel)
         e = sum(i.impact_energy_J for i in sel)
-        rows.append({
-            "place": place, "impacts_per_revolution": n / revolutions, "energy_per_revolution_J": e / revolutions,
-            "mean_impact_energy_J": e / n if n else 0.0,
-            "mean_normal_speed_m_s": sum(i.normal_speed_m_s for i in sel) / n if n else 0.0,
-            "mean_tangential_speed_m_s": sum(i.tangential_speed_m_s for i in sel) / n if n else 0.0,
-        })
+        rows.append(
+            {
+                "place": place,
+                "impacts_per_revolution": n / revolutions,
+                "energy_per_revolution_J": e / revolutions,
+                "mean_impact_energy_J": e / n if n else 0.0,
+                "mean_normal_speed_m_s": sum(i.normal_speed_m_s for i in sel) / n if n else 0.0,
+                "mean_tangential_speed_m_s": sum(i.tangential_speed_m_s for i in sel) / n if n else 0.0,
+            }
+        )
     return rows
 
 
@@ -108,9 +113,14 @@ def energy_balance(energy: dict[str, np.ndarray]) -> dict:
     dissipated = d["damping_normal_J"] + d["damping_shear_J"] + d["friction_J"]
     stored = d["elastic_normal_J"] + d["elastic_shear_J"]
     w = d["drive_work_J"]
-    return {"drive_work_J": w, "mechanical_change_J": mech, "dissipated_J": dissipated, "stored_change_J": stored,
-            "relative_error": (w - mech - dissipated - stored) / w if w else None,
-            "mean_power_W": w / d["time_s"] if d["time_s"] > 0 else None}
+    return {
+        "drive_work_J": w,
+        "mechanical_change_J": mech,
+        "dissipated_J": dissipated,
+        "stored_change_J": stored,
+        "relative_error": (w - mech - dissipated - stored) / w if w else None,
+        "mean_power_W": w / d["time_s"] if d["time_s"] > 0 else None,
+    }
 
 
 def write_spectrum_csv(path: Path, impacts: list[Impact], revolutions: float) -> None:
@@ -164,16 +174,21 @@ def charge_figure(path: Path, snapshots: dict[str, np.ndarray], setup: MillSetup
     for key, colour in (("shoulder_deg", "C3"), ("toe_deg", "C2")):
         if angles.get(key) is not None:
             a = math.radians(angles[key])
-            ax.plot([0, R * math.sin(a)], [0, -R * math.cos(a)], "-", color=colour, lw=1,
-                    label=f"{key[:-4]} {angles[key]:.0f} deg")
+            ax.plot(
+                [0, R * math.sin(a)],
+                [0, -R * math.cos(a)],
+                "-",
+                color=colour,
+                lw=1,
+                label=f"{key[:-4]} {angles[key]:.0f} deg",
+            )
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    if ax.get_legend_handles_labels()[1]:     # a centrifuging charge has no shoulder or toe to label
+    if ax.get_legend_handles_labels()[1]:  # a centrifuging charge has no shoulder or toe to label
         ax.legend(fontsize=8, loc="upper left")
     else:
-        ax.text(0.02, 0.98, "no shoulder or toe: the charge centrifuges", transform=ax.transAxes, va="top",
-                fontsize=8)
+        ax.text(0.02, 0.98, "no shoulder or toe: the charge centrifuges", transform=ax.transAxes, va="top", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -26,12 +26,12 @@ contact law and the clock; :meth:`MillSetup.yade_input` is the JSON of
   for every t_c / 8 (none ends unseen) and take the ball's velocity from the check before
   (:mod:`~millimpact.dem.mill.log`).
 """
+
 from __future__ import annotations
 
 import math
 import random
 from dataclasses import dataclass
-from typing import Optional
 
 from ...errors import InputError
 from .contact import GRAVITY, critical_omega, critical_rpm, hertz_contact_time, scene_restitution
@@ -63,21 +63,22 @@ class MillOptions:
     """The command's options (revolutions and warm-up in revolutions, thickness in ball diameters)."""
 
     revolutions: float
-    balls: Optional[int] = None
-    fill: Optional[float] = None
+    balls: int | None = None
+    fill: float | None = None
     speed_fraction: float = 0.75
-    restitution: Optional[float] = None
-    friction: Optional[float] = None
+    restitution: float | None = None
+    friction: float | None = None
     stiffness_scale: float = DEFAULT_STIFFNESS_SCALE
     warmup: float = 1.0
     thickness: float = 2.0
     seed: int = 0
-    law: Optional[str] = None
-    law_every: Optional[int] = None
+    law: str | None = None
+    law_every: int | None = None
 
 
 def check_mill_options(opts: MillOptions) -> None:
     """Refuse an option outside its range with one line naming it (InputError)."""
+
     def finite(name: str, x) -> float:
         if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
             raise InputError(f"{name} {x!r}: must be a finite number")
@@ -85,16 +86,21 @@ def check_mill_options(opts: MillOptions) -> None:
 
     s = finite("--speed-fraction", opts.speed_fraction)
     if not SPEED_FRACTION_RANGE[0] < s <= SPEED_FRACTION_RANGE[1]:
-        raise InputError(f"--speed-fraction {s:g}: must lie in (0, 2] (a fraction of the critical speed "
-                         "n_c = 42.3 / sqrt(D) rpm; mills run at 0.65-0.85)")
+        raise InputError(
+            f"--speed-fraction {s:g}: must lie in (0, 2] (a fraction of the critical speed "
+            "n_c = 42.3 / sqrt(D) rpm; mills run at 0.65-0.85)"
+        )
     if opts.balls is not None and opts.fill is not None:
-        raise InputError("--balls and --fill: give one of them (the number of balls, or the fraction of the "
-                         "mill's volume the ball bed fills)")
+        raise InputError(
+            "--balls and --fill: give one of them (the number of balls, or the fraction of the "
+            "mill's volume the ball bed fills)"
+        )
     if opts.fill is not None:
         f = finite("--fill", opts.fill)
         if not FILL_RANGE[0] <= f <= FILL_RANGE[1]:
-            raise InputError(f"--fill {f:g}: must lie in [0.05, 0.5] (the fraction of the mill's volume the "
-                             "ball bed fills)")
+            raise InputError(
+                f"--fill {f:g}: must lie in [0.05, 0.5] (the fraction of the mill's volume the ball bed fills)"
+            )
     if opts.balls is not None and (isinstance(opts.balls, bool) or not isinstance(opts.balls, int) or opts.balls < 1):
         raise InputError(f"--balls {opts.balls!r}: must be an integer >= 1")
     r = finite("--revolutions", opts.revolutions)
@@ -111,8 +117,9 @@ def check_mill_options(opts: MillOptions) -> None:
         raise InputError("--law and --restitution: give one of them (the exported law sets each contact's restitution)")
     if opts.law is not None and opts.friction is not None:
         raise InputError("--law and --friction: give one of them (the exported law carries the table's friction)")
-    if opts.law_every is not None and (isinstance(opts.law_every, bool) or not isinstance(opts.law_every, int)
-                                       or not 1 <= opts.law_every <= 1000):
+    if opts.law_every is not None and (
+        isinstance(opts.law_every, bool) or not isinstance(opts.law_every, int) or not 1 <= opts.law_every <= 1000
+    ):
         raise InputError(f"--law-every {opts.law_every!r}: must be an integer in [1, 1000] (steps)")
     if opts.friction is not None:
         mu = finite("--friction", opts.friction)
@@ -134,7 +141,7 @@ class MillSetup:
     profile: MillProfile
     ball_radius: float
     ball_mass: float
-    ball_material: tuple[float, float, float]        # Young's modulus (Pa, scaled), Poisson, density
+    ball_material: tuple[float, float, float]  # Young's modulus (Pa, scaled), Poisson, density
     liner_material: tuple[float, float, float]
     thickness: float
     positions: tuple[tuple[float, float, float], ...]
@@ -151,14 +158,14 @@ class MillSetup:
     warmup_s: float
     run_s: float
     revolutions: float
-    fill: Optional[float]
+    fill: float | None
     contact_time_s: float
     v_max: float
     snapshots_per_revolution: int = 36
     energy_samples: int = 50
     trace_balls: tuple[int, ...] = ()
     trace_every: int = 0
-    law: Optional[MillLaw] = None
+    law: MillLaw | None = None
     law_every: int = 0
 
     @property
@@ -175,19 +182,27 @@ class MillSetup:
         E_b, nu_b, rho_b = self.ball_material
         E_l, nu_l, rho_l = self.liner_material
         return {
-            "thickness_m": self.thickness, "gravity_m_s2": GRAVITY, "omega_rad_s": self.omega,
+            "thickness_m": self.thickness,
+            "gravity_m_s2": GRAVITY,
+            "omega_rad_s": self.omega,
             "ball": {"radius_m": self.ball_radius, "young_Pa": E_b, "poisson": nu_b, "density_kg_m3": rho_b},
             "liner": {"young_Pa": E_l, "poisson": nu_l, "density_kg_m3": rho_l},
-            "friction": self.friction, "en_yade": self.restitution,
+            "friction": self.friction,
+            "en_yade": self.restitution,
             "segments": [[*s.start, *s.end, s.part] for s in self.profile.segments],
             "ball_positions": [list(p) for p in self.positions],
-            "dt_s": self.dt, "check_every": self.check_every, "power_every": self.power_every,
-            "warmup_s": self.warmup_s, "run_s": self.run_s,
+            "dt_s": self.dt,
+            "check_every": self.check_every,
+            "power_every": self.power_every,
+            "warmup_s": self.warmup_s,
+            "run_s": self.run_s,
             "snapshot_every_s": self.period_s / self.snapshots_per_revolution,
             "energy_samples": self.energy_samples,
-            "trace_balls": list(self.trace_balls), "trace_every": self.trace_every,
-            "law": None if self.law is None else {"file": LAW_SCRIPT, "every": self.law_every,
-                                                  "stiffness_scale": self.stiffness_scale},
+            "trace_balls": list(self.trace_balls),
+            "trace_every": self.trace_every,
+            "law": None
+            if self.law is None
+            else {"file": LAW_SCRIPT, "every": self.law_every, "stiffness_scale": self.stiffness_scale},
         }
 
 
@@ -220,19 +235,22 @@ def lattice_positions(profile: MillProfile, r: float, thickness: float, n: int, 
                 if math.hypot(x, y) < inner:
                     pts.append((y, abs(x), x, z))
     if len(pts) < n:
-        raise InputError(f"--balls/--fill: {n} balls do not fit the starting lattice of this mill (at most "
-                         f"{len(pts)}); give fewer")
+        raise InputError(
+            f"--balls/--fill: {n} balls do not fit the starting lattice of this mill (at most {len(pts)}); give fewer"
+        )
     pts.sort()
     jitter = 0.01 * r
     return [(x + rng.uniform(-jitter, jitter), y + rng.uniform(-jitter, jitter), z) for y, _, x, z in pts[:n]]
 
 
-def plan_mill(scene, opts: MillOptions, restitution_source: Optional[str] = None) -> MillSetup:
+def plan_mill(scene, opts: MillOptions, restitution_source: str | None = None) -> MillSetup:
     """The :class:`MillSetup` of ``scene`` (which must have a liner) under ``opts``."""
     check_mill_options(opts)
     if scene.liner is None:
-        raise InputError(f"scene '{scene.name}': has no liner; a mill run builds the mill from the scene's [liner] "
-                         "(e.g. the built-in scenes liner-segment, liner-panel)")
+        raise InputError(
+            f"scene '{scene.name}': has no liner; a mill run builds the mill from the scene's [liner] "
+            "(e.g. the built-in scenes liner-segment, liner-panel)"
+        )
     ball, liner = scene.ball, scene.liner
     r = ball.radius
     profile = build_profile(liner, r)
@@ -251,9 +269,14 @@ def plan_mill(scene, opts: MillOptions, restitution_source: Optional[str] = None
         law = read_mill_law(opts.law)
         check_law_ball(law, r)
         lo, hi = law.restitution_range
-        e, src = 0.5 * (lo + hi), (f"the exported law {law.folder}: e_n {lo:.3g}-{hi:.3g} per ball-liner contact "
-                                   f"from its impact speed ({min(law.speeds):g}-{max(law.speeds):g} m/s) and "
-                                   "angle, the table's median damping between balls")
+        e, src = (
+            0.5 * (lo + hi),
+            (
+                f"the exported law {law.folder}: e_n {lo:.3g}-{hi:.3g} per ball-liner contact "
+                f"from its impact speed ({min(law.speeds):g}-{max(law.speeds):g} m/s) and "
+                "angle, the table's median damping between balls"
+            ),
+        )
         mu = law.friction
         E_b = E_l = law.young * k
         nu_b = nu_l = law.poisson
@@ -278,11 +301,30 @@ def plan_mill(scene, opts: MillOptions, restitution_source: Optional[str] = None
     check_every = max(1, round(STEPS_PER_CONTACT / CHECKS_PER_CONTACT))
     period = 2.0 * math.pi / omega
     return MillSetup(
-        scene_name=scene.name, profile=profile, ball_radius=r, ball_mass=m,
-        ball_material=(E_b, nu_b, bm.density), liner_material=(E_l, nu_l, lm.density),
-        thickness=thickness, positions=tuple(positions), speed_fraction=opts.speed_fraction, omega=omega,
-        critical_rpm=critical_rpm(2.0 * R), restitution=e, restitution_source=src, friction=mu,
-        stiffness_scale=k, dt=dt, check_every=check_every, power_every=check_every,
-        warmup_s=opts.warmup * period, run_s=opts.revolutions * period, revolutions=opts.revolutions,
-        fill=opts.fill if opts.balls is None else None, contact_time_s=t_c, v_max=v_max,
-        law=law, law_every=0 if law is None else (opts.law_every or check_every))
+        scene_name=scene.name,
+        profile=profile,
+        ball_radius=r,
+        ball_mass=m,
+        ball_material=(E_b, nu_b, bm.density),
+        liner_material=(E_l, nu_l, lm.density),
+        thickness=thickness,
+        positions=tuple(positions),
+        speed_fraction=opts.speed_fraction,
+        omega=omega,
+        critical_rpm=critical_rpm(2.0 * R),
+        restitution=e,
+        restitution_source=src,
+        friction=mu,
+        stiffness_scale=k,
+        dt=dt,
+        check_every=check_every,
+        power_every=check_every,
+        warmup_s=opts.warmup * period,
+        run_s=opts.revolutions * period,
+        revolutions=opts.revolutions,
+        fill=opts.fill if opts.balls is None else None,
+        contact_time_s=t_c,
+        v_max=v_max,
+        law=law,
+        law_every=0 if law is None else (opts.law_every or check_every),
+    )

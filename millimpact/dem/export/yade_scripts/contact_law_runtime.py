@@ -7,7 +7,7 @@
 # Other interactions (ball-ball, ...) keep what millimpact_ip2() gives them (the table's median point).
 import math as _mm_math
 
-_mm_last = [-1]       # O.iter of the last update
+_mm_last = [-1]  # O.iter of the last update
 
 
 def _mm_bracket(grid, x):
@@ -47,7 +47,7 @@ def millimpact_update():
     """Set the table's law on the ball-liner interactions made real since the last call."""
     L = MILLIMPACT_LAW
     ball_mat, liner_mat = L["yade"]["ball_material"], L["yade"]["liner_material"]
-    last = _mm_last[0] if O.iter >= _mm_last[0] else -1    # O.reset(): start afresh
+    last = _mm_last[0] if O.iter >= _mm_last[0] else -1  # O.reset(): start afresh
     _mm_last[0] = O.iter
     # the real interactions only (filtered in C++); new ones became real after the last call
     for i in [i for i in O.interactions.all(True) if i.iterMadeReal > last]:
@@ -60,8 +60,8 @@ def millimpact_update():
             continue
         cp = i.geom.contactPoint
         u = _mm_point_velocity(ball, cp) - _mm_point_velocity(liner, cp)
-        u_n = -u.dot(n_out)                  # approach speed, > 0
-        u_t = (u + u_n * n_out).norm()       # tangential speed of the contact point
+        u_n = -u.dot(n_out)  # approach speed, > 0
+        u_t = (u + u_n * n_out).norm()  # tangential speed of the contact point
         speed = _mm_math.sqrt(u_n * u_n + u_t * u_t)
         angle = _mm_math.degrees(_mm_math.atan2(u_t, max(u_n, 1e-300)))
         zeta, e_star = millimpact_point(speed, angle)
@@ -77,23 +77,37 @@ def millimpact_update():
 def millimpact_ball_material(**kw):
     """The ball's FrictMat (label MILLIMPACT_LAW['yade']['ball_material'])."""
     y = MILLIMPACT_LAW["yade"]
-    return FrictMat(young=y["young_Pa"], poisson=y["poisson"], density=y["ball_density_kg_m3"],
-                    frictionAngle=_mm_math.atan(MILLIMPACT_LAW["friction"]), label=y["ball_material"], **kw)
+    return FrictMat(
+        young=y["young_Pa"],
+        poisson=y["poisson"],
+        density=y["ball_density_kg_m3"],
+        frictionAngle=_mm_math.atan(MILLIMPACT_LAW["friction"]),
+        label=y["ball_material"],
+        **kw,
+    )
 
 
 def millimpact_liner_material(**kw):
     """The liner's FrictMat (label MILLIMPACT_LAW['yade']['liner_material'])."""
     y = MILLIMPACT_LAW["yade"]
-    return FrictMat(young=y["young_Pa"], poisson=y["poisson"], density=y["liner_density_kg_m3"],
-                    frictionAngle=_mm_math.atan(MILLIMPACT_LAW["friction"]), label=y["liner_material"], **kw)
+    return FrictMat(
+        young=y["young_Pa"],
+        poisson=y["poisson"],
+        density=y["liner_density_kg_m3"],
+        frictionAngle=_mm_math.atan(MILLIMPACT_LAW["friction"]),
+        label=y["liner_material"],
+        **kw,
+    )
 
 
 def millimpact_ip2():
     """Ip2_FrictMat_FrictMat_MindlinPhys with the table's median damping (betan mode: settable per
     interaction; 'en' would set Yade's internal alpha, which Python cannot change)."""
     y = MILLIMPACT_LAW["yade"]
-    return Ip2_FrictMat_FrictMat_MindlinPhys(betan=MatchMaker(algo="val", val=y["betan_default"]),
-                                             betas=MatchMaker(algo="val", val=y["betas_per_betan"] * y["betan_default"]))
+    return Ip2_FrictMat_FrictMat_MindlinPhys(
+        betan=MatchMaker(algo="val", val=y["betan_default"]),
+        betas=MatchMaker(algo="val", val=y["betas_per_betan"] * y["betan_default"]),
+    )
 
 
 def millimpact_law_runner():

@@ -28,24 +28,29 @@ for k, case in enumerate(inp["cases"]):
         newton = NewtonIntegrator(gravity=(0, 0, 0), damping=0.0)
     else:
         nv = inp["naive"]
-        ball_mat = liner_mat = O.materials.append(FrictMat(young=nv["young_Pa"], poisson=nv["poisson"], density=rho,
-                                                           frictionAngle=math.atan(nv["friction"])))
+        ball_mat = liner_mat = O.materials.append(
+            FrictMat(young=nv["young_Pa"], poisson=nv["poisson"], density=rho, frictionAngle=math.atan(nv["friction"]))
+        )
         ip2 = Ip2_FrictMat_FrictMat_MindlinPhys(en=MatchMaker(algo="val", val=nv["en"]))
         extra = []
-        newton = NewtonIntegrator(gravity=(0, 0, 0))        # Yade's default local damping (0.2)
+        newton = NewtonIntegrator(gravity=(0, 0, 0))  # Yade's default local damping (0.2)
     O.bodies.append(utils.wall(0, axis=2, sense=1, material=liner_mat))
     b = O.bodies.append(utils.sphere((0, 0, R * (1 + 1e-6)), R, material=ball_mat))
     a = math.radians(case["angle_deg"])
     v0 = case["speed_m_s"]
     O.bodies[b].state.vel = (v0 * math.sin(a), 0, -v0 * math.cos(a))
-    O.engines = [ForceResetter(), InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),
-                 InteractionLoop([Ig2_Wall_Sphere_ScGeom()], [ip2], [Law2_ScGeom_MindlinPhys_Mindlin()]),
-                 *extra, newton]
+    O.engines = [
+        ForceResetter(),
+        InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),
+        InteractionLoop([Ig2_Wall_Sphere_ScGeom()], [ip2], [Law2_ScGeom_MindlinPhys_Mindlin()]),
+        *extra,
+        newton,
+    ]
     O.dt = case["dt_s"]
     st = O.bodies[b].state
     vz_in, ux_in = st.vel[2], st.vel[0] - R * st.angVel[1]
     f_max, touched = 0.0, False
-    for i in range(int(case["max_steps"])):
+    for _ in range(int(case["max_steps"])):
         O.step()
         f_max = max(f_max, O.forces.f(b)[2])
         real = any(x.isReal for x in O.interactions)
@@ -57,8 +62,19 @@ for k, case in enumerate(inp["cases"]):
     e_n = -st.vel[2] / vz_in
     ux = st.vel[0] - R * st.angVel[1]
     e_t = ux / ux_in if abs(ux_in) > 1e-12 * v0 else float("nan")
-    results.append({"speed_m_s": v0, "angle_deg": case["angle_deg"], "restitution_normal": e_n,
-                    "restitution_tangential": e_t, "peak_normal_force_N": f_max, "steps": i + 1})
-    print(f"PROGRESS case {k + 1}/{len(inp['cases'])}: v = {v0:g} m/s, {case['angle_deg']:g} deg: e_n {e_n:.4f}, "
-          f"F_max {f_max:.4g} N", flush=True)
+    results.append(
+        {
+            "speed_m_s": v0,
+            "angle_deg": case["angle_deg"],
+            "restitution_normal": e_n,
+            "restitution_tangential": e_t,
+            "peak_normal_force_N": f_max,
+            "steps": i + 1,
+        }
+    )
+    print(
+        f"PROGRESS case {k + 1}/{len(inp['cases'])}: v = {v0:g} m/s, {case['angle_deg']:g} deg: e_n {e_n:.4f}, "
+        f"F_max {f_max:.4g} N",
+        flush=True,
+    )
 json.dump({"yade_version": version, "results": results}, open(inp["results_file"], "w"), indent=1)

@@ -48,12 +48,33 @@ if law_cfg:
     liner_label, ball_label = MILLIMPACT_LAW["yade"]["liner_material"], MILLIMPACT_LAW["yade"]["ball_material"]
 else:
     liner_label, ball_label = "liner", "ball"
-O.materials.append(FrictMat(young=liner["young_Pa"], poisson=liner["poisson"], density=liner["density_kg_m3"],
-                            frictionAngle=math.atan(cfg["friction"]), label=liner_label))
-O.materials.append(FrictMat(young=ball["young_Pa"], poisson=ball["poisson"], density=ball["density_kg_m3"],
-                            frictionAngle=math.atan(cfg["friction"]), label=ball_label))
-O.materials.append(FrictMat(young=liner["young_Pa"], poisson=liner["poisson"], density=liner["density_kg_m3"],
-                            frictionAngle=0.0, label="end"))
+O.materials.append(
+    FrictMat(
+        young=liner["young_Pa"],
+        poisson=liner["poisson"],
+        density=liner["density_kg_m3"],
+        frictionAngle=math.atan(cfg["friction"]),
+        label=liner_label,
+    )
+)
+O.materials.append(
+    FrictMat(
+        young=ball["young_Pa"],
+        poisson=ball["poisson"],
+        density=ball["density_kg_m3"],
+        frictionAngle=math.atan(cfg["friction"]),
+        label=ball_label,
+    )
+)
+O.materials.append(
+    FrictMat(
+        young=liner["young_Pa"],
+        poisson=liner["poisson"],
+        density=liner["density_kg_m3"],
+        frictionAngle=0.0,
+        label="end",
+    )
+)
 
 # --- the liner: one clump of facets (one body to turn and to sum the torque on) ---------------
 facets, facet_part = [], []
@@ -68,8 +89,10 @@ for x0, y0, x1, y1, part in cfg["segments"]:
 clump_id, member_ids = O.bodies.appendClumped(facets)
 O.bodies[clump_id].dynamic = False
 part_of = dict(zip(member_ids, facet_part))
-end_ids = [O.bodies.append(utils.wall(0.0, axis=2, sense=1, material="end")),
-           O.bodies.append(utils.wall(L, axis=2, sense=-1, material="end"))]
+end_ids = [
+    O.bodies.append(utils.wall(0.0, axis=2, sense=1, material="end")),
+    O.bodies.append(utils.wall(L, axis=2, sense=-1, material="end")),
+]
 
 ball_ids = [O.bodies.append(utils.sphere(tuple(p), r, material=ball_label)) for p in cfg["ball_positions"]]
 mass = O.bodies[ball_ids[0]].state.mass
@@ -87,11 +110,20 @@ else:
 O.engines = [
     ForceResetter(),
     InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Facet_Aabb(), Bo1_Wall_Aabb()], label="collider"),
-    InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Facet_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
-                    [ip2], [Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=True, label="law")]),
+    InteractionLoop(
+        [Ig2_Sphere_Sphere_ScGeom(), Ig2_Facet_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
+        [ip2],
+        [Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=True, label="law")],
+    ),
     *law_runner,
-    RotationEngine(rotateAroundZero=True, zeroPoint=(0, 0, 0), rotationAxis=(0, 0, 1), angularVelocity=omega,
-                   ids=[clump_id], label="turn"),
+    RotationEngine(
+        rotateAroundZero=True,
+        zeroPoint=(0, 0, 0),
+        rotationAxis=(0, 0, 1),
+        angularVelocity=omega,
+        ids=[clump_id],
+        label="turn",
+    ),
     # no numerical damping (Yade's default is 0.2): the contact law's en is then the restitution
     NewtonIntegrator(damping=0.0, gravity=(0, -g, 0), label="newton"),
     PyRunner(iterPeriod=int(cfg["power_every"]), command="every_step()", label="stepper"),
@@ -104,28 +136,40 @@ check_every = int(cfg["check_every"])
 power_every = int(cfg["power_every"])
 trace_every = int(cfg.get("trace_every", 0))
 trace_ids = [ball_ids[i] for i in cfg.get("trace_balls", [])]
-snap_times = [cfg["warmup_s"] + k * cfg["snapshot_every_s"]
-              for k in range(int(cfg["run_s"] / cfg["snapshot_every_s"] + 1e-9) + 1)]
+snap_times = [
+    cfg["warmup_s"] + k * cfg["snapshot_every_s"] for k in range(int(cfg["run_s"] / cfg["snapshot_every_s"] + 1e-9) + 1)
+]
 energy_times = [t_end * k / cfg["energy_samples"] for k in range(cfg["energy_samples"])]
 
 impacts_fh = open("impacts_raw.csv", "w", newline="")
 impacts = csv.writer(impacts_fh)
-impacts.writerow(["time_s", "ball", "part", "vx", "vy", "vz", "cx", "cy", "cz", "nx", "ny", "nz",
-                  "overlap_m", "kno", "age_steps"])
+impacts.writerow(
+    ["time_s", "ball", "part", "vx", "vy", "vz", "cx", "cy", "cz", "nx", "ny", "nz", "overlap_m", "kno", "age_steps"]
+)
 charge_fh = open("charge.csv", "w", newline="")
 charge = csv.writer(charge_fh)
 charge.writerow(["snapshot", "time_s", "ball", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s"])
 energy_fh = open("energy.csv", "w", newline="")
 energy = csv.writer(energy_fh)
-energy.writerow(["time_s", "drive_work_J", "kinetic_J", "potential_J", "elastic_normal_J", "elastic_shear_J",
-                 "damping_normal_J", "damping_shear_J", "friction_J"])
+energy.writerow(
+    [
+        "time_s",
+        "drive_work_J",
+        "kinetic_J",
+        "potential_J",
+        "elastic_normal_J",
+        "elastic_shear_J",
+        "damping_normal_J",
+        "damping_shear_J",
+        "friction_J",
+    ]
+)
 trace_fh = open("trace.csv", "w", newline="")
 trace = csv.writer(trace_fh)
 trace.writerow(["time_s", "ball", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s", "vz_m_s", "liner_contacts"])
 
 vel_prev = [Vector3(0.0, 0.0, 0.0) for b in ball_ids]
-state = {"last_check": 0, "drive_work": 0.0, "snap": 0, "esample": 0, "progress": -1, "n_impacts": 0,
-         "touching": set()}
+state = {"last_check": 0, "drive_work": 0.0, "snap": 0, "esample": 0, "progress": -1, "n_impacts": 0, "touching": set()}
 
 
 def check_impacts():
@@ -153,7 +197,7 @@ def check_impacts():
     for i, b, part, sign in new:
         if (b, part) in before:
             continue
-        before.add((b, part))                     # one impact even if both facets of a segment were hit
+        before.add((b, part))  # one impact even if both facets of a segment were hit
         c = i.geom.contactPoint
         # a ball striking an edge or a corner (face and top, or lifter and plate) touches two parts at
         # one point: one impact
@@ -166,12 +210,29 @@ def check_impacts():
         v = vel_prev[b - ball_ids[0]] + Vector3(0.0, -g * O.dt * max(i.iterMadeReal - 1 - last, 0), 0.0)
         # the normal points from id1 to id2: turned to point from the liner into the ball
         n = i.geom.normal * sign
-        impacts.writerow([O.time, b - ball_ids[0], part, v[0], v[1], v[2], c[0], c[1], c[2], n[0], n[1], n[2],
-                          i.geom.penetrationDepth, i.phys.kno, now - i.iterMadeReal])
+        impacts.writerow(
+            [
+                O.time,
+                b - ball_ids[0],
+                part,
+                v[0],
+                v[1],
+                v[2],
+                c[0],
+                c[1],
+                c[2],
+                n[0],
+                n[1],
+                n[2],
+                i.geom.penetrationDepth,
+                i.phys.kno,
+                now - i.iterMadeReal,
+            ]
+        )
         state["n_impacts"] += 1
     state["touching"] = touching
     state["last_check"] = now
-    vel_prev[:] = [Vector3(O.bodies[b].state.vel) for b in ball_ids]      # copies, not views
+    vel_prev[:] = [Vector3(O.bodies[b].state.vel) for b in ball_ids]  # copies, not views
 
 
 def ball_energies():
@@ -198,8 +259,19 @@ def write_energy():
     ke, pe = ball_energies()
     # the law's functor knows its scene only once it has run (calling it before the first step crashes)
     elastic = law.normElastEnergy() if O.iter > 0 else 0.0
-    energy.writerow([O.time, state["drive_work"], ke, pe, elastic, shear_elastic_energy(),
-                     law.normDampDissip, law.shearDampDissip, law.frictionDissipation])
+    energy.writerow(
+        [
+            O.time,
+            state["drive_work"],
+            ke,
+            pe,
+            elastic,
+            shear_elastic_energy(),
+            law.normDampDissip,
+            law.shearDampDissip,
+            law.frictionDissipation,
+        ]
+    )
 
 
 def write_snapshot():
@@ -236,8 +308,11 @@ def every_step():
     if pct != state["progress"]:
         state["progress"] = pct
         rev = omega * max(t - cfg["warmup_s"], 0.0) / (2 * math.pi)
-        print(f"PROGRESS {t / t_end:.4f} t={t:.3f} s revolutions={rev:.2f} impacts={state['n_impacts']} "
-              f"wall={time.time() - wall0:.0f} s", flush=True)
+        print(
+            f"PROGRESS {t / t_end:.4f} t={t:.3f} s revolutions={rev:.2f} impacts={state['n_impacts']} "
+            f"wall={time.time() - wall0:.0f} s",
+            flush=True,
+        )
 
 
 if check_every % power_every:
@@ -250,10 +325,22 @@ check_impacts()
 write_energy()
 for fh in (impacts_fh, charge_fh, energy_fh, trace_fh):
     fh.close()
-json.dump({"steps": O.iter, "time_s": O.time, "dt_s": O.dt, "wall_s": time.time() - wall0,
-           "cpu_s": time.process_time() - cpu0, "balls": len(ball_ids), "facets": len(member_ids),
-           "impacts_logged": state["n_impacts"], "ball_mass_kg": mass, "power_every": power_every,
-           "check_every": check_every,
-           "law_every": int(law_cfg["every"]) if law_cfg else 0},
-          open("run.json", "w"), indent=1)
+json.dump(
+    {
+        "steps": O.iter,
+        "time_s": O.time,
+        "dt_s": O.dt,
+        "wall_s": time.time() - wall0,
+        "cpu_s": time.process_time() - cpu0,
+        "balls": len(ball_ids),
+        "facets": len(member_ids),
+        "impacts_logged": state["n_impacts"],
+        "ball_mass_kg": mass,
+        "power_every": power_every,
+        "check_every": check_every,
+        "law_every": int(law_cfg["every"]) if law_cfg else 0,
+    },
+    open("run.json", "w"),
+    indent=1,
+)
 print("PROGRESS 1.0000 done", flush=True)
