@@ -51,7 +51,7 @@ sys.path.insert(0, str(ROOT))
 
 from millimpact.scene.builtin import builtin_scene  # noqa: E402
 from millimpact.scene.plan import make_plan  # noqa: E402
-from millimpact.geometry.builders import SIZE_GROWTH_ZONE_RADII  # noqa: E402
+from millimpact.scene.plan import SIZE_GROWTH_ZONE_RADII  # noqa: E402
 from millimpact.theory.hertz import effective_modulus  # noqa: E402
 from millimpact.theory.thornton import (FIRST_YIELD_PRESSURE_FACTOR, FULLY_PLASTIC_PRESSURE_FACTOR,  # noqa: E402
                                         fully_plastic_contact_radius, plastic_zone_radius,

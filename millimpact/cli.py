@@ -530,7 +530,7 @@ def version_text() -> str:
         if dist is not None:
             try:
                 d = importlib.metadata.distribution(dist)
-                if Path(d.locate_file(where.name)).resolve() == where.resolve():
+                if Path(str(d.locate_file(where.name))).resolve() == where.resolve():
                     version = d.version
             except (importlib.metadata.PackageNotFoundError, OSError):
                 pass

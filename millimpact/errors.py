@@ -8,6 +8,9 @@ from typing import Any
 class MillimpactError(Exception):
     """Base class of millimpact's errors."""
 
+    #: under MPI: True when rank 0 says the line and the other ranks stay quiet (the CLI)
+    said_by_rank0: bool = False
+
 
 class InputError(MillimpactError):
     """Bad user input: reported as one line, exit status 2, no traceback."""

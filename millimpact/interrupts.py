@@ -108,7 +108,7 @@ def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
         deadline = time.monotonic() + HANDLER_WAIT_S
         while signal.getsignal(signum) is not on_interrupt_signal and time.monotonic() < deadline:
             time.sleep(0.01)
-        _thread.interrupt_main(signum)  # runs on_interrupt_signal in the main thread
+        _thread.interrupt_main(signal.Signals(signum))  # runs on_interrupt_signal in the main thread
 
 
 @contextmanager
@@ -140,7 +140,8 @@ def command_signals() -> Iterator[None]:
         _WAITED.clear()
         clear_interrupts()  # the record lives as long as the command
         stop.set()
-        signal.pthread_kill(waiter.ident, signal.SIGTERM)  # wakes its sigwait; it ends on `stop`
+        if waiter.ident is not None:  # started above: it has one
+            signal.pthread_kill(waiter.ident, signal.SIGTERM)  # wakes its sigwait; it ends on `stop`
         waiter.join(timeout=5.0)
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         for s, handler in handlers.items():

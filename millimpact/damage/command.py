@@ -146,7 +146,7 @@ def check_log_liner(scene, impacts_path: Path) -> None:
     mill = mill_summary(impacts_path).get("mill")
     if not isinstance(mill, dict):
         return
-    from ..dem.mill_geometry import build_profile
+    from ..dem.mill.geometry import build_profile
 
     mine = build_profile(scene.liner, scene.ball.radius)
     try:

@@ -27,7 +27,7 @@ from ..scene.toml_io import scene_to_dict
 from .accumulate import accumulate, dent_trend, dominant_bin, place_extent, place_totals, profile_rates
 from .bins import choose_bins, describe, yield_onset_speed
 from .edges import fit_contacts
-from .places import place_scene
+from .places import liner_of, place_scene
 from .responses import BinCase, CaseRunner, compute_bin_rows, define_bin_cases, finite, run_repeat, table_runner
 
 #: a bin at or below V_y whose table case reports more plastic work than this fraction of its
@@ -215,7 +215,7 @@ def run_damage_map(
                     f"bin {bc.bin.index} lies below V_y = {plan.v_y:.3g} m/s but its case reports plastic work "
                     f"{r['plastic_dissipation_J']:.3g} J (counted as 0)"
                 )
-    slice_length = st.slice_length_m or scene.liner.length
+    slice_length = st.slice_length_m or liner_of(scene).length
     repeats = _repeat_responses(
         scene, choice, bcs, per_bin, places, st, out, slice_length, run_sequence, classify, comm, say, warn
     )

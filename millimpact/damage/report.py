@@ -197,7 +197,8 @@ def plot_map(
     span = max([abs(s) for d in profile.values() for s in d["arc_m"]] + [hb + 0.05])
     outline = np.array([[-span, 0], [-hb, 0], [-ht, h], [ht, h], [hb, 0], [span, 0]])
     ax.plot(outline[:, 0] * 1e3, outline[:, 1] * 1e3, color="0.75", lw=6, solid_capstyle="round", zorder=1)
-    segs, vals = [], []
+    segs: list[np.ndarray] = []
+    values: list[float] = []
     for p, d in profile.items():
         s = np.asarray(d["arc_m"])
         if s.size == 0:
@@ -207,8 +208,8 @@ def plot_map(
         for si, wi in zip(s, w):
             xs, ys = profile_points(liner, p, np.array([si - 0.5 * cell, si + 0.5 * cell]))
             segs.append(np.column_stack([xs, ys]) * 1e3)
-            vals.append(wi)
-    vals = np.asarray(vals, float)
+            values.append(float(wi))
+    vals = np.asarray(values, float)
     if segs:
         pos = vals[vals > 0]
         norm = (

@@ -32,6 +32,7 @@ from collections.abc import Callable, Iterable, Sequence
 from collections.abc import Sequence as SequenceABC
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -166,17 +167,16 @@ def _read_columns(path: Path) -> ImpactLog | None:
                 return None
             idx = {c: header.index(c) for c in IMPACT_COLUMNS}
             numeric = [c for c in IMPACT_COLUMNS if c != "place"]
-            kw = dict(delimiter=",", comments=None, quotechar='"', ndmin=1)
             values = np.loadtxt(
-                fh,
-                usecols=[idx[c] for c in numeric],
-                dtype=float,
-                ndmin=2,
-                **{k: v for k, v in kw.items() if k != "ndmin"},
+                fh, usecols=[idx[c] for c in numeric], dtype=float, ndmin=2, delimiter=",", comments=None, quotechar='"'
             )
             fh.seek(0)
             fh.readline()
-            places = np.char.strip(np.loadtxt(fh, usecols=[idx["place"]], dtype="U16", **kw))
+            places = np.char.strip(
+                np.loadtxt(
+                    fh, usecols=[idx["place"]], dtype="U16", ndmin=1, delimiter=",", comments=None, quotechar='"'
+                )
+            )
     except (OSError, ValueError, UnicodeDecodeError, StopIteration, csv.Error):
         return None
     if len(places) == 0 or values.shape != (len(places), len(numeric)):
@@ -224,7 +224,7 @@ def _read_rows(path: Path) -> list[Impact]:
             for row_no, row in enumerate(reader, start=2):
                 if not row or all(not cell.strip() for cell in row):
                     continue
-                values = {}
+                values: dict[str, Any] = {}  # place: str, the others float
                 for column in IMPACT_COLUMNS:
                     cell = row[idx[column]].strip() if idx[column] < len(row) else ""
                     if column == "place":

@@ -34,7 +34,7 @@ from mpi4py import MPI
 
 from ..errors import MeshError
 from ..scene.liner_shape import LinerShape, vec3
-from ..scene.plan import Plan
+from ..scene.plan import SIZE_GROWTH_ZONE_RADII, Plan
 from ..scene.schema import Scene, Vec3
 from . import builders as geo
 from .block import build_impact_model
@@ -160,7 +160,7 @@ def _builder_parameters() -> dict[str, Any]:
         "gmsh": gmsh.__version__,
         "algorithm_2d": geo.MESH_ALGORITHM_2D,
         "algorithm_3d": geo.MESH_ALGORITHM_3D,
-        "growth_zone_radii": geo.SIZE_GROWTH_ZONE_RADII,
+        "growth_zone_radii": SIZE_GROWTH_ZONE_RADII,
     }
 
 

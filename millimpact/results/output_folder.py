@@ -41,6 +41,7 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from ..errors import InputError, OutputError
 from ..interrupts import raise_if_interrupted
@@ -133,7 +134,7 @@ def write_marker(folder: Path, kind: str, files: Iterable[str] | None = None, be
 
     folder = Path(folder)
     names = None if files is None else sorted(set(files) - {MARKER})
-    data = {"kind": kind, "millimpact_version": __version__, "files": names}
+    data: dict[str, Any] = {"kind": kind, "millimpact_version": __version__, "files": names}
     others = {k: sorted(set(v) - {MARKER}) for k, v in (beside or {}).items() if k != kind and v}
     if others:
         data["beside"] = others
@@ -210,7 +211,7 @@ class OutputFolder:
     kind: str
     force: bool
     option: str
-    comm: object = None
+    comm: Any = None  #: the MPI communicator (None: serial)
     existed: bool = False  #: held entries when claimed
     said: list[str] = field(default_factory=list)  #: what publishing replaced or kept
     note: str | Callable[[], str] = ""  #: what an interruption leaves (the CLI's one line)
@@ -302,10 +303,11 @@ def claim_output(out: Path | str, kind: str, force: bool = False, option: str = 
         result, error = comm.bcast((result, error), root=0)
     if error is not None:
         raise (OutputError if error[0] == "OutputError" else InputError)(error[1])
-    path, existed, leftovers = result
+    assert result is not None  # claimed on rank 0 and broadcast, or an error raised above
+    path_text, existed, leftovers = result
     for name in leftovers:
         say(f"note: removed {name}, left by an interrupted millimpact beside {raw}")
-    target = OutputFolder(Path(path), raw, kind, force, option, comm, existed)
+    target = OutputFolder(Path(path_text), raw, kind, force, option, comm, existed)
     target.note = f"nothing written to {raw}/" + (" (its earlier content is kept)" if existed else "")
     _CURRENT[:] = [target]
     return target
@@ -422,12 +424,13 @@ def staged_output(
             out.parent.mkdir(parents=True, exist_ok=True)
             stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
             apply_umask(stage)
-        except OSError as exc:
-            raise _write_error(exc, what, unwritten) from None
+        except OSError as exc:  # a write failure in one line; any other OSError as it is
+            raise (_write_error(exc, what, unwritten) or exc) from None
     if comm is not None:
         stage = Path(comm.bcast(str(stage) if stage else None, root=0))
+    assert stage is not None  # made on rank 0 (or the error raised there) and broadcast
     try:
-        error = None
+        error: BaseException | None = None
         try:
             yield stage
             raise_if_interrupted()  # a Ctrl-C / SIGTERM whose exception a library swallowed
@@ -543,7 +546,7 @@ def _write_error(exc: BaseException, what: str, unwritten: Callable[[], str] | N
 
 
 @contextmanager
-def hdf5_file(path: Path) -> Iterator[object]:
+def hdf5_file(path: Path) -> Iterator[Any]:
     """An ``h5py.File`` built in memory and written to ``path`` in one write when the block ends.
 
     HDF5 writing straight to a full disk fails inside its own close, leaves the file open in the

@@ -138,7 +138,7 @@ def define_cases(
             slow = min(g, key=lambda c: c[3].normal_speed)[3]
             fast = max(g, key=lambda c: c[3].normal_speed)[3]
             hs, hf = scene_hertz(slow), scene_hertz(fast)
-            sets = {
+            sets: dict[str, object] = {
                 "model.h_contact": base.model.h_contact or hs.a_max / ELEMENTS_ACROSS_CONTACT,
                 "impact.gap": base.impact.gap or GAP_FACTOR * hs.delta_max,
                 # the reduction's cutoff and the time step for the shortest contact of the band:
@@ -219,6 +219,7 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
         options = {"contact_solve": "schur", **options}
         if case.band not in setups:
             # built for the band's fastest case: its contact candidates cover every case's patch
+            assert case.band_scene is not None  # banded cases carry their band's fastest scene
             fast = case.band_scene.with_value("outputs.xdmf", False).with_value("time.end", scene.time.end)
             setups[case.band] = build_reduced_setup(
                 fast, make_plan(fast), dict(options), method, comm, share_operators=True
@@ -294,7 +295,7 @@ def run_table(
     group = world.Split(world.rank // ranks_per_case, world.rank)
     rows = compute_cases(todo, method, options, folder, world, group, say)
     gathered = world.gather(rows, root=0)
-    if world.rank != 0:
+    if world.rank != 0 or gathered is None:
         return []
     for part in gathered:
         for r in part:
@@ -379,7 +380,7 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
     win = MPI.Win.Allocate(8 * n_state if world.rank == 0 else 0, 8, comm=world)
     if world.rank == 0:
         win.Lock(0)
-        np.frombuffer(win.tomemory(), dtype="i8")[:] = 0
+        np.frombuffer(win.tomemory(), dtype="i8")[:] = 0  # type: ignore[call-overload]  # mpi4py's buffer
         win.Unlock(0)
     world.barrier()
     one, got = np.ones(1, dtype="i8"), np.zeros(1, dtype="i8")

@@ -47,7 +47,7 @@ def test_without_yade_one_line_says_how_to_install_it(tmp_path):
 def test_a_centrifuging_charge_is_said_so():
     """No shoulder or toe (a ring of balls on the shell, --speed-fraction 1.6): said in words, not
     "shoulder None deg"."""
-    from millimpact.dem.mill import _charge_text
+    from millimpact.dem.mill.command import _charge_text
 
     assert _charge_text({"shoulder_deg": None, "toe_deg": None, "centrifuged_fraction": 0.97}) == \
         "no shoulder or toe: the charge centrifuges (97 % of the balls turn with the shell)"

@@ -294,7 +294,7 @@ def main(args: argparse.Namespace) -> int:
             f"{(setup.warmup_s + setup.run_s) / setup.dt:.3g} steps of {setup.dt:.3g} s",
             file=sys.stderr,
         )
-    from .yade import YadeError
+    from ..yade import YadeError
 
     try:
         with target.staged(collective=False) as stage:
