@@ -18,6 +18,7 @@ import dataclasses
 import functools
 import math
 import tomllib
+import types
 import typing
 from dataclasses import dataclass, field
 from typing import Any
@@ -714,7 +715,7 @@ def coerce_value(tp: Any, value: Any, where: str) -> Any:
     """Convert a TOML value to the annotated type, refusing wrong types with the field name."""
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
-    if origin is typing.Union:  # Optional[X]
+    if origin is typing.Union or origin is types.UnionType:  # X | None (or Optional[X])
         if value is None:
             return None
         inner = [a for a in args if a is not type(None)]
