@@ -402,13 +402,44 @@ def make_probe_spec(
     )
 
 
-def make_plan(scene: Scene) -> Plan:
-    """Derive the modelling choices of a scene from its Hertz estimate (design.md section 5)."""
-    h = scene_hertz(scene)
-    m = scene.model
-    sym, planes, sym_reason = decide_symmetry(scene)
-    reasons = {"symmetry": sym_reason}
+@dataclass(frozen=True)
+class _ElementSizes:
+    """The plan's element sizes (m): ``h_contact`` at the contact point, ``h_far`` far from it in
+    the struck body (and in the ball unless ``h_ball`` > 0, a small ball's own far size)."""
 
+    h_contact: float
+    h_far: float
+    h_ball: float
+
+
+@dataclass(frozen=True)
+class _Zones:
+    """The plan's contact zones (m): ``zone`` about the contact point in both bodies,
+    ``ball_zone`` the ball's own when smaller (0: ``zone``), ``fine`` the radius meshed at
+    h_contact; ``plastic_radius`` the predicted plastic region's radius (0: elastic)."""
+
+    zone: float
+    ball_zone: float
+    fine: float
+    plastic_radius: float
+
+
+@dataclass(frozen=True)
+class _TimeSteps:
+    """The plan's initial gap (m), contact and free-vibration steps (s) and modal cutoff (Hz)."""
+
+    gap: float
+    dt_contact: float
+    dt_free: float
+    f_cut: float
+
+
+def _element_sizes(scene: Scene, h: HertzImpact, reasons: dict[str, str]) -> _ElementSizes:
+    """The element sizes (m): h_contact = a_max / ELEMENTS_ACROSS_CONTACT, h_far = the smallest
+    body size / 4 (a small ball: the struck body's smallest side / 4, the ball's radius / 4 inside
+    the ball; a liner with gauges: at most :func:`wave_element_size` at the planned f_cut), unless
+    ``scene.model`` gives them; each choice's reason goes into ``reasons``."""
+    m = scene.model
     h_c = m.h_contact if m.h_contact is not None else h.a_max / ELEMENTS_ACROSS_CONTACT
     reasons["h_contact"] = "user" if m.h_contact is not None else f"a_max / {ELEMENTS_ACROSS_CONTACT:g} (~1 % on F_max)"
     smallest = smallest_size(scene)
@@ -440,8 +471,15 @@ def make_plan(scene: Scene) -> Plan:
     if h_ball >= h_far:  # the wave size above took the body's far size below the ball's
         h_ball = 0.0
         reasons.pop("h_ball", None)
-    c_p = predict_plastic_radius(h, (scene.ball.material, scene.target_material))
-    reasons["plastic_radius"] = "Johnson's cavity model on Thornton's contact radius (theory/thornton.py)"
+    return _ElementSizes(h_c, h_far, h_ball)
+
+
+def _zone_radius(scene: Scene, h: HertzImpact, c_p: float, reasons: dict[str, str]) -> float:
+    """The contact zone's radius (m): ZONE_RADIUS_FACTOR a_max or PLASTIC_ZONE_MARGIN times the
+    predicted plastic radius ``c_p`` (m), whichever is larger, capped at PLASTIC_ZONE_CAP of
+    :func:`zone_radius_limit`, unless ``model.zone_radius`` gives it; refuses a zone that reaches
+    the limit (SceneError on model.zone_radius)."""
+    m = scene.model
     zone = m.zone_radius if m.zone_radius is not None else max(ZONE_RADIUS_FACTOR * h.a_max, PLASTIC_ZONE_MARGIN * c_p)
     reasons["zone_radius"] = (
         "user"
@@ -462,6 +500,14 @@ def make_plan(scene: Scene) -> Plan:
         )
     if zone >= limit:
         raise SceneError("model.zone_radius", zone, f"the contact zone must be smaller than {limit:g} m for this scene")
+    return zone
+
+
+def _ball_zone_radius(scene: Scene, zone: float, reasons: dict[str, str]) -> float:
+    """The ball's own contact-zone radius (m; 0: the zone's radius ``zone``): a small ball's is
+    capped at PLASTIC_ZONE_CAP x ZONE_SIZE_SHARE of its radius, ``model.ball_zone_radius`` sets
+    it (refused above that cap or above ``zone``)."""
+    m = scene.model
     ball_zone = 0.0
     ball_limit = PLASTIC_ZONE_CAP * ZONE_SIZE_SHARE * scene.ball.radius
     if is_small_ball(scene) and zone > ball_limit:
@@ -485,6 +531,19 @@ def make_plan(scene: Scene) -> Plan:
             )
         ball_zone = m.ball_zone_radius if m.ball_zone_radius < zone else 0.0
         reasons["ball_zone_radius"] = "user"
+    return ball_zone
+
+
+def _zones(scene: Scene, h: HertzImpact, h_c: float, reasons: dict[str, str]) -> _Zones:
+    """The contact zones of a scene with Hertz values ``h`` and contact element size ``h_c`` (m):
+    the predicted plastic radius, the zone (:func:`_zone_radius`), the ball's zone
+    (:func:`_ball_zone_radius`) and the fine radius 1.5 a_max (or ``model.fine_radius``, at most
+    the zone); refuses an h_contact over half the zone, naming the field to change."""
+    m = scene.model
+    c_p = predict_plastic_radius(h, (scene.ball.material, scene.target_material))
+    reasons["plastic_radius"] = "Johnson's cavity model on Thornton's contact radius (theory/thornton.py)"
+    zone = _zone_radius(scene, h, c_p, reasons)
+    ball_zone = _ball_zone_radius(scene, zone, reasons)
     fine = min(1.5 * h.a_max, ball_zone or zone)
     reasons["fine_radius"] = "1.5 a_max: h_contact over the whole contact patch"
     if m.fine_radius is not None:
@@ -506,11 +565,18 @@ def make_plan(scene: Scene) -> Plan:
                 f"(h_contact = a_max / {ELEMENTS_ACROSS_CONTACT:g} of this impact)",
             )
         raise contact_too_large(scene, h)
+    return _Zones(zone, ball_zone, fine, c_p)
+
+
+def _time_steps(scene: Scene, h: HertzImpact, reasons: dict[str, str]) -> _TimeSteps:
+    """The initial gap GAP_FACTOR delta_max (m), the contact step t_c / STEPS_PER_CONTACT (s), the
+    cutoff F_CUT_FACTOR / t_c (Hz) and the free step 1 / (10 f_cut) (s, at least the contact
+    step), each unless the scene gives it; refuses a time.end shorter than the contact step."""
+    m, t = scene.model, scene.time
     gap = scene.impact.gap if scene.impact.gap is not None else GAP_FACTOR * h.delta_max
     reasons["gap"] = (
         "user" if scene.impact.gap is not None else f"{GAP_FACTOR:g} delta_max (flight before contact is exact)"
     )
-    t = scene.time
     dt_c = t.dt_contact if t.dt_contact is not None else h.contact_time / STEPS_PER_CONTACT
     reasons["dt_contact"] = "user" if t.dt_contact is not None else f"t_c / {STEPS_PER_CONTACT}"
     f_cut = m.f_cut if m.f_cut is not None else F_CUT_FACTOR / h.contact_time
@@ -523,31 +589,44 @@ def make_plan(scene: Scene) -> Plan:
     reasons["degree"] = "user" if m.degree != 1 else f"P1 (default): expect {P1_EXPECTED_ERROR}; {P2_REMEDY}"
     if dt_c > t.end:
         raise SceneError("time.end", t.end, f"must exceed the contact step ({dt_c:g} s)")
+    return _TimeSteps(gap, dt_c, dt_f, f_cut)
+
+
+def make_plan(scene: Scene) -> Plan:
+    """Derive the modelling choices of a scene from its Hertz estimate (design.md section 5): the
+    symmetry (:func:`decide_symmetry`), the element sizes, the contact zones and the time steps,
+    each with its reason, and the probes' places."""
+    h = scene_hertz(scene)
+    sym, planes, sym_reason = decide_symmetry(scene)
+    reasons = {"symmetry": sym_reason}
+    sizes = _element_sizes(scene, h, reasons)
+    zones = _zones(scene, h, sizes.h_contact, reasons)
+    steps = _time_steps(scene, h, reasons)
     return Plan(
         h,
         sym,
         planes,
-        h_c,
-        h_far,
-        zone,
-        fine,
-        gap,
-        dt_c,
-        dt_f,
-        f_cut,
-        m.degree,
+        sizes.h_contact,
+        sizes.h_far,
+        zones.zone,
+        zones.fine,
+        steps.gap,
+        steps.dt_contact,
+        steps.dt_free,
+        steps.f_cut,
+        scene.model.degree,
         ball=scene.ball,
         target=scene.target_material,
         impact_point=scene.impact_point,
         contact_normal=scene.contact_normal,
         velocity=scene.impact.velocity,
         friction=scene.contact.friction,
-        probes=make_probe_spec(scene, planes, h_c, gap, h.a_max, F_CUT_FACTOR / h.contact_time),
+        probes=make_probe_spec(scene, planes, sizes.h_contact, steps.gap, h.a_max, F_CUT_FACTOR / h.contact_time),
         reasons=tuple(reasons.items()),
-        plastic_radius=c_p,
+        plastic_radius=zones.plastic_radius,
         backing_stiffness=scene.liner.backing_stiffness if scene.liner is not None else 0.0,
-        h_ball=h_ball,
-        ball_zone_radius=ball_zone,
+        h_ball=sizes.h_ball,
+        ball_zone_radius=zones.ball_zone,
     )
 
 

@@ -18,8 +18,8 @@ import dataclasses
 import functools
 import math
 import tomllib
-import typing
 import types
+import typing
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -439,6 +439,15 @@ class Scene:
 
     # --- validation ---------------------------------------------------------------------------
     def validate(self) -> None:
+        """Refuse a scene with any field out of its range (SceneError naming the first one, in this
+        order): the bodies, the impact, the gauges, the time span and the model options."""
+        self._validate_bodies()
+        self._validate_impact()
+        self._validate_gauges()
+        self._validate_time_and_model()
+
+    def _validate_bodies(self) -> None:
+        """The ball and the block; on a liner scene, no block field changed from its default."""
         self.ball.validate()
         self.block.validate()
         if self.liner is not None and self.block != Block():
@@ -454,6 +463,11 @@ class Scene:
                 "is not used by a liner scene (its [liner] replaces the block): set the liner's "
                 "fields (liner.thickness, liner.material, ...) instead",
             )
+
+    def _validate_impact(self) -> None:
+        """The arrival: a finite velocity (m/s) of speed at most MAX_IMPACT_SPEED towards the struck
+        face, the contact law, the liner and its placement (:meth:`_validate_liner`), an impact
+        point on a block's face and a gap (m) in [0, ball radius]."""
         imp, blk = self.impact, self.block
         for i, c in enumerate(imp.velocity):
             _finite(f"impact.velocity[{i}]", c, "m/s")
@@ -493,6 +507,10 @@ class Scene:
                     f"must be at most the ball radius ({self.ball.radius:g} m): "
                     "the simulation starts just before contact",
                 )
+
+    def _validate_gauges(self) -> None:
+        """The gauges: unique names, a position in the liner (a hair under its surface) or on the
+        block's surface (within 1e-6 m of a face), a non-zero direction."""
         names = set()
         for i, g in enumerate(self.gauges):
             where = f"gauges[{i}]"
@@ -508,38 +526,47 @@ class Scene:
                         "must lie in the liner (plate or a "
                         "lifter, not in a bolt hole): place it a fraction of a mm under the surface",
                     )
-                if not math.sqrt(sum(c * c for c in g.direction)) > 0:
-                    raise SceneError(f"{where}.direction", list(g.direction), "must be a non-zero vector")
-                continue
-            x, y, z = g.position
-            tol = 1e-9
-            inside = (
-                -blk.length / 2 - tol <= x <= blk.length / 2 + tol
-                and -blk.thickness - tol <= y <= tol
-                and -tol <= z <= blk.height + tol
-            )
-            on_surface = (
-                inside
-                and min(
-                    abs(x - blk.length / 2),
-                    abs(x + blk.length / 2),
-                    abs(y),
-                    abs(y + blk.thickness),
-                    abs(z),
-                    abs(z - blk.height),
-                )
-                <= 1e-6
-            )
-            if not on_surface:
-                raise SceneError(
-                    f"{where}.position",
-                    list(g.position),
-                    f"must lie on the block's surface: x in [{-blk.length / 2:g}, {blk.length / 2:g}], "
-                    f"y in [{-blk.thickness:g}, 0], z in [0, {blk.height:g}] m with one coordinate on a face",
-                )
-            n = math.sqrt(sum(c * c for c in g.direction))
-            if not n > 0:
+            else:
+                self._check_block_gauge(g, where)
+            if not math.sqrt(sum(c * c for c in g.direction)) > 0:
                 raise SceneError(f"{where}.direction", list(g.direction), "must be a non-zero vector")
+
+    def _check_block_gauge(self, g: Gauge, where: str) -> None:
+        """Refuse a gauge ``g`` (field prefix ``where``) off the block's surface: inside the block
+        (1e-9 m tolerance) with one coordinate within 1e-6 m of a face."""
+        blk = self.block
+        x, y, z = g.position
+        tol = 1e-9
+        inside = (
+            -blk.length / 2 - tol <= x <= blk.length / 2 + tol
+            and -blk.thickness - tol <= y <= tol
+            and -tol <= z <= blk.height + tol
+        )
+        on_surface = (
+            inside
+            and min(
+                abs(x - blk.length / 2),
+                abs(x + blk.length / 2),
+                abs(y),
+                abs(y + blk.thickness),
+                abs(z),
+                abs(z - blk.height),
+            )
+            <= 1e-6
+        )
+        if not on_surface:
+            raise SceneError(
+                f"{where}.position",
+                list(g.position),
+                f"must lie on the block's surface: x in [{-blk.length / 2:g}, {blk.length / 2:g}], "
+                f"y in [{-blk.thickness:g}, 0], z in [0, {blk.height:g}] m with one coordinate on a face",
+            )
+
+    def _validate_time_and_model(self) -> None:
+        """The time span (s, > 0), the model options (sizes in m and f_cut in Hz > 0, a block's
+        zone below half its struck face, symmetry, degree 1 or 2, modes >= 1) and the output
+        times (s, >= 0)."""
+        blk = self.block
         t = self.time
         _positive("time.end", t.end, "s")
         if t.dt_contact is not None:
@@ -715,7 +742,7 @@ def coerce_value(tp: Any, value: Any, where: str) -> Any:
     """Convert a TOML value to the annotated type, refusing wrong types with the field name."""
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
-    if origin is typing.Union or origin is types.UnionType:  # X | None (Optional[X])
+    if origin is typing.Union or origin is types.UnionType:  # X | None (or Optional[X])
         if value is None:
             return None
         inner = [a for a in args if a is not type(None)]

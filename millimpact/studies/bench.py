@@ -530,7 +530,27 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--end", type=float, help=f"simulated time, s (default gap/v + {DEFAULT_END_TC:g} t_c)")
 
 
-def main(args: argparse.Namespace) -> int:
+@dataclass
+class _BenchSetup:
+    """What a bench runs: the ``scene`` (``scene_name``: a built-in name or a TOML file's absolute
+    path, passed to the runs), the bench ``entries``, the simulated time ``end`` (s), the plan's
+    ``base_far`` (m), Hertz a_max (m) and t_c (s), the claimed output ``target`` and the
+    reference ``cache`` folder."""
+
+    scene: Any
+    scene_name: str
+    entries: list[str]
+    end: float
+    base_far: float
+    a_max: float
+    t_c: float
+    target: Any
+    cache: Path
+
+
+def _bench_setup(args: argparse.Namespace) -> _BenchSetup:
+    """Read the command line: refuse mpirun, unknown ``--methods`` and an ``--end`` (s) before
+    contact; plan the scene; claim the output folder (before any run) and say what will run."""
     from mpi4py import MPI
 
     from ..results.output_folder import claim_output, default_out
@@ -556,114 +576,139 @@ def main(args: argparse.Namespace) -> int:
     )
     if not (end > plan.gap / h.speed):
         raise InputError(f"--end = {end!r} s: must exceed the flight to contact, {plan.gap / h.speed:.3g} s")
-    base_far = plan.h_far
     target = claim_output(
         args.out if args.out is not None else default_out(scene.name, prefix="bench-"), "bench", force=args.force
     )  # before the runs
-    out = target.shown
     cache = Path(os.environ.get(CACHE_ENV, "out/bench-cache"))
     print(
         f"bench of scene '{scene.name}': {', '.join(entries)}; end {end * 1e6:.4g} us"
         + (" (quick)" if args.quick else "")
-        + f" -> {out}/",
+        + f" -> {target.shown}/",
         flush=True,
     )
+    return _BenchSetup(scene, scene_name, entries, end, plan.h_far, h.a_max, h.contact_time, target, cache)
+
+
+#: the CSV columns of a failed run, all NaN
+_FAILED_NAN_FIELDS = (
+    "F_max_N",
+    "t_c_s",
+    "impulse_N_s",
+    "err_F_max",
+    "err_t_c",
+    "err_impulse",
+    "err_force_L2",
+    "err_gauge_L2",
+)
+
+
+def _bench_row(i: int, n: int, spec: RunSpec, res: RunResult, ref: RunResult, gauge: str | None, say) -> dict:
+    """The CSV row of run ``i`` (of ``n``): its cost (wall s, peak MB, DOFs), results (N, s, N s)
+    and errors against ``ref`` (:func:`score`); "unstable" when an error is not finite, F_max is
+    off by more than 100 % or the energy drift exceeds UNSTABLE_ENERGY_DRIFT; says one line."""
+    row: dict[str, Any] = {
+        "method": spec.entry,
+        "run_method": spec.method,
+        "resolution": spec.resolution,
+        "level": spec.level,
+        "options": json.dumps(spec.options, sort_keys=True),
+    }
+    if not res.ok:
+        row.update(
+            status="failed",
+            wall_s=math.nan,
+            peak_rss_MB=math.nan,
+            dofs=0,
+            solved_dofs=0,
+            **{k: math.nan for k in _FAILED_NAN_FIELDS},
+            note=res.error,
+        )
+        say(f"  [{i + 1}/{n}] {spec.entry:12s} {spec.resolution:40s} FAILED: {res.error}")
+        return row
+    drift = res.metrics.get("result_energy_drift_max_rel", 0.0)
+    sc = score(res, ref, gauge)
+    bad = (
+        not all(math.isfinite(sc[k]) for k in ("err_F_max", "err_t_c", "err_force_L2"))
+        or abs(sc["err_F_max"]) > 1.0
+        or drift > UNSTABLE_ENERGY_DRIFT
+    )
+    row.update(
+        status="unstable" if bad else "ok",
+        wall_s=res.wall_s,
+        peak_rss_MB=res.peak_rss_mb,
+        dofs=res.dofs,
+        solved_dofs=res.solved_dofs,
+        F_max_N=res.metrics["peak_contact_force_N"],
+        t_c_s=res.metrics["contact_duration_s"],
+        impulse_N_s=res.metrics["impulse_N_s"],
+        **sc,
+        note=f"energy drift {drift:.3g}" if bad else "",
+    )
+    say(
+        f"  [{i + 1}/{n}] {spec.entry:12s} {spec.resolution:40s} {row['status']:8s} {res.wall_s:7.1f} s "
+        f"{res.peak_rss_mb:6.0f} MB {res.dofs:7d} dofs  F_max {100 * sc['err_F_max']:+6.2f} %  "
+        f"force L2 {100 * sc['err_force_L2']:6.2f} %  gauge L2 {100 * sc['err_gauge_L2']:6.2f} %"
+    )
+    return row
+
+
+def _write_bench(
+    stage: Path, setup: _BenchSetup, rows: list[dict], ref_levels: list[RunResult], quick: bool, t_all: float
+) -> dict[str, dict[str, Any]]:
+    """Write bench.csv, pareto.png, reference_convergence.png and bench.json into ``stage``;
+    returns the wall-time ratios at equal error (:func:`equal_error_ratio`) of the pairs run."""
+    scene, ref = setup.scene, ref_levels[-1]
+    write_csv(rows, stage / "bench.csv")
+    title = f"{scene.name}: error against wall time (reference: full {ref.spec.resolution})"
+    plot_pareto(rows, stage / "pareto.png", title)
+    conv = plot_reference_convergence(
+        ref_levels, stage / "reference_convergence.png", f"{scene.name}: convergence of the reference (full P2)"
+    )
+    ratios = {
+        f"{a}/{b}": equal_error_ratio(rows, a, b)
+        for a, b in (("improved", "full-p2"), ("improved", "full-p1"), ("traditional", "full-p1"))
+        if a in setup.entries and b in setup.entries
+    }
+    meta = {
+        "scene": scene.name,
+        "end_s": setup.end,
+        "quick": quick,
+        "reference": conv,
+        "equal_error_wall_ratio": ratios,
+        "machine": {
+            "node": platform.node(),
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "note": "shared machine: wall times are noisy, compare ratios",
+        },
+        "total_wall_s": time.perf_counter() - t_all,
+        "rows": rows,
+    }
+    (stage / "bench.json").write_text(json.dumps(meta, indent=1, default=float))
+    return ratios
+
+
+def main(args: argparse.Namespace) -> int:
+    """``millimpact bench``: the reference levels (cached), then every entry's runs, each scored
+    against the finest reference level; writes the CSV, figures and JSON (module docstring)."""
+    setup = _bench_setup(args)
+    target = setup.target
+    out = target.shown
     t_all = time.perf_counter()
     say = sayer()
     ref_levels = [
-        cached_run(s, cache, say)
-        for s in reference_specs(scene_name, end, args.quick, base_far, h.a_max, h.contact_time)
+        cached_run(s, setup.cache, say)
+        for s in reference_specs(setup.scene_name, setup.end, args.quick, setup.base_far, setup.a_max, setup.t_c)
     ]
     ref = ref_levels[-1]
-    gauge = scene.gauges[0].name if scene.gauges else None
-    specs = bench_specs(scene_name, end, entries, args.quick, base_far, h.a_max, h.contact_time)
+    gauge = setup.scene.gauges[0].name if setup.scene.gauges else None
+    specs = bench_specs(setup.scene_name, setup.end, setup.entries, args.quick, setup.base_far, setup.a_max, setup.t_c)
     rows: list[dict] = []
     with target.staged() as stage:
         for i, spec in enumerate(specs):
             res = run_spec(spec, stage / "runs" / f"{i:02d}-{spec.entry}")
-            row = {
-                "method": spec.entry,
-                "run_method": spec.method,
-                "resolution": spec.resolution,
-                "level": spec.level,
-                "options": json.dumps(spec.options, sort_keys=True),
-            }
-            if res.ok:
-                drift = res.metrics.get("result_energy_drift_max_rel", 0.0)
-                sc = score(res, ref, gauge)
-                bad = (
-                    not all(math.isfinite(sc[k]) for k in ("err_F_max", "err_t_c", "err_force_L2"))
-                    or abs(sc["err_F_max"]) > 1.0
-                    or drift > UNSTABLE_ENERGY_DRIFT
-                )
-                row.update(
-                    status="unstable" if bad else "ok",
-                    wall_s=res.wall_s,
-                    peak_rss_MB=res.peak_rss_mb,
-                    dofs=res.dofs,
-                    solved_dofs=res.solved_dofs,
-                    F_max_N=res.metrics["peak_contact_force_N"],
-                    t_c_s=res.metrics["contact_duration_s"],
-                    impulse_N_s=res.metrics["impulse_N_s"],
-                    **sc,
-                    note=f"energy drift {drift:.3g}" if bad else "",
-                )
-                say(
-                    f"  [{i + 1}/{len(specs)}] {spec.entry:12s} {spec.resolution:40s} {row['status']:8s} {res.wall_s:7.1f} s "
-                    f"{res.peak_rss_mb:6.0f} MB {res.dofs:7d} dofs  F_max {100 * sc['err_F_max']:+6.2f} %  "
-                    f"force L2 {100 * sc['err_force_L2']:6.2f} %  gauge L2 {100 * sc['err_gauge_L2']:6.2f} %"
-                )
-            else:
-                row.update(
-                    status="failed",
-                    wall_s=math.nan,
-                    peak_rss_MB=math.nan,
-                    dofs=0,
-                    solved_dofs=0,
-                    **{
-                        k: math.nan
-                        for k in (
-                            "F_max_N",
-                            "t_c_s",
-                            "impulse_N_s",
-                            "err_F_max",
-                            "err_t_c",
-                            "err_impulse",
-                            "err_force_L2",
-                            "err_gauge_L2",
-                        )
-                    },
-                    note=res.error,
-                )
-                say(f"  [{i + 1}/{len(specs)}] {spec.entry:12s} {spec.resolution:40s} FAILED: {res.error}")
-            rows.append(row)
-        write_csv(rows, stage / "bench.csv")
-        title = f"{scene.name}: error against wall time (reference: full {ref.spec.resolution})"
-        plot_pareto(rows, stage / "pareto.png", title)
-        conv = plot_reference_convergence(
-            ref_levels, stage / "reference_convergence.png", f"{scene.name}: convergence of the reference (full P2)"
-        )
-        ratios = {
-            f"{a}/{b}": equal_error_ratio(rows, a, b)
-            for a, b in (("improved", "full-p2"), ("improved", "full-p1"), ("traditional", "full-p1"))
-            if a in entries and b in entries
-        }
-        meta = {
-            "scene": scene.name,
-            "end_s": end,
-            "quick": args.quick,
-            "reference": conv,
-            "equal_error_wall_ratio": ratios,
-            "machine": {
-                "node": platform.node(),
-                "cpus": os.cpu_count(),
-                "python": platform.python_version(),
-                "note": "shared machine: wall times are noisy, compare ratios",
-            },
-            "total_wall_s": time.perf_counter() - t_all,
-            "rows": rows,
-        }
-        (stage / "bench.json").write_text(json.dumps(meta, indent=1, default=float))
+            rows.append(_bench_row(i, len(specs), spec, res, ref, gauge, say))
+        ratios = _write_bench(stage, setup, rows, ref_levels, args.quick, t_all)
     for k, r in ratios.items():
         if r.get("ratio") is not None:
             say(

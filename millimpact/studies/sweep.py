@@ -352,6 +352,186 @@ class StudyInterrupted(KeyboardInterrupt):
         self.exit_code = code
 
 
+@dataclass
+class _CaseLoop:
+    """The state a study's run passes between its steps: what to run (``study`` into ``out`` with
+    ``method`` and ``options``, the cases' cache ``keys``), the cases' :class:`CaseRun` records, the
+    indices still ``todo``, and the progress said so far (cases ``done``, the wall times (s) of
+    those computed, the warnings said once)."""
+
+    study: Study
+    out: Path
+    method: str
+    options: dict
+    keys: list[str]
+    runs: list[CaseRun]
+    todo: list[int]
+    jobs: int
+    progress: bool
+    figures: bool
+    quiet: bool
+    rank0: bool
+    say: Any
+    t_start: float = 0.0
+    done: int = 0
+    computed_walls: list[float] = dataclasses.field(default_factory=list)
+    warned: set[str] = dataclasses.field(default_factory=set)
+
+    @property
+    def n(self) -> int:
+        return len(self.study.cases)
+
+    def task(self, i: int) -> CaseTask:
+        """What a worker needs to compute case ``i``, with the study's metadata for its summary."""
+        c = self.study.cases[i]
+        meta = {
+            "name": self.study.name,
+            "param": self.study.param,
+            "value": c.value,
+            "x": c.x,
+            "label": c.label,
+            "method_options": self.options,
+            "cache_key": self.keys[i],
+        }
+        return CaseTask(
+            c.scene,
+            self.method,
+            dict(self.options),
+            str(self.out / c.folder),
+            meta,
+            self.figures,
+            self.progress and self.jobs == 1 and not self.quiet,
+        )
+
+    def report(self, i: int, res: dict) -> None:
+        """Record case ``i``'s result ``res`` (:func:`compute_case`) and say one line with the
+        overall progress and the time left (s); a case refused for its input raises InputError."""
+        self.done += 1
+        r, n, done = self.runs[i], self.n, self.done
+        for w in res.get("warnings", []):  # the same for every case: said once, even with -q
+            if w not in self.warned and self.rank0:
+                self.warned.add(w)
+                print(f"millimpact: {w}", file=sys.stderr, flush=True)
+        if res["ok"]:
+            r.status, r.wall_time_s = "computed", res["wall_time_s"]
+            self.computed_walls.append(res["wall_time_s"])
+            left = len(self.todo) - len(self.computed_walls)
+            elapsed = time.perf_counter() - self.t_start
+            # cases finish about jobs at a time: the time per finished case already includes that
+            eta = f", ~{elapsed / len(self.computed_walls) * left:.0f} s left" if left else ""
+            self.say(
+                f"  [{done}/{n}] {r.case.label:<22s} computed in {res['wall_time_s']:.1f} s "
+                f"(elapsed {elapsed:.0f} s{eta})"
+            )
+        else:
+            r.status, r.error = "failed", res["error"]
+            self.say(f"  [{done}/{n}] {r.case.label:<22s} FAILED: {res['error']}")
+            if res.get("input"):
+                raise InputError(f"case {r.case.label}: {res['error']}")
+
+
+def _take_cached(loop: _CaseLoop, force: bool, comm) -> None:
+    """Fill ``loop`` with the cases whose complete folder was computed with the same key (rank 0
+    reads them; ``force``: none) and the list of the others to compute, shared with all ranks;
+    says one line per cached case."""
+    if loop.rank0:
+        for i, c in enumerate(loop.study.cases):
+            s = None if force else cached_summary(loop.out / c.folder, loop.keys[i])
+            if s is not None:
+                loop.runs[i].status, loop.runs[i].summary = "cached", s
+                loop.runs[i].wall_time_s = float(s.get("wall_time_s", math.nan))
+            else:
+                loop.todo.append(i)
+    if comm is not None and comm.size > 1:
+        loop.todo = comm.bcast(loop.todo, root=0)
+    loop.t_start = time.perf_counter()
+    for r in loop.runs:
+        if r.status == "cached":
+            loop.done += 1
+            loop.say(f"  [{loop.done}/{loop.n}] {r.case.label:<22s} cached ({loop.out / r.case.folder})")
+
+
+def _run_in_pool(loop: _CaseLoop) -> list[int]:
+    """Compute ``loop.todo`` in ``loop.jobs`` spawned worker processes (one serial case each);
+    returns the cases left to compute in this process: none, or those a worker that ended without
+    a word left unfinished (its folders' stages removed). Ctrl-C or an error stops the workers and
+    removes their stages (StudyInterrupted for an interrupt)."""
+    import concurrent.futures as cf
+    import multiprocessing as mp
+
+    todo, out, study = loop.todo, loop.out, loop.study
+    # each case serial: no threaded BLAS fighting over the cores the other cases use
+    share_blas_threads(min(loop.jobs, len(todo)))
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+    # spawn, not fork: a forked child would inherit the parent's MPI/PETSc state
+    serial: list[int] = []
+    with cf.ProcessPoolExecutor(max_workers=min(loop.jobs, len(todo)), mp_context=mp.get_context("spawn")) as pool:
+        futures = {pool.submit(_worker, loop.task(i)): i for i in todo}
+        try:
+            for fut in cf.as_completed(futures):
+                loop.report(futures[fut], fut.result())
+        except cf.process.BrokenProcessPool:
+            # a worker ended without a word (killed, or a library's exit(): CI runs saw gmsh's,
+            # fixed in geometry.builders.gmsh_session): its cases and those not yet finished
+            # are computed again here, one after the other, and the exit codes said. The codes
+            # are read once every worker has ended and been reaped: the pool's thread SIGTERMs
+            # the other workers while this one wakes, and reaps the lost one later (read at
+            # once, the codes were [1], [-15], [-15, 1] or unknown from run to run)
+            procs = list((getattr(pool, "_processes", None) or {}).values())
+            killed = stop_workers(procs)
+            pool.shutdown(wait=True)  # its thread joins every worker
+            codes = lost_worker_codes(procs, killed)
+            serial = [i for i in todo if loop.runs[i].status == "pending"]
+            remove_stages(out, [study.cases[i].folder for i in serial])
+            if loop.rank0:
+                print(
+                    f"millimpact: warning: a study worker process ended without a word (exit codes "
+                    f"{codes or 'unknown'}); computing its {len(serial)} unfinished case(s) in this process",
+                    file=sys.stderr,
+                    flush=True,
+                )
+        except BaseException as exc:
+            for f in futures:
+                f.cancel()
+            # stop the running cases now: the executor has no public handle on its processes,
+            # and waiting would take minutes
+            stop_workers(list((getattr(pool, "_processes", None) or {}).values()))
+            pool.shutdown(wait=True, cancel_futures=True)
+            remove_stages(out, [study.cases[i].folder for i in todo])
+            if isinstance(exc, KeyboardInterrupt):
+                raise StudyInterrupted(
+                    loop.done, loop.n, getattr(exc, "exit_code", 143 if type(exc).__name__ == "Terminated" else 130)
+                ) from None
+            raise
+    return serial
+
+
+def _run_serial(loop: _CaseLoop, serial: list[int], comm) -> None:
+    """Compute the cases ``serial`` in this process (on all ranks of ``comm``), one after the
+    other; Ctrl-C raises StudyInterrupted with the count of cases done."""
+    try:
+        for i in serial:
+            if loop.progress and not loop.quiet:
+                loop.say(f"  [{loop.done + 1}/{loop.n}] {loop.study.cases[i].label:<22s} computing ...")
+            loop.report(i, compute_case(loop.task(i), comm))
+    except KeyboardInterrupt as exc:
+        raise StudyInterrupted(loop.done, loop.n, 143 if type(exc).__name__ == "Terminated" else 130) from None
+
+
+def _read_results(runs: list[CaseRun], out: Path) -> None:
+    """Read each computed or cached case's summary (if not yet read) and time series from its
+    folder under ``out``."""
+    from ..results.timeseries import TimeSeries
+
+    for r in runs:
+        if r.status in ("computed", "cached"):
+            folder = out / r.case.folder
+            if r.summary is None:
+                r.summary = json.loads((folder / "summary.json").read_text())
+            r.series = TimeSeries.read_csv(folder / "timeseries.csv")
+
+
 def run_cases(
     study: Study,
     out: Path,
@@ -366,135 +546,27 @@ def run_cases(
 ) -> list[CaseRun]:
     """Run (or take from the cache) every case of ``study`` into ``out/<case>``; prints one line a
     case with the overall progress. ``comm`` (size > 1): each case runs on all its ranks."""
-    n = len(study.cases)
     rank0 = comm is None or comm.rank == 0
-    keys = [case_key(c.scene, method, options) for c in study.cases]
-    todo: list[int] = []
-    runs: list[CaseRun] = [CaseRun(c, "pending") for c in study.cases]
+    loop = _CaseLoop(
+        study,
+        out,
+        method,
+        options,
+        keys=[case_key(c.scene, method, options) for c in study.cases],
+        runs=[CaseRun(c, "pending") for c in study.cases],
+        todo=[],
+        jobs=jobs,
+        progress=progress,
+        figures=figures,
+        quiet=quiet,
+        rank0=rank0,
+        say=sayer(quiet, comm),
+    )
+    _take_cached(loop, force, comm)
+    serial = list(loop.todo)  # the cases this process computes itself, one after the other
+    if loop.todo and jobs > 1 and len(loop.todo) > 1:
+        serial = _run_in_pool(loop)
+    _run_serial(loop, serial, comm)
     if rank0:
-        for i, c in enumerate(study.cases):
-            s = None if force else cached_summary(out / c.folder, keys[i])
-            if s is not None:
-                runs[i].status, runs[i].summary = "cached", s
-                runs[i].wall_time_s = float(s.get("wall_time_s", math.nan))
-            else:
-                todo.append(i)
-    if comm is not None and comm.size > 1:
-        todo = comm.bcast(todo, root=0)
-    t_start = time.perf_counter()
-    done = 0
-    say = sayer(quiet, comm)
-    for r in runs:
-        if r.status == "cached":
-            done += 1
-            say(f"  [{done}/{n}] {r.case.label:<22s} cached ({out / r.case.folder})")
-
-    def task(i: int) -> CaseTask:
-        c = study.cases[i]
-        meta = {
-            "name": study.name,
-            "param": study.param,
-            "value": c.value,
-            "x": c.x,
-            "label": c.label,
-            "method_options": options,
-            "cache_key": keys[i],
-        }
-        return CaseTask(
-            c.scene, method, dict(options), str(out / c.folder), meta, figures, progress and jobs == 1 and not quiet
-        )
-
-    computed_walls: list[float] = []
-    warned: set[str] = set()
-
-    def report(i: int, res: dict) -> None:
-        nonlocal done
-        done += 1
-        r = runs[i]
-        for w in res.get("warnings", []):  # the same for every case: said once, even with -q
-            if w not in warned and rank0:
-                warned.add(w)
-                print(f"millimpact: {w}", file=sys.stderr, flush=True)
-        if res["ok"]:
-            r.status, r.wall_time_s = "computed", res["wall_time_s"]
-            computed_walls.append(res["wall_time_s"])
-            left = len(todo) - len(computed_walls)
-            elapsed = time.perf_counter() - t_start
-            # cases finish about jobs at a time: the time per finished case already includes that
-            eta = f", ~{elapsed / len(computed_walls) * left:.0f} s left" if left else ""
-            say(
-                f"  [{done}/{n}] {r.case.label:<22s} computed in {res['wall_time_s']:.1f} s "
-                f"(elapsed {elapsed:.0f} s{eta})"
-            )
-        else:
-            r.status, r.error = "failed", res["error"]
-            say(f"  [{done}/{n}] {r.case.label:<22s} FAILED: {res['error']}")
-            if res.get("input"):
-                raise InputError(f"case {r.case.label}: {res['error']}")
-
-    serial = list(todo)  # the cases this process computes itself, one after the other
-    if todo and jobs > 1 and len(todo) > 1:
-        import concurrent.futures as cf
-        import multiprocessing as mp
-
-        # each case serial: no threaded BLAS fighting over the cores the other cases use
-        share_blas_threads(min(jobs, len(todo)))
-        for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(var, "1")
-        # spawn, not fork: a forked child would inherit the parent's MPI/PETSc state
-        serial = []
-        with cf.ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=mp.get_context("spawn")) as pool:
-            futures = {pool.submit(_worker, task(i)): i for i in todo}
-            try:
-                for fut in cf.as_completed(futures):
-                    report(futures[fut], fut.result())
-            except cf.process.BrokenProcessPool:
-                # a worker ended without a word (killed, or a library's exit(): CI runs saw gmsh's,
-                # fixed in geometry.builders.gmsh_session): its cases and those not yet finished
-                # are computed again here, one after the other, and the exit codes said. The codes
-                # are read once every worker has ended and been reaped: the pool's thread SIGTERMs
-                # the other workers while this one wakes, and reaps the lost one later (read at
-                # once, the codes were [1], [-15], [-15, 1] or unknown from run to run)
-                procs = list((getattr(pool, "_processes", None) or {}).values())
-                killed = stop_workers(procs)
-                pool.shutdown(wait=True)  # its thread joins every worker
-                codes = lost_worker_codes(procs, killed)
-                serial = [i for i in todo if runs[i].status == "pending"]
-                remove_stages(out, [study.cases[i].folder for i in serial])
-                if rank0:
-                    print(
-                        f"millimpact: warning: a study worker process ended without a word (exit codes "
-                        f"{codes or 'unknown'}); computing its {len(serial)} unfinished case(s) in this process",
-                        file=sys.stderr,
-                        flush=True,
-                    )
-            except BaseException as exc:
-                for f in futures:
-                    f.cancel()
-                # stop the running cases now: the executor has no public handle on its processes,
-                # and waiting would take minutes
-                stop_workers(list((getattr(pool, "_processes", None) or {}).values()))
-                pool.shutdown(wait=True, cancel_futures=True)
-                remove_stages(out, [study.cases[i].folder for i in todo])
-                if isinstance(exc, KeyboardInterrupt):
-                    raise StudyInterrupted(
-                        done, n, getattr(exc, "exit_code", 143 if type(exc).__name__ == "Terminated" else 130)
-                    ) from None
-                raise
-    try:
-        for i in serial:
-            if progress and not quiet:
-                say(f"  [{done + 1}/{n}] {study.cases[i].label:<22s} computing ...")
-            report(i, compute_case(task(i), comm))
-    except KeyboardInterrupt as exc:
-        raise StudyInterrupted(done, n, 143 if type(exc).__name__ == "Terminated" else 130) from None
-    if rank0:
-        from ..results.timeseries import TimeSeries
-
-        for r in runs:
-            if r.status in ("computed", "cached"):
-                folder = out / r.case.folder
-                if r.summary is None:
-                    r.summary = json.loads((folder / "summary.json").read_text())
-                r.series = TimeSeries.read_csv(folder / "timeseries.csv")
-    return runs
+        _read_results(loop.runs, out)
+    return loop.runs
