@@ -50,7 +50,7 @@ for k, case in enumerate(inp["cases"]):
     st = O.bodies[b].state
     vz_in, ux_in = st.vel[2], st.vel[0] - R * st.angVel[1]
     f_max, touched = 0.0, False
-    for _ in range(int(case["max_steps"])):
+    for i in range(int(case["max_steps"])):  # noqa: B007 (the step count is reported below)
         O.step()
         f_max = max(f_max, O.forces.f(b)[2])
         real = any(x.isReal for x in O.interactions)
