@@ -11,13 +11,14 @@ import faulthandler
 import logging
 import os
 import re
+import signal
 import sys
 from pathlib import Path
 
 from .console import enable_stages, say, world_rank
 from .errors import InputError, MillimpactError, OutputError, Terminated
 from .fem.jit_cache import release_interrupted_compile, stale_jit_claim
-from .interrupts import ON_SIGNAL, command_signals
+from .interrupts import ON_SIGNAL, command_signals, pending_signal
 from .methods.registry import DEFAULT_METHOD, method_entry, method_help, method_names
 from .results.output_folder import FORCE_HELP, OUT_HELP, claim_output, default_out, interrupt_note, release_locks
 
@@ -704,7 +705,15 @@ def _main(argv: list[str] | None = None) -> int:
         except OSError:
             pass
         return 0
-    except Exception:
+    except Exception as exc:
+        if pending_signal() is not None:
+            # the interruption, turned into another exception by the code it stopped: Python 3.11
+            # wraps one raised in a __set_name__ (matplotlib's import: Axes3D's class body) in a
+            # RuntimeError; was a traceback and exit 1 in 1 of 20 Ctrl-Cs while a table was written
+            release_interrupted_compile(exc)
+            code = 143 if pending_signal() == signal.SIGTERM else 130
+            _interrupt_line(code)
+            return code
         # an unexpected failure on one rank must not leave the others waiting forever
         if "OMPI_COMM_WORLD_SIZE" in os.environ and int(os.environ["OMPI_COMM_WORLD_SIZE"]) > 1:
             import traceback

@@ -67,6 +67,12 @@ def raise_if_interrupted() -> None:
         raise Terminated() if _PENDING_SIGNALS[-1] == signal.SIGTERM else KeyboardInterrupt()
 
 
+def pending_signal() -> int | None:
+    """The last signal recorded during the command (None if none): an exception that arrives with
+    one recorded is the interruption's, whatever a library turned it into."""
+    return _PENDING_SIGNALS[-1] if _PENDING_SIGNALS else None
+
+
 def clear_interrupts() -> None:
     """Forget recorded signals (a command's start and end)."""
     _PENDING_SIGNALS.clear()

@@ -35,6 +35,7 @@ import errno
 import glob
 import json
 import os
+import secrets
 import shutil
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
@@ -419,17 +420,25 @@ def staged_output(
     out = Path(os.path.abspath(out))
     what = what or str(out)
     stage = None
-    if rank == 0:
-        try:
-            out.parent.mkdir(parents=True, exist_ok=True)
-            stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
-            apply_umask(stage)
-        except OSError as exc:  # a write failure in one line; any other OSError as it is
-            raise (_write_error(exc, what, unwritten) or exc) from None
-    if comm is not None:
-        stage = Path(comm.bcast(str(stage) if stage else None, root=0))
-    assert stage is not None  # made on rank 0 (or the error raised there) and broadcast
+    # the staging folder is named before it is made, inside the block that removes it: a Ctrl-C
+    # just after its mkdir (inside tempfile.mkdtemp, or before this block began) left it behind
+    # empty, in 2 of ~35 interrupts sent as mill's first line came out
     try:
+        if rank == 0:
+            try:
+                out.parent.mkdir(parents=True, exist_ok=True)
+                while stage is None:  # as tempfile.mkdtemp (mode 0700, a fresh random name)
+                    stage = out.parent / f".{out.name}.partial-{secrets.token_hex(4)}"
+                    try:
+                        os.mkdir(stage, 0o700)
+                    except FileExistsError:  # another's: not ours to remove
+                        stage = None
+                apply_umask(stage)
+            except OSError as exc:  # a write failure in one line; any other OSError as it is
+                raise (_write_error(exc, what, unwritten) or exc) from None
+        if comm is not None:
+            stage = Path(comm.bcast(str(stage) if stage else None, root=0))
+        assert stage is not None  # made on rank 0 (or the error raised there) and broadcast
         error: BaseException | None = None
         try:
             yield stage
@@ -446,7 +455,7 @@ def staged_output(
             if said is not None:
                 said[:] = done
     except BaseException as exc:
-        if rank == 0:
+        if rank == 0 and stage is not None:
             shutil.rmtree(stage, ignore_errors=True)
         error = _write_error(exc, what, unwritten) if isinstance(exc, (OSError, RuntimeError)) else None
         if error is not None:
