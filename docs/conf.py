@@ -16,6 +16,7 @@ import millimpact  # noqa: E402
 
 project = "millimpact"
 author = "the millimpact developers"
+copyright = "2026, the millimpact developers (MIT licence)"
 release = version = millimpact.__version__
 extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "local_mathjax", "sphinxarg.ext",
               "scene_fields", "demo_pages"]

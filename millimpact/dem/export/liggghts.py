@@ -10,12 +10,10 @@ LIGGGHTS keeps the dashpot's attractive force at the end of the contact, and a 1
 
 from __future__ import annotations
 
-import os
-import shutil
 from collections.abc import Callable
 from pathlib import Path
 
-from ...errors import InputError
+from ..programs import find_program
 from .files import ExportedLaw
 from .wall_impacts import impact_cases, run_cases
 
@@ -31,10 +29,7 @@ SETUP = "atom_style granular\nnewton off\ncommunicate single vel yes"
 
 def liggghts_executable() -> str:
     """The path of ``liggghts`` (``MILLIMPACT_LIGGGHTS`` overrides); InputError if absent."""
-    exe = os.environ.get("MILLIMPACT_LIGGGHTS") or shutil.which("liggghts")
-    if not exe or not (os.path.isfile(exe) and os.access(exe, os.X_OK)):
-        raise InputError(f"liggghts: not installed (needed by --check); install it with: {INSTALL_HINT}")
-    return exe
+    return find_program("liggghts", "MILLIMPACT_LIGGGHTS", INSTALL_HINT, "--check")
 
 
 def run_liggghts_roundtrip(

@@ -15,15 +15,13 @@ from __future__ import annotations
 
 import math
 import os
-import subprocess
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ...errors import MillimpactError
-from ...interrupts import children_signals
-from ..yade import PROGRESS_PREFIX
+from ..programs import PROGRESS_PREFIX, run_program
 
 #: time steps per contact duration (the Yade round trip's)
 STEPS_PER_CONTACT = 2000
@@ -125,29 +123,8 @@ def run_code(
     workdir.mkdir(parents=True, exist_ok=True)
     (workdir / "in.roundtrip").write_text(script)
     full = [*cmd, "-in", "in.roundtrip", "-log", "log.roundtrip"]
-    lines: list[str] = []
-    with children_signals():
-        proc = subprocess.Popen(
-            full,
-            cwd=workdir,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            text=True,
-            env={**os.environ, "OMP_NUM_THREADS": "1", **(env or {})},
-        )
-    with proc:
-        try:
-            assert proc.stdout is not None
-            for line in proc.stdout:
-                if line.startswith(PROGRESS_PREFIX) and on_progress is not None:
-                    on_progress(line[len(PROGRESS_PREFIX) :].strip())
-                lines.append(line)
-            rc = proc.wait(timeout=timeout)
-        except BaseException:
-            proc.kill()
-            proc.wait()
-            raise
+    env = {**os.environ, "OMP_NUM_THREADS": "1", **(env or {})}
+    rc, lines = run_program(full, workdir, env, timeout, on_progress)
     out = "".join(lines)
     if rc != 0 or "ERROR" in out:
         tail = "".join(line for line in lines[-15:])
