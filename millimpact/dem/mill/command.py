@@ -5,7 +5,8 @@ profile round the whole shell (:mod:`~millimpact.dem.mill.geometry`); balls of t
 fill a slice of it (:mod:`~millimpact.dem.mill.setup`); Yade turns it at a fraction of the critical
 speed (``millimpact/dem/mill/yade_scripts/mill_slice.py``) and logs every new ball-liner contact; the log
 becomes ``impacts.csv`` (:mod:`~millimpact.dem.mill.log`) and the reports
-(:mod:`~millimpact.dem.mill.report`).
+(:mod:`~millimpact.dem.mill.report`); the net power and the charge's shape are set beside the
+empirical models (:mod:`~millimpact.dem.mill.power`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 from ...console import say
 from ...results.output_folder import FORCE_HELP, OUT_HELP
 
-HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe"
+HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe, net power"
 
 DESCRIPTION = """\
 Build a slice of the mill from SCENE's liner (the lifters round the whole shell at the scene's
@@ -34,7 +35,9 @@ Writes DIR/impacts.csv (one row per impact: time_s, ball_radius_m, normal_speed_
 tangential_speed_m_s, impact_energy_J, place, arc_position_m), spectrum.png and spectrum.csv
 (impact energy against the cumulative number of impacts per revolution), impacts_per_revolution.csv
 (by place), charge.png, summary.json (shoulder and toe angles, energy balance, the run's
-settings) and yade/ (the script, its input and its raw output). Needs Yade (apt-get install yade).
+settings; the net power drawn, per metre of mill length, and toe and shoulder beside Morrell's
+C-model and correlations and Austin's SAG equation for the run's mill: "power", "charge_shape") and
+yade/ (the script, its input and its raw output). Needs Yade (apt-get install yade).
 
   millimpact mill liner-panel --revolutions 2 --balls 200 --out out/mill
   millimpact mill liner-panel --revolutions 3 --fill 0.1 --speed-fraction 0.8 --out out/mill80
@@ -357,8 +360,8 @@ def _comparison_lines(summary: dict) -> list[str]:
 
     def angle(name: str) -> str:
         value, diff = shape[f"{name}_deg"], shape[f"{name}_difference_deg"]
-        got = "n/a" if value is None else f"{value:.0f}"
-        off = "" if diff is None else f", {diff:+.0f}"
-        return f"{name} {got} deg (Morrell {shape[f'morrell_{name}_deg']:.0f}{off})"
+        got = "n/a" if value is None else f"{value:.0f} deg"
+        off = "" if diff is None else f" ({diff:+.0f})"
+        return f"{name} {got}, Morrell {shape[f'morrell_{name}_deg']:.0f} deg{off}"
 
-    return [power, f"charge shape: {angle('toe')}, {angle('shoulder')}"]
+    return [power, f"charge shape: {angle('toe')}; {angle('shoulder')}"]
