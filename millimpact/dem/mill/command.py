@@ -5,7 +5,8 @@ profile round the whole shell (:mod:`~millimpact.dem.mill.geometry`); balls of t
 fill a slice of it (:mod:`~millimpact.dem.mill.setup`); Yade turns it at a fraction of the critical
 speed (``millimpact/dem/mill/yade_scripts/mill_slice.py``) and logs every new ball-liner contact; the log
 becomes ``impacts.csv`` (:mod:`~millimpact.dem.mill.log`) and the reports
-(:mod:`~millimpact.dem.mill.report`).
+(:mod:`~millimpact.dem.mill.report`); the net power and the charge's shape are set beside the
+empirical models (:mod:`~millimpact.dem.mill.power`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 from ...console import say
 from ...results.output_folder import FORCE_HELP, OUT_HELP
 
-HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe"
+HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe, net power"
 
 DESCRIPTION = """\
 Build a slice of the mill from SCENE's liner (the lifters round the whole shell at the scene's
@@ -34,7 +35,9 @@ Writes DIR/impacts.csv (one row per impact: time_s, ball_radius_m, normal_speed_
 tangential_speed_m_s, impact_energy_J, place, arc_position_m), spectrum.png and spectrum.csv
 (impact energy against the cumulative number of impacts per revolution), impacts_per_revolution.csv
 (by place), charge.png, summary.json (shoulder and toe angles, energy balance, the run's
-settings) and yade/ (the script, its input and its raw output). Needs Yade (apt-get install yade).
+settings; the net power drawn, per metre of mill length, and toe and shoulder beside Morrell's
+C-model and correlations and Austin's SAG equation for the run's mill: "power", "charge_shape") and
+yade/ (the script, its input and its raw output). Needs Yade (apt-get install yade).
 
   millimpact mill liner-panel --revolutions 2 --balls 200 --out out/mill
   millimpact mill liner-panel --revolutions 3 --fill 0.1 --speed-fraction 0.8 --out out/mill80
@@ -193,6 +196,7 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
     from ..impacts import write_impacts
     from ..yade import run_yade
     from .log import read_mill_run
+    from .power import charge_shape_report, power_report
     from .report import charge_angles, charge_figure, energy_balance, place_table, plot_spectrum, write_spectrum_csv
     from .setup import plan_mill
 
@@ -217,6 +221,9 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
             fh.write(",".join(row[c] if c == "place" else repr(float(row[c])) for c in cols) + "\n")
     angles = charge_angles(run.snapshots, setup)
     balance = energy_balance(run.energy)
+    # a scene naming its mill's length (liner.mill_length, m) gets the whole mill's power; the
+    # built-in liners give the mill's radius only, and the power is reported per metre
+    power = power_report(setup, run.energy, mill_length=getattr(scene.liner, "mill_length", None))
     if plots:
         title = (
             f"{setup.scene_name}: {setup.n_balls} balls, {100 * setup.speed_fraction:.0f} % of n_c, "
@@ -259,6 +266,8 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
         "angles_measured": "from the vertical below the axis, positive in the direction of rotation",
         "centrifuged_fraction": angles["centrifuged_fraction"],
         "energy_balance": balance,
+        "power": power,
+        "charge_shape": charge_shape_report(setup, angles),
         "yade": run.info,
         "impacts_time_origin": "the end of the warm-up",
     }
@@ -310,6 +319,8 @@ def main(args: argparse.Namespace) -> int:
         f"plate {n['plate']:.4g}); {_charge_text(summary)}; "
         f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %"
     )
+    for line in _comparison_lines(summary):
+        say(line)
     say(f"results in {target.shown}/" + target.replaced_note())
     return 0
 
@@ -322,3 +333,35 @@ def _charge_text(summary: dict) -> str:
             f" ({100 * share:.0f} % of the balls turn with the shell)" if share is not None else ""
         )
     return f"shoulder {summary['shoulder_deg']:.4g} deg, toe {summary['toe_deg']:.4g} deg"
+
+
+def _percent(x: float | None) -> str:
+    return "n/a" if x is None else f"{100 * x:+.0f} %"
+
+
+def _comparison_lines(summary: dict) -> list[str]:
+    """The two printed lines: net power against Morrell and Austin; toe and shoulder against Morrell."""
+    pw, shape = summary["power"], summary["charge_shape"]
+    m = pw["measured"]
+    if m["net_W"] is None:
+        power = "net power: n/a (no drive-work samples after the warm-up)"
+    else:
+        length = (
+            ""
+            if m["net_mill_W"] is None
+            else f", {m['net_mill_W'] / 1e3:.4g} kW for the mill's {m['mill_length_m']:g} m"
+        )
+        power = (
+            f"net power {m['net_W']:.4g} W in the slice = {m['net_per_metre_W_m'] / 1e3:.4g} kW/m{length}; "
+            f"Morrell {pw['morrell_net_per_metre_W_m'] / 1e3:.4g} kW/m ({_percent(pw['morrell_relative_difference'])}), "
+            f"Austin {pw['austin_per_metre_W_m'] / 1e3:.4g} kW/m at the pinion "
+            f"({_percent(pw['austin_relative_difference'])}); J {pw['model_inputs']['fill']:.3f}"
+        )
+
+    def angle(name: str) -> str:
+        value, diff = shape[f"{name}_deg"], shape[f"{name}_difference_deg"]
+        got = "n/a" if value is None else f"{value:.0f} deg"
+        off = "" if diff is None else f" ({diff:+.0f})"
+        return f"{name} {got}, Morrell {shape[f'morrell_{name}_deg']:.0f} deg{off}"
+
+    return [power, f"charge shape: {angle('toe')}; {angle('shoulder')}"]

@@ -18,7 +18,8 @@
 # the contact (at the previous check, plus gravity's pull since), the contact point and normal,
 # the overlap and the Hertz coefficient kno when found. Every `power_every` steps the charge's
 # torque on the liner about the axis is summed into the drive's work; snapshots of the balls go to
-# charge.csv, energies to energy.csv, traced balls to trace.csv. Lines starting with "PROGRESS "
+# charge.csv, energies to energy.csv (evenly spaced samples and one at the warm-up's end), traced
+# balls to trace.csv. Lines starting with "PROGRESS "
 # report progress.
 import csv
 import json
@@ -139,7 +140,8 @@ trace_ids = [ball_ids[i] for i in cfg.get("trace_balls", [])]
 snap_times = [
     cfg["warmup_s"] + k * cfg["snapshot_every_s"] for k in range(int(cfg["run_s"] / cfg["snapshot_every_s"] + 1e-9) + 1)
 ]
-energy_times = [t_end * k / cfg["energy_samples"] for k in range(cfg["energy_samples"])]
+# evenly from the start, and one at the warm-up's end: the measured window's drive work starts there
+energy_times = sorted({t_end * k / cfg["energy_samples"] for k in range(cfg["energy_samples"])} | {cfg["warmup_s"]})
 
 impacts_fh = open("impacts_raw.csv", "w", newline="")
 impacts = csv.writer(impacts_fh)

@@ -1,0 +1,166 @@
+"""A mill run's net power draw and charge shape against the mill engineers' empirical models.
+
+- Net power (measured): the drive's work W = int -T omega dt (T the charge's torque on the liner
+  about the axis, summed in Yade every few steps: energy.csv's ``drive_work_J``) over the logged
+  window, from the sample at the warm-up's end to the last, divided by that window's length:
+  P = Delta W / Delta t (W). The slice is L_s thick along the axis, so the mill draws P / L_s per
+  metre of its length (W/m) and P L / L_s for a mill L long. The slice's ends are frictionless
+  walls that take no torque about the axis: all of T comes from the liner.
+- The run's mill for the models: D = 2 R, the diameter inside the liners (the plates' inner
+  circle, lifters excluded, the D of the critical speed), the slice's fraction phi of critical
+  speed, and the charge's volumetric fill J = N V_b / ((1 - E) A L_s) (N balls of volume V_b, A the
+  open area inside the liner's profile, E = 0.4 the bed's porosity: the C-model's E
+  (:data:`millimpact.theory.mill_power.BED_POROSITY`, random loose packing), the same 0.4 the run's
+  ``--fill`` used to count its balls (Austin, Klimpel & Luckie 1984)). Balls only: the ball fill
+  J_B = J, no rock, no slurry.
+- Morrell's C-model (:func:`~millimpact.theory.mill_power.morrell_net_power`) with the charge's
+  density rho_c = (1 - E) rho_b (:func:`~millimpact.theory.mill_power.charge_density`: no rock, no
+  slurry in the voids) and his toe and shoulder correlations
+  (:func:`~millimpact.theory.mill_power.charge_shape`), both per metre of mill length.
+- Austin's SAG equation (:func:`~millimpact.theory.mill_power.austin_power`) with J_B = J and no
+  ore (ore density 0: the bed's voids hold nothing), per metre. Austin's is a drive-side (pinion)
+  figure: above the shell's net power by the drive's losses (Morrell's gross/net is ~1.35 for an
+  industrial mill), so a net power compares with it only through them.
+
+Relative differences are (measured - model) / model; the angles' differences are measured - model
+in degrees, both angles from the vertical below the axis, positive in the direction of rotation.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...theory.mill_power import (
+    BED_POROSITY,
+    austin_power,
+    charge_density,
+    charge_shape,
+    morrell_net_power,
+)
+from .setup import MillSetup
+
+#: where the porosity of the fill comes from (summary.json states it)
+POROSITY_SOURCE = (
+    "0.4: the C-model's E (random loose packing of spheres, G. D. Scott, Nature 188 (1960) 908), the "
+    "bed porosity the run's --fill counts its balls with (Austin, Klimpel & Luckie 1984)"
+)
+
+
+def measured_power(
+    energy: dict[str, np.ndarray],
+    start_s: float,
+    thickness: float,
+    mill_length: float | None = None,
+    tolerance_s: float = 0.0,
+) -> dict:
+    """The drive's mean power over the samples from the first at or after ``start_s`` (less
+    ``tolerance_s``) to the last: P = Delta W / Delta t (W), P / L_s (W per metre of mill length, the
+    slice ``thickness`` L_s m thick) and, given the mill's length L (m), P L / L_s (W). None where
+    the window holds fewer than two samples."""
+    t, w = np.asarray(energy["time_s"], float), np.asarray(energy["drive_work_J"], float)
+    inside = np.flatnonzero(t >= start_s - tolerance_s)
+    out: dict = {
+        "net_W": None,
+        "net_per_metre_W_m": None,
+        "mill_length_m": mill_length,
+        "net_mill_W": None,
+        "window_s": [None, None],
+        "drive_work_J": None,
+    }
+    if inside.size < 2 or t[-1] <= t[inside[0]]:
+        return out
+    k0 = int(inside[0])
+    work, span = float(w[-1] - w[k0]), float(t[-1] - t[k0])
+    p = work / span
+    out.update(
+        net_W=p,
+        net_per_metre_W_m=p / thickness,
+        net_mill_W=None if mill_length is None else p * mill_length / thickness,
+        window_s=[float(t[k0]), float(t[-1])],
+        drive_work_J=work,
+    )
+    return out
+
+
+def volumetric_fill(setup: MillSetup, porosity: float = BED_POROSITY) -> float:
+    """J = N V_b / ((1 - E) A L_s): the fraction of the mill's volume inside the liner's profile the
+    ball bed fills (module docstring)."""
+    v_ball = 4.0 / 3.0 * math.pi * setup.ball_radius**3
+    return setup.n_balls * v_ball / ((1.0 - porosity) * setup.profile.open_area() * setup.thickness)
+
+
+def _relative(measured: float | None, model: float) -> float | None:
+    return None if measured is None or model == 0.0 else (measured - model) / model
+
+
+def _difference(measured: float | None, model: float) -> float | None:
+    return None if measured is None else measured - model
+
+
+def model_inputs(setup: MillSetup) -> dict:
+    """The run's mill as the models take it (SI; module docstring)."""
+    fill = volumetric_fill(setup)
+    rho_b = setup.ball_material[2]
+    return {
+        "diameter_m": setup.profile.diameter,
+        "speed_fraction": setup.speed_fraction,
+        "fill": fill,
+        "ball_fill": fill,
+        "bed_porosity": BED_POROSITY,
+        "bed_porosity_source": POROSITY_SOURCE,
+        "ball_density_kg_m3": rho_b,
+        "charge_density_kg_m3": charge_density(fill, fill, 0.0, rho_b, 0.0, 0.0, BED_POROSITY),
+        "charge_is": "balls alone: J_B = J, no rock, no slurry",
+    }
+
+
+def power_report(setup: MillSetup, energy: dict[str, np.ndarray], mill_length: float | None = None) -> dict:
+    """summary.json's "power": the measured net power (W, W/m, and W for the scene's mill length if
+    it has one) beside Morrell's net and Austin's pinion power per metre, with relative differences."""
+    measured = measured_power(
+        energy, setup.warmup_s, setup.thickness, mill_length, tolerance_s=setup.power_every * setup.dt
+    )
+    m = model_inputs(setup)
+    d, phi, j = m["diameter_m"], m["speed_fraction"], m["fill"]
+    morrell = morrell_net_power(d, 1.0, phi, j, m["charge_density_kg_m3"]).net
+    austin = austin_power(d, 1.0, phi, j, j, 0.0, m["ball_density_kg_m3"])
+    per_m = measured["net_per_metre_W_m"]
+    return {
+        "measured": measured,
+        "measured_is": "the drive's work (charge's torque on the liner x omega) over the logged window, "
+        "after the warm-up",
+        "scaled_to": "the scene's mill length"
+        if mill_length is not None
+        else "per metre (the scene gives no mill length)",
+        "model_inputs": m,
+        "morrell_net_per_metre_W_m": morrell,
+        "morrell_relative_difference": _relative(per_m, morrell),
+        "morrell_source": "Morrell 1996 C-model, net power at the shell (millimpact.theory.mill_power)",
+        "austin_per_metre_W_m": austin,
+        "austin_relative_difference": _relative(per_m, austin),
+        "austin_source": "Austin 1990 SAG equation (millimpact.theory.mill_power)",
+        "austin_is": "a drive-side (pinion) figure: above the shell's net power by the drive's losses",
+        "units": "W, W/m (per metre of mill length), s, J; relative differences (measured - model) / model",
+    }
+
+
+def charge_shape_report(setup: MillSetup, angles: dict) -> dict:
+    """summary.json's "charge_shape": the measured toe and shoulder (deg) beside Morrell's
+    correlations for the run's speed fraction and fill, and the differences (deg)."""
+    j = volumetric_fill(setup)
+    shape = charge_shape(setup.speed_fraction, j)
+    return {
+        "toe_deg": angles.get("toe_deg"),
+        "shoulder_deg": angles.get("shoulder_deg"),
+        "morrell_toe_deg": shape.toe_deg,
+        "morrell_shoulder_deg": shape.shoulder_deg,
+        "toe_difference_deg": _difference(angles.get("toe_deg"), shape.toe_deg),
+        "shoulder_difference_deg": _difference(angles.get("shoulder_deg"), shape.shoulder_deg),
+        "fill": j,
+        "speed_fraction": setup.speed_fraction,
+        "morrell_source": "Morrell 1996 Part 2 toe and shoulder correlations (millimpact.theory.mill_power)",
+        "units": "deg from the vertical below the axis, positive in the direction of rotation; "
+        "differences measured - model",
+    }
