@@ -84,5 +84,5 @@ def method_runner(name: str) -> Callable:
 
 
 def method_help() -> str:
-    """One line per method, for ``--help``."""
-    return "\n".join(f"{m.name}: {m.summary}" for m in METHODS)
+    """One line per method, for ``--help`` (an argparse help text: its % are doubled)."""
+    return "\n".join(f"{m.name}: {m.summary}" for m in METHODS).replace("%", "%%")
