@@ -3,7 +3,7 @@
 
 The log is a ``millimpact mill`` run's impacts.csv (``--impacts``) or, until that command is merged,
 a synthetic 2-revolution spectrum (``--synthetic N``: N impacts a revolution, seeded): normal
-speeds log-normal about 1.5 m/s (0.2-8 m/s, the 3-13 m/s of design.md section 10 for the fastest balls
+speeds log-normal about 1.5 m/s (0.2-8 m/s, the 3-13 m/s of foundations.md section 10 for the fastest balls
 less their tangential part), angles 0-70 deg, half of them on the plate, a third on the lifter
 face, the rest on its top, arc positions over each place. The map runs under ``mpirun -n RANKS
 --ranks-per-case 1`` (the table engine's groups); with ``--serial`` also at 1 rank into its own

@@ -20,7 +20,7 @@ from _report import write_report
 from millimpact.methods.run import run_scene
 from millimpact.scene.builtin import builtin_scene
 
-A_MAX = 1.159e-3  # m, Hertz contact radius of the default impact (design.md section 3)
+A_MAX = 1.159e-3  # m, Hertz contact radius of the default impact (foundations.md section 3)
 
 
 def main() -> None:

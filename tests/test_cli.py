@@ -20,7 +20,7 @@ def scene_cli(capsys, *argv):
 def test_hertz_command_prints_the_default_values():
     r = run_cli("hertz")
     assert r.returncode == 0, r.stderr
-    # design.md section 3: F_max 13.85 kN, t_c 87.9 us
+    # foundations.md section 3: F_max 13.85 kN, t_c 87.9 us
     assert "13.847 kN" in r.stdout and "87.894 us" in r.stdout
 
 

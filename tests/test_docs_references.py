@@ -9,7 +9,7 @@ folders) of README.md, docs/, millimpact/, tests/, demos/ and benchmarks/ for:
   machine path, a shared folder outside the repository (everywhere);
 - the word "session" and "issue N" in user-facing places: README.md, docs/, benchmarks/README.md,
   and the code, comments and messages of millimpact/, demos/ and benchmarks/*.py (the design lives
-  in docs/design.md; a figure is given with its command, not with the history that led to it).
+  in docs/foundations.md; a figure is given with its command, not with the history that led to it).
 
 A failure lists every offender as ``file:line: text``, so all of them can be fixed in one pass.
 """
@@ -94,7 +94,7 @@ def test_the_scan_finds_a_planted_offender(tmp_path):
     design = _NOTES[0] + ".md"
     bad = {"docs/a.md": f"see {design} section 3\n", "millimpact/b.py": "# measured in the third session\n",
            "demos/c.py": "# the target of issue 31\n", "benchmarks/d.py": "x = '/wo" "rk/sha" "red/x.py'\n"}
-    good = {"docs/e.md": "see docs/design.md, section 3\n", "millimpact/f.py": "with gmsh_session():\n"}
+    good = {"docs/e.md": "see docs/foundations.md, section 3\n", "millimpact/f.py": "with gmsh_session():\n"}
     for name, text in {**bad, **good}.items():
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_text(text)

@@ -1,4 +1,4 @@
-"""The liner's damage map (design.md section 12): takes a liner scene and a mill's ``impacts.csv``; bins the
+"""The liner's damage map (foundations.md section 12): takes a liner scene and a mill's ``impacts.csv``; bins the
 impacts by place, speed and angle (:mod:`millimpact.damage.bins`), computes each bin with the table
 engine on the liner struck at that place (:mod:`millimpact.damage.places`,
 :mod:`millimpact.damage.responses`; a bin whose contact would reach an edge moved inward or refused

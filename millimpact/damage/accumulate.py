@@ -47,7 +47,7 @@ from ..dem.impacts import PLACES, Impact, impact_column
 from .bins import Bin
 from .responses import finite
 
-#: the largest equivalent plastic strain small-strain J2 plasticity describes (design.md section 10)
+#: the largest equivalent plastic strain small-strain J2 plasticity describes (foundations.md section 10)
 EPS_SMALL_STRAIN = 0.1
 
 

@@ -22,7 +22,7 @@ from .. import __version__
 from ..commandkit.store import write_atomic
 from ..dem.impacts import PLACES, Impact, impact_column
 
-#: where the model stops (design.md section 12): said in every file that shows its numbers
+#: where the model stops (foundations.md section 12): said in every file that shows its numbers
 LIMITS = (
     "small-strain J2 plasticity (equivalent plastic strain up to ~0.1); no wear: no material is "
     "removed; no fatigue cracking; impacts at one spot repeat the place's dominant bin only"

@@ -53,7 +53,7 @@ PLACES = ("lifter_face", "lifter_top", "plate")
 #: numeric columns that must be >= 0 (arc_position_m is signed)
 _NON_NEGATIVE = ("time_s", "ball_radius_m", "normal_speed_m_s", "tangential_speed_m_s", "impact_energy_J")
 #: upper bounds that catch values given in other units (mm/s for m/s, mm for m): a mill's balls
-#: strike at 3-13 m/s (design.md section 10) and the scenes' largest ball radius is 1 m
+#: strike at 3-13 m/s (foundations.md section 10) and the scenes' largest ball radius is 1 m
 _UPPER = {"normal_speed_m_s": 100.0, "tangential_speed_m_s": 100.0, "ball_radius_m": 1.0}
 
 

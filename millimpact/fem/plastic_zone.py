@@ -556,7 +556,7 @@ class PlasticZone:
     def max_rotation(self, u_vec) -> float:
         """The largest infinitesimal rotation |w| (rad), w the axial vector of the skew part of
         grad u, over the zone's quadrature points for the displacement ``u_vec`` (global): the
-        small-strain model needs it well below 1 (design.md section 10)."""
+        small-strain model needs it well below 1 (foundations.md section 10)."""
         if not hasattr(self, "_rotation"):
             g = ufl.grad(self.u)
             w = ufl.as_vector([g[2, 1] - g[1, 2], g[0, 2] - g[2, 0], g[1, 0] - g[0, 1]]) * 0.5

@@ -1,6 +1,6 @@
 """Geometry: gmsh (OpenCASCADE) models of the ball and the struck body, meshed with tetrahedra.
 
-Stage 3 of a run (design.md section 1): what the builders :mod:`.block` (the rig) and :mod:`.liner`
+Stage 3 of a run (foundations.md section 1): what the builders :mod:`.block` (the rig) and :mod:`.liner`
 share (tags, sizes, the gmsh instance, zone splitting, size fields, meshing). The builders act on
 the current gmsh instance on rank 0; :mod:`millimpact.geometry.mesh` converts the result to DOLFINx
 once and caches it. Units are SI (metres) throughout.

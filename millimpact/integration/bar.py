@@ -4,7 +4,7 @@ A bar of length ``L`` (unit cross-section, Young's modulus ``E``, density ``rho`
 ``x in [0, L]`` and moves rigidly with velocity ``+v0`` towards a rigid wall at ``x = L + gap``.
 The only constraint is ``gap(t) = gap - u(L, t) >= 0``: ``B`` is one row with ``-1`` at the tip dof.
 
-Exact solution (design.md section 3): contact starts at ``t0 = gap / v0`` and lasts ``2 L / c``
+Exact solution (foundations.md section 3): contact starts at ``t0 = gap / v0`` and lasts ``2 L / c``
 with ``c = sqrt(E / rho)``; during contact the wall force (per unit area, here equal to the
 stress) is the constant ``rho c v0``; afterwards the bar is unstressed and moves rigidly with
 ``-v0``; the energy ``rho L v0^2 / 2`` is conserved.

@@ -1,4 +1,4 @@
-"""Time integrators with unilateral contact by Lagrange multipliers (design.md section 4).
+"""Time integrators with unilateral contact by Lagrange multipliers (foundations.md section 4).
 
 Independent of the geometry: an integrator sees a :class:`LinearDynamics` (assembled PETSc M, K,
 contact rows B with gaps ``g = g0 + B u >= 0``) and advances ``M a + K u = f + B^T lambda`` with
@@ -13,7 +13,7 @@ Methods (:data:`METHODS`):
     Mech. A 27, 2008), contact imposed on ``u_{n+1}``. The massless contact dofs follow the body
     quasi-statically, so an impact does not excite the spurious contact-node oscillation, the
     status does not chatter and the energy is conserved up to the small O(dt) release/impact
-    error (bar: design.md section 3; measured in tests/integration/test_bar.py).
+    error (bar: foundations.md section 3; measured in tests/integration/test_bar.py).
 ``newmark``
     The same with the consistent mass: the known chattering baseline (status switches every few
     steps, energy errors an order larger).

@@ -1,4 +1,4 @@
-"""PETSc/SLEPc solver set-ups of the time integrators (design.md section 1, "solvers").
+"""PETSc/SLEPc solver set-ups of the time integrators (foundations.md section 1, "solvers").
 
 Everything here sees assembled PETSc objects only. Every KSP has a non-empty options prefix; its
 defaults come from a function that returns a fresh dict, the caller's options are merged over

@@ -1,5 +1,5 @@
 """The time loop of a reduced model: the integrator while the bodies touch, the closed-form free
-vibration between impacts (design.md section 4).
+vibration between impacts (foundations.md section 4).
 
 The contact lasts ~0.1 ms of the 40 ms run; with the zone kept physical the reduced model is
 still thousands of coordinates, so stepping the free vibration would cost nearly as much as the

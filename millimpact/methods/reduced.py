@@ -1,4 +1,4 @@
-"""Reduced run methods: ``traditional``, ``modal-p2`` and ``improved`` (design.md section 4).
+"""Reduced run methods: ``traditional``, ``modal-p2`` and ``improved`` (foundations.md section 4).
 
 Each is a Galerkin projection ``u = T q`` of the full finite-element model of the same mesh
 (:mod:`millimpact.reduction`), integrated by the same integrator with the same contact rows:

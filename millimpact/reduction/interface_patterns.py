@@ -1,4 +1,4 @@
-"""Zone-interface patterns: the interface reduction of a substructured body (design.md section 4).
+"""Zone-interface patterns: the interface reduction of a substructured body (foundations.md section 4).
 
 With ``-impact_reduction_<body>_substructure_zone_degree d`` (d >= 1; :mod:`.substructures`) a
 body's interior is no longer described by its n_b constraint modes Psi (one per zone coordinate on

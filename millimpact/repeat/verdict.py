@@ -5,7 +5,7 @@ load a body either shakes down, residual stresses and hardening making every lat
 or reaches a closed plastic cycle (plastic shakedown: plastic work in every cycle, no net growth of
 the deformation); or ratchets (the permanent deformation grows each cycle). The same ball
 repeated on one spot unloads along the last unloading curve, which holds only e_1^2 of the impact
-energy, so it yields again beyond the previous peak with smaller increments (design.md section 10).
+energy, so it yields again beyond the previous peak with smaller increments (foundations.md section 10).
 From the per-impact outcomes (plastic work W_k, dent depth D_k, increments dD_k = D_k - D_(k-1)
 with D_0 = 0):
 

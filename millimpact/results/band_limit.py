@@ -4,7 +4,7 @@ The contact point's velocity and acceleration (:class:`millimpact.results.record
 besides the impact's response, content at the time-step scale: the contact zone's mesh modes
 (MHz on the rig) that an implicit step of ~1 us can neither resolve nor damp (Newmark's average
 acceleration keeps them undamped). That content changes with dt and h and is not physics; the
-response below the band the model is built to resolve (f_cut = 4 / t_c, design.md section 4)
+response below the band the model is built to resolve (f_cut = 4 / t_c, foundations.md section 4)
 converges. A Gaussian kernel is used:
 
     y_f(t_i) = sum_j w_ij y_j dt_j / sum_j w_ij dt_j,   w_ij = exp(-(t_j - t_i)^2 / (2 sigma^2)),

@@ -88,7 +88,7 @@ def residual_dent(model: FEModel, zone, plan: Plan, reduced=None) -> dict[str, A
 
 
 #: small-strain J2 (the model's) stops being a good approximation past this equivalent plastic
-#: strain (design.md section 10): beyond it the change of geometry under the ball and the difference
+#: strain (foundations.md section 10): beyond it the change of geometry under the ball and the difference
 #: between stress measures reach several percent
 SMALL_STRAIN_LIMIT = 0.1
 

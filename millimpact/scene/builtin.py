@@ -123,7 +123,7 @@ def _mill_block(name: str, liner_material: str, what: str) -> Scene:
         description=(
             f"A 125 mm forged 60 HRC ball (Y 1.9 GPa) at 8 m/s normal to a 75 mm {what} liner plate, "
             "250 x 250 mm, clamped at its back (the shell). Balls of 100-150 mm strike SAG liners at "
-            "3-13 m/s (100-580 J for 125 mm; docs: design, section 10); the plate thickness is the liner-segment "
+            "3-13 m/s (100-580 J for 125 mm; docs: foundations, section 10); the plate thickness is the liner-segment "
             "scene's shell plate (Royston 2007: 75-100 mm). Material values and sources: "
             "scene/materials.toml. Impact only (0.6 ms)."
         ),

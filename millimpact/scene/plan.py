@@ -1,4 +1,4 @@
-"""The plan: what a scene needs, derived from its Hertz estimate (design.md section 5).
+"""The plan: what a scene needs, derived from its Hertz estimate (foundations.md section 5).
 
 Every choice (symmetry, contact-zone radius, element sizes, initial gap, time steps, modal cutoff)
 is computed here from the scene, can be overridden in ``scene.model`` / ``scene.time`` /
@@ -23,7 +23,7 @@ from ..theory.thornton import plastic_zone_radius
 from .liner_shape import vec3
 from .schema import Ball, Material, Scene, Vec3
 
-#: elements across the Hertz contact radius a_max: ~4 gives ~1 % on F_max (design.md section 3)
+#: elements across the Hertz contact radius a_max: ~4 gives ~1 % on F_max (foundations.md section 3)
 ELEMENTS_ACROSS_CONTACT = 4.0
 #: contact-zone radius in units of a_max: the zone must hold the whole contact patch with margin
 ZONE_RADIUS_FACTOR = 4.0
@@ -39,7 +39,7 @@ PLASTIC_ZONE_CAP = 0.98
 GAP_FACTOR = 0.05
 #: steps per contact duration while in contact
 STEPS_PER_CONTACT = 100
-#: modal cutoff in units of 1/t_c (design.md section 4: keep modes up to (3-5)/t_c)
+#: modal cutoff in units of 1/t_c (foundations.md section 4: keep modes up to (3-5)/t_c)
 F_CUT_FACTOR = 4.0
 #: what the plan's degree, P1, gives (``--method full``): too stiff by a few percent whatever
 #: h_contact (measured: hertz-halfspace F_max +3.0 %, t_c -3.0 % against Hertz, P2 +1.0 %; the rig
@@ -580,7 +580,7 @@ def _time_steps(scene: Scene, h: HertzImpact, reasons: dict[str, str]) -> _TimeS
     dt_c = t.dt_contact if t.dt_contact is not None else h.contact_time / STEPS_PER_CONTACT
     reasons["dt_contact"] = "user" if t.dt_contact is not None else f"t_c / {STEPS_PER_CONTACT}"
     f_cut = m.f_cut if m.f_cut is not None else F_CUT_FACTOR / h.contact_time
-    reasons["f_cut"] = "user" if m.f_cut is not None else f"{F_CUT_FACTOR:g} / t_c (docs: design, section 4)"
+    reasons["f_cut"] = "user" if m.f_cut is not None else f"{F_CUT_FACTOR:g} / t_c (docs: foundations, section 4)"
     # free vibration: resolve the kept band (10 steps per period of f_cut)
     dt_f = t.dt_free if t.dt_free is not None else max(dt_c, 1.0 / (10.0 * f_cut))
     reasons["dt_free"] = (
@@ -593,7 +593,7 @@ def _time_steps(scene: Scene, h: HertzImpact, reasons: dict[str, str]) -> _TimeS
 
 
 def make_plan(scene: Scene) -> Plan:
-    """Derive the modelling choices of a scene from its Hertz estimate (design.md section 5): the
+    """Derive the modelling choices of a scene from its Hertz estimate (foundations.md section 5): the
     symmetry (:func:`decide_symmetry`), the element sizes, the contact zones and the time steps,
     each with its reason, and the probes' places."""
     h = scene_hertz(scene)

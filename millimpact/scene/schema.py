@@ -239,7 +239,7 @@ class Liner(LinerShape):
     ``x = impact_x`` (m). The contact normal is that face's outward normal; the impact velocity
     (``impact.velocity``, global x, y, z) must point into the face.
 
-    ``impact_place`` moves the impact off the face (the damage map's places, design.md section 12):
+    ``impact_place`` moves the impact off the face (the damage map's places, foundations.md section 12):
     ``"lifter_face"`` (the default, as above), ``"lifter_top"`` or ``"plate"``, these two at
     ``impact_arc`` (m) from the struck lifter's centre line along the liner's profile, positive
     towards its ``impact_face`` (:meth:`millimpact.scene.liner_shape.LinerShape.impact_site`); the contact normal is the top's

@@ -433,7 +433,7 @@ def _explain(study: Study, a: StudyAnalysis) -> list[str]:
             "Stress: the normal stress is sampled just below the contact point in a P1 mesh, where it is constant per "
             "element and comes from the few ball nodes nearest the centre (h_contact = a_max / 4 by default), so it "
             "is off Hertz's p0 by up to ~10 %, differently for each case (see the Hertz p0 column); trends in it "
-            "smaller than that are not resolved (docs: design, section 3: the pressure peak needs ~16 elements across a_max)."
+            "smaller than that are not resolved (docs: foundations, section 3: the pressure peak needs ~16 elements across a_max)."
         )
     return lines
 

@@ -2,7 +2,7 @@
 
 C. Thornton, "Coefficient of restitution for collinear collisions of elastic-perfectly plastic
 spheres", J. Appl. Mech. 64 (1997) 383-386. The Hertz pressure is capped at the limiting contact
-pressure p_y (taken, as in design.md section 7, as the first-yield pressure 1.6 Y of a von Mises
+pressure p_y (taken, as in foundations.md section 7, as the first-yield pressure 1.6 Y of a von Mises
 material with nu = 0.3, Johnson, Contact Mechanics, 1985, section 6.2). Plastic deformation starts
 at the yield-onset speed
 

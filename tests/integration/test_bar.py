@@ -1,4 +1,4 @@
-"""The time integrators on the 1D bar hitting a rigid wall (exact solution: design.md section 3).
+"""The time integrators on the 1D bar hitting a rigid wall (exact solution: foundations.md section 3).
 
 Default case (millimpact/bar.py): steel-like bar, L = 0.1 m, 100 P1 elements, v0 = 1 m/s, contact step
 dt = h / c (Courant 1), so the exact contact lasts 2L/c = 200 dt. Tolerances are stated in units
@@ -62,7 +62,7 @@ def test_newmark_mr_reproduces_exact_bar(runs):
 def test_plain_newmark_chatters(runs):
     _, mr = runs["newmark-mr"]
     _, nm = runs["newmark"]
-    # the known failure of Newmark with consistent mass and contact on u_{n+1} (design.md section
+    # the known failure of Newmark with consistent mass and contact on u_{n+1} (foundations.md section
     # 4: "chatter ... pumps energy 10x or more"): the tip rattles open/closed every few steps ...
     assert nm["status_switches"] >= 10 * mr["status_switches"], (nm, mr)
     # ... only a fraction of the contact time carries force ...

@@ -1,4 +1,4 @@
-"""Full FE impact against Hertz theory (design.md section 3), energy balance, and serial vs MPI.
+"""Full FE impact against Hertz theory (foundations.md section 3), energy balance, and serial vs MPI.
 
 Test meshes are coarse (h_contact = a_max/4 near contact, ~18k dofs, quarter model), so tolerances
 are the issue's 5 % on F_max and t_c; the benchmark (benchmarks/full_hertz.py) runs finer meshes.

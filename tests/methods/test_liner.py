@@ -89,7 +89,7 @@ def liner_runs(tmp_path_factory):
 def test_liner_impact_against_hertz_and_energy(liner_runs):
     s, ts, folder = liner_runs[0]
     h = s["hertz"]
-    # coarse mesh (1.7 elements across a_max, design.md section 3: ~4 give 1 %): 10 % on F_max and t_c
+    # coarse mesh (1.7 elements across a_max, foundations.md section 3: ~4 give 1 %): 10 % on F_max and t_c
     assert s["peak_contact_force_N"] == pytest.approx(h["F_max_N"], rel=0.10)
     assert s["contact_duration_s"] == pytest.approx(h["t_c_s"], rel=0.10)
     # energy: total + friction dissipation is conserved by Newmark with mass redistribution

@@ -104,7 +104,7 @@ def test_traditional_converges_to_full_p1_with_the_cutoff(traditional_runs):
         assert rel(r["all"]["gauges"][g], ref) < 1e-6, (g, r["all"]["gauges"][g], ref)
     assert rel(r["all"]["F"], full["F"]) < 1e-6
     err_F = {k: rel(r[k]["F"], full["F"]) for k in (1, 4, 32, "1+aug")}
-    # measured: 3.0 % at 1/t_c (below ~1/t_c a mode's dynamic error is large, design.md section 4),
+    # measured: 3.0 % at 1/t_c (below ~1/t_c a mode's dynamic error is large, foundations.md section 4),
     # 0.20 % at 4/t_c, 0.06 % at 32/t_c
     assert err_F[4] < 0.5 * err_F[1] and err_F[32] < 0.5 * err_F[1]
     # brief: within 1 % on F_max and t_c at the default cutoff (measured 0.20 %, 0.17 %)

@@ -1,5 +1,5 @@
 """Static Hertz contact: the ball pressed on the large block (scene hertz-halfspace) against
-Hertz (1882) at the measured force (design.md section 3: contact radius and approach
+Hertz (1882) at the measured force (foundations.md section 3: contact radius and approach
 within 5 % on a test-size mesh).
 
 The ball's top cap is pushed 100 um towards the block (F ~ 15 kN, about the impact's peak force);

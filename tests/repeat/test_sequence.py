@@ -86,7 +86,7 @@ def test_reloading_is_elastic_up_to_the_previous_peak(perfectly_plastic):
 @pytest.mark.parametrize("case", ["perfectly_plastic", "hardening"])
 def test_repeated_impacts_shake_down_monotonically(case, request):
     """Over 5 impacts e rises, and the dent increments and the plastic work per impact fall, each
-    monotonically (design.md section 10: the unloading curve stores only e_1^2 of the impact energy, so
+    monotonically (foundations.md section 10: the unloading curve stores only e_1^2 of the impact energy, so
     the same impact yields again beyond it, less each time; Seifried et al. 2005 measured e rising)."""
     outcomes = request.getfixturevalue(case)[0]
     e = np.array([o.restitution_normal for o in outcomes])

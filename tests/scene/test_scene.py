@@ -20,7 +20,7 @@ def test_toml_round_trip(name, tmp_path):
 
 def test_default_scene_is_the_paper_rig():
     s = builtin_scene("paper-rig")
-    # design.md section 2 / paper Tables 1-2
+    # foundations.md section 2 / paper Tables 1-2
     assert (s.block.length, s.block.thickness, s.block.height) == (0.042, 0.045, 0.080)
     assert s.ball.radius == 0.015 and s.impact.speed == 3.0
     assert s.block.material.youngs_modulus == pytest.approx(182e9)
@@ -93,7 +93,7 @@ def test_unknown_key_and_wrong_type(tmp_path):
 
 
 def test_plan_follows_the_scene():
-    # design.md section 5: quarter only for a back-clamped block struck at mid-height; the rig's base
+    # foundations.md section 5: quarter only for a back-clamped block struck at mid-height; the rig's base
     # clamp leaves the x = 0 plane alone; an oblique velocity in x removes it
     assert make_plan(builtin_scene("hertz-halfspace")).symmetry == "quarter"
     rig = builtin_scene("paper-rig")

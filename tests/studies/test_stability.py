@@ -22,7 +22,7 @@ def test_plain_newmark_chatter_flagged_mass_redistribution_passes(v0):
         # the impact/release steps' error (measured < 0.3 %; threshold 5 % from the map's rule)
         assert mr.status == "pass", (mr.reason, mr)
         assert mr.status_switches == 2 and mr.pulse_breaks == 0
-        # plain Newmark: the tip rattles (design.md section 4) -> flagged, with the chatter named
+        # plain Newmark: the tip rattles (foundations.md section 4) -> flagged, with the chatter named
         assert nm.status in ("degraded", "failed"), nm
         assert nm.pulse_breaks >= 10 and nm.status_switches >= 10 * mr.status_switches, nm
         assert nm.energy_drift_rel > 10 * mr.energy_drift_rel

@@ -102,7 +102,7 @@ def test_stress_grows_with_poisson_ratio_u(tmp_path_factory):
     # the sampled stress is the compressive sigma_yy below the contact point: near p0 (Hertz), to
     # the sampling's resolution. Measured on these cases: full (zone 4 a_max) -9 / -4 / +9 %,
     # traditional (zone 2.5 a_max, another mesh around the probe) +4 / +7 / +18 %: the element
-    # holding the probe decides it (design.md section 3: p0 needs ~16 elements across a_max, we have 8)
+    # holding the probe decides it (foundations.md section 3: p0 needs ~16 elements across a_max, we have 8)
     for c in st["cases"]:
         assert c["peaks"]["stress"] == pytest.approx(c["peaks"]["stress_hertz"], rel=0.25)
 

@@ -1,4 +1,4 @@
-"""Hertz model against design.md section 3 (Johnson, Contact Mechanics 3.4 and 11.4)."""
+"""Hertz model against foundations.md section 3 (Johnson, Contact Mechanics 3.4 and 11.4)."""
 import math
 
 import numpy as np
@@ -12,7 +12,7 @@ from millimpact.scene.builtin import builtin_scene
 
 
 def test_default_scene_values():
-    # design.md section 3: delta_max 89.6 um, F_max 13.85 kN, t_c 87.9 us, a_max 1.159 mm, p0 4.92 GPa;
+    # foundations.md section 3: delta_max 89.6 um, F_max 13.85 kN, t_c 87.9 us, a_max 1.159 mm, p0 4.92 GPa;
     # tolerance 0.5 % (the issue's), the values there are given to 3-4 digits
     h = scene_hertz(builtin_scene("paper-rig"))
     assert h.e_star == pytest.approx(100e9, rel=1e-12)  # E = 2 G (1+nu) = 182 GPa, E* = E / (2 (1-nu^2))

@@ -16,13 +16,13 @@ def test_yield_onset_speed_is_where_the_hertz_pressure_reaches_p_y():
     m = 4.0 / 3.0 * 3.141592653589793 * R**3 * rho
     v_hertz = optimize.brentq(lambda v: hertz_impact(R, m, v, E_star).p0 - 1.6 * Y, 1e-4, 100.0)
     assert yield_onset_velocity(Y, E_star, rho) == pytest.approx(v_hertz, rel=2e-3)
-    # design.md section 7: E* 100 GPa, rho 7800: Y 1 GPa -> 0.18 m/s, Y 2 GPa -> 1.0 m/s
+    # foundations.md section 7: E* 100 GPa, rho 7800: Y 1 GPa -> 0.18 m/s, Y 2 GPa -> 1.0 m/s
     assert yield_onset_velocity(1e9, E_star, rho) == pytest.approx(0.18, abs=0.005)
     assert yield_onset_velocity(2e9, E_star, rho) == pytest.approx(1.0, abs=0.03)
 
 
 def test_restitution_values_and_limits():
-    """e = 1 up to V_y and continuous there; design.md section 7's 0.76 / 0.58 / 0.46 at 1 / 3 / 8 m/s for
+    """e = 1 up to V_y and continuous there; foundations.md section 7's 0.76 / 0.58 / 0.46 at 1 / 3 / 8 m/s for
     Y = 1 GPa (V_y 0.18 m/s); e ~ V^(-1/4) at high speed."""
     vy = yield_onset_velocity(1e9, 100e9, 7800.0)
     assert restitution_thornton(0.5 * vy, vy) == 1.0

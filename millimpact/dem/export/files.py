@@ -97,7 +97,7 @@ def fit_law(t: ContactTable) -> ExportedLaw:
     )
 
 
-def _source_lines(t: ContactTable, comment: str) -> list[str]:
+def source_lines(t: ContactTable, comment: str) -> list[str]:
     return [
         f"{comment} From the millimpact contact table {t.folder.resolve()}",
         f"{comment}   scene {t.scene_name}, method {t.method}, millimpact {t.version}; exported by millimpact "
@@ -178,7 +178,7 @@ def write_yade(folder: Path, law: ExportedLaw) -> Path:
     head = [
         "# millimpact contact law for Yade 2023.02a: Hertz-Mindlin (Ip2_FrictMat_FrictMat_MindlinPhys +",
         "# Law2_ScGeom_MindlinPhys_Mindlin) with a velocity-dependent restitution set per interaction.",
-        *_source_lines(t, "#"),
+        *source_lines(t, "#"),
         "# Use in a Yade script:",
         "#   exec(open('contact_law_yade.py').read())",
         "#   ball = O.materials.append(millimpact_ball_material())     # give the balls this material",
@@ -212,7 +212,7 @@ def write_liggghts(folder: Path, law: ExportedLaw) -> Path:
         "# type 2 = liner (the wall mesh's type). LIGGGHTS' hertz damping is gamma_n = -2 (5/6)^0.5 beta (S_n m*)^0.5,",
         "# beta = ln e / (ln^2 e + pi^2)^0.5: the coefficientRestitution below is the input that gives the",
         "# table's e_n, not e_n itself (docs/dem.md). Young's modulus: Y* = Y / (2 (1 - nu^2)) for two equal types.",
-        *_source_lines(t, "#"),
+        *source_lines(t, "#"),
         *_band_lines(law, "#"),
         "# Ball-ball pairs (1 1) get the same values: the table describes ball-liner impacts only.",
         "",
@@ -253,7 +253,7 @@ def write_lammps(folder: Path, law: ExportedLaw) -> Path:
         "# ((3/2) k_nd m_eff)^0.5 with k_nd = (4/3) E_eff a: the restitution below is the input that gives the",
         "# table's e_n, not e_n itself (docs/dem.md). hertz/material mixes E_eff = E / (2 (1 - nu^2)) for equal types.",
         "# mindlin NULL: k_t = 8 G_eff a from E and nu; damping factor 0.0: no tangential damping (as the table).",
-        *_source_lines(t, "#"),
+        *source_lines(t, "#"),
         *_band_lines(law, "#"),
         "",
         "pair_style granular",

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from ...errors import InputError
 from .files import ExportedLaw
-from .wall_impacts import CASE_STEPS, impact_cases, run_cases
+from .wall_impacts import CASE_STEPS, impact_cases, run_cases, table_points
 
 #: how a user gets LAMMPS with mdr (one line)
 INSTALL_HINT = (
@@ -75,11 +75,6 @@ def wall_line(coeff: str, mdr: bool = False) -> str:
     return f"fix liner all wall/gran granular {coeff} zplane 0.0 NULL"
 
 
-def _points(law: ExportedLaw) -> list[tuple[float, float, float]]:
-    t = law.table
-    return [(s, a, t.normal_speed[i, j]) for i, s in enumerate(t.speeds) for j, a in enumerate(t.angles)]
-
-
 def coefficients(law_file: Path) -> str:
     """The ``pair_coeff * *`` model of an exported LAMMPS file (what its wall line repeats)."""
     for line in law_file.read_text().splitlines():
@@ -101,7 +96,7 @@ def run_lammps_roundtrip(
     coeff = coefficients(law_file)
     mdr = coeff.startswith("mdr ")
     # mdr's elastic part is the materials' Hertz contact (stiffer than the constant law): its step
-    cases = impact_cases(_points(law), t.ball_mass, t.radius, t.e_star_materials if mdr else law.e_star_const)
+    cases = impact_cases(table_points(t), t.ball_mass, t.radius, t.e_star_materials if mdr else law.e_star_const)
     if mdr:  # a plastic contact lasts longer than the elastic t_c
         cases = [dict(c, steps=5 * CASE_STEPS) for c in cases]
     return run_cases(

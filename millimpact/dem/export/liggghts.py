@@ -15,7 +15,7 @@ from pathlib import Path
 
 from ..programs import find_program
 from .files import ExportedLaw
-from .wall_impacts import impact_cases, run_cases
+from .wall_impacts import impact_cases, run_cases, table_points
 
 #: how a user gets LIGGGHTS on this project's machines (Debian 12)
 INSTALL_HINT = "apt-get install liggghts (Debian 12: LIGGGHTS 3.8.0)"
@@ -41,8 +41,7 @@ def run_liggghts_roundtrip(
 ) -> list[dict]:
     """LIGGGHTS' e_n, e_t, F_max at every table point with ``law_file``; rows in grid order."""
     t = law.table
-    points = [(s, a, t.normal_speed[i, j]) for i, s in enumerate(t.speeds) for j, a in enumerate(t.angles)]
-    cases = impact_cases(points, t.ball_mass, t.radius, law.e_star_const)
+    cases = impact_cases(table_points(t), t.ball_mass, t.radius, law.e_star_const)
     return run_cases(
         [liggghts_executable()],
         workdir,

@@ -29,7 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .files import ExportedLaw, _source_lines
+from .files import ExportedLaw, source_lines
 from .lammps import SETUP_MDR, lammps_executable, wall_line
 from .wall_impacts import CASE_STEPS, impact_cases, run_cases
 
@@ -142,7 +142,7 @@ def write_lammps_mdr(folder: Path, law: ExportedLaw, mdr: MdrLaw) -> Path:
         f"# psi_b {PSI_B:g}. The yield stress Y = {mdr.yield_stress:.6g} Pa and the damping eta_n0 = {mdr.damping:.4g}",
         "# (damping mdr 1) are FITTED: least squares of e_n over the table's points (LAMMPS itself, a ball at",
         "# each point's normal speed); law parameters, not the liner's yield stress.",
-        *_source_lines(t, "#")[:-1],
+        *source_lines(t, "#")[:-1],
         f"# Fit residual: rms e_n difference {mdr.rms:.4f}, largest {mdr.worst:.4f}.",
         "# Table point: V (m/s), angle (deg), v_n (m/s): e_n table / mdr",
     ]

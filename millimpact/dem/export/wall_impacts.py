@@ -22,6 +22,7 @@ import numpy as np
 
 from ...errors import MillimpactError
 from ..programs import PROGRESS_PREFIX, run_program
+from .table_input import ContactTable
 
 #: time steps per contact duration (the Yade round trip's)
 STEPS_PER_CONTACT = 2000
@@ -31,6 +32,11 @@ CASE_STEPS = 3 * STEPS_PER_CONTACT
 
 class DemCodeError(MillimpactError):
     """A LIGGGHTS or LAMMPS run that did not end normally."""
+
+
+def table_points(table: ContactTable) -> list[tuple[float, float, float]]:
+    """Every point of a contact table as (speed m/s, angle deg, normal speed m/s), in grid order."""
+    return [(s, a, table.normal_speed[i, j]) for i, s in enumerate(table.speeds) for j, a in enumerate(table.angles)]
 
 
 def impact_cases(

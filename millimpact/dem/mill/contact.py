@@ -20,7 +20,7 @@ NewtonIntegrator's default damping = 0.2, Cundall's non-viscous damping, which r
 on top of the contact law.)
 
 The default restitution of a scene's elastic-plastic materials is Thornton's (1997) e(V) at the
-shell's speed omega R: the impact speeds of a mill's balls are of that order (design.md section 10);
+shell's speed omega R: the impact speeds of a mill's balls are of that order (foundations.md section 10);
 Thornton's is a lower bound of an elastic-plastic sphere's e (:mod:`millimpact.theory.thornton`).
 """
 
