@@ -195,7 +195,7 @@ def main(args: argparse.Namespace) -> int:
 
     from ..commandkit.settings import parse_options
     from ..console import sayer
-    from ..dem.impacts import read_impacts
+    from ..dem.impacts import ball_impacts, kind_totals, read_impacts
     from ..results.output_folder import claim_output, default_out
     from .damage_map import MapSettings, plan_map, run_damage_map
 
@@ -210,7 +210,11 @@ def main(args: argparse.Namespace) -> int:
     check_log_liner(scene, path)
     world = MPI.COMM_WORLD
     say = sayer(args.quiet, world)
-    impacts = read_impacts(path, say)
+    logged = read_impacts(path, say)
+    # the map computes the balls' impacts; the rock's (a SAG charge's log) are set beside them per place
+    impacts = ball_impacts(logged)
+    if len(impacts) == 0:
+        raise InputError(f"--impacts {path}: no ball impacts (the map computes the balls' impacts on the liner)")
     settings = MapSettings(
         revolutions=revolutions_of(args, path),
         lifters=lifters_of(args, path),
@@ -224,6 +228,9 @@ def main(args: argparse.Namespace) -> int:
         options=parse_options(args.option),
         repeat_impacts=args.repeat_impacts,
         ranks_per_case=args.ranks_per_case,
+        rock_per_place=kind_totals(logged, "rock", revolutions_of(args, path), lifters_of(args, path))
+        if len(impacts) < len(logged)
+        else None,
     )
     if world.size % args.ranks_per_case or args.ranks_per_case > world.size:
         raise InputError(f"--ranks-per-case {args.ranks_per_case}: must divide the number of ranks ({world.size})")

@@ -56,6 +56,8 @@ class MapSettings:
     petsc_options: dict = field(default_factory=dict)
     repeat_impacts: int = 6
     ranks_per_case: int = 1
+    #: the log's rock impacts per place (:func:`millimpact.dem.impacts.kind_totals`), set beside the balls'
+    rock_per_place: dict | None = None
 
 
 @dataclass
@@ -204,6 +206,10 @@ def run_damage_map(
         moved = [b for b in choice.bins if b.place == p and edges.get(b.index, {}).get("edge_shift_m", 0.0) > 0]
         tot["impacts_edge_clamped_per_rev"] = sum(len(b.impacts) for b in moved) * per_rev
         tot["largest_edge_shift_m"] = max((edges[b.index]["edge_shift_m"] for b in moved), default=0.0)
+        if st.rock_per_place is not None:
+            rock = st.rock_per_place.get(p, {})
+            tot["rock_impacts_per_rev"] = rock.get("impacts_per_rev", 0.0)
+            tot["rock_impact_energy_J_per_rev"] = rock.get("impact_energy_J_per_rev", 0.0)
     for bc in bcs:
         r = rows.get(bc.bin.index)
         if r is not None and not str(r.get("status", "ok")).startswith("ok"):

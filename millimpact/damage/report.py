@@ -58,6 +58,8 @@ PLACE_COLUMNS = [
     ("dent_growth_m_per_rev", "dent growth per revolution at a spot"),
     ("revolutions_to_shakedown", "revolutions until a spot shakes down"),
     ("max_eq_plastic_strain_first", "largest equivalent plastic strain after the first impact"),
+    ("rock_impacts_per_rev", "rock impacts on the place per revolution (a SAG charge's log; not computed)"),
+    ("rock_impact_energy_J_per_rev", "the rock impacts' kinetic energy per revolution"),
     ("max_eq_plastic_strain_last", "largest equivalent plastic strain after the last impact"),
     ("max_eq_plastic_strain_growth_per_impact", "its increase by the last impact"),
     ("revolutions_to_small_strain_limit", "revolutions until it reaches 0.1 at that increase (inf: never)"),

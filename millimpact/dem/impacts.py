@@ -13,7 +13,12 @@ in each column's name:
 ``arc_position_m``          where on the liner profile (m): arc length along the shell's inner
                             circle from the centre line of the nearest lifter, positive towards
                             that lifter's leading face (the one that lifts the charge)
+``kind``                    ``ball`` or ``rock`` (optional: a log without it holds balls only)
+``mass_kg``                 the particle's mass (kg; optional)
 ==========================  ===================================================================
+
+For a rock, ``ball_radius_m`` is the rock's radius. The damage map computes the balls' impacts
+(:func:`ball_impacts`) and sets the rock's impact energy per place beside them.
 
 :func:`read_impacts` refuses (:class:`~millimpact.errors.InputError`, one line naming the column
 and row) a file without these columns, a column given in other units (``normal_speed_mm_s``, or speeds above 100 m/s), a
@@ -48,6 +53,10 @@ IMPACT_COLUMNS = (
     "place",
     "arc_position_m",
 )
+#: the optional columns (a balls-only log may leave them out) and their values for such a log
+OPTIONAL_COLUMNS = ("kind", "mass_kg")
+#: the kinds of particle
+KINDS = ("ball", "rock")
 #: the places of the liner an impact can strike
 PLACES = ("lifter_face", "lifter_top", "plate")
 #: numeric columns that must be >= 0 (arc_position_m is signed)
@@ -68,6 +77,8 @@ class Impact:
     impact_energy_J: float
     place: str
     arc_position_m: float
+    kind: str = "ball"
+    mass_kg: float | None = None
 
     @property
     def angle_deg(self) -> float:
@@ -80,9 +91,10 @@ class ImpactLog(SequenceABC):
     sequence of :class:`Impact` made on demand: a million impacts cost their arrays, not a million
     objects. :meth:`column` gives one column as an array."""
 
-    def __init__(self, columns: dict[str, np.ndarray], place_codes: np.ndarray):
+    def __init__(self, columns: dict[str, np.ndarray], place_codes: np.ndarray, kind_codes: np.ndarray | None = None):
         self._columns = columns
         self._codes = place_codes
+        self._kinds = np.zeros(len(place_codes), dtype=np.int8) if kind_codes is None else kind_codes
 
     def __len__(self) -> int:
         return len(self._codes)
@@ -100,30 +112,74 @@ class ImpactLog(SequenceABC):
             float(c["impact_energy_J"][k]),
             PLACES[self._codes[k]],
             float(c["arc_position_m"][k]),
+            KINDS[self._kinds[k]],
+            float(c["mass_kg"][k]) if "mass_kg" in c and math.isfinite(c["mass_kg"][k]) else None,
         )
 
     def __eq__(self, other) -> bool:
         return isinstance(other, SequenceABC) and len(other) == len(self) and list(self) == list(other)
 
     def column(self, name: str) -> np.ndarray:
-        """One column: floats (m, m/s, J, s), or the places as strings for ``place``."""
-        return np.asarray(PLACES)[self._codes] if name == "place" else self._columns[name]
+        """One column: floats (m, m/s, J, s, kg: NaN where the log has no mass), or strings for
+        ``place`` and ``kind``."""
+        if name == "place":
+            return np.asarray(PLACES)[self._codes]
+        if name == "kind":
+            return np.asarray(KINDS)[self._kinds]
+        if name == "mass_kg" and name not in self._columns:
+            return np.full(len(self), math.nan)
+        return self._columns[name]
+
+    def subset(self, keep: np.ndarray) -> ImpactLog:
+        """The log's rows where ``keep`` (a boolean array) is true."""
+        return ImpactLog({k: v[keep] for k, v in self._columns.items()}, self._codes[keep], self._kinds[keep])
 
 
 def impact_column(impacts: Sequence[Impact], name: str) -> np.ndarray:
     """Column ``name`` of ``impacts`` as an array (an :class:`ImpactLog`'s own, or gathered)."""
     if isinstance(impacts, ImpactLog):
         return impacts.column(name)
-    return np.array([getattr(i, name) for i in impacts], dtype=object if name == "place" else float)
+    if name == "mass_kg":
+        return np.array([math.nan if i.mass_kg is None else i.mass_kg for i in impacts], dtype=float)
+    return np.array([getattr(i, name) for i in impacts], dtype=object if name in ("place", "kind") else float)
+
+
+def ball_impacts(impacts: Sequence[Impact]) -> Sequence[Impact]:
+    """The balls' impacts of a log (all of a log without kinds)."""
+    kinds = impact_column(impacts, "kind")
+    keep = kinds == "ball"
+    if keep.all():
+        return impacts
+    if isinstance(impacts, ImpactLog):
+        return impacts.subset(keep)
+    return [i for i, k in zip(impacts, keep) if k]
+
+
+def kind_totals(impacts: Sequence[Impact], kind: str, revolutions: float, lifters: int = 1) -> dict:
+    """Per place: the impacts of one kind of particle per revolution and lifter, and their impact
+    energy (J) per revolution and lifter."""
+    k = impact_column(impacts, "kind") == kind
+    place = impact_column(impacts, "place")
+    energy = impact_column(impacts, "impact_energy_J")
+    per = 1.0 / (revolutions * lifters)
+    return {
+        p: {
+            "impacts_per_rev": float(np.count_nonzero(k & (place == p))) * per,
+            "impact_energy_J_per_rev": float(energy[k & (place == p)].sum()) * per,
+        }
+        for p in PLACES
+    }
 
 
 def write_impacts(path: Path, impacts: Iterable[Impact]) -> None:
-    """Write ``impacts`` to ``path`` as impacts.csv (the caller stages the folder)."""
+    """Write ``impacts`` to ``path`` as impacts.csv with the optional columns (the caller stages the folder)."""
+    columns = IMPACT_COLUMNS + OPTIONAL_COLUMNS
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(IMPACT_COLUMNS)
+        w.writerow(columns)
         for imp in impacts:
-            w.writerow([repr(float(getattr(imp, c))) if c != "place" else imp.place for c in IMPACT_COLUMNS])
+            row = [repr(float(getattr(imp, c))) if c != "place" else imp.place for c in IMPACT_COLUMNS]
+            w.writerow([*row, imp.kind, "" if imp.mass_kg is None else repr(float(imp.mass_kg))])
 
 
 def _missing_column_hint(header: Sequence[str], column: str) -> str:
@@ -177,23 +233,51 @@ def _read_columns(path: Path) -> ImpactLog | None:
                     fh, usecols=[idx["place"]], dtype="U16", ndmin=1, delimiter=",", comments=None, quotechar='"'
                 )
             )
+            kinds, mass = _optional_columns(fh, header)
     except (OSError, ValueError, UnicodeDecodeError, StopIteration, csv.Error):
         return None
     if len(places) == 0 or values.shape != (len(places), len(numeric)):
         return None
-    codes = np.full(len(places), -1, dtype=np.int8)
-    for k, p in enumerate(PLACES):
-        codes[places == p] = k
-    if (codes < 0).any() or not np.isfinite(values).all():
+    codes = _codes(places, PLACES)
+    kind_codes = None if kinds is None else _codes(kinds, KINDS)
+    if codes is None or (kinds is not None and kind_codes is None) or not np.isfinite(values).all():
         return None
     columns = {c: np.ascontiguousarray(values[:, j]) for j, c in enumerate(numeric)}
+    if mass is not None:
+        if mass.shape != (len(places),) or not np.isfinite(mass).all() or (mass <= 0).any():
+            return None
+        columns["mass_kg"] = mass
     for c in _NON_NEGATIVE:
         if (columns[c] < 0).any():
             return None
     for c, top in _UPPER.items():
         if (columns[c] > top).any():
             return None
-    return ImpactLog(columns, codes)
+    return ImpactLog(columns, codes, kind_codes)
+
+
+def _codes(values: np.ndarray, names: tuple[str, ...]) -> np.ndarray | None:
+    """Each value's index in ``names``; None when one is not there."""
+    codes = np.full(len(values), -1, dtype=np.int8)
+    for k, name in enumerate(names):
+        codes[values == name] = k
+    return None if (codes < 0).any() else codes
+
+
+def _optional_columns(fh, header: list[str]) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The ``kind`` (strings) and ``mass_kg`` columns, each None when the header lacks it."""
+    out: list[np.ndarray | None] = []
+    for column, dtype in (("kind", "U8"), ("mass_kg", float)):
+        if column not in header:
+            out.append(None)
+            continue
+        fh.seek(0)
+        fh.readline()
+        col = np.loadtxt(
+            fh, usecols=[header.index(column)], dtype=dtype, ndmin=1, delimiter=",", comments=None, quotechar='"'
+        )
+        out.append(np.char.strip(col) if column == "kind" else col)
+    return out[0], out[1]
 
 
 def _read_rows(path: Path) -> list[Impact]:
@@ -250,9 +334,33 @@ def _read_rows(path: Path) -> list[Impact]:
                             "(SI units expected: m, m/s)"
                         )
                     values[column] = x
+                values.update(_optional_cells(path, row_no, row, header))
                 impacts.append(Impact(**values))
         except (csv.Error, UnicodeDecodeError) as exc:
             raise InputError(f"--impacts {path}: not a readable CSV file ({exc})") from None
     if not impacts:
         raise InputError(f"--impacts {path}: no impacts (a header and no rows)")
     return impacts
+
+
+def _optional_cells(path: Path, row_no: int, row: list[str], header: list[str]) -> dict:
+    """A row's ``kind`` and ``mass_kg`` (when the header has them), checked."""
+    out: dict[str, Any] = {}
+    if "kind" in header:
+        k = header.index("kind")
+        cell = row[k].strip() if k < len(row) else ""
+        if cell not in KINDS:
+            raise InputError(f"--impacts {path}: row {row_no}: kind '{cell}' is not one of {', '.join(KINDS)}")
+        out["kind"] = cell
+    if "mass_kg" in header:
+        k = header.index("mass_kg")
+        cell = row[k].strip() if k < len(row) else ""
+        if cell:
+            try:
+                m = float(cell)
+            except ValueError:
+                raise InputError(f"--impacts {path}: row {row_no}: mass_kg '{cell}' is not a number") from None
+            if not (math.isfinite(m) and m > 0):
+                raise InputError(f"--impacts {path}: row {row_no}: mass_kg {cell} must be a positive number")
+            out["mass_kg"] = m
+    return out

@@ -6,7 +6,15 @@ import math
 
 import pytest
 
-from millimpact.dem.impacts import IMPACT_COLUMNS, Impact, read_impacts, write_impacts
+from millimpact.dem.impacts import (
+    IMPACT_COLUMNS,
+    OPTIONAL_COLUMNS,
+    Impact,
+    ball_impacts,
+    kind_totals,
+    read_impacts,
+    write_impacts,
+)
 from millimpact.errors import InputError
 
 
@@ -20,7 +28,7 @@ def _impacts():
 def test_round_trip(tmp_path):
     path = tmp_path / "impacts.csv"
     write_impacts(path, _impacts())
-    assert path.read_text().splitlines()[0] == ",".join(IMPACT_COLUMNS)
+    assert path.read_text().splitlines()[0] == ",".join(IMPACT_COLUMNS + OPTIONAL_COLUMNS)
     assert read_impacts(path) == _impacts()
     # the angle from the normal: atan(2 / 5)
     assert read_impacts(path)[0].angle_deg == pytest.approx(math.degrees(math.atan(0.4)), rel=1e-12)
@@ -74,3 +82,43 @@ def test_a_large_log_is_read_as_columns_and_said(tmp_path):
     assert len(lines) == 2 and lines[0].startswith(f"reading {path}") and f"read {n:,} impacts" in lines[1]
     rows = _read_rows(path)
     assert len(log) == n and log[0] == rows[0] and log[-1] == rows[-1] and log[n // 2] == rows[n // 2]
+
+
+def _sag_impacts():
+    """Two balls' impacts and a rock's (a 150 mm rock of 2700 kg/m^3: 4.77 kg) with their masses."""
+    m = 7800 * 4 / 3 * math.pi * 0.0625 ** 3
+    m_rock = 2700 * 4 / 3 * math.pi * 0.075 ** 3
+    return [Impact(0.125, 0.0625, 5.0, 2.0, 0.5 * m * 29, "lifter_face", -0.031, "ball", m),
+            Impact(0.25, 0.075, 3.0, 0.0, 0.5 * m_rock * 9, "lifter_face", 0.01, "rock", m_rock),
+            Impact(0.5, 0.0625, 0.25, 0.0, 0.5 * m * 0.0625, "plate", 0.12, "ball", m)]
+
+
+def test_kinds_and_masses_round_trip_and_the_balls_are_picked(tmp_path):
+    """A SAG log's kind and mass read back equal (as columns and as rows); the damage map's balls are
+    the ball rows; the rock's energy per place and revolution is its impacts' sum."""
+    path = tmp_path / "impacts.csv"
+    write_impacts(path, _sag_impacts())
+    log = read_impacts(path)
+    assert list(log) == _sag_impacts()
+    assert list(log.column("kind")) == ["ball", "rock", "ball"]
+    assert list(ball_impacts(log)) == [_sag_impacts()[0], _sag_impacts()[2]]
+    rock = kind_totals(log, "rock", revolutions=2.0)
+    assert rock["lifter_face"]["impacts_per_rev"] == 0.5
+    assert rock["lifter_face"]["impact_energy_J_per_rev"] == pytest.approx(_sag_impacts()[1].impact_energy_J / 2)
+    assert rock["plate"]["impacts_per_rev"] == 0.0
+    # a log without the kind column (a balls-only log of before) holds balls
+    old = tmp_path / "old.csv"
+    old.write_text("\n".join(",".join(r.split(",")[:7]) for r in path.read_text().splitlines()) + "\n")
+    assert set(read_impacts(old).column("kind")) == {"ball"}
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda t: t.replace(",rock,", ",gravel,", 1), "row 3: kind 'gravel' is not one of ball, rock"),
+    (lambda t: t.replace(",rock,", ",rock,-", 1), "row 3: mass_kg -"),
+])
+def test_bad_kinds_and_masses_are_refused(tmp_path, edit, words):
+    path = tmp_path / "impacts.csv"
+    write_impacts(path, _sag_impacts())
+    path.write_text(edit(path.read_text()))
+    with pytest.raises(InputError, match=words):
+        read_impacts(path)

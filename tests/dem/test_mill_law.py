@@ -155,10 +155,10 @@ def test_a_dropped_ball_rebounds_at_the_tables_restitution(tmp_path, exported):
         trace = list(csv.DictReader(fh))
     law = json.loads((yade / "contact_law.json").read_text())
     for ball, (v_drop, i_speed) in enumerate(zip(speeds, (0, len(table.speeds) - 1))):
-        first = next(row for row in impacts if int(row["ball"]) == ball)
+        first = next(row for row in impacts if int(row["particle"]) == ball)
         n = np.array([float(first[k]) for k in ("nx", "ny")])
         v_in = np.array([float(first[k]) for k in ("vx", "vy")])
-        rows = [row for row in trace if int(row["ball"]) == ball]
+        rows = [row for row in trace if int(row["particle"]) == ball]
         contacts = np.array([int(row["liner_contacts"]) for row in rows])
         k0 = int(np.argmax(contacts > 0))
         k1 = k0 + int(np.argmax(contacts[k0:] == 0))

@@ -44,6 +44,8 @@ yade/ (the script, its input and its raw output). Needs Yade (apt-get install ya
   millimpact mill liner-panel --revolutions 2 --balls 200 --law out/dem-yade --out out/mill-law
 """
 
+#: the charges (millimpact.dem.mill.charge.CHARGES: argparse's choices without importing numpy)
+CHARGE_NAMES = ("balls", "sag")
 #: the Yade script (millimpact/dem/mill/yade_scripts/)
 SCRIPT = Path(__file__).resolve().parent / "yade_scripts" / "mill_slice.py"
 
@@ -53,12 +55,45 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--revolutions", type=float, required=True, metavar="R", help="revolutions logged (after the warm-up)"
     )
+    p.add_argument(
+        "--charge",
+        choices=CHARGE_NAMES,
+        default="balls",
+        help="balls (the default), or sag: balls and rock (--fill the whole charge, --ball-fill the balls)",
+    )
     p.add_argument("--balls", type=int, metavar="N", help="number of balls (or --fill)")
     p.add_argument(
         "--fill",
         type=float,
         metavar="F",
-        help="fraction of the mill's volume the ball bed fills, 0.05-0.5 (default 0.1)",
+        help="fraction of the mill's volume the bed fills, 0.05-0.5 (default 0.1 of balls; with "
+        "--charge sag the whole charge, default 0.28)",
+    )
+    sag = p.add_argument_group("a SAG charge (--charge sag)")
+    sag.add_argument(
+        "--ball-fill",
+        type=float,
+        metavar="J_B",
+        help="the balls' share of the mill's volume, (0, --fill] (default 0.12)",
+    )
+    sag.add_argument("--rock-top-size", type=float, metavar="M", help="the largest rock's diameter, m (default 0.2)")
+    sag.add_argument(
+        "--rock-cutoff",
+        type=float,
+        metavar="M",
+        help="rock finer than this (m) is slurry, its volume given to the rock modelled (default 0.1)",
+    )
+    sag.add_argument(
+        "--rock-restitution", type=float, metavar="E", help="restitution of contacts with rock (default 0.3)"
+    )
+    sag.add_argument(
+        "--rock-friction", type=float, metavar="MU", help="Coulomb friction of contacts with rock (default 0.6)"
+    )
+    sag.add_argument(
+        "--rolling-resistance",
+        type=float,
+        metavar="MU_R",
+        help="the rock's rolling resistance, M <= MU_R R F_n, in [0, 1] (default 0.2)",
     )
     p.add_argument(
         "--speed-fraction",
@@ -140,6 +175,13 @@ def options_from_args(args: argparse.Namespace):
         seed=args.seed,
         law=args.law,
         law_every=args.law_every,
+        charge=args.charge,
+        ball_fill=args.ball_fill,
+        rock_top_size=args.rock_top_size,
+        rock_cutoff=args.rock_cutoff,
+        rock_restitution=args.rock_restitution,
+        rock_friction=args.rock_friction,
+        rolling_resistance=args.rolling_resistance,
     )
     check_mill_options(opts)
     return opts
@@ -193,11 +235,10 @@ def _contact_summary(setup) -> dict:
 
 def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=None, quiet: bool = False) -> dict:
     """Plan, run and report one mill run into the folder ``stage``; returns the summary."""
-    from ..impacts import write_impacts
     from ..yade import run_yade
     from .log import read_mill_run
     from .power import charge_shape_report, power_report
-    from .report import charge_angles, charge_figure, energy_balance, place_table, plot_spectrum, write_spectrum_csv
+    from .report import charge_angles, charge_figure, energy_balance, plot_spectrum
     from .setup import plan_mill
 
     if setup is None:
@@ -210,45 +251,22 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
     (work / "input.json").write_text(json.dumps(setup.yade_input()) + "\n")
     run_yade(work / SCRIPT.name, work, ["input.json"], timeout=timeout, on_progress=None if quiet else _Progress())
     run = read_mill_run(work, setup)
-    write_impacts(stage / "impacts.csv", run.impacts)
     revs = setup.revolutions
-    write_spectrum_csv(stage / "spectrum.csv", run.impacts, revs)
-    table = place_table(run.impacts, revs)
-    with open(stage / "impacts_per_revolution.csv", "w") as fh:
-        cols = list(table[0])
-        fh.write(",".join(cols) + "\n")
-        for row in table:
-            fh.write(",".join(row[c] if c == "place" else repr(float(row[c])) for c in cols) + "\n")
+    tables = _write_tables(stage, run, setup)
     angles = charge_angles(run.snapshots, setup)
-    balance = energy_balance(run.energy)
     # a scene naming its mill's length (liner.mill_length, m) gets the whole mill's power; the
     # built-in liners give the mill's radius only, and the power is reported per metre
     power = power_report(setup, run.energy, mill_length=getattr(scene.liner, "mill_length", None))
     if plots:
-        title = (
-            f"{setup.scene_name}: {setup.n_balls} balls, {100 * setup.speed_fraction:.0f} % of n_c, "
-            f"{revs:g} revolutions"
-        )
+        particles = f"{setup.n_balls} balls" + (f", {setup.n_rocks} rocks" if setup.n_rocks else "")
+        title = f"{setup.scene_name}: {particles}, {100 * setup.speed_fraction:.0f} % of n_c, {revs:g} revolutions"
         plot_spectrum(stage / "spectrum.png", run.impacts, revs, title)
         charge_figure(stage / "charge.png", run.snapshots, setup, angles)
-    p = setup.profile
+    balls = tables["ball"]
     summary = {
         "scene": setup.scene_name,
-        "mill": {
-            "diameter_m": p.diameter,
-            "lifters": p.n_lifters,
-            "lifter_height_m": p.lifter_height,
-            "slice_thickness_m": setup.thickness,
-            "critical_speed_rpm": setup.critical_rpm,
-            "speed_fraction": setup.speed_fraction,
-            "speed_rpm": setup.speed_fraction * setup.critical_rpm,
-        },
-        "charge": {
-            "balls": setup.n_balls,
-            "ball_radius_m": setup.ball_radius,
-            "fill": setup.fill,
-            "charge_is": "balls alone (no rock, no slurry)",
-        },
+        "mill": _mill_summary(setup),
+        "charge": _charge_summary(setup, run.info),
         "contact": _contact_summary(setup),
         "clock": {
             "dt_s": setup.dt,
@@ -259,19 +277,94 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
             "revolutions": revs,
             "period_s": setup.period_s,
         },
-        "impacts_per_revolution": {row["place"]: row["impacts_per_revolution"] for row in table},
-        "energy_per_revolution_J": {row["place"]: row["energy_per_revolution_J"] for row in table},
+        "impacts_per_revolution": {row["place"]: row["impacts_per_revolution"] for row in balls},
+        "energy_per_revolution_J": {row["place"]: row["energy_per_revolution_J"] for row in balls},
+        "impacts_are": "the balls' impacts on the liner (rock impacts: rock_impacts)",
         "shoulder_deg": angles["shoulder_deg"],
         "toe_deg": angles["toe_deg"],
         "angles_measured": "from the vertical below the axis, positive in the direction of rotation",
         "centrifuged_fraction": angles["centrifuged_fraction"],
-        "energy_balance": balance,
+        "energy_balance": energy_balance(run.energy),
         "power": power,
         "charge_shape": charge_shape_report(setup, angles),
+        "abrasion": tables["abrasion"],
         "yade": run.info,
         "impacts_time_origin": "the end of the warm-up",
     }
+    if setup.n_rocks:
+        summary["rock_impacts"] = {
+            "impacts_per_revolution": {row["place"]: row["impacts_per_revolution"] for row in tables["rock"]},
+            "energy_per_revolution_J": {row["place"]: row["energy_per_revolution_J"] for row in tables["rock"]},
+        }
+        summary["energy_balance"]["rolling_resistance"] = (
+            "the rock's rolling resistance dissipates energy Yade does not count: it lies in the balance's error"
+        )
     return summary
+
+
+def _write_tables(stage: Path, run, setup) -> dict:
+    """impacts.csv, spectrum.csv, impacts_per_revolution.csv (per kind and place) and abrasion.csv;
+    returns the per-kind place tables and the abrasion summary."""
+    from ..impacts import write_impacts
+    from .abrasion import abrasion_rows, abrasion_summary, write_abrasion
+    from .report import place_table, write_spectrum_csv
+
+    revs = setup.revolutions
+    write_impacts(stage / "impacts.csv", run.impacts)
+    write_spectrum_csv(stage / "spectrum.csv", run.impacts, revs)
+    kinds = ("ball", "rock") if setup.n_rocks else ("ball",)
+    tables = {kind: place_table(run.impacts, revs, kind) for kind in kinds}
+    with open(stage / "impacts_per_revolution.csv", "w") as fh:
+        cols = list(tables["ball"][0])
+        fh.write(",".join(["kind", *cols]) + "\n")
+        for kind in kinds:
+            for row in tables[kind]:
+                fh.write(",".join([kind, *(row[c] if c == "place" else repr(float(row[c])) for c in cols)]) + "\n")
+    rows = abrasion_rows(run.abrasion, setup)
+    write_abrasion(stage / "abrasion.csv", rows)
+    tables["abrasion"] = abrasion_summary(rows)
+    return tables
+
+
+def _mill_summary(setup) -> dict:
+    p = setup.profile
+    return {
+        "diameter_m": p.diameter,
+        "lifters": p.n_lifters,
+        "lifter_height_m": p.lifter_height,
+        "slice_thickness_m": setup.thickness,
+        "critical_speed_rpm": setup.critical_rpm,
+        "speed_fraction": setup.speed_fraction,
+        "speed_rpm": setup.speed_fraction * setup.critical_rpm,
+    }
+
+
+def _charge_summary(setup, info: dict) -> dict:
+    """summary.json's "charge": the particles, the fills, the rock and, for a SAG charge, the share
+    of the balls' new contacts that land on rock."""
+    out: dict = {
+        "balls": setup.n_balls,
+        "ball_radius_m": setup.ball_radius,
+        "fill": setup.fill,
+        "charge_is": "balls alone (no rock, no slurry)",
+    }
+    if not setup.n_rocks:
+        return out
+    n = {k: v["at_1_m_s_or_more"] for k, v in info.get("particle_contacts_after_warmup", {}).items()}
+    bb, br = n.get("ball-ball", 0), n.get("ball-rock", 0)
+    mine = 2 * bb + br  # a ball-ball contact is a contact of two balls
+    rev = setup.revolutions
+    out.update(
+        charge_is="balls and rock (SAG), no slurry",
+        rocks=setup.n_rocks,
+        ball_fill=setup.ball_fill,
+        rock=setup.rock.summary(),
+        rock_radius_range_m=[min(setup.rock_radii), max(setup.rock_radii)],
+        particle_contacts_per_revolution={k: v / rev for k, v in n.items()},
+        particle_contacts_are="new contacts after the warm-up approaching at 1 m/s or more along their normal",
+        ball_contacts_on_rock_share=br / mine if mine else None,
+    )
+    return out
 
 
 def _restitution_text(setup) -> str:

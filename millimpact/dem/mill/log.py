@@ -1,6 +1,8 @@
-"""Reading what a Yade mill run leaves (``mill_slice.py``): impacts, charge snapshots, energies, traces.
+"""Reading what a Yade mill run leaves (``mill_slice.py``): impacts, charge snapshots, energies,
+traces, the sliding at the liner (:mod:`~millimpact.dem.mill.abrasion` reports it).
 
-Each row of ``impacts_raw.csv`` is a ball-liner contact found at a check (every ``check_every``
+Each row of ``impacts_raw.csv`` is a particle-liner contact (a ball's or a rock's: its mass and
+radius from the particle's number, balls first) found at a check (every ``check_every``
 steps, ``age`` steps after it began) with a part of the liner the ball was not touching at the
 previous check, with the ball's velocity v before the contact (its velocity at the previous check
 plus gravity's pull since: exact for a ball landing from a flight; a ball in the bed may also have
@@ -43,6 +45,7 @@ class MillRun:
     energy: dict[str, np.ndarray]
     trace: dict[str, np.ndarray]
     info: dict
+    abrasion: dict[str, np.ndarray]
 
 
 def _read_columns(path: Path) -> dict[str, np.ndarray]:
@@ -70,7 +73,9 @@ def impacts_from_raw(raw: dict[str, np.ndarray], setup: MillSetup) -> list[Impac
     v_rel = v - v_liner
     vn_signed = np.einsum("ij,ij->i", v_rel, n)
     v_t = np.linalg.norm(v_rel - vn_signed[:, None] * n, axis=1)
-    m = setup.ball_mass
+    k_part = raw["particle"].astype(int)
+    m = np.array([setup.particle_mass(k) for k in k_part])
+    radius = np.array([setup.particle_radius(k) for k in k_part])
     v_n0 = np.maximum(-vn_signed, 0.0)
     energy = 0.5 * m * (v_n0**2 + v_t**2)
     # the contact point in the liner's frame: turned back by the liner's angle omega t
@@ -84,12 +89,14 @@ def impacts_from_raw(raw: dict[str, np.ndarray], setup: MillSetup) -> list[Impac
         out.append(
             Impact(
                 time_s=float(t[k] - setup.warmup_s),
-                ball_radius_m=setup.ball_radius,
+                ball_radius_m=float(radius[k]),
                 normal_speed_m_s=float(v_n0[k]),
                 tangential_speed_m_s=float(v_t[k]),
                 impact_energy_J=float(energy[k]),
                 place=place_of[int(raw["part"][k])],
                 arc_position_m=float(setup.profile.arc_position(xl[k], yl[k])),
+                kind="ball" if k_part[k] < setup.n_balls else "rock",
+                mass_kg=float(m[k]),
             )
         )
     return out
@@ -105,4 +112,5 @@ def read_mill_run(folder: Path, setup: MillSetup) -> MillRun:
         energy=_read_columns(folder / "energy.csv"),
         trace=_read_columns(folder / "trace.csv"),
         info=json.loads((folder / "run.json").read_text()),
+        abrasion=_read_columns(folder / "abrasion_raw.csv"),
     )

@@ -84,11 +84,13 @@ def measured_power(
     return out
 
 
-def volumetric_fill(setup: MillSetup, porosity: float = BED_POROSITY) -> float:
-    """J = N V_b / ((1 - E) A L_s): the fraction of the mill's volume inside the liner's profile the
-    ball bed fills (module docstring)."""
-    v_ball = 4.0 / 3.0 * math.pi * setup.ball_radius**3
-    return setup.n_balls * v_ball / ((1.0 - porosity) * setup.profile.open_area() * setup.thickness)
+def volumetric_fill(setup: MillSetup, porosity: float = BED_POROSITY, balls_only: bool = False) -> float:
+    """J = V_p / ((1 - E) A L_s): the fraction of the mill's volume inside the liner's profile the
+    charge's bed fills, V_p the particles' volume (the balls' alone: J_B) (module docstring)."""
+    v = setup.n_balls * 4.0 / 3.0 * math.pi * setup.ball_radius**3
+    if not balls_only:
+        v += sum(4.0 / 3.0 * math.pi * r**3 for r in setup.rock_radii)
+    return v / ((1.0 - porosity) * setup.profile.open_area() * setup.thickness)
 
 
 def _relative(measured: float | None, model: float) -> float | None:
@@ -102,17 +104,20 @@ def _difference(measured: float | None, model: float) -> float | None:
 def model_inputs(setup: MillSetup) -> dict:
     """The run's mill as the models take it (SI; module docstring)."""
     fill = volumetric_fill(setup)
+    ball_fill = volumetric_fill(setup, balls_only=True)
     rho_b = setup.ball_material[2]
+    rho_o = setup.rock_material[2] if setup.n_rocks else 0.0
     return {
         "diameter_m": setup.profile.diameter,
         "speed_fraction": setup.speed_fraction,
         "fill": fill,
-        "ball_fill": fill,
+        "ball_fill": ball_fill,
         "bed_porosity": BED_POROSITY,
         "bed_porosity_source": POROSITY_SOURCE,
         "ball_density_kg_m3": rho_b,
-        "charge_density_kg_m3": charge_density(fill, fill, 0.0, rho_b, 0.0, 0.0, BED_POROSITY),
-        "charge_is": "balls alone: J_B = J, no rock, no slurry",
+        "ore_density_kg_m3": rho_o,
+        "charge_density_kg_m3": charge_density(fill, ball_fill, rho_o, rho_b, 0.0, 0.0, BED_POROSITY),
+        "charge_is": "balls and rock, no slurry" if setup.n_rocks else "balls alone: J_B = J, no rock, no slurry",
     }
 
 
@@ -125,7 +130,7 @@ def power_report(setup: MillSetup, energy: dict[str, np.ndarray], mill_length: f
     m = model_inputs(setup)
     d, phi, j = m["diameter_m"], m["speed_fraction"], m["fill"]
     morrell = morrell_net_power(d, 1.0, phi, j, m["charge_density_kg_m3"]).net
-    austin = austin_power(d, 1.0, phi, j, j, 0.0, m["ball_density_kg_m3"])
+    austin = austin_power(d, 1.0, phi, j, m["ball_fill"], m["ore_density_kg_m3"], m["ball_density_kg_m3"])
     per_m = measured["net_per_metre_W_m"]
     return {
         "measured": measured,

@@ -27,23 +27,29 @@ from pathlib import Path
 
 import numpy as np
 
-from ..impacts import PLACES, Impact
+from ..impacts import KINDS, PLACES, Impact
 from .setup import MillSetup
 
 #: sector width (deg) of the shoulder and toe count
 SECTOR_DEG = 5.0
 
 
-def spectrum(impacts: list[Impact], revolutions: float, place: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(energies in decreasing order (J), impacts per revolution with at least that energy)."""
-    e = np.sort([i.impact_energy_J for i in impacts if place is None or i.place == place])[::-1]
+def spectrum(
+    impacts: list[Impact], revolutions: float, place: str | None = None, kind: str | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(energies in decreasing order (J), impacts per revolution with at least that energy), of
+    one place and one kind of particle when given."""
+    e = np.sort(
+        [i.impact_energy_J for i in impacts if (place is None or i.place == place) and (kind is None or i.kind == kind)]
+    )[::-1]
     return e, np.arange(1, e.size + 1) / revolutions
 
 
-def place_table(impacts: list[Impact], revolutions: float) -> list[dict]:
+def place_table(impacts: list[Impact], revolutions: float, kind: str | None = None) -> list[dict]:
     """Per place and all together: impacts per revolution, energy per revolution (J), mean energy
-    (J), mean normal and tangential speed (m/s)."""
+    (J), mean normal and tangential speed (m/s); of one kind of particle only, given ``kind``."""
     rows = []
+    impacts = [i for i in impacts if kind is None or i.kind == kind]
     for place in (*PLACES, "all"):
         sel = [i for i in impacts if place == "all" or i.place == place]
         n = len(sel)
@@ -93,14 +99,14 @@ def charge_angles(snapshots: dict[str, np.ndarray], setup: MillSetup) -> dict:
 
 
 def _centrifuged(snapshots: dict[str, np.ndarray], setup: MillSetup, band: np.ndarray, rho: np.ndarray) -> np.ndarray:
-    """Per ball: in the band in every snapshot of the last revolution, turning with the liner."""
+    """Per particle: in the band in every snapshot of the last revolution, turning with the liner."""
     x, y = snapshots["x_m"], snapshots["y_m"]
     t = snapshots["time_s"]
     last = t >= t.max() - setup.period_s * (1.0 - 0.5 / setup.snapshots_per_revolution)
     ang = (x * snapshots["vy_m_s"] - y * snapshots["vx_m_s"]) / np.maximum(rho**2, 1e-300)
-    balls = snapshots["ball"].astype(int)
-    stuck = np.ones(setup.n_balls, bool)
-    for b in range(setup.n_balls):
+    balls = snapshots["particle"].astype(int)
+    stuck = np.ones(setup.n_particles, bool)
+    for b in range(setup.n_particles):
         sel = last & (balls == b)
         stuck[b] = bool(sel.any() and band[sel].all() and ang[sel].mean() >= 0.9 * setup.omega)
     return stuck
@@ -113,7 +119,8 @@ def energy_balance(energy: dict[str, np.ndarray]) -> dict:
     dissipated = d["damping_normal_J"] + d["damping_shear_J"] + d["friction_J"]
     stored = d["elastic_normal_J"] + d["elastic_shear_J"]
     w = d["drive_work_J"]
-    return {
+    liner = d.get("liner_friction_J")
+    out = {
         "drive_work_J": w,
         "mechanical_change_J": mech,
         "dissipated_J": dissipated,
@@ -121,16 +128,25 @@ def energy_balance(energy: dict[str, np.ndarray]) -> dict:
         "relative_error": (w - mech - dissipated - stored) / w if w else None,
         "mean_power_W": w / d["time_s"] if d["time_s"] > 0 else None,
     }
+    if liner is not None:
+        out["dissipated_by_kind_J"] = {
+            "impact_damping": d["damping_normal_J"] + d["damping_shear_J"],
+            "friction_at_liner": liner,
+            "friction_in_bed": d["friction_J"] - liner,
+        }
+    return out
 
 
 def write_spectrum_csv(path: Path, impacts: list[Impact], revolutions: float) -> None:
     """spectrum.csv: each impact's energy and the impacts per revolution at or above it (all places)."""
-    e, n = spectrum(impacts, revolutions)
-    places = [i.place for i in sorted(impacts, key=lambda i: -i.impact_energy_J)]
     with open(path, "w") as fh:
-        fh.write("impact_energy_J,impacts_per_revolution_at_or_above,place\n")
-        for ek, nk, pk in zip(e, n, places):
-            fh.write(f"{ek!r},{nk!r},{pk}\n")
+        fh.write("impact_energy_J,impacts_per_revolution_at_or_above,place,kind\n")
+        for kind in KINDS:
+            mine = [i for i in impacts if i.kind == kind]
+            e, n = spectrum(mine, revolutions)
+            places = [i.place for i in sorted(mine, key=lambda i: -i.impact_energy_J)]
+            for ek, nk, pk in zip(e, n, places):
+                fh.write(f"{ek!r},{nk!r},{pk},{kind}\n")
 
 
 def plot_spectrum(path: Path, impacts: list[Impact], revolutions: float, title: str) -> None:
@@ -140,11 +156,17 @@ def plot_spectrum(path: Path, impacts: list[Impact], revolutions: float, title: 
     plt = pyplot()
 
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    rock = any(i.kind == "rock" for i in impacts)
     for place, style in ((None, "k-"), ("lifter_face", "C0--"), ("lifter_top", "C1-."), ("plate", "C2:")):
-        e, n = spectrum(impacts, revolutions, place)
+        e, n = spectrum(impacts, revolutions, place, kind="ball")
         keep = e > 0
         if keep.any():
-            ax.loglog(n[keep], e[keep], style, label=place or "all places")
+            ax.loglog(n[keep], e[keep], style, label=(place or "all places") + (" (balls)" if rock else ""))
+    if rock:
+        e, n = spectrum(impacts, revolutions, kind="rock")
+        keep = e > 0
+        if keep.any():
+            ax.loglog(n[keep], e[keep], "-", color="C5", label="all places (rock)")
     ax.set_xlabel("cumulative number of impacts per revolution (-)")
     ax.set_ylabel("impact energy (J)")
     ax.set_title(title, fontsize=9)
@@ -156,7 +178,7 @@ def plot_spectrum(path: Path, impacts: list[Impact], revolutions: float, title: 
 
 
 def charge_figure(path: Path, snapshots: dict[str, np.ndarray], setup: MillSetup, angles: dict) -> None:
-    """charge.png: the balls of the last snapshot in the mill's cross-section, the liner's profile at
+    """charge.png: the particles of the last snapshot in the mill's cross-section, the liner's profile at
     that time, and the shoulder and toe."""
     from ...results.plots import pyplot
 
@@ -169,7 +191,12 @@ def charge_figure(path: Path, snapshots: dict[str, np.ndarray], setup: MillSetup
     for seg in setup.profile.segments:
         (x0, y0), (x1, y1) = seg.start, seg.end
         ax.plot([c * x0 - s * y0, c * x1 - s * y1], [s * x0 + c * y0, s * x1 + c * y1], "k-", lw=0.6)
-    ax.scatter(snapshots["x_m"][last], snapshots["y_m"][last], s=4, c="C0")
+    k = snapshots["particle"][last].astype(int)
+    x, y = snapshots["x_m"][last], snapshots["y_m"][last]
+    ball = k < setup.n_balls
+    ax.scatter(x[ball], y[ball], s=4, c="C0", label="balls" if setup.n_rocks else None)
+    if setup.n_rocks:
+        ax.scatter(x[~ball], y[~ball], s=4, c="C5", label="rock")
     R = setup.profile.radius
     for key, colour in (("shoulder_deg", "C3"), ("toe_deg", "C2")):
         if angles.get(key) is not None:

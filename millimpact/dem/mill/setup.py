@@ -33,7 +33,18 @@ import math
 import random
 from dataclasses import dataclass
 
+import numpy as np
+
 from ...errors import InputError
+from .charge import (
+    CHARGES,
+    DEFAULT_BALL_FILL,
+    DEFAULT_TOTAL_FILL,
+    RockSpec,
+    check_sag_options,
+    place_particles,
+    rock_diameters,
+)
 from .contact import GRAVITY, critical_omega, critical_rpm, hertz_contact_time, scene_restitution
 from .geometry import MillProfile, build_profile
 from .law import LAW_SCRIPT, MillLaw, check_law_ball, read_mill_law
@@ -53,6 +64,8 @@ DEFAULT_STIFFNESS_SCALE = 0.01
 #: time steps per shortest contact, and impact checks per shortest contact
 STEPS_PER_CONTACT = 25
 CHECKS_PER_CONTACT = 8
+#: abrasion.csv's arc bins (m): 10 mm, a twentieth of a lifter's height
+ABRASION_BIN = 0.01
 #: a lattice of balls: centres this many radii apart in a layer, layers this many radii apart
 LATTICE_SPACING = 2.1
 LAYER_SPACING = 1.75
@@ -74,10 +87,55 @@ class MillOptions:
     seed: int = 0
     law: str | None = None
     law_every: int | None = None
+    charge: str = "balls"
+    ball_fill: float | None = None
+    rock_top_size: float | None = None
+    rock_cutoff: float | None = None
+    rock_restitution: float | None = None
+    rock_friction: float | None = None
+    rolling_resistance: float | None = None
+
+    @property
+    def rock_options(self) -> dict[str, float]:
+        """The rock options given (option name -> value)."""
+        names = ("ball_fill", "rock_top_size", "rock_cutoff", "rock_restitution", "rock_friction", "rolling_resistance")
+        return {"--" + n.replace("_", "-"): getattr(self, n) for n in names if getattr(self, n) is not None}
+
+    def rock(self) -> RockSpec:
+        """The rock of a SAG charge: the options given, the defaults of :mod:`.charge` otherwise."""
+        given = {
+            "top_size": self.rock_top_size,
+            "cutoff": self.rock_cutoff,
+            "restitution": self.rock_restitution,
+            "friction": self.rock_friction,
+            "rolling_resistance": self.rolling_resistance,
+        }
+        return RockSpec(**{k: float(v) for k, v in given.items() if v is not None})
+
+
+def _check_charge_options(opts: MillOptions) -> None:
+    """The charge's options: a known charge; rock options only with a SAG charge; --balls only
+    without one; every rock option a finite number."""
+    if opts.charge not in CHARGES:
+        raise InputError(f"--charge {opts.charge!r}: must be one of {', '.join(CHARGES)}")
+    for name, x in opts.rock_options.items():
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+            raise InputError(f"{name} {x!r}: must be a finite number")
+        if opts.charge != "sag":
+            raise InputError(f"{name}: a rock option; give --charge sag (a charge of balls and rock)")
+    if opts.charge == "sag" and opts.law is not None:
+        raise InputError(
+            "--law with --charge sag: an exported law sets the balls' contacts with the liner only; "
+            "a SAG charge runs with the scene's contacts and the rock's (give one of them)"
+        )
+    if opts.charge == "sag" and opts.balls is not None:
+        raise InputError("--balls: with --charge sag give --fill and --ball-fill (fractions of the mill's volume)")
 
 
 def check_mill_options(opts: MillOptions) -> None:
     """Refuse an option outside its range with one line naming it (InputError)."""
+
+    _check_charge_options(opts)
 
     def finite(name: str, x) -> float:
         if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
@@ -167,10 +225,50 @@ class MillSetup:
     trace_every: int = 0
     law: MillLaw | None = None
     law_every: int = 0
+    rock: RockSpec | None = None
+    rock_radii: tuple[float, ...] = ()  # the rock's radii (m); its centres follow the balls' in positions
+    rock_material: tuple[float, float, float] = (0.0, 0.0, 0.0)  # Young's modulus (Pa, scaled), Poisson, density
+    rolling_stiffness: float = 0.0  # k_r (N m / rad) of the rock's rolling resistance
+    ball_fill: float | None = None
+    abrasion_bin_m: float = ABRASION_BIN
+
+    @property
+    def n_particles(self) -> int:
+        return len(self.positions)
 
     @property
     def n_balls(self) -> int:
-        return len(self.positions)
+        return len(self.positions) - len(self.rock_radii)
+
+    @property
+    def n_rocks(self) -> int:
+        return len(self.rock_radii)
+
+    def particle_radius(self, k: int) -> float:
+        """Radius (m) of particle k (balls first, then rock)."""
+        return self.ball_radius if k < self.n_balls else self.rock_radii[k - self.n_balls]
+
+    def particle_mass(self, k: int) -> float:
+        """Mass (kg) of particle k."""
+        if k < self.n_balls:
+            return self.ball_mass
+        return 4.0 / 3.0 * math.pi * self.rock_radii[k - self.n_balls] ** 3 * self.rock_material[2]
+
+    def _rock_input(self) -> dict | None:
+        if self.rock is None:
+            return None
+        E, nu, rho = self.rock_material
+        return {
+            "positions": [list(p) for p in self.positions[self.n_balls :]],
+            "radii": list(self.rock_radii),
+            "young_Pa": E,
+            "poisson": nu,
+            "density_kg_m3": rho,
+            "en_yade": self.rock.restitution,
+            "friction": self.rock.friction,
+            "eta": self.rock.rolling_resistance,
+            "krot": self.rolling_stiffness,
+        }
 
     @property
     def period_s(self) -> float:
@@ -190,7 +288,15 @@ class MillSetup:
             "friction": self.friction,
             "en_yade": self.restitution,
             "segments": [[*s.start, *s.end, s.part] for s in self.profile.segments],
-            "ball_positions": [list(p) for p in self.positions],
+            "ball_positions": [list(p) for p in self.positions[: self.n_balls]],
+            "rock": self._rock_input(),
+            "v_max_m_s": self.v_max,
+            "arc": {
+                "lifter_height_m": self.profile.lifter_height,
+                "radius_m": self.profile.radius,
+                "n_lifters": self.profile.n_lifters,
+                "bin_m": self.abrasion_bin_m,
+            },
             "dt_s": self.dt,
             "check_every": self.check_every,
             "power_every": self.power_every,
@@ -256,11 +362,14 @@ def plan_mill(scene, opts: MillOptions, restitution_source: str | None = None) -
     profile = build_profile(liner, r)
     R = profile.radius
     thickness = opts.thickness * 2.0 * r
-    if opts.balls is not None:
-        n = opts.balls
+    sag = _sag_charge(profile, r, thickness, opts) if opts.charge == "sag" else None
+    if sag is not None:
+        positions = sag.positions
+    elif opts.balls is not None:
+        positions = lattice_positions(profile, r, thickness, opts.balls, opts.seed)
     else:
         n = ball_count(profile, r, thickness, opts.fill if opts.fill is not None else 0.1)
-    positions = lattice_positions(profile, r, thickness, n, opts.seed)
+        positions = lattice_positions(profile, r, thickness, n, opts.seed)
     omega = opts.speed_fraction * critical_omega(R)
     k = float(opts.stiffness_scale)
     bm, lm = ball.material, liner.material
@@ -297,6 +406,11 @@ def plan_mill(scene, opts: MillOptions, restitution_source: str | None = None) -
     v_max = omega * R + math.sqrt(4.0 * GRAVITY * R)
     m = ball.mass
     t_c = min(hertz_contact_time(0.5 * m, 0.5 * r, e_bb, v_max), hertz_contact_time(m, r_bl, e_bl, v_max))
+    rock_material, krot = (0.0, 0.0, 0.0), 0.0
+    if sag is not None:
+        rock_material = (sag.rock.young * k, sag.rock.poisson, sag.rock.density)
+        t_c = min(t_c, _rock_contact_time(sag, rock_material, (E_b, nu_b, bm.density), (E_l, nu_l), r, v_max))
+        krot = _rolling_stiffness(sag, rock_material)
     dt = t_c / STEPS_PER_CONTACT
     check_every = max(1, round(STEPS_PER_CONTACT / CHECKS_PER_CONTACT))
     period = 2.0 * math.pi / omega
@@ -322,9 +436,82 @@ def plan_mill(scene, opts: MillOptions, restitution_source: str | None = None) -
         warmup_s=opts.warmup * period,
         run_s=opts.revolutions * period,
         revolutions=opts.revolutions,
-        fill=opts.fill if opts.balls is None else None,
+        fill=(sag.total_fill if sag else opts.fill) if opts.balls is None else None,
+        ball_fill=sag.ball_fill if sag else None,
+        rock=sag.rock if sag else None,
+        rock_radii=sag.rock_radii if sag else (),
+        rock_material=rock_material,
+        rolling_stiffness=krot,
         contact_time_s=t_c,
         v_max=v_max,
         law=law,
         law_every=0 if law is None else (opts.law_every or check_every),
     )
+
+
+@dataclass(frozen=True)
+class _SagCharge:
+    total_fill: float
+    ball_fill: float
+    rock: RockSpec
+    rock_radii: tuple[float, ...]
+    positions: tuple[tuple[float, float, float], ...]  # balls first, then rock
+
+
+def _sag_charge(profile: MillProfile, r: float, thickness: float, opts: MillOptions) -> _SagCharge:
+    """Balls and rock of a SAG charge (:mod:`.charge`): counts from the fills, rock sizes drawn,
+    all placed at random in the bottom of the mill."""
+    total = float(opts.fill) if opts.fill is not None else DEFAULT_TOTAL_FILL
+    jb = float(opts.ball_fill) if opts.ball_fill is not None else DEFAULT_BALL_FILL
+    rock = opts.rock()
+    check_sag_options(total, jb, rock, profile.radius, thickness)
+    n_balls = ball_count(profile, r, thickness, jb)
+    rng = np.random.default_rng(opts.seed)
+    v_rock = (total - jb) * profile.open_area() * thickness * (1.0 - BED_POROSITY)
+    rock_r = 0.5 * rock_diameters(v_rock, rock, rng)
+    radii = np.concatenate([np.full(n_balls, r), rock_r])
+    centres = place_particles(profile, radii, thickness, rng)
+    return _SagCharge(
+        total_fill=total,
+        ball_fill=jb,
+        rock=rock,
+        rock_radii=tuple(float(x) for x in rock_r),
+        positions=tuple((float(x), float(y), float(z)) for x, y, z in centres),
+    )
+
+
+def _rock_contact_time(sag: _SagCharge, rock_mat, ball_mat, liner_mat, r_ball: float, v_max: float) -> float:
+    """The shortest Hertz contact time (s) of the smallest rock at v_max against rock, a ball and
+    the liner (Yade's facet: a sphere of radius 2 r, R* = 2 r / 3)."""
+    E_r, nu_r, rho_r = rock_mat
+    E_b, nu_b, rho_b = ball_mat
+    E_l, nu_l = liner_mat
+    r = min(sag.rock_radii) if sag.rock_radii else 0.5 * sag.rock.cutoff
+    m = 4.0 / 3.0 * math.pi * r**3 * rho_r
+    m_b = 4.0 / 3.0 * math.pi * r_ball**3 * rho_b
+
+    def e_star(E1, n1, E2, n2):
+        return 1.0 / ((1.0 - n1**2) / E1 + (1.0 - n2**2) / E2)
+
+    return min(
+        hertz_contact_time(0.5 * m, 0.5 * r, e_star(E_r, nu_r, E_r, nu_r), v_max),
+        hertz_contact_time(m * m_b / (m + m_b), r * r_ball / (r + r_ball), e_star(E_r, nu_r, E_b, nu_b), v_max),
+        hertz_contact_time(m, 2.0 * r / 3.0, e_star(E_r, nu_r, E_l, nu_l), v_max),
+    )
+
+
+def _rolling_stiffness(sag: _SagCharge, rock_mat) -> float:
+    """k_r = 2.25 mu_r^2 R^2 k_n (Ai et al. 2011, eq. 14; :mod:`.charge`) for two rocks of the mean
+    radius R at the peak of a 1 m/s impact: R = R_mean / 2 their effective radius, k_n = 3/2 k_no
+    delta^(1/2) at delta = (15 m* v^2 / (16 E* sqrt(R)))^(2/5)."""
+    E_r, nu_r, rho_r = rock_mat
+    mu_r = sag.rock.rolling_resistance
+    if mu_r == 0.0 or not sag.rock_radii:
+        return 0.0
+    r_mean = float(np.mean(sag.rock_radii))
+    R = 0.5 * r_mean
+    m_star = 0.5 * 4.0 / 3.0 * math.pi * r_mean**3 * rho_r
+    e_star = E_r / (2.0 * (1.0 - nu_r**2))
+    delta = (15.0 * m_star * 1.0**2 / (16.0 * e_star * math.sqrt(R))) ** 0.4
+    k_n = 1.5 * (4.0 / 3.0) * e_star * math.sqrt(R) * math.sqrt(delta)
+    return 2.25 * mu_r**2 * R**2 * k_n

@@ -76,6 +76,18 @@ O.materials.append(
         label="end",
     )
 )
+rock = cfg.get("rock")
+if rock:
+    O.materials.append(
+        FrictMat(
+            young=rock["young_Pa"],
+            poisson=rock["poisson"],
+            density=rock["density_kg_m3"],
+            frictionAngle=math.atan(rock["friction"]),
+            label="rock",
+        )
+    )
+mat_id = {m.label: k for k, m in enumerate(O.materials)}
 
 # --- the liner: one clump of facets (one body to turn and to sum the torque on) ---------------
 facets, facet_part = [], []
@@ -95,10 +107,22 @@ end_ids = [
     O.bodies.append(utils.wall(L, axis=2, sense=-1, material="end")),
 ]
 
+# the particles: balls, then rock (ids consecutive: particle index = id - first id)
 ball_ids = [O.bodies.append(utils.sphere(tuple(p), r, material=ball_label)) for p in cfg["ball_positions"]]
-mass = O.bodies[ball_ids[0]].state.mass
-inertia = O.bodies[ball_ids[0]].state.inertia[0]
-is_ball = set(ball_ids)
+rock_ids = []
+if rock:
+    rock_ids = [
+        O.bodies.append(utils.sphere(tuple(p), rr, material="rock")) for p, rr in zip(rock["positions"], rock["radii"])
+    ]
+for b, v in zip(ball_ids, cfg.get("ball_velocities", [])):
+    O.bodies[b].state.vel = Vector3(*v)
+part_ids = ball_ids + rock_ids
+first_id = part_ids[0]
+masses = [O.bodies[b].state.mass for b in part_ids]
+inertias = [O.bodies[b].state.inertia[0] for b in part_ids]
+is_particle = set(part_ids)  # a ball or a rock
+is_rock = set(rock_ids)
+rolling = bool(rock) and rock["eta"] > 0.0
 
 if law_cfg:
     ip2 = millimpact_ip2()
@@ -108,13 +132,23 @@ if law_cfg:
 else:
     ip2 = Ip2_FrictMat_FrictMat_MindlinPhys(en=MatchMaker(algo="val", val=cfg["en_yade"]))
     law_runner = []
+if rock:
+    # every contact with rock: its restitution and friction; rolling resistance M <= eta R_mean F_n
+    # at stiffness krot (contacts without rock get kr = 0 at the first check, check_impacts)
+    others = [mat_id[x] for x in (liner_label, ball_label, "rock")]
+    ip2.en = MatchMaker(matches=[(mat_id["rock"], j, rock["en_yade"]) for j in others], algo="val", val=cfg["en_yade"])
+    ip2.frictAngle = MatchMaker(matches=[(mat_id["rock"], j, math.atan(rock["friction"])) for j in others], algo="min")
+    if rolling:
+        ip2.krot, ip2.eta, ip2.ktwist = rock["krot"], rock["eta"], 0.0
 O.engines = [
     ForceResetter(),
     InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Facet_Aabb(), Bo1_Wall_Aabb()], label="collider"),
     InteractionLoop(
-        [Ig2_Sphere_Sphere_ScGeom(), Ig2_Facet_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
+        [Ig2_Sphere_Sphere_ScGeom6D(), Ig2_Facet_Sphere_ScGeom6D(), Ig2_Wall_Sphere_ScGeom()]
+        if rolling
+        else [Ig2_Sphere_Sphere_ScGeom(), Ig2_Facet_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
         [ip2],
-        [Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=True, label="law")],
+        [Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=True, includeMoment=rolling, label="law")],
     ),
     *law_runner,
     RotationEngine(
@@ -136,7 +170,7 @@ t_end = cfg["warmup_s"] + cfg["run_s"]
 check_every = int(cfg["check_every"])
 power_every = int(cfg["power_every"])
 trace_every = int(cfg.get("trace_every", 0))
-trace_ids = [ball_ids[i] for i in cfg.get("trace_balls", [])]
+trace_ids = [part_ids[i] for i in cfg.get("trace_balls", [])]
 snap_times = [
     cfg["warmup_s"] + k * cfg["snapshot_every_s"] for k in range(int(cfg["run_s"] / cfg["snapshot_every_s"] + 1e-9) + 1)
 ]
@@ -146,11 +180,27 @@ energy_times = sorted({t_end * k / cfg["energy_samples"] for k in range(cfg["ene
 impacts_fh = open("impacts_raw.csv", "w", newline="")
 impacts = csv.writer(impacts_fh)
 impacts.writerow(
-    ["time_s", "ball", "part", "vx", "vy", "vz", "cx", "cy", "cz", "nx", "ny", "nz", "overlap_m", "kno", "age_steps"]
+    [
+        "time_s",
+        "particle",
+        "part",
+        "vx",
+        "vy",
+        "vz",
+        "cx",
+        "cy",
+        "cz",
+        "nx",
+        "ny",
+        "nz",
+        "overlap_m",
+        "kno",
+        "age_steps",
+    ]
 )
 charge_fh = open("charge.csv", "w", newline="")
 charge = csv.writer(charge_fh)
-charge.writerow(["snapshot", "time_s", "ball", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s"])
+charge.writerow(["snapshot", "time_s", "particle", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s"])
 energy_fh = open("energy.csv", "w", newline="")
 energy = csv.writer(energy_fh)
 energy.writerow(
@@ -164,36 +214,133 @@ energy.writerow(
         "damping_normal_J",
         "damping_shear_J",
         "friction_J",
+        "liner_friction_J",
     ]
 )
 trace_fh = open("trace.csv", "w", newline="")
 trace = csv.writer(trace_fh)
-trace.writerow(["time_s", "ball", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s", "vz_m_s", "liner_contacts"])
+trace.writerow(["time_s", "particle", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s", "vz_m_s", "liner_contacts"])
 
-vel_prev = [Vector3(0.0, 0.0, 0.0) for b in ball_ids]
-state = {"last_check": 0, "drive_work": 0.0, "snap": 0, "esample": 0, "progress": -1, "n_impacts": 0, "touching": set()}
+# the velocities at the previous check of the particles that can reach the liner before the next
+# refresh (every REFRESH checks): centres within the tips' circle less the farthest a particle
+# travels in that time at v_max (more would cost a Python copy of every particle's velocity a check)
+vel_prev = {}
+candidates = []
+REFRESH = 16
+envelope = cfg["arc"]["radius_m"] - cfg["arc"]["lifter_height_m"]
+margin = cfg["v_max_m_s"] * REFRESH * int(cfg["check_every"]) * cfg["dt_s"]
+
+
+def refresh_candidates():
+    near = []
+    for b in part_ids:
+        body = O.bodies[b]
+        p = body.state.pos
+        if math.hypot(p[0], p[1]) + body.shape.radius >= envelope - margin:
+            near.append(b)
+    candidates[:] = near
+
+
+state = {
+    "last_check": 0,
+    "drive_work": 0.0,
+    "snap": 0,
+    "esample": 0,
+    "progress": -1,
+    "n_impacts": 0,
+    "touching": set(),
+    "liner_friction": 0.0,
+    "checks": 0,
+}
+# abrasion: per contact with the liner, its plastic slip vector (usTotal - usElastic) at the previous
+# check; per (particle kind, part, arc bin) after the warm-up: friction work, normal force x slip, slip
+slip_prev = {}
+abrasion = {}
+arc_cfg = cfg["arc"]
+pitch = 2.0 * math.pi / arc_cfg["n_lifters"]
+n_balls = len(ball_ids)
+
+
+def arc_bin(c):
+    """The arc bin of contact point c in the liner's frame (turned back by omega t)."""
+    th = -omega * O.time
+    xl = math.cos(th) * c[0] - math.sin(th) * c[1]
+    yl = math.sin(th) * c[0] + math.cos(th) * c[1]
+    d = (math.atan2(yl, xl) + 0.5 * pitch) % pitch - 0.5 * pitch
+    return int(math.floor(arc_cfg["radius_m"] * d / arc_cfg["bin_m"]))
+
+
+def slide(i, b, part, seen):
+    """This contact's sliding since the previous check: slip ds = |change of the plastic slip
+    vector|, friction work tan(phi) F_n ds (the Coulomb force while it slides), F_n ds."""
+    key = (i.id1, i.id2)
+    seen.add(key)
+    ph = i.phys
+    p = ph.usTotal - ph.usElastic
+    prev = slip_prev.get(key)
+    ds = (p - prev).norm() if prev is not None else p.norm()
+    slip_prev[key] = Vector3(p)
+    if ds <= 0.0:
+        return
+    fn = ph.normalForce.norm()
+    w = ph.tangensOfFrictionAngle * fn * ds
+    state["liner_friction"] += w
+    if O.time >= cfg["warmup_s"]:
+        k = (0 if b - first_id < n_balls else 1, part, arc_bin(i.geom.contactPoint))
+        acc = abrasion.setdefault(k, [0.0, 0.0, 0.0])
+        acc[0] += w
+        acc[1] += fn * ds
+        acc[2] += ds
+
+
+def count_contact(i, id1, id2, last):
+    """A new contact between two particles after the warm-up, counted by the kinds' pair, and
+    again when they approach at >= 1 m/s along its normal (velocities at the previous check)."""
+    if O.time < cfg["warmup_s"]:
+        return
+    k1, k2 = sorted((0 if id1 - first_id < n_balls else 1, 0 if id2 - first_id < n_balls else 1))
+    key = ("ball", "rock")[k1] + "-" + ("ball", "rock")[k2]
+    c = contacts.setdefault(key, [0, 0])
+    c[0] += 1
+    if -(O.bodies[id2].state.vel - O.bodies[id1].state.vel).dot(i.geom.normal) >= 1.0:
+        c[1] += 1
+
+
+contacts = {}
 
 
 def check_impacts():
-    """Ball-liner interactions made real since the previous check that start a contact of the ball
-    with a part of the liner it was not touching at the previous check (the two facets of a segment,
-    or a ball rolling from one chord of the plate to the next, make no new impact)."""
+    """Particle-liner interactions made real since the previous check that start a contact of the
+    particle with a part of the liner it was not touching at the previous check (the two facets of a
+    segment, or a particle rolling from one chord of the plate to the next, make no new impact); the
+    sliding of every particle-liner contact (slide); no rolling resistance on new contacts without rock."""
     last = state["last_check"]
     now = O.iter
     touching = set()
+    seen = set()
     new = []
     for i in O.interactions:
         if not i.isReal:
             continue
         id1, id2 = i.id1, i.id2
+        fresh = i.iterMadeReal > last
+        if fresh and rolling and id1 not in is_rock and id2 not in is_rock:
+            i.phys.kr = 0.0
+            i.phys.momentBend = Vector3(0.0, 0.0, 0.0)
+        if fresh and id1 in is_particle and id2 in is_particle:
+            count_contact(i, id1, id2, last)
+            continue
         part, b, sign = part_of.get(id1), id2, 1.0
         if part is None:
             part, b, sign = part_of.get(id2), id1, -1.0
-        if part is None or b not in is_ball:
+        if part is None or b not in is_particle:
             continue
         touching.add((b, part))
+        slide(i, b, part, seen)
         if i.iterMadeReal > last:
             new.append((i, b, part, sign))
+    for key in [k for k in slip_prev if k not in seen]:
+        del slip_prev[key]
     before = state["touching"]
     logged = {}
     for i, b, part, sign in new:
@@ -201,21 +348,23 @@ def check_impacts():
             continue
         before.add((b, part))  # one impact even if both facets of a segment were hit
         c = i.geom.contactPoint
-        # a ball striking an edge or a corner (face and top, or lifter and plate) touches two parts at
-        # one point: one impact
-        if any((c - q).norm() < 0.25 * r for q in logged.get(b, ())):
+        # a particle striking an edge or a corner (face and top, or lifter and plate) touches two
+        # parts at one point: one impact
+        if any((c - q).norm() < 0.25 * O.bodies[b].shape.radius for q in logged.get(b, ())):
             continue
         logged.setdefault(b, []).append(c)
-        # the ball's velocity before the contact: at the previous check, plus gravity's pull until the
-        # step before the contact became real (a flight's velocity exactly; a ball in the bed may also
-        # have been pushed by other balls in those few steps)
-        v = vel_prev[b - ball_ids[0]] + Vector3(0.0, -g * O.dt * max(i.iterMadeReal - 1 - last, 0), 0.0)
-        # the normal points from id1 to id2: turned to point from the liner into the ball
+        # the particle's velocity before the contact: at the previous check, plus gravity's pull until
+        # the step before the contact became real (a flight's velocity exactly; a particle in the bed
+        # may also have been pushed by others in those few steps)
+        v0 = vel_prev.get(b)
+        v0 = Vector3(O.bodies[b].state.vel) if v0 is None else v0  # none faster than v_max: never
+        v = v0 + Vector3(0.0, -g * O.dt * max(i.iterMadeReal - 1 - last, 0), 0.0)
+        # the normal points from id1 to id2: turned to point from the liner into the particle
         n = i.geom.normal * sign
         impacts.writerow(
             [
                 O.time,
-                b - ball_ids[0],
+                b - first_id,
                 part,
                 v[0],
                 v[1],
@@ -234,16 +383,21 @@ def check_impacts():
         state["n_impacts"] += 1
     state["touching"] = touching
     state["last_check"] = now
-    vel_prev[:] = [Vector3(O.bodies[b].state.vel) for b in ball_ids]  # copies, not views
+    state["checks"] += 1
+    if state["checks"] % REFRESH == 1:
+        refresh_candidates()
+    vel_prev.clear()
+    for b in candidates:
+        vel_prev[b] = Vector3(O.bodies[b].state.vel)  # copies, not views
 
 
 def ball_energies():
     ke = pe = 0.0
-    for b in ball_ids:
+    for j, b in enumerate(part_ids):
         st = O.bodies[b].state
         v, w = st.vel, st.angVel
-        ke += 0.5 * mass * v.squaredNorm() + 0.5 * inertia * w.squaredNorm()
-        pe += mass * g * st.pos[1]
+        ke += 0.5 * masses[j] * v.squaredNorm() + 0.5 * inertias[j] * w.squaredNorm()
+        pe += masses[j] * g * st.pos[1]
     return ke, pe
 
 
@@ -254,6 +408,8 @@ def shear_elastic_energy():
         ks = i.phys.ks
         if ks > 0:
             w += i.phys.shearElastic.squaredNorm() / (2.0 * ks)
+        if rolling and i.phys.kr > 0:
+            w += i.phys.momentBend.squaredNorm() / (2.0 * i.phys.kr)
     return w
 
 
@@ -272,13 +428,14 @@ def write_energy():
             law.normDampDissip,
             law.shearDampDissip,
             law.frictionDissipation,
+            state["liner_friction"],
         ]
     )
 
 
 def write_snapshot():
     k = state["snap"]
-    for j, b in enumerate(ball_ids):
+    for j, b in enumerate(part_ids):
         st = O.bodies[b].state
         charge.writerow([k, O.time, j, st.pos[0], st.pos[1], st.pos[2], st.vel[0], st.vel[1]])
     state["snap"] += 1
@@ -288,7 +445,7 @@ def write_trace():
     for b in trace_ids:
         st = O.bodies[b].state
         n = sum(1 for i in O.bodies[b].intrs() if i.isReal and (i.id1 in part_of or i.id2 in part_of))
-        trace.writerow([O.time, b - ball_ids[0], st.pos[0], st.pos[1], st.pos[2], st.vel[0], st.vel[1], st.vel[2], n])
+        trace.writerow([O.time, b - first_id, st.pos[0], st.pos[1], st.pos[2], st.vel[0], st.vel[1], st.vel[2], n])
 
 
 def every_step():
@@ -327,6 +484,11 @@ check_impacts()
 write_energy()
 for fh in (impacts_fh, charge_fh, energy_fh, trace_fh):
     fh.close()
+with open("abrasion_raw.csv", "w", newline="") as fh:
+    rows = csv.writer(fh)
+    rows.writerow(["kind", "part", "arc_bin", "friction_work_J", "normal_force_slip_N_m", "slip_m"])
+    for (kind, part, k), (w, fs, ds) in sorted(abrasion.items()):
+        rows.writerow([kind, part, k, w, fs, ds])
 json.dump(
     {
         "steps": O.iter,
@@ -335,9 +497,12 @@ json.dump(
         "wall_s": time.time() - wall0,
         "cpu_s": time.process_time() - cpu0,
         "balls": len(ball_ids),
+        "rocks": len(rock_ids),
+        "velocity_candidates_last": len(candidates),
+        "particle_contacts_after_warmup": {k: {"all": v[0], "at_1_m_s_or_more": v[1]} for k, v in contacts.items()},
         "facets": len(member_ids),
         "impacts_logged": state["n_impacts"],
-        "ball_mass_kg": mass,
+        "ball_mass_kg": masses[0] if ball_ids else None,
         "power_every": power_every,
         "check_every": check_every,
         "law_every": int(law_cfg["every"]) if law_cfg else 0,
