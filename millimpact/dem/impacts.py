@@ -15,6 +15,9 @@ in each column's name:
                             that lifter's leading face (the one that lifts the charge)
 ``kind``                    ``ball`` or ``rock`` (optional: a log without it holds balls only)
 ``mass_kg``                 the particle's mass (kg; optional)
+``surface_position_m``      where on the liner's profile (m; optional): the distance along the
+                            profile from the lifter's trailing foot (trailing face, top, leading
+                            face, then the plate to the next lifter)
 ==========================  ===================================================================
 
 For a rock, ``ball_radius_m`` is the rock's radius. The damage map computes the balls' impacts
@@ -54,7 +57,7 @@ IMPACT_COLUMNS = (
     "arc_position_m",
 )
 #: the optional columns (a balls-only log may leave them out) and their values for such a log
-OPTIONAL_COLUMNS = ("kind", "mass_kg")
+OPTIONAL_COLUMNS = ("kind", "mass_kg", "surface_position_m")
 #: the kinds of particle
 KINDS = ("ball", "rock")
 #: the places of the liner an impact can strike
@@ -79,6 +82,7 @@ class Impact:
     arc_position_m: float
     kind: str = "ball"
     mass_kg: float | None = None
+    surface_position_m: float | None = None
 
     @property
     def angle_deg(self) -> float:
@@ -113,7 +117,8 @@ class ImpactLog(SequenceABC):
             PLACES[self._codes[k]],
             float(c["arc_position_m"][k]),
             KINDS[self._kinds[k]],
-            float(c["mass_kg"][k]) if "mass_kg" in c and math.isfinite(c["mass_kg"][k]) else None,
+            _optional(c, "mass_kg", k),
+            _optional(c, "surface_position_m", k),
         )
 
     def __eq__(self, other) -> bool:
@@ -126,7 +131,7 @@ class ImpactLog(SequenceABC):
             return np.asarray(PLACES)[self._codes]
         if name == "kind":
             return np.asarray(KINDS)[self._kinds]
-        if name == "mass_kg" and name not in self._columns:
+        if name in OPTIONAL_COLUMNS and name not in self._columns:
             return np.full(len(self), math.nan)
         return self._columns[name]
 
@@ -139,8 +144,8 @@ def impact_column(impacts: Sequence[Impact], name: str) -> np.ndarray:
     """Column ``name`` of ``impacts`` as an array (an :class:`ImpactLog`'s own, or gathered)."""
     if isinstance(impacts, ImpactLog):
         return impacts.column(name)
-    if name == "mass_kg":
-        return np.array([math.nan if i.mass_kg is None else i.mass_kg for i in impacts], dtype=float)
+    if name in ("mass_kg", "surface_position_m"):
+        return np.array([math.nan if getattr(i, name) is None else getattr(i, name) for i in impacts], dtype=float)
     return np.array([getattr(i, name) for i in impacts], dtype=object if name in ("place", "kind") else float)
 
 
@@ -179,7 +184,8 @@ def write_impacts(path: Path, impacts: Iterable[Impact]) -> None:
         w.writerow(columns)
         for imp in impacts:
             row = [repr(float(getattr(imp, c))) if c != "place" else imp.place for c in IMPACT_COLUMNS]
-            w.writerow([*row, imp.kind, "" if imp.mass_kg is None else repr(float(imp.mass_kg))])
+            extra = ["" if x is None else repr(float(x)) for x in (imp.mass_kg, imp.surface_position_m)]
+            w.writerow([*row, imp.kind, *extra])
 
 
 def _missing_column_hint(header: Sequence[str], column: str) -> str:
@@ -233,7 +239,7 @@ def _read_columns(path: Path) -> ImpactLog | None:
                     fh, usecols=[idx["place"]], dtype="U16", ndmin=1, delimiter=",", comments=None, quotechar='"'
                 )
             )
-            kinds, mass = _optional_columns(fh, header)
+            kinds, mass, surface = _optional_columns(fh, header)
     except (OSError, ValueError, UnicodeDecodeError, StopIteration, csv.Error):
         return None
     if len(places) == 0 or values.shape != (len(places), len(numeric)):
@@ -247,6 +253,10 @@ def _read_columns(path: Path) -> ImpactLog | None:
         if mass.shape != (len(places),) or not np.isfinite(mass).all() or (mass <= 0).any():
             return None
         columns["mass_kg"] = mass
+    if surface is not None:
+        if surface.shape != (len(places),) or not np.isfinite(surface).all() or (surface < 0).any():
+            return None
+        columns["surface_position_m"] = surface
     for c in _NON_NEGATIVE:
         if (columns[c] < 0).any():
             return None
@@ -264,10 +274,11 @@ def _codes(values: np.ndarray, names: tuple[str, ...]) -> np.ndarray | None:
     return None if (codes < 0).any() else codes
 
 
-def _optional_columns(fh, header: list[str]) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """The ``kind`` (strings) and ``mass_kg`` columns, each None when the header lacks it."""
+def _optional_columns(fh, header: list[str]) -> tuple[np.ndarray | None, ...]:
+    """The ``kind`` (strings), ``mass_kg`` and ``surface_position_m`` columns, each None when the
+    header lacks it."""
     out: list[np.ndarray | None] = []
-    for column, dtype in (("kind", "U8"), ("mass_kg", float)):
+    for column, dtype in (("kind", "U8"), ("mass_kg", float), ("surface_position_m", float)):
         if column not in header:
             out.append(None)
             continue
@@ -277,7 +288,11 @@ def _optional_columns(fh, header: list[str]) -> tuple[np.ndarray | None, np.ndar
             fh, usecols=[header.index(column)], dtype=dtype, ndmin=1, delimiter=",", comments=None, quotechar='"'
         )
         out.append(np.char.strip(col) if column == "kind" else col)
-    return out[0], out[1]
+    return tuple(out)
+
+
+def _optional(columns: dict[str, np.ndarray], name: str, k: int) -> float | None:
+    return float(columns[name][k]) if name in columns and math.isfinite(columns[name][k]) else None
 
 
 def _read_rows(path: Path) -> list[Impact]:
@@ -352,15 +367,19 @@ def _optional_cells(path: Path, row_no: int, row: list[str], header: list[str]) 
         if cell not in KINDS:
             raise InputError(f"--impacts {path}: row {row_no}: kind '{cell}' is not one of {', '.join(KINDS)}")
         out["kind"] = cell
-    if "mass_kg" in header:
-        k = header.index("mass_kg")
+    for name, positive in (("mass_kg", True), ("surface_position_m", False)):
+        if name not in header:
+            continue
+        k = header.index(name)
         cell = row[k].strip() if k < len(row) else ""
-        if cell:
-            try:
-                m = float(cell)
-            except ValueError:
-                raise InputError(f"--impacts {path}: row {row_no}: mass_kg '{cell}' is not a number") from None
-            if not (math.isfinite(m) and m > 0):
-                raise InputError(f"--impacts {path}: row {row_no}: mass_kg {cell} must be a positive number")
-            out["mass_kg"] = m
+        if not cell:
+            continue
+        try:
+            x = float(cell)
+        except ValueError:
+            raise InputError(f"--impacts {path}: row {row_no}: {name} '{cell}' is not a number") from None
+        if not math.isfinite(x) or x < 0 or (positive and x == 0):
+            need = "a positive number" if positive else "a number >= 0"
+            raise InputError(f"--impacts {path}: row {row_no}: {name} {cell} must be {need}")
+        out[name] = x
     return out

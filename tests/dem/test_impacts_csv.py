@@ -11,6 +11,7 @@ from millimpact.dem.impacts import (
     OPTIONAL_COLUMNS,
     Impact,
     ball_impacts,
+    impact_column,
     kind_totals,
     read_impacts,
     write_impacts,
@@ -100,7 +101,7 @@ def test_kinds_and_masses_round_trip_and_the_balls_are_picked(tmp_path):
     write_impacts(path, _sag_impacts())
     log = read_impacts(path)
     assert list(log) == _sag_impacts()
-    assert list(log.column("kind")) == ["ball", "rock", "ball"]
+    assert list(impact_column(log, "kind")) == ["ball", "rock", "ball"]
     assert list(ball_impacts(log)) == [_sag_impacts()[0], _sag_impacts()[2]]
     rock = kind_totals(log, "rock", revolutions=2.0)
     assert rock["lifter_face"]["impacts_per_rev"] == 0.5
@@ -109,7 +110,7 @@ def test_kinds_and_masses_round_trip_and_the_balls_are_picked(tmp_path):
     # a log without the kind column (a balls-only log of before) holds balls
     old = tmp_path / "old.csv"
     old.write_text("\n".join(",".join(r.split(",")[:7]) for r in path.read_text().splitlines()) + "\n")
-    assert set(read_impacts(old).column("kind")) == {"ball"}
+    assert set(impact_column(read_impacts(old), "kind")) == {"ball"}
 
 
 @pytest.mark.parametrize("edit, words", [

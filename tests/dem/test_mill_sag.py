@@ -6,6 +6,7 @@ about the contact point is kept), so friction turns m v0^2 / 7 into heat over a 
 v0^2 / (7 mu g); the energy balance of a whole run (the drive's work against the change of the
 particles' energy and the dissipation by kind). The small mill of mill_scenes.py with Young's moduli
 x 0.001 keeps each run to seconds of CPU."""
+
 from __future__ import annotations
 
 import csv
@@ -49,7 +50,7 @@ def _sliding_input(v0: float, mu: float, r: float = 0.03) -> dict:
         "ball_velocities": [[v0, 0.0, 0.0]],
         "rock": None,
         "v_max_m_s": 2 * v0,
-        "arc": {"lifter_height_m": 0.0, "radius_m": 1.0, "n_lifters": 1, "bin_m": 0.01},
+        "arc": {"lifter_height_m": 0.0, "radius_m": 1.0, "bin_m": 0.01, "segment_s0_m": [0.0]},
         "dt_s": dt,
         "check_every": 3,
         "power_every": 3,
@@ -87,8 +88,16 @@ def test_a_sliding_ball_does_friction_work_m_v0_squared_over_7(tmp_path):
 
 
 def _sag_opts(**kw) -> MillOptions:
-    base = dict(revolutions=0.5, charge="sag", fill=0.3, ball_fill=0.12, rock_top_size=0.06, rock_cutoff=0.03,
-                stiffness_scale=SOFT, warmup=0.5)
+    base = dict(
+        revolutions=0.5,
+        charge="sag",
+        fill=0.3,
+        ball_fill=0.12,
+        rock_top_size=0.06,
+        rock_cutoff=0.03,
+        stiffness_scale=SOFT,
+        warmup=0.5,
+    )
     return MillOptions(**{**base, **kw})
 
 
@@ -140,17 +149,20 @@ def test_a_sag_run_balances_its_energy_and_logs_rock_and_abrasion(tmp_path):
     assert 0.3 < share < 1.0  # most of the charge is rock: most of a ball's contacts are with rock
 
 
-@pytest.mark.parametrize("args, words", [
-    (["--charge", "sag", "--ball-fill", "0.3"], "--ball-fill 0.3: must lie in (0, --fill = 0.28]"),
-    (["--charge", "sag", "--fill", "0.6"], "--fill 0.6: must lie in [0.05, 0.5]"),
-    (["--charge", "sag", "--rock-cutoff", "0.2"], "--rock-cutoff 0.2 m: must lie in (0, --rock-top-size = 0.2 m)"),
-    (["--charge", "sag", "--rock-top-size", "3"], "--rock-top-size 3 m: must be below half the mill's radius"),
-    (["--charge", "sag", "--rock-top-size", "0.3"], "--rock-top-size 0.3 m: must be at most the slice's thickness"),
-    (["--charge", "sag", "--rolling-resistance", "1.5"], "--rolling-resistance 1.5: must lie in [0, 1]"),
-    (["--rock-cutoff", "0.05"], "--rock-cutoff: a rock option; give --charge sag"),
-    (["--charge", "sag", "--balls", "10"], "--balls: with --charge sag give --fill and --ball-fill"),
-    (["--charge", "gravel"], "--charge"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--charge", "sag", "--ball-fill", "0.3"], "--ball-fill 0.3: must lie in (0, --fill = 0.28]"),
+        (["--charge", "sag", "--fill", "0.6"], "--fill 0.6: must lie in [0.05, 0.5]"),
+        (["--charge", "sag", "--rock-cutoff", "0.2"], "--rock-cutoff 0.2 m: must lie in (0, --rock-top-size = 0.2 m)"),
+        (["--charge", "sag", "--rock-top-size", "3"], "--rock-top-size 3 m: must be below half the mill's radius"),
+        (["--charge", "sag", "--rock-top-size", "0.3"], "--rock-top-size 0.3 m: must be at most the slice's thickness"),
+        (["--charge", "sag", "--rolling-resistance", "1.5"], "--rolling-resistance 1.5: must lie in [0, 1]"),
+        (["--rock-cutoff", "0.05"], "--rock-cutoff: a rock option; give --charge sag"),
+        (["--charge", "sag", "--balls", "10"], "--balls: with --charge sag give --fill and --ball-fill"),
+        (["--charge", "gravel"], "--charge"),
+    ],
+)
 def test_bad_sag_input_is_one_line_and_exit_2_and_no_folder(tmp_path, args, words):
     out = tmp_path / "mill"
     res = run_cli("mill", "liner-panel", *args, "--revolutions", "1", "--out", str(out), timeout=120)

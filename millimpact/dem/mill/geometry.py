@@ -83,6 +83,50 @@ class MillProfile:
         d = (phi + 0.5 * pitch) % pitch - 0.5 * pitch
         return self.radius * d
 
+    def unit_starts(self) -> tuple[list[float], float]:
+        """The surface position (m) where each segment starts, measured along the profile from its
+        lifter unit's start (the lifter's trailing foot: trailing face, top, leading face, then the
+        plate to the next lifter), and the length of a unit (m). All units are alike."""
+        starts, s = [], 0.0
+        for seg in self.segments:
+            if seg.place == "lifter_face" and seg.part % 4 == 0:  # a unit's first segment
+                s = 0.0
+            starts.append(s)
+            s += seg.length
+        return starts, s
+
+    def surface_position(self, x: float, y: float, part: int) -> float:
+        """Surface position (m, :meth:`unit_starts`) of the point (x, y) of the liner frame on the
+        segment of ``part`` nearest to it."""
+        starts, _ = self.unit_starts()
+        best = (math.inf, 0.0)
+        for k, seg in enumerate(self.segments):
+            if seg.part != part:
+                continue
+            (ax, ay), (bx, by) = seg.start, seg.end
+            L2 = (bx - ax) ** 2 + (by - ay) ** 2
+            t = min(1.0, max(0.0, ((x - ax) * (bx - ax) + (y - ay) * (by - ay)) / L2))
+            d = math.hypot(ax + t * (bx - ax) - x, ay + t * (by - ay) - y)
+            if d < best[0]:
+                best = (d, starts[k] + t * math.sqrt(L2))
+        return best[1]
+
+    def point_at(self, s: float) -> tuple[float, float]:
+        """The point (m) of lifter 0's unit at surface position s (clamped to the unit)."""
+        starts, total = self.unit_starts()
+        s = min(max(s, 0.0), total)
+        n = self.segments_per_unit
+        for k in range(n):
+            seg = self.segments[k]
+            if s <= starts[k] + seg.length or k == n - 1:
+                t = min(1.0, (s - starts[k]) / seg.length)
+                return (seg.start[0] + t * (seg.end[0] - seg.start[0]), seg.start[1] + t * (seg.end[1] - seg.start[1]))
+        raise AssertionError("unreachable")
+
+    @property
+    def segments_per_unit(self) -> int:
+        return len(self.segments) // self.n_lifters
+
     def open_area(self) -> float:
         """Area (m^2) inside the profile (the shell's circle less the lifters): the shoelace sum."""
         a = 0.0

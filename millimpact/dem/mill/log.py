@@ -97,6 +97,7 @@ def impacts_from_raw(raw: dict[str, np.ndarray], setup: MillSetup) -> list[Impac
                 arc_position_m=float(setup.profile.arc_position(xl[k], yl[k])),
                 kind="ball" if k_part[k] < setup.n_balls else "rock",
                 mass_kg=float(m[k]),
+                surface_position_m=float(setup.profile.surface_position(xl[k], yl[k], int(raw["part"][k]))),
             )
         )
     return out

@@ -64,7 +64,7 @@ DEFAULT_STIFFNESS_SCALE = 0.01
 #: time steps per shortest contact, and impact checks per shortest contact
 STEPS_PER_CONTACT = 25
 CHECKS_PER_CONTACT = 8
-#: abrasion.csv's arc bins (m): 10 mm, a twentieth of a lifter's height
+#: abrasion.csv's bins of surface position (m): 10 mm, a twentieth of a lifter's height
 ABRASION_BIN = 0.01
 #: a lattice of balls: centres this many radii apart in a layer, layers this many radii apart
 LATTICE_SPACING = 2.1
@@ -294,8 +294,8 @@ class MillSetup:
             "arc": {
                 "lifter_height_m": self.profile.lifter_height,
                 "radius_m": self.profile.radius,
-                "n_lifters": self.profile.n_lifters,
                 "bin_m": self.abrasion_bin_m,
+                "segment_s0_m": self.profile.unit_starts()[0],
             },
             "dt_s": self.dt,
             "check_every": self.check_every,

@@ -90,8 +90,8 @@ if rock:
 mat_id = {m.label: k for k, m in enumerate(O.materials)}
 
 # --- the liner: one clump of facets (one body to turn and to sum the torque on) ---------------
-facets, facet_part = [], []
-for x0, y0, x1, y1, part in cfg["segments"]:
+facets, facet_part, facet_seg = [], [], []
+for k_seg, (x0, y0, x1, y1, part) in enumerate(cfg["segments"]):
     a, b, c, d = (x0, y0, 0.0), (x1, y1, 0.0), (x1, y1, L), (x0, y0, L)
     for tri in ((a, b, c), (a, c, d)):
         f = utils.facet(tri, material=liner_label, fixed=True)
@@ -99,9 +99,11 @@ for x0, y0, x1, y1, part in cfg["segments"]:
         f.state.mass, f.state.inertia = 1.0, (1.0, 1.0, 1.0)
         facets.append(f)
         facet_part.append(part)
+        facet_seg.append(k_seg)
 clump_id, member_ids = O.bodies.appendClumped(facets)
 O.bodies[clump_id].dynamic = False
 part_of = dict(zip(member_ids, facet_part))
+seg_of = dict(zip(member_ids, facet_seg))
 end_ids = [
     O.bodies.append(utils.wall(0.0, axis=2, sense=1, material="end")),
     O.bodies.append(utils.wall(L, axis=2, sense=-1, material="end")),
@@ -257,20 +259,23 @@ state = {
 slip_prev = {}
 abrasion = {}
 arc_cfg = cfg["arc"]
-pitch = 2.0 * math.pi / arc_cfg["n_lifters"]
 n_balls = len(ball_ids)
 
 
-def arc_bin(c):
-    """The arc bin of contact point c in the liner's frame (turned back by omega t)."""
+def surface_bin(c, seg):
+    """The bin of contact point c's surface position on segment seg: the distance along the profile
+    from the lifter unit's start (segment_s0), the point turned back by omega t to the liner's frame."""
     th = -omega * O.time
     xl = math.cos(th) * c[0] - math.sin(th) * c[1]
     yl = math.sin(th) * c[0] + math.cos(th) * c[1]
-    d = (math.atan2(yl, xl) + 0.5 * pitch) % pitch - 0.5 * pitch
-    return int(math.floor(arc_cfg["radius_m"] * d / arc_cfg["bin_m"]))
+    x0, y0, x1, y1, _ = cfg["segments"][seg]
+    dx, dy = x1 - x0, y1 - y0
+    length = math.hypot(dx, dy)
+    t = min(length, max(0.0, ((xl - x0) * dx + (yl - y0) * dy) / length))
+    return int(math.floor((arc_cfg["segment_s0_m"][seg] + t) / arc_cfg["bin_m"]))
 
 
-def slide(i, b, part, seen):
+def slide(i, b, part, seen, facet):
     """This contact's sliding since the previous check: slip ds = |change of the plastic slip
     vector|, friction work tan(phi) F_n ds (the Coulomb force while it slides), F_n ds."""
     key = (i.id1, i.id2)
@@ -286,7 +291,7 @@ def slide(i, b, part, seen):
     w = ph.tangensOfFrictionAngle * fn * ds
     state["liner_friction"] += w
     if O.time >= cfg["warmup_s"]:
-        k = (0 if b - first_id < n_balls else 1, part, arc_bin(i.geom.contactPoint))
+        k = (0 if b - first_id < n_balls else 1, part % 4, surface_bin(i.geom.contactPoint, seg_of[facet]))
         acc = abrasion.setdefault(k, [0.0, 0.0, 0.0])
         acc[0] += w
         acc[1] += fn * ds
@@ -330,13 +335,13 @@ def check_impacts():
         if fresh and id1 in is_particle and id2 in is_particle:
             count_contact(i, id1, id2, last)
             continue
-        part, b, sign = part_of.get(id1), id2, 1.0
+        part, b, sign, facet = part_of.get(id1), id2, 1.0, id1
         if part is None:
-            part, b, sign = part_of.get(id2), id1, -1.0
+            part, b, sign, facet = part_of.get(id2), id1, -1.0, id2
         if part is None or b not in is_particle:
             continue
         touching.add((b, part))
-        slide(i, b, part, seen)
+        slide(i, b, part, seen, facet)
         if i.iterMadeReal > last:
             new.append((i, b, part, sign))
     for key in [k for k in slip_prev if k not in seen]:
@@ -486,7 +491,7 @@ for fh in (impacts_fh, charge_fh, energy_fh, trace_fh):
     fh.close()
 with open("abrasion_raw.csv", "w", newline="") as fh:
     rows = csv.writer(fh)
-    rows.writerow(["kind", "part", "arc_bin", "friction_work_J", "normal_force_slip_N_m", "slip_m"])
+    rows.writerow(["kind", "unit_part", "surface_bin", "friction_work_J", "normal_force_slip_N_m", "slip_m"])
     for (kind, part, k), (w, fs, ds) in sorted(abrasion.items()):
         rows.writerow([kind, part, k, w, fs, ds])
 json.dump(
