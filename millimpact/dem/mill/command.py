@@ -407,11 +407,20 @@ def main(args: argparse.Namespace) -> int:
     if quiet:
         return 0
     n = summary["impacts_per_revolution"]
+    who = "ball impacts" if "rock_impacts" in summary else "impacts"
+    rolling = " (with the rock's rolling resistance, which Yade does not count)" if "rock_impacts" in summary else ""
     say(
-        f"impacts per revolution: {n['all']:.4g} (lifter faces {n['lifter_face']:.4g}, tops {n['lifter_top']:.4g}, "
+        f"{who} per revolution: {n['all']:.4g} (lifter faces {n['lifter_face']:.4g}, tops {n['lifter_top']:.4g}, "
         f"plate {n['plate']:.4g}); {_charge_text(summary)}; "
-        f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %"
+        f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %{rolling}"
     )
+    if "rock_impacts" in summary:
+        share = summary["charge"]["ball_contacts_on_rock_share"]
+        say(
+            f"rock impacts per revolution: {summary['rock_impacts']['impacts_per_revolution']['all']:.4g}; "
+            + ("" if share is None else f"{100 * share:.0f} % of the balls' contacts land on rock; ")
+            + f"friction work at the liner {summary['abrasion']['friction_work_J_per_revolution']:.4g} J per revolution"
+        )
     for line in _comparison_lines(summary):
         say(line)
     say(f"results in {target.shown}/" + target.replaced_note())
