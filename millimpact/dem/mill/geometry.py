@@ -146,17 +146,16 @@ def lifter_count(liner: LinerShape) -> int:
     return max(1, round(2.0 * math.pi * liner.mill_radius / liner.lifter_spacing))
 
 
-def _foot_on_circle(R: float, top: Point2, foot: Point2) -> Point2:
-    """Where the face line from ``top`` through ``foot`` crosses the shell's circle: the point at
-    distance R from the mill's axis, which lies at (zeta, eta) = (0, R) in the lifter's local frame
-    (zeta across, eta up from the shell along the lifter's centre line)."""
-    # point p(t) = top + t (foot - top); distance from the axis (0, R) equals R
+def _foot_on_circle(axis: float, radius: float, top: Point2, foot: Point2) -> Point2:
+    """Where the face line from ``top`` through ``foot`` crosses the plate's circle (radius
+    ``radius`` about the mill's axis, which lies at (zeta, eta) = (0, axis) in the lifter's local
+    frame: zeta across, eta up from the new liner's plate along the lifter's centre line)."""
+    # point p(t) = top + t (foot - top); distance from the axis (0, axis) equals radius
     (z0, e0), (z1, e1) = top, foot
     dz, de = z1 - z0, e1 - e0
-    # |(z0 + t dz, e0 + t de - R)|^2 = R^2
     a = dz * dz + de * de
-    b = 2.0 * (z0 * dz + (e0 - R) * de)
-    c = z0 * z0 + (e0 - R) ** 2 - R * R
+    b = 2.0 * (z0 * dz + (e0 - axis) * de)
+    c = z0 * z0 + (e0 - axis) ** 2 - radius * radius
     disc = b * b - 4.0 * a * c
     t = (-b + math.sqrt(max(disc, 0.0))) / (2.0 * a)  # the crossing beyond the top (t > 0)
     return z0 + t * dz, e0 + t * de
@@ -171,29 +170,45 @@ def build_profile(liner: LinerShape, ball_radius: float) -> MillProfile:
             f"liner.mill_radius = {liner.mill_radius!r}: a mill run needs a curved liner "
             "(mill_radius > 0 m, the shell's inner radius)"
         )
-    n = lifter_count(liner)
     h, ht = liner.lifter_height, 0.5 * liner.lifter_top_width
     hb = 0.5 * liner.lifter_base_width
-    pitch = 2.0 * math.pi / n
-    # local lifter outline (zeta across, positive leading; eta up from the shell at the centre line);
-    # the axis of the mill lies at (0, R) in this frame
-    foot_t = _foot_on_circle(R, (-ht, h), (-hb, 0.0))
-    foot_l = _foot_on_circle(R, (ht, h), (hb, 0.0))
-    outline = [foot_t, (-ht, h), (ht, h), foot_l]
-    half_foot = math.atan2(foot_l[0], R - foot_l[1])  # angle of the foot from the centre line
-    if 2.0 * half_foot >= pitch:
+    corners = ((-hb, 0.0), (-ht, h), (ht, h), (hb, 0.0))
+    profile = outline_profile(R, R, lifter_count(liner), corners, ball_radius)
+    if profile is None:
         raise InputError(
-            f"liner.lifter_spacing = {liner.lifter_spacing!r}: {n} lifters round a shell of radius "
+            f"liner.lifter_spacing = {liner.lifter_spacing!r}: {lifter_count(liner)} lifters round a shell of radius "
             f"{R:g} m overlap (each is {2 * hb:g} m wide at its foot)"
         )
-    gap = pitch - 2.0 * half_foot
+    return profile
+
+
+def outline_profile(
+    axis: float, radius: float, n: int, corners: tuple[Point2, ...], ball_radius: float
+) -> MillProfile | None:
+    """The closed profile of n lifters of one outline round a plate of ``radius`` (m), in the
+    lifter's local frame (zeta across, positive leading; eta up from the new plate, the mill's axis
+    at (0, ``axis``)): ``corners`` = (a point of the trailing face, the trailing top corner, the
+    leading top corner, a point of the leading face); each face runs from its top corner through
+    its point to the plate. None when the lifters' feet overlap. A worn liner's plate lies deeper
+    than the new one's (radius > axis)."""
+    R = radius
+    h = max(corners[1][1], corners[2][1])
+    pitch = 2.0 * math.pi / n
+    foot_t = _foot_on_circle(axis, R, corners[1], corners[0])
+    foot_l = _foot_on_circle(axis, R, corners[2], corners[3])
+    outline = [foot_t, corners[1], corners[2], foot_l]
+    half_t = math.atan2(-foot_t[0], axis - foot_t[1])  # angles of the feet from the centre line
+    half_l = math.atan2(foot_l[0], axis - foot_l[1])
+    if half_t + half_l >= pitch:
+        return None
+    gap = pitch - half_t - half_l
     n_chords = max(1, math.ceil(R * gap / plate_chord(R, ball_radius)))
 
     def to_global(k: int, zeta: float, eta: float) -> Point2:
         th = k * pitch
         # centre line up = -e_r(th), across (leading) = e_theta(th)
         er, et = (math.cos(th), math.sin(th)), (-math.sin(th), math.cos(th))
-        rho = R - eta
+        rho = axis - eta
         return (rho * er[0] + zeta * et[0], rho * er[1] + zeta * et[1])
 
     segments: list[ProfileSegment] = []
@@ -205,7 +220,7 @@ def build_profile(liner: LinerShape, ball_radius: float) -> MillProfile:
         segments.append(ProfileSegment(pts[2], pts[3], "lifter_face", k, part + 2))
         part += 3
         # the plate from this lifter's leading foot to the next lifter's trailing foot
-        a0 = k * pitch + half_foot
+        a0 = k * pitch + half_l
         arc = [a0 + gap * i / n_chords for i in range(n_chords + 1)]
         ring = [pts[3]] + [(R * math.cos(a), R * math.sin(a)) for a in arc[1:-1]] + [to_global(k + 1, *foot_t)]
         mid = a0 + 0.5 * gap
@@ -214,4 +229,5 @@ def build_profile(liner: LinerShape, ball_radius: float) -> MillProfile:
             owner = k if a_mid < mid else (k + 1) % n
             segments.append(ProfileSegment(p, q, "plate", owner, part))
         part += 1
-    return MillProfile(radius=R, n_lifters=n, lifter_height=h, segments=tuple(segments))
+    # the lifters stand h above the new plate, h + (R - axis) above a worn one
+    return MillProfile(radius=R, n_lifters=n, lifter_height=h + (R - axis), segments=tuple(segments))
