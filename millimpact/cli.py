@@ -296,6 +296,7 @@ EXTRA_COMMANDS = {
     "export": "millimpact.dem.export.command",
     "mill": "millimpact.dem.mill.command",
     "damage": "millimpact.damage.command",
+    "life": "millimpact.life.command",
     "repeat": "millimpact.repeat.command",
 }
 

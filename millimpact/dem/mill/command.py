@@ -12,6 +12,7 @@ empirical models (:mod:`~millimpact.dem.mill.power`).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import shutil
 import sys
@@ -265,6 +266,7 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
     balls = tables["ball"]
     summary = {
         "scene": setup.scene_name,
+        "options": dataclasses.asdict(opts),
         "mill": _mill_summary(setup),
         "charge": _charge_summary(setup, run.info),
         "contact": _contact_summary(setup),
@@ -329,6 +331,8 @@ def _write_tables(stage: Path, run, setup) -> dict:
 def _mill_summary(setup) -> dict:
     p = setup.profile
     return {
+        "unit_surfaces_m": p.unit_surfaces(),
+        "unit_is": "a lifter's unit along the profile: trailing face, top, leading face, plate (m from its trailing foot)",
         "diameter_m": p.diameter,
         "lifters": p.n_lifters,
         "lifter_height_m": p.lifter_height,

@@ -123,6 +123,13 @@ class MillProfile:
                 return (seg.start[0] + t * (seg.end[0] - seg.start[0]), seg.start[1] + t * (seg.end[1] - seg.start[1]))
         raise AssertionError("unreachable")
 
+    def unit_surfaces(self) -> list[list[float]]:
+        """[start, end] (m) of the trailing face, top, leading face and plate along a lifter's unit
+        (:meth:`unit_starts`)."""
+        starts, total = self.unit_starts()
+        ends = [starts[1], starts[2], starts[3], total]
+        return [[0.0 if k == 0 else ends[k - 1], ends[k]] for k in range(4)]
+
     @property
     def segments_per_unit(self) -> int:
         return len(self.segments) // self.n_lifters

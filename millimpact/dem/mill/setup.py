@@ -349,8 +349,11 @@ def lattice_positions(profile: MillProfile, r: float, thickness: float, n: int, 
     return [(x + rng.uniform(-jitter, jitter), y + rng.uniform(-jitter, jitter), z) for y, _, x, z in pts[:n]]
 
 
-def plan_mill(scene, opts: MillOptions, restitution_source: str | None = None) -> MillSetup:
-    """The :class:`MillSetup` of ``scene`` (which must have a liner) under ``opts``."""
+def plan_mill(
+    scene, opts: MillOptions, restitution_source: str | None = None, profile: MillProfile | None = None
+) -> MillSetup:
+    """The :class:`MillSetup` of ``scene`` (which must have a liner) under ``opts``; ``profile``:
+    a worn liner's instead of the scene's new one."""
     check_mill_options(opts)
     if scene.liner is None:
         raise InputError(
@@ -359,7 +362,7 @@ def plan_mill(scene, opts: MillOptions, restitution_source: str | None = None) -
         )
     ball, liner = scene.ball, scene.liner
     r = ball.radius
-    profile = build_profile(liner, r)
+    profile = build_profile(liner, r) if profile is None else profile
     R = profile.radius
     thickness = opts.thickness * 2.0 * r
     sag = _sag_charge(profile, r, thickness, opts) if opts.charge == "sag" else None

@@ -1,0 +1,106 @@
+"""The liner through time: wear a step, move the profile, run the mill on it, and again.
+
+Each cycle takes a mill run on the current profile (the user's on the new liner first; then
+``millimpact mill``'s own run with the first run's options on the worn profile), its wear rates
+(:func:`~millimpact.life.wear.depth_rates`) over a step of ``hours / cycles``, and moves the profile
+(:func:`~millimpact.life.profile.worn_profile`). The steps should be short enough that a step's wear
+is small against the lifter's height (each step's largest depth is reported) and long enough that
+the charge changes between runs. It stops at the relining criterion: the lifters' height above the
+plate or the plate's thickness at their limits.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .profile import LifterProfile, worn_profile
+from .wear import MillRecord, WearLaw, depth_rates, place_rates, read_mill_record, surface_depths
+
+
+@dataclass
+class LifeStep:
+    """One row of profiles.csv: the profile at ``hours``, and the mill run on it."""
+
+    hours: float
+    profile: LifterProfile
+    mill: dict = field(default_factory=dict)  # net power, toe, shoulder of the run on this profile
+    largest_step_depth_mm: float = math.nan
+
+
+def mill_state(rec: MillRecord) -> dict:
+    """The mill run's power, toe and shoulder, and its balls' impacts per revolution."""
+    s = rec.summary
+    p = s["power"]["measured"]["net_per_metre_W_m"]
+    return {
+        "net_power_kW_m": None if p is None else p / 1e3,
+        "toe_deg": s.get("toe_deg"),
+        "shoulder_deg": s.get("shoulder_deg"),
+        "ball_impacts_per_rev": s["impacts_per_revolution"]["all"],
+        "ball_energy_J_per_rev": s["energy_per_revolution_J"]["all"],
+    }
+
+
+def relined(lp: LifterProfile, reline_height_mm: float, reline_plate_mm: float) -> str | None:
+    """Why the liner is relined now ('lifter height', 'plate thickness'), or None."""
+    if 1e3 * lp.height_above_plate <= reline_height_mm:
+        return "lifter height"
+    if 1e3 * lp.plate_left <= reline_plate_mm:
+        return "plate thickness"
+    return None
+
+
+def run_life(
+    lp: LifterProfile,
+    first: MillRecord,
+    law: WearLaw,
+    hours: float,
+    cycles: int,
+    reline: tuple[float, float],
+    run_mill_on: Callable[[LifterProfile, int], Path] | None,
+    ball_radius: float,
+    say: Callable[[str], None] = lambda s: None,
+) -> tuple[list[LifeStep], list[dict], str | None]:
+    """The steps (the profile at 0, hours/cycles, ...), the per-surface rates of each cycle's mill
+    run, and the relining reason if reached. ``run_mill_on(profile, cycle)`` runs the mill on a
+    worn profile and returns its folder (None: one cycle only)."""
+    dt = hours / cycles
+    steps = [LifeStep(0.0, lp, mill_state(first))]
+    rates_per_cycle = []
+    rec, why = first, None
+    for k in range(cycles):
+        rates = depth_rates(rec, law)
+        rates_per_cycle.append(place_rates(rec, rates))
+        depths = surface_depths(rec, rates, dt)
+        lp = worn_profile(lp, depths)
+        largest = max((float(d.max()) for _, d in depths.values() if d.size), default=0.0)
+        steps[-1].largest_step_depth_mm = 1e3 * largest
+        say(
+            f"  life: {steps[-1].hours + dt:.0f} h: lifter {1e3 * lp.height_above_plate:.1f} mm high, faces "
+            f"{lp.trailing_angle_deg:.1f} / {lp.leading_angle_deg:.1f} deg (trailing / leading), plate "
+            f"{1e3 * lp.plate_left:.1f} mm"
+        )
+        why = relined(lp, *reline)
+        last = k == cycles - 1 or why is not None
+        if not last and run_mill_on is not None:
+            rec = read_mill_record(run_mill_on(lp, k + 1), lp.mill_profile(ball_radius))
+        steps.append(LifeStep(steps[-1].hours + dt, lp, {} if last or run_mill_on is None else mill_state(rec)))
+        if why is not None:
+            break
+    return steps, rates_per_cycle, why
+
+
+def hours_to_reline(lp: LifterProfile, rates: dict, reline: tuple[float, float], factor: float = 1.0) -> dict:
+    """Hours (from the profile ``lp``) until each criterion at the surfaces' mean rates (mm per
+    1000 h) times ``factor``: the lifter's height above the plate falls at the top's rate less the
+    plate's; the plate thins at the plate's."""
+    top, plate = rates["top"]["mean_mm_per_1000h"] * factor, rates["plate"]["mean_mm_per_1000h"] * factor
+    h_rate = top - plate
+    out = {
+        "lifter_height_h": 1000.0 * (1e3 * lp.height_above_plate - reline[0]) / h_rate if h_rate > 0 else math.inf,
+        "plate_thickness_h": 1000.0 * (1e3 * lp.plate_left - reline[1]) / plate if plate > 0 else math.inf,
+    }
+    out["first"] = min(out, key=out.get)
+    return out

@@ -1,0 +1,137 @@
+"""Liner life (millimpact.life): the worn profile's geometry against exact offsets, the wear law's
+arithmetic, a calibration that reproduces its figure, bad input, and the loop that runs the mill
+again on the worn profile."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from millimpact.life.calibration import DEFAULT_LAW, initial_height_rate
+from millimpact.life.profile import LifterProfile, worn_profile
+from millimpact.life.wear import MillRecord, WearLaw, depth_rates
+
+from conftest import run_cli
+
+
+def _lifter(angle=20.0):
+    return LifterProfile(mill_radius=5.5, n_lifters=77, height=0.18, top_width=0.10, top_centre=0.0,
+                         trailing_angle_deg=angle, leading_angle_deg=angle, plate_thickness=0.075)
+
+
+def _uniform(lp, d):
+    z = np.linspace(0.0, 0.1, 5)
+    return {s: (z, np.full(5, d)) for s in ("trailing_face", "top", "leading_face", "plate")}
+
+
+def test_uniform_wear_offsets_every_surface_by_its_depth():
+    """Every surface worn by d: the top falls by d and the plate by d (the height above the plate
+    is kept), the angles stay, and the top narrows as two lines offset by d meet the lowered top:
+    w' = w + 2 d (tan a - 1 / cos a) (exact plane geometry)."""
+    lp, d = _lifter(), 0.01
+    new = worn_profile(lp, _uniform(lp, d))
+    a = math.radians(20.0)
+    assert new.height == pytest.approx(0.18 - d, abs=1e-12)
+    assert new.height_above_plate == pytest.approx(0.18, abs=1e-12)
+    assert new.plate_left == pytest.approx(0.075 - d, abs=1e-12)
+    assert new.trailing_angle_deg == pytest.approx(20.0, abs=1e-9)
+    assert new.leading_angle_deg == pytest.approx(20.0, abs=1e-9)
+    assert new.top_width == pytest.approx(0.10 + 2 * d * (math.tan(a) - 1 / math.cos(a)), abs=1e-12)
+
+
+def test_a_face_worn_more_at_its_top_turns_by_atan_of_the_difference():
+    """The leading face worn d0 at its top corner falling linearly to 0 at its foot (positions from
+    the top corner, as the profile runs): its angle grows by atan(d0 / L), L the face's length; the
+    other surfaces do not move."""
+    lp, d0 = _lifter(), 0.02
+    L = 0.18 / math.cos(math.radians(20.0))
+    u = np.linspace(0.0, L, 11)
+    new = worn_profile(lp, {"leading_face": (u, d0 * (1 - u / L))})
+    assert new.leading_angle_deg == pytest.approx(20.0 + math.degrees(math.atan(d0 / L)), abs=1e-9)
+    assert new.trailing_angle_deg == pytest.approx(20.0, abs=1e-12)
+    assert new.height == pytest.approx(0.18, abs=1e-12)
+    # and the mill's profile is built from it (asymmetric faces)
+    assert new.mill_profile(0.0625).n_lifters == 77
+
+
+def test_wear_rates_are_volume_over_area_times_revolutions():
+    """One bin: Archard 2 N m and 3 J absorbed a revolution; k_a 1e-3, k_i 2e-3, H 3 GPa; a 10 mm bin
+    of a 0.25 m slice round 77 lifters at 10 rpm: depth per 1000 h = V / (b L n) x 600,000 rev."""
+    law = WearLaw(abrasion=1e-3, impact=2e-3, hardness_Pa=3e9, density_kg_m3=7850.0)
+    rec = MillRecord(folder=Path("."), surface=np.array(["top"]), position=np.array([0.2]),
+                     archard=np.array([2.0]), absorbed=np.array([3.0]), bin_m=0.01, slice_m=0.25, n_lifters=77,
+                     rpm=10.0, summary={}, surfaces=[[0, 0.1], [0.1, 0.3], [0.3, 0.4], [0.4, 1.0]])
+    r = depth_rates(rec, law)
+    revs = 10 * 60 * 1000
+    area = 0.01 * 0.25 * 77
+    assert r["abrasion_mm_per_1000h"][0] == pytest.approx(1e3 * 1e-3 * 2 / 3e9 / area * revs, rel=1e-12)
+    assert r["impact_mm_per_1000h"][0] == pytest.approx(1e3 * 2e-3 * 3 / 3e9 / area * revs, rel=1e-12)
+    assert r["mass_kg_per_1000h"][0] == pytest.approx((2e-3 + 6e-3) / 3e9 * 7850 * revs, rel=1e-12)
+
+
+def test_first_order_decay_rate():
+    """152 -> 58 mm in 4000 h: tau = 4000 / ln(152/58) = 4152 h, the new lifter's rate 152 / tau."""
+    tau = 4000 / math.log(152 / 58)
+    assert initial_height_rate(152, 58, 4000) == pytest.approx(152 / tau * 1000, rel=1e-12)
+    assert DEFAULT_LAW.hardness_Pa == pytest.approx(325 * 9.807e6)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--hours", "0"], "--hours 0.0: must lie in (0"),
+    (["--cycles", "0"], "--cycles 0: must be an integer in [1, 100]"),
+    (["--spread", "1.5"], "--spread 1.5: must lie in [0, 1)"),
+    (["--calibrate-height", "58:152:4000"], "needs H0 > H1 > 0 mm"),
+    (["--calibrate-mass", "2.6", "--calibrate-height", "152:58:4000"], "give one of them"),
+])
+def test_bad_life_input_is_one_line_and_exit_2_and_no_folder(tmp_path, args, words):
+    mill = tmp_path / "mill"
+    mill.mkdir()
+    out = tmp_path / "life"
+    res = run_cli("life", "liner-panel", "--mill", str(mill), *args, "--out", str(out), timeout=120)
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], res.stderr
+    assert not out.exists()
+
+
+def test_a_folder_that_is_no_mill_run_is_one_line(tmp_path):
+    res = run_cli("life", "liner-panel", "--mill", str(tmp_path), "--out", str(tmp_path / "life"), timeout=120)
+    assert res.returncode == 2 and "not a mill run with abrasion" in res.stderr
+    assert not (tmp_path / "life").exists()
+
+
+@pytest.mark.slow
+def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path):
+    """A short SAG run of the small mill (moduli x 0.001), then life over 2 cycles: the second mill
+    run is made on the worn profile (its lifters as high as the first step left them, within the
+    plate's chord sagitta), profiles.csv holds the three profiles, the calibration reproduces its
+    figure (the new lifter's height loss rate, first-order decay of 50 -> 30 mm in 2000 h)."""
+    import shutil
+
+    if shutil.which("yade") is None:
+        pytest.skip("Yade is not installed (apt-get install yade)")
+    sets = ["--set", "liner.width=0.3", "--set", "liner.thickness=0.04", "--set", "liner.lifter_height=0.05",
+            "--set", "liner.lifter_top_width=0.03", "--set", "liner.lifter_spacing=0.15", "--set",
+            "liner.mill_radius=0.4", "--set", "ball.radius=0.03", "--set", "contact.friction=0.3"]
+    mill = tmp_path / "mill"
+    res = run_cli("mill", "liner-segment", *sets, "--charge", "sag", "--rock-top-size", "0.06", "--rock-cutoff",
+                  "0.03", "--stiffness-scale", "0.001", "--revolutions", "0.3", "--warmup", "0.3", "--no-plots",
+                  "--out", str(mill), timeout=900)
+    assert res.returncode == 0, res.stderr
+    life = tmp_path / "life"
+    res = run_cli("life", "liner-segment", *sets, "--mill", str(mill), "--calibrate-height", "50:30:2000",
+                  "--hours", "400", "--cycles", "2", "--reline-height", "5", "--out", str(life), timeout=900)
+    assert res.returncode == 0, res.stderr
+    s = json.loads((life / "summary.json").read_text())
+    rows = s["profiles"]
+    assert len(rows) == 3 and rows[0]["hours"] == 0 and rows[2]["hours"] == 400
+    # the calibrated constants give back the figure on the first run: top less plate
+    first = s["rates"][0]
+    assert first["top"]["mean_mm_per_1000h"] - first["plate"]["mean_mm_per_1000h"] == pytest.approx(
+        initial_height_rate(50, 30, 2000), rel=1e-9)
+    second = json.loads((life / "mills" / "cycle-1" / "summary.json").read_text())
+    assert second["mill"]["lifter_height_m"] * 1e3 == pytest.approx(rows[1]["lifter_height_mm"], rel=1e-9)
+    assert rows[1]["net_power_kW_m"] > 0
