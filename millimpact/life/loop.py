@@ -98,9 +98,9 @@ def hours_to_reline(lp: LifterProfile, rates: dict, reline: tuple[float, float],
     plate's; the plate thins at the plate's."""
     top, plate = rates["top"]["mean_mm_per_1000h"] * factor, rates["plate"]["mean_mm_per_1000h"] * factor
     h_rate = top - plate
-    out = {
+    out: dict = {
         "lifter_height_h": 1000.0 * (1e3 * lp.height_above_plate - reline[0]) / h_rate if h_rate > 0 else math.inf,
         "plate_thickness_h": 1000.0 * (1e3 * lp.plate_left - reline[1]) / plate if plate > 0 else math.inf,
     }
-    out["first"] = min(out, key=out.get)
+    out["first"] = min(("lifter_height_h", "plate_thickness_h"), key=lambda k: out[k])
     return out

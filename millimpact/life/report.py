@@ -39,7 +39,7 @@ def metal_flow(damage: str | None, rpm: float) -> dict | None:
     with open(path) as fh:
         rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
     per_1000h = rpm * 60.0 * 1000.0
-    out = {}
+    out: dict = {}
     for r in rows:
         g = float(r.get("dent_growth_m_per_rev", "nan") or "nan")
         out[r["place"]] = {
@@ -120,9 +120,9 @@ def write_life_outputs(stage: Path, summary: dict, rec, cal, plots: bool = True)
     rows = summary["profiles"]
     cols = list(rows[0])
     with open(stage / "profiles.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=cols)
-        w.writeheader()
-        w.writerows(rows)
+        dw = csv.DictWriter(fh, fieldnames=cols)
+        dw.writeheader()
+        dw.writerows(rows)
     if plots:
         _figures(stage, summary, rec, r)
 

@@ -315,7 +315,7 @@ def _write_tables(stage: Path, run, setup) -> dict:
     write_impacts(stage / "impacts.csv", run.impacts)
     write_spectrum_csv(stage / "spectrum.csv", run.impacts, revs)
     kinds = ("ball", "rock") if setup.n_rocks else ("ball",)
-    tables = {kind: place_table(run.impacts, revs, kind) for kind in kinds}
+    tables: dict = {kind: place_table(run.impacts, revs, kind) for kind in kinds}
     with open(stage / "impacts_per_revolution.csv", "w") as fh:
         cols = list(tables["ball"][0])
         fh.write(",".join(["kind", *cols]) + "\n")

@@ -120,7 +120,7 @@ def energy_balance(energy: dict[str, np.ndarray]) -> dict:
     stored = d["elastic_normal_J"] + d["elastic_shear_J"]
     w = d["drive_work_J"]
     liner = d.get("liner_friction_J")
-    out = {
+    out: dict = {
         "drive_work_J": w,
         "mechanical_change_J": mech,
         "dissipated_J": dissipated,

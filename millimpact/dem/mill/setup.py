@@ -366,6 +366,7 @@ def plan_mill(
     R = profile.radius
     thickness = opts.thickness * 2.0 * r
     sag = _sag_charge(profile, r, thickness, opts) if opts.charge == "sag" else None
+    positions: tuple[tuple[float, float, float], ...] | list
     if sag is not None:
         positions = sag.positions
     elif opts.balls is not None:
