@@ -192,6 +192,39 @@ def test_lammps_reproduces_the_table_in_its_band(table, tmp_path):
         assert head == ROUNDTRIP_COLUMNS and len(rows) == 4
 
 
+@needs_lammps
+def test_mdr_fit_recovers_a_known_mdr_law(tmp_path):
+    """A table made by mdr itself (Y 0.5 GPa, eta_n0 0.15; a 15 mm steel ball at v_n 0.5, 1, 2, 4 m/s,
+    all above its yield speed ~0.2 m/s) is fitted back: Y within 5 % and the fitted law's e_n within
+    the fit's own check of it. The references are the known parameters and LAMMPS' e_n of that law;
+    the tolerance: the check points between the table's speeds hold mdr to the table's e_n
+    interpolated in ln v_n, whose error against the true law (measured here) the fit may spend,
+    plus 0.005 for the grids' last step (Y x 1.009, eta_n0 0.006)."""
+    from millimpact.dem.export.mdr_fit import _grid_e_n, check_points, fit_mdr
+    from millimpact.dem.export.lammps import has_mdr, lammps_executable
+    from millimpact.dem.export.table_input import ContactTable
+
+    if not has_mdr(lammps_executable()):
+        pytest.skip("this LAMMPS has no mdr normal model")
+    nu, g, rho, r = 0.29, 80.8e9, 7850.0, 0.015
+    e_star = 2 * g * (1 + nu) / (2 * (1 - nu**2))
+    vn = np.array([[0.5], [1.0], [2.0], [4.0]])
+    t = ContactTable(tmp_path, "synthetic", "mdr", "-", vn[:, 0], np.array([0.0]), r, rho, rho * 4 / 3 * math.pi * r**3,
+                     rho, 2 * g * (1 + nu), nu, e_star, 1.0, 0.2, vn, np.ones_like(vn), np.full_like(vn, np.nan),
+                     np.ones_like(vn))
+    young = (1 - nu**2) * e_star
+    y_true, eta_true = 5e8, 0.15
+    t = t._replace(e_n=_grid_e_n(t, young, [(y_true, eta_true)], vn[:, 0], tmp_path / "truth")[0].reshape(vn.shape))
+    v_chk, e_interp, _ = check_points(t)
+    e_true = _grid_e_n(t, young, [(y_true, eta_true)], v_chk, tmp_path / "between")[0]
+    interp_error = float(np.max(np.abs(e_true - e_interp)))
+    assert 0.0 < interp_error < 0.02   # e_n falls smoothly above yield: ln-linear interpolation is close
+    law = fit_mdr(t, tmp_path / "fit")
+    assert law.yield_stress == pytest.approx(y_true, rel=0.05)
+    assert law.worst_between <= interp_error + 0.005
+    assert law.worst <= interp_error + 0.005
+
+
 def test_lammps_file(table, tmp_path, monkeypatch):
     """Without LAMMPS the export still writes the Hertz file, and says why there is no mdr law."""
     monkeypatch.setenv("MILLIMPACT_LAMMPS", str(tmp_path / "no-lmp"))

@@ -57,10 +57,10 @@ def extra_law_files(code: str, law: ExportedLaw, stage: Path, talk: Callable[...
         return []
     talk("  LAMMPS mdr: fitting the yield stress to the table's e_n")
     work = stage / "lammps_mdr_fit"
-    mdr = fit_mdr(law, work, on_progress=lambda line: talk(f"    {line}"))
+    mdr = fit_mdr(law.table, work, on_progress=lambda line: talk(f"    {line}"))
     shutil.rmtree(work)
     talk(
-        f"  LAMMPS mdr: yield stress {mdr.yield_stress:.4g} Pa, eta_n0 {mdr.damping:.3g}, e_n residual rms {mdr.rms:.4f}, largest {mdr.worst:.4f}"
+        f"  LAMMPS mdr: yield stress {mdr.yield_stress:.4g} Pa, eta_n0 {mdr.damping:.3g}, e_n residual largest {mdr.worst:.4f}, rms {mdr.rms:.4f}"
     )
     return [write_lammps_mdr(stage, law, mdr)]
 
