@@ -217,11 +217,18 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2, help="cases run at once, one Yade thread each (default 2)")
     ap.add_argument("--only", nargs="+", help="these cases only (names as in the module docstring)")
     ap.add_argument("--no-threads", action="store_true", help="skip the 1 vs 2 threads check")
+    ap.add_argument("--report-only", action="store_true", help="run nothing: tabulate the finished cases")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "mill_sag"))
     a = ap.parse_args()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     todo = {k: v for k, v in cases(a.revolutions).items() if not a.only or k in a.only}
+
+    if a.report_only:
+        done = [k for k in todo if (out / k / "summary.json").exists()]
+        report(out, [row_of(k, out / k) for k in done])
+        spectra_figure(out)
+        return
 
     def run(item):
         name, args = item

@@ -16,12 +16,13 @@ sys.path.insert(0, str(ROOT / "docs" / "_ext"))
 import demo_pages  # noqa: E402
 
 DEMOS = ["paper_rig", "study_velocity", "study_radius", "study_poisson", "study_thickness",
-         "plastic_impact", "contact_table", "repeated_impacts", "mill_spectrum", "damage_map"]
+         "plastic_impact", "contact_table", "repeated_impacts", "mill_spectrum", "damage_map", "liner_life"]
 #: a file each demo's run leaves in its output folder (the command's own output beside the figures)
 OUTPUT = {"paper_rig": "summary.json", "plastic_impact": "summary.json", "contact_table": "contact_table.csv",
-          "repeated_impacts": "impacts.csv", "mill_spectrum": "impacts.csv", "damage_map": "map/damage.json"}
+          "repeated_impacts": "impacts.csv", "mill_spectrum": "impacts.csv", "damage_map": "map/damage.json",
+          "liner_life": "life/summary.json"}
 #: the demos that run Yade (contact_table leaves its round trip out without it)
-NEEDS_YADE = {"mill_spectrum", "damage_map"}
+NEEDS_YADE = {"mill_spectrum", "damage_map", "liner_life"}
 
 
 def test_every_demo_is_listed():

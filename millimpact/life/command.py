@@ -156,6 +156,12 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"scene {args.scene}: needs a liner on a curved shell (liner-segment, liner-panel)")
     say = sayer(args.quiet)
     lp = LifterProfile.from_liner(scene.liner)
+    for name, limit, new in (
+        ("--reline-height", args.reline_height, lp.height_above_plate),
+        ("--reline-plate", args.reline_plate, lp.plate_left),
+    ):
+        if limit >= 1e3 * new:
+            raise InputError(f"{name} {limit:g} mm: must be below the new liner's {1e3 * new:g} mm")
     r = scene.ball.radius
     rec = read_mill_record(args.mill, lp.mill_profile(r))
     if rec.n_lifters != lp.n_lifters:
