@@ -135,3 +135,43 @@ def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path):
     second = json.loads((life / "mills" / "cycle-1" / "summary.json").read_text())
     assert second["mill"]["lifter_height_m"] * 1e3 == pytest.approx(rows[1]["lifter_height_mm"], rel=1e-9)
     assert rows[1]["net_power_kW_m"] > 0
+
+
+def _record(tmp_path, power_W_m=2.0e5):
+    """One bin on each surface, Archard 2 N m and 3 J absorbed a revolution each; 10 rpm, 77 lifters."""
+    surf = np.array(["trailing_face", "top", "leading_face", "plate"])
+    return MillRecord(folder=tmp_path, surface=surf, position=np.array([0.05, 0.2, 0.35, 0.6]),
+                      archard=np.full(4, 2.0), absorbed=np.full(4, 3.0), bin_m=0.01, slice_m=0.25, n_lifters=77,
+                      rpm=10.0, summary={"power": {"measured": {"net_per_metre_W_m": power_W_m}}},
+                      surfaces=[[0, 0.1], [0.1, 0.3], [0.3, 0.4], [0.4, 1.0]])
+
+
+def test_a_mass_calibration_gives_its_g_per_kwh_back(tmp_path):
+    """--calibrate-mass 2.6: the calibrated law's mass per metre of mill over the net power per metre
+    is 2.6 g/kWh (the calibration scales both constants, their ratio held)."""
+    import argparse
+
+    from millimpact.life.command import calibrate
+    from millimpact.life.wear import place_rates
+
+    rec = _record(tmp_path)
+    args = argparse.Namespace(calibration=None, calibrate_height=None, calibrate_mass=2.6, impact_ratio=0.5,
+                              spread=None)
+    cal = calibrate(args, rec, None)
+    assert cal.law.impact == pytest.approx(0.5 * cal.law.abrasion, rel=1e-12)
+    kg_per_1000h_per_m = sum(r["mass_kg_per_1000h_per_metre"] for r in place_rates(rec, depth_rates(rec, cal.law)).values())
+    kwh_per_1000h_per_m = 2.0e5 / 1e3 * 1000
+    assert 1e3 * kg_per_1000h_per_m / kwh_per_1000h_per_m == pytest.approx(2.6, rel=1e-12)
+
+
+def test_metal_flow_is_the_dent_growth_over_1000_hours(tmp_path):
+    """A damage map's dent growth of 1e-9 m per revolution at a spot, at 10 rpm: 600,000 revolutions
+    in 1000 h, 0.6 mm; reported beside the wear (never added to it)."""
+    from millimpact.life.report import metal_flow
+
+    (tmp_path / "damage.csv").write_text(
+        "# a comment line\nplace,dent_growth_m_per_rev,repeat_verdict\nlifter_face,1e-09,ratcheting\nplate,nan,shakedown\n")
+    flow = metal_flow(str(tmp_path), rpm=10.0)
+    assert flow["lifter_face"]["dent_growth_mm_per_1000h"] == pytest.approx(0.6, rel=1e-12)
+    assert flow["plate"]["dent_growth_mm_per_1000h"] is None
+    assert "never added" in flow["is"]

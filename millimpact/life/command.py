@@ -130,7 +130,7 @@ def calibrate(args, rec, base):
     elif args.calibrate_mass is not None:
         power = rec.summary["power"]["measured"]["net_per_metre_W_m"]
         mass = sum(r["mass_kg_per_1000h_per_metre"] for r in rates.values())  # kg per 1000 h per metre
-        model = 1e6 * mass / (power / 1e3 * 1000.0)  # g per kWh
+        model = 1e3 * mass / (power / 1e3 * 1000.0)  # g per kWh: kg per 1000 h over kWh per 1000 h
         target = args.calibrate_mass
         on.update(figure=f"{target:g} g/kWh", target=target, what="liner mass per kWh of net power, g/kWh")
     else:
