@@ -172,7 +172,7 @@ def threads_check(out: Path) -> None:
     rows = []
     for threads in (1, 2):
         folder = out / f"threads-j{threads}"
-        args = ["--charge", "sag", "--revolutions", "0.1", "--warmup", "0.1", "--no-plots"]
+        args = ["--charge", "sag", "--revolutions", "0.1", "--warmup", "0.1", "--no-plots", "--threads", str(threads)]
         wall = _command(args, folder, threads)
         y = json.loads((folder / "summary.json").read_text())["yade"]
         rows.append(

@@ -37,17 +37,18 @@ def run_yade(
     args: Sequence[str] = (),
     timeout: float | None = None,
     on_progress: Callable[[str], None] | None = None,
+    threads: int | None = None,
 ) -> str:
     """Run ``yade -n -x script [args]`` in ``workdir``; returns its standard output.
 
     Raises :class:`YadeError` with the last lines of its output when Yade exits non-zero or
-    overruns ``timeout`` (s). One thread per run (``-j 1``) unless ``MILLIMPACT_YADE_THREADS``
-    says otherwise, so runs side by side do not oversubscribe the cores.
+    overruns ``timeout`` (s). ``threads`` OpenMP threads (``-j``), else ``MILLIMPACT_YADE_THREADS``,
+    else one, so runs side by side do not oversubscribe the cores.
     """
     exe = yade_executable()
-    threads = os.environ.get("MILLIMPACT_YADE_THREADS", "1")
-    cmd = [exe, "-n", "-j", threads, "-x", str(script), *map(str, args)]
-    env = {**os.environ, "OMP_NUM_THREADS": threads}
+    n = str(threads) if threads is not None else os.environ.get("MILLIMPACT_YADE_THREADS", "1")
+    cmd = [exe, "-n", "-j", n, "-x", str(script), *map(str, args)]
+    env = {**os.environ, "OMP_NUM_THREADS": n}
     rc, lines = run_program(cmd, workdir, env, timeout, on_progress)
     out = "".join(lines)
     if rc < 0:  # killed (SIGKILL: the kernel's out-of-memory killer, or a user): one line, not its log

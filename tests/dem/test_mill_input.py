@@ -16,6 +16,7 @@ from conftest import run_cli
     (["paper-rig"], "scene 'paper-rig': has no liner"),
     (["liner-segment", "--set", "liner.mill_radius=0"], "liner.mill_radius = 0.0: a mill run needs a curved liner"),
     (["liner-panel", "--balls", "10", "--fill", "0.1"], "give one of them"),
+    (["liner-panel", "--threads", "0"], "--threads 0: must be an integer in [1, 64]"),
 ])
 def test_bad_input_is_one_line_and_exit_2_and_no_folder(tmp_path, args, words):
     out = tmp_path / "mill"

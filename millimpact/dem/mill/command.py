@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 from ...console import say
+from ...errors import InputError
 from ...results.output_folder import FORCE_HELP, OUT_HELP
 
 HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe, net power"
@@ -144,6 +145,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="the slice's thickness along the axis, in ball diameters (default 2)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the balls' starting jitter (default 0)")
+    p.add_argument(
+        "--threads",
+        type=int,
+        metavar="N",
+        help="Yade's OpenMP threads, 1-64 (default 1, or MILLIMPACT_YADE_THREADS): more only on idle cores",
+    )
     p.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
     p.add_argument("--out", help=OUT_HELP.format(default="out/mill-SCENE"))
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
@@ -234,7 +241,9 @@ def _contact_summary(setup) -> dict:
     }
 
 
-def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=None, quiet: bool = False) -> dict:
+def run_mill(
+    scene, opts, stage: Path, plots: bool = True, setup=None, timeout=None, quiet: bool = False, threads=None
+) -> dict:
     """Plan, run and report one mill run into the folder ``stage``; returns the summary."""
     from ..yade import run_yade
     from .log import read_mill_run
@@ -250,7 +259,8 @@ def run_mill(scene, opts, stage: Path, plots: bool = True, setup=None, timeout=N
     if setup.law is not None:
         shutil.copy(setup.law.script, work / setup.law.script.name)
     (work / "input.json").write_text(json.dumps(setup.yade_input()) + "\n")
-    run_yade(work / SCRIPT.name, work, ["input.json"], timeout=timeout, on_progress=None if quiet else _Progress())
+    progress = None if quiet else _Progress()
+    run_yade(work / SCRIPT.name, work, ["input.json"], timeout=timeout, on_progress=progress, threads=threads)
     run = read_mill_run(work, setup)
     revs = setup.revolutions
     tables = _write_tables(stage, run, setup)
@@ -384,6 +394,8 @@ def main(args: argparse.Namespace) -> int:
     from .setup import plan_mill
 
     # every check before any folder is made: options, scene, the plan, Yade, then --out
+    if args.threads is not None and not 1 <= args.threads <= 64:
+        raise InputError(f"--threads {args.threads}: must be an integer in [1, 64]")
     opts = options_from_args(args)
     scene = command_scene(args)
     setup = plan_mill(scene, opts)
@@ -404,7 +416,9 @@ def main(args: argparse.Namespace) -> int:
 
     try:
         with target.staged(collective=False) as stage:
-            summary = run_mill(scene, opts, stage, plots=not args.no_plots, setup=setup, quiet=quiet)
+            summary = run_mill(
+                scene, opts, stage, plots=not args.no_plots, setup=setup, quiet=quiet, threads=args.threads
+            )
             write_summary(stage, summary)
     except YadeError as exc:  # say what the folder keeps (nothing of this run is published)
         raise YadeError(f"{exc}; {target.note}") from None
