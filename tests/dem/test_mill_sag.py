@@ -171,3 +171,35 @@ def test_bad_sag_input_is_one_line_and_exit_2_and_no_folder(tmp_path, args, word
     assert lines and words in lines[-1], res.stderr
     assert "Traceback" not in res.stderr
     assert not out.exists() and not list(tmp_path.iterdir())
+
+
+@needs_yade
+def test_a_rolling_rock_stops_where_its_rolling_resistance_says(tmp_path):
+    """A rock (the SAG charge's contact: rolling resistance mu_r, M <= mu_r R F_n) rolling without
+    slip on a still plate at v0: once the moment has reached its limit it decelerates at
+    a = M R / (I + m R^2) = (5/7) mu_r g (rigid-body mechanics about the contact point), so it stops
+    after 7 v0^2 / (10 mu_r g); within 5 % (the spring's elastic start, ~k_r-limited, and the contact's
+    overlap, 0.1 % of R, shorten it a little). Without rolling resistance it rolls on."""
+    v0, r, mu_r = 0.5, 0.03, 0.2
+    stops = {}
+    for eta in (mu_r, 0.0):
+        cfg = _sliding_input(v0, 0.6, r)
+        m = 4.0 / 3.0 * math.pi * r**3 * 2700.0
+        e_star = 1.0 / (2.0 * (1.0 - 0.29**2) / 6.2e8)
+        delta = (m * 9.81 / (4.0 / 3.0 * e_star * math.sqrt(2.0 * r / 3.0))) ** (2.0 / 3.0)
+        cfg["ball_positions"], cfg["ball_velocities"] = [], []
+        cfg["rock"] = {"positions": [[0.0, r - delta, 2 * r]], "radii": [r], "young_Pa": 6.2e8, "poisson": 0.29,
+                       "density_kg_m3": 2700.0, "en_yade": 0.3, "friction": 0.6, "eta": eta,
+                       "krot": 2.25 * mu_r**2 * r**2 * 1e6, "velocities": [[v0, 0.0, 0.0]],
+                       "angular_velocities": [[0.0, 0.0, -v0 / r]]}
+        cfg["run_s"] = 2.0 * 7 * v0 / (5 * mu_r * 9.81)
+        cfg["trace_balls"], cfg["trace_every"] = [0], 50
+        work = tmp_path / f"eta{eta}"
+        work.mkdir()
+        (work / "input.json").write_text(json.dumps(cfg))
+        run_yade(SCRIPT, work, ["input.json"], timeout=600)
+        with open(work / "trace.csv") as fh:
+            x = [float(row["x_m"]) for row in csv.DictReader(fh)]
+        stops[eta] = x[-1] - x[0]
+    assert stops[mu_r] == pytest.approx(7 * v0**2 / (10 * mu_r * 9.81), rel=0.05)
+    assert stops[0.0] > 2 * stops[mu_r]

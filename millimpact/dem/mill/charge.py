@@ -28,9 +28,11 @@ soft contacts (B. K. Mishra, Int. J. Miner. Process. 71 (2003) 73-93; P. W. Clea
   (1978) 615-626), rolling resistance mu_r 0.2, each an option. Rolling resistance is the
   elastic-plastic spring of J. Ai, J.-F. Chen, J. M. Rotter and J. Y. Ooi, Powder Technol. 206
   (2011) 269-282 ("type C", the model DEM vendors recommend for angular particles): a bending
-  moment M grows with the relative rolling rotation at stiffness k_r up to mu_r R_mean F_n (Yade's
-  ``eta`` and ``krot``), with k_r = 2.25 mu_r^2 R^2 k_n (their eq. 14) for two mean rocks at the
-  peak of a 1 m/s impact. mu_r 0.2 is the middle of the 0.1-0.3 that mill DEM gives spheres
+  moment M grows with the relative rolling rotation at stiffness k_r up to mu_r R F_n (Yade's
+  ``eta`` and ``krot``), R the mean of the two radii between particles (Yade's R_mean) and the
+  rock's own radius on the liner (the script sets it: Yade would take the facet as a sphere of
+  twice the rock's radius), with k_r = 2.25 mu_r^2 R^2 k_n (their eq. 14) for two mean rocks at the
+  peak of a 1 m/s impact. A rock rolling on the liner then stops after 7 v0^2 / (10 mu_r g). mu_r 0.2 is the middle of the 0.1-0.3 that mill DEM gives spheres
   standing for angular rock. Balls and the liner keep the scene's contact (no rolling resistance).
 - Starting positions: random, largest first, without overlaps, in the lowest part of the mill
   that holds them at a third of its volume (:func:`place_particles`).

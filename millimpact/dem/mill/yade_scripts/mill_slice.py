@@ -116,8 +116,11 @@ if rock:
     rock_ids = [
         O.bodies.append(utils.sphere(tuple(p), rr, material="rock")) for p, rr in zip(rock["positions"], rock["radii"])
     ]
+# starting velocities (the tests' exact cases; a mill run starts at rest)
 for b, v in zip(ball_ids, cfg.get("ball_velocities", [])):
     O.bodies[b].state.vel = Vector3(*v)
+for b, v, w in zip(rock_ids, (rock or {}).get("velocities", []), (rock or {}).get("angular_velocities", [])):
+    O.bodies[b].state.vel, O.bodies[b].state.angVel = Vector3(*v), Vector3(*w)
 part_ids = ball_ids + rock_ids
 first_id = part_ids[0]
 masses = [O.bodies[b].state.mass for b in part_ids]
@@ -244,7 +247,7 @@ def refresh_candidates():
 
 
 state = {
-    "last_check": 0,
+    "last_check": -1,  # contacts made real at step 0 are new at the first check
     "drive_work": 0.0,
     "snap": 0,
     "esample": 0,
@@ -329,9 +332,14 @@ def check_impacts():
             continue
         id1, id2 = i.id1, i.id2
         fresh = i.iterMadeReal > last
-        if fresh and rolling and id1 not in is_rock and id2 not in is_rock:
-            i.phys.kr = 0.0
-            i.phys.momentBend = Vector3(0.0, 0.0, 0.0)
+        if fresh and rolling:
+            if id1 not in is_rock and id2 not in is_rock:
+                i.phys.kr = 0.0
+                i.phys.momentBend = Vector3(0.0, 0.0, 0.0)
+            elif id1 in part_of or id2 in part_of:
+                # Yade takes a facet as a sphere of twice the particle's radius (R_mean = 1.5 r): the
+                # rock's own radius instead, M <= mu_r r F_n on the liner
+                i.phys.maxBendPl = rock["eta"] * O.bodies[id2 if id1 in part_of else id1].shape.radius
         if fresh and id1 in is_particle and id2 in is_particle:
             count_contact(i, id1, id2, last)
             continue
