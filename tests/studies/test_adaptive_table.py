@@ -1,0 +1,72 @@
+"""The adaptive table's choice of cases (millimpact.studies.adaptive), on laws with known answers:
+a law bilinear in (ln speed, angle) needs only the start grid and its checks; a law with a kink in
+speed gets its new speeds at the kink; a budget too small stops with the error it reached."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from millimpact.studies.adaptive import adaptive_table, interpolate
+
+
+def _compute(f):
+    calls = []
+
+    def compute(points):
+        calls.append(list(points))
+        return {p: f(*p) for p in points}
+
+    return compute, calls
+
+
+def test_a_law_the_interpolation_holds_exactly_needs_the_start_grid_only():
+    """e_n, e_t and F_max linear in ln v and in the angle: the bilinear law is exact, every cell's check
+    passes (errors at rounding), 9 + 4 cases."""
+    def law(v, a):
+        return {"e_n": 0.9 - 0.05 * math.log(v), "e_t": 0.5 + 0.001 * a, "f_max": 1e4 * (2 + math.log(v))}
+
+    compute, _ = _compute(law)
+    res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=40)
+    assert res.reached and not res.stopped_by_budget
+    assert (len(res.speeds), len(res.angles), len(res.checks)) == (3, 3, 4)
+    assert max(res.largest_error().values()) < 1e-12
+
+
+def test_the_grid_grows_at_a_kink():
+    """e_n flat to V_y = 2 m/s, then falling as 0.25 ln(v / 2) (a plastic scene's restitution across
+    V_y): the speeds added lie at the kink (each split halves the cell holding it in ln v), the
+    tolerance is reached, and the law then meets it at 200 random points of the plane within the
+    tolerance, the checks having sampled the interpolation error where it is largest."""
+    def law(v, a):
+        return {"e_n": 0.9 - 0.25 * max(math.log(v / 2.0), 0.0), "e_t": 0.6, "f_max": 1e4 * (3 + math.log(v))}
+
+    compute, _ = _compute(law)
+    res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=200)
+    assert res.reached
+    added = sorted(set(res.speeds) - set(np.geomspace(0.5, 10.0, 3)))
+    near = [v for v in added if abs(math.log(v / 2.0)) < math.log(2.0)]
+    assert len(near) >= len(added) - 1 and len(near) >= 3, res.speeds
+    rng = np.random.default_rng(1)
+    for v, a in zip(np.exp(rng.uniform(math.log(0.5), math.log(10.0), 200)), rng.uniform(0, 60, 200)):
+        assert abs(interpolate(res.speeds, res.angles, res.grid, v, a)["e_n"] - law(v, a)["e_n"]) <= 0.01 + 1e-12
+
+
+def test_a_budget_too_small_stops_and_reports_the_error_it_reached():
+    def law(v, a):
+        return {"e_n": 0.9 - 0.25 * max(math.log(v / 2.0), 0.0), "e_t": 0.6, "f_max": 1e4 * (3 + math.log(v))}
+
+    compute, _ = _compute(law)
+    res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=15)
+    assert res.stopped_by_budget and not res.reached
+    assert res.cases <= 15
+    assert res.largest_error()["e_n"] > 0.01
+    # every grid line left has all its cases: the law can be built
+    assert all((v, a) in res.grid for v in res.speeds for a in res.angles)
+
+
+def test_interpolation_is_held_at_the_edges():
+    grid = {(v, a): {"e_n": v + a, "e_t": 0.0, "f_max": 1.0} for v in (1.0, 4.0) for a in (0.0, 10.0)}
+    assert interpolate([1.0, 4.0], [0.0, 10.0], grid, 2.0, 5.0)["e_n"] == pytest.approx(0.5 * (1 + 4) + 5.0)
+    assert interpolate([1.0, 4.0], [0.0, 10.0], grid, 100.0, 50.0)["e_n"] == pytest.approx(14.0)
