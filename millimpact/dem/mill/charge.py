@@ -32,8 +32,9 @@ soft contacts (B. K. Mishra, Int. J. Miner. Process. 71 (2003) 73-93; P. W. Clea
   ``eta`` and ``krot``), R the mean of the two radii between particles (Yade's R_mean) and the
   rock's own radius on the liner (the script sets it: Yade would take the facet as a sphere of
   twice the rock's radius), with k_r = 2.25 mu_r^2 R^2 k_n (their eq. 14) for two mean rocks at the
-  peak of a 1 m/s impact. A rock rolling on the liner then stops after 7 v0^2 / (10 mu_r g). mu_r 0.2 is the middle of the 0.1-0.3 that mill DEM gives spheres
-  standing for angular rock. Balls and the liner keep the scene's contact (no rolling resistance).
+  peak of a 1 m/s impact. A rock rolling on the liner then stops after 7 v0^2 / (10 mu_r g).
+  mu_r 0.2 is the middle of the 0.1-0.3 that mill DEM gives spheres standing for angular rock.
+  Balls and the liner keep the scene's contact (no rolling resistance).
 - Starting positions: random, largest first, without overlaps, in the lowest part of the mill
   that holds them at a third of its volume (:func:`place_particles`).
 """
@@ -98,7 +99,8 @@ class RockSpec:
             "restitution": self.restitution,
             "friction": self.friction,
             "rolling_resistance": self.rolling_resistance,
-            "rolling_model": "elastic-plastic spring, M <= mu_r R_mean F_n (Ai et al., Powder Technol. 206 (2011))",
+            "rolling_model": "elastic-plastic spring, M <= mu_r R F_n, R the mean radius between particles and the "
+            "rock's own on the liner (Ai et al., Powder Technol. 206 (2011))",
             "contact_sources": "restitution 0.3: Cleary's mill DEM; friction 0.6: Byerlee (1978); mu_r: the "
             "0.1-0.3 of mill DEM for spheres standing for angular rock",
             "fines": "rock below the cut-off is slurry: its volume is given to the modelled rock; the slurry "
