@@ -432,3 +432,29 @@ def test_a_ctrl_c_during_bin_placement_is_not_lost(tmp_path):
     assert p.returncode == 130, (p.returncode, p.stderr[-2000:])
     assert p.stderr.strip().splitlines()[-1].startswith("millimpact: interrupted (SIGINT)")
     assert not (out / "damage.json").exists()
+
+
+def test_a_sag_log_computes_its_balls_and_sets_the_rock_beside_them(tmp_path):
+    """A log of balls and rock (millimpact mill --charge sag): the map of its balls equals the map of
+    the balls alone, and damage.csv carries the rock's impacts and energy per place and revolution
+    (kind_totals: the rock rows' count and energy over the revolutions)."""
+    import dataclasses
+
+    from millimpact.dem.impacts import ball_impacts, kind_totals
+
+    balls = _spectrum(60)
+    rock = [dataclasses.replace(i, kind="rock", mass_kg=1.0) for i in _spectrum(30, seed=5)]
+    log = balls + rock
+    kept = ball_impacts(log)
+    assert list(kept) == balls
+    rock_per = kind_totals(log, "rock", revolutions=2.0)
+    alone, _ = _map(tmp_path, balls, name="alone", revolutions=2.0, repeat=0)
+    sag, out = _map(tmp_path, kept, name="sag", revolutions=2.0, repeat=0, rock_per_place=rock_per)
+    for p in alone["places"]:
+        assert sag["places"][p]["energy_absorbed_J_per_rev"] == alone["places"][p]["energy_absorbed_J_per_rev"]
+        n = sum(1 for i in rock if i.place == p)
+        assert sag["places"][p]["rock_impacts_per_rev"] == pytest.approx(n / 2.0)
+        e = sum(i.impact_energy_J for i in rock if i.place == p)
+        assert sag["places"][p]["rock_impact_energy_J_per_rev"] == pytest.approx(e / 2.0, rel=1e-12)
+    header = [l for l in (out / "damage.csv").read_text().splitlines() if not l.startswith("#")][0]
+    assert "rock_impacts_per_rev" in header and "rock_impact_energy_J_per_rev" in header
