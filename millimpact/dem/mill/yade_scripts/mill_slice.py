@@ -149,9 +149,7 @@ O.engines = [
     ForceResetter(),
     InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Facet_Aabb(), Bo1_Wall_Aabb()], label="collider"),
     InteractionLoop(
-        [Ig2_Sphere_Sphere_ScGeom6D(), Ig2_Facet_Sphere_ScGeom6D(), Ig2_Wall_Sphere_ScGeom()]
-        if rolling
-        else [Ig2_Sphere_Sphere_ScGeom(), Ig2_Facet_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
+        [Ig2_Sphere_Sphere_ScGeom(), Ig2_Facet_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
         [ip2],
         [Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=True, includeMoment=rolling, label="law")],
     ),
