@@ -36,6 +36,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from .hardening import tabulated
 from .plasticity import J2Material, ReturnMapResult, flow_curve_from_fields, return_map
 
 if TYPE_CHECKING:
@@ -582,7 +583,7 @@ def create_plastic_zone(model, zone_materials) -> PlasticZone | None:
     its scene material); bodies whose material is elastic are left out; None if none yields."""
     zones = []
     for tag, mat in zone_materials:
-        flow = flow_curve_from_fields(mat.yield_stress, mat.hardening_modulus, mat.flow_curve)
+        flow = flow_curve_from_fields(mat.initial_yield_stress, mat.hardening_modulus, tabulated(mat))
         if flow is not None:
             zones.append(ZoneMaterial(tag, J2Material(mat.youngs_modulus, mat.poisson, flow)))
     if not zones:

@@ -29,6 +29,16 @@ MATERIAL_DOCS: dict[str, tuple[str, str, str]] = {
         "[[0, Y], ...] strain increasing, stress not decreasing",
         "tabulated flow stress against equivalent plastic strain (instead of Y and H)",
     ),
+    "voce": (
+        "Pa, -",
+        "[Q >= 0, b > 0], with yield_stress",
+        "Voce hardening, sigma_y = Y + Q (1 - exp(-b eps_p)) (instead of H or a flow curve)",
+    ),
+    "swift": (
+        "Pa, -, -",
+        "[K > 0, 0 < eps0 <= 1, 0 <= n < 1]",
+        "Swift hardening, sigma_y = K (eps0 + eps_p)^n, yield at K eps0^n (instead of Y, H or a flow curve)",
+    ),
     "source": ("", "text", "where the values come from (paper, standard or datasheet)"),
 }
 

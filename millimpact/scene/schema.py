@@ -45,7 +45,11 @@ class Material:
     ``hardening_modulus`` (Pa, 0 = perfectly plastic) or a tabulated ``flow_curve`` of
     [equivalent plastic strain, flow stress (Pa)] pairs (from strain 0, increasing). A scene names
     one of :data:`NAMED_MATERIALS` with ``material = "NAME"`` (or ``name = "NAME"`` in the table,
-    other keys overriding); ``source`` says where the values come from."""
+    other keys overriding); ``source`` says where the values come from. Nonlinear hardening laws
+    beside the table: ``voce = [Q, b]`` with ``yield_stress`` Y, sigma_y = Y + Q (1 - exp(-b eps_p))
+    (E. Voce, J. Inst. Metals 74 (1948) 537), or ``swift = [K, eps0, n]``, sigma_y = K (eps0 +
+    eps_p)^n (H. W. Swift, J. Mech. Phys. Solids 1 (1952) 1), its yield stress K eps0^n
+    (:mod:`millimpact.fem.hardening` tabulates them for the return map)."""
 
     density: float = 7800.0
     shear_modulus: float = 70.0e9
@@ -53,6 +57,8 @@ class Material:
     yield_stress: float | None = None
     hardening_modulus: float = 0.0
     flow_curve: tuple[tuple[float, float], ...] | None = None
+    voce: tuple[float, float] | None = None
+    swift: tuple[float, float, float] | None = None
     source: str = ""
 
     def validate(self, where: str) -> None:
@@ -79,6 +85,7 @@ class Material:
                     else "give yield_stress too, or leave it out for an elastic material"
                 ),
             )
+        self._validate_laws(where)
         if self.flow_curve is not None:
             pts = self.flow_curve
             if len(pts) < 2:
@@ -102,15 +109,47 @@ class Material:
                     f"must equal the flow curve's first stress {pts[0][1]:g} Pa (or be left out)",
                 )
 
+    def _validate_laws(self, where: str) -> None:
+        """At most one hardening description; Voce's and Swift's parameters in range."""
+        given = [
+            n for n, v in (("flow_curve", self.flow_curve), ("voce", self.voce), ("swift", self.swift)) if v is not None
+        ]
+        if len(given) > 1 or (given and given[0] != "flow_curve" and self.hardening_modulus != 0):
+            names = given + (["hardening_modulus"] if self.hardening_modulus != 0 else [])
+            raise SceneError(f"{where}.{names[-1]}", getattr(self, names[-1]), f"give one of {', '.join(names)}")
+        if self.voce is not None:
+            q, b = (float(x) for x in self.voce)
+            if self.yield_stress is None:
+                raise SceneError(
+                    f"{where}.voce", list(self.voce), "needs yield_stress (Y of Y + Q (1 - exp(-b eps_p)))"
+                )
+            if not (math.isfinite(q) and q >= 0 and math.isfinite(b) and b > 0):
+                raise SceneError(f"{where}.voce", list(self.voce), "must be [Q >= 0 Pa, b > 0]")
+        if self.swift is not None:
+            k, e0, n = (float(x) for x in self.swift)
+            if not (math.isfinite(k) and k > 0 and 0 < e0 <= 1 and 0 <= n < 1):
+                raise SceneError(f"{where}.swift", list(self.swift), "must be [K > 0 Pa, 0 < eps0 <= 1, 0 <= n < 1]")
+            if self.yield_stress is not None and not math.isclose(self.yield_stress, k * e0**n, rel_tol=1e-9):
+                raise SceneError(
+                    f"{where}.yield_stress",
+                    self.yield_stress,
+                    f"must equal Swift's K eps0^n = {k * e0**n:g} Pa (or be left out)",
+                )
+
     @property
     def plastic(self) -> bool:
-        """True when the material yields (a yield stress or a flow curve is given)."""
-        return self.yield_stress is not None or self.flow_curve is not None
+        """True when the material yields (a yield stress, a flow curve or a Swift law is given)."""
+        return self.yield_stress is not None or self.flow_curve is not None or self.swift is not None
 
     @property
     def initial_yield_stress(self) -> float | None:
         """The stress at which yielding starts (Pa), None for an elastic material."""
-        return self.flow_curve[0][1] if self.flow_curve is not None else self.yield_stress
+        if self.flow_curve is not None:
+            return self.flow_curve[0][1]
+        if self.swift is not None:
+            k, e0, n = self.swift
+            return float(k * e0**n)
+        return self.yield_stress
 
     @property
     def youngs_modulus(self) -> float:
