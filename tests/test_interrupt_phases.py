@@ -205,11 +205,12 @@ def test_table_honours_ctrl_c_in_each_phase(tmp_path, phase, cue, args):
 FAKE_YADE = """#!/bin/sh
 echo $$ > {pid}
 {before}
-printf 'time_s,ball,part,vx,vy,vz,cx,cy,cz,nx,ny,nz,overlap_m,kno,age_steps\\n' > impacts_raw.csv
-printf 'snapshot,time_s,ball,x_m,y_m,z_m,vx_m_s,vy_m_s\\n0,6,0,0,-5.3,0.06,0,0\\n0,6,1,0.2,-5.3,0.06,0,0\\n' > charge.csv
+printf 'time_s,particle,part,vx,vy,vz,cx,cy,cz,nx,ny,nz,overlap_m,kno,age_steps\\n' > impacts_raw.csv
+printf 'snapshot,time_s,particle,x_m,y_m,z_m,vx_m_s,vy_m_s\\n0,6,0,0,-5.3,0.06,0,0\\n0,6,1,0.2,-5.3,0.06,0,0\\n' > charge.csv
 printf 'time_s,drive_work_J,kinetic_J,potential_J,elastic_normal_J,elastic_shear_J,damping_normal_J,\
-damping_shear_J,friction_J\\n0,0,0,0,0,0,0,0,0\\n1,1,1,0,0,0,0,0,0\\n' > energy.csv
-printf 'time_s,ball,x_m,y_m,z_m,vx_m_s,vy_m_s,vz_m_s,liner_contacts\\n' > trace.csv
+damping_shear_J,friction_J,liner_friction_J\\n0,0,0,0,0,0,0,0,0,0\\n1,1,1,0,0,0,0,0,0,0\\n' > energy.csv
+printf 'time_s,particle,x_m,y_m,z_m,vx_m_s,vy_m_s,vz_m_s,liner_contacts\\n' > trace.csv
+printf 'kind,unit_part,surface_bin,friction_work_J,normal_force_slip_N_m,slip_m\\n' > abrasion_raw.csv
 echo '{{}}' > run.json
 echo 'PROGRESS 1.00 done'
 """
