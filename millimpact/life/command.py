@@ -190,7 +190,7 @@ def main(args: argparse.Namespace) -> int:
 
 def _mill_runner(scene, rec, stage: Path, args):
     """run(profile, cycle) -> the folder of a mill run on that worn profile (the first run's options)."""
-    from ..dem.mill.command import run_mill
+    from ..dem.mill.run import run_mill
     from ..dem.mill.setup import MillOptions, plan_mill
 
     opts = MillOptions(**rec.summary["options"])

@@ -123,11 +123,12 @@ def predicted_errors(result: AdaptiveResult, tolerance: float) -> dict[tuple[int
     along_v = np.zeros((len(sv), len(sa)))
     along_a = np.zeros((len(sv), len(sa)))
     for q, rel in QUANTITIES:
-        for j, a in enumerate(sa):
-            d = _scaled_second_differences(lv, lambda k, a=a, q=q, rel=rel: scale(q, rel, g[(sv[k], a)][q]))
+        table = np.array([[scale(q, rel, g[(v, a)][q]) for a in sa] for v in sv])
+        for j in range(len(sa)):
+            d = _scaled_second_differences(lv, table[:, j].__getitem__)
             along_v[:, j] = np.maximum(along_v[:, j], d)
-        for i, v in enumerate(sv):
-            d = _scaled_second_differences(sa, lambda k, v=v, q=q, rel=rel: scale(q, rel, g[(v, sa[k])][q]))
+        for i in range(len(sv)):
+            d = _scaled_second_differences(sa, table[i, :].__getitem__)
             along_a[i, :] = np.maximum(along_a[i, :], d)
     out = {}
     for i in range(len(sv) - 1):

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from millimpact.dem.mill.command import run_mill
+from millimpact.dem.mill.run import run_mill
 from millimpact.dem.mill.setup import MillOptions, plan_mill
 from millimpact.dem.export.table_input import read_table
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from millimpact.dem.impacts import read_impacts
-from millimpact.dem.mill.command import run_mill
+from millimpact.dem.mill.run import run_mill
 from millimpact.dem.mill.setup import MillOptions, plan_mill
 from millimpact.dem.yade import run_yade
 

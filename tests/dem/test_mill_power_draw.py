@@ -12,7 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from millimpact.dem.mill.command import _comparison_lines, run_mill
+from millimpact.dem.mill.command import _comparison_lines
+from millimpact.dem.mill.run import run_mill
 from millimpact.dem.mill.power import charge_shape_report, measured_power, power_report, volumetric_fill
 from millimpact.dem.mill.setup import MillOptions, plan_mill
 from millimpact.theory.mill_power import austin_power, charge_shape, critical_speed, morrell_net_power

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from millimpact.dem.impacts import read_impacts
-from millimpact.dem.mill.command import SCRIPT, run_mill
+from millimpact.dem.mill.run import SCRIPT, run_mill
 from millimpact.dem.mill.power import model_inputs
 from millimpact.dem.mill.setup import MillOptions, plan_mill
 from millimpact.dem.yade import run_yade

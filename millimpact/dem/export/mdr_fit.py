@@ -107,7 +107,9 @@ def check_points(t: ContactTable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     for j in range(t.normal_speed.shape[1]):
         v, e = t.normal_speed[:, j], np.minimum(t.e_n[:, j], 1.0)
         for i in range(len(v)):
-            vn.append(v[i]), e_n.append(e[i]), own.append(True)
+            vn.append(v[i])
+            e_n.append(e[i])
+            own.append(True)
             if i + 1 < len(v):
                 ln_v = np.log(v[i]) + np.log(v[i + 1] / v[i]) * np.arange(1, BETWEEN_POINTS + 1) / (BETWEEN_POINTS + 1)
                 vn += list(np.exp(ln_v))
