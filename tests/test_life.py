@@ -157,7 +157,7 @@ def test_a_mass_calibration_gives_its_g_per_kwh_back(tmp_path):
     rec = _record(tmp_path)
     args = argparse.Namespace(calibration=None, calibrate_height=None, calibrate_mass=2.6, impact_ratio=0.5,
                               spread=None)
-    cal = calibrate(args, rec, None)
+    cal = calibrate(args, rec)
     assert cal.law.impact == pytest.approx(0.5 * cal.law.abrasion, rel=1e-12)
     kg_per_1000h_per_m = sum(r["mass_kg_per_1000h_per_metre"] for r in place_rates(rec, depth_rates(rec, cal.law)).values())
     kwh_per_1000h_per_m = 2.0e5 / 1e3 * 1000

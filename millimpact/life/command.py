@@ -107,7 +107,7 @@ def check_args(args: argparse.Namespace) -> None:
         raise InputError(f"--revolutions {args.revolutions!r}: must lie in (0, 1000]")
 
 
-def calibrate(args, rec, base):
+def calibrate(args, rec):
     """The calibration the command uses: the file, the default, or one fitted on a figure."""
     from .calibration import DEFAULT_LAW, DEFAULT_SPREAD, Calibration, initial_height_rate, parse_height_figure, scaled
     from .wear import depth_rates, place_rates
@@ -166,7 +166,7 @@ def main(args: argparse.Namespace) -> int:
     rec = read_mill_record(args.mill, lp.mill_profile(r))
     if rec.n_lifters != lp.n_lifters:
         raise InputError(f"--mill {args.mill}: a mill of {rec.n_lifters} lifters, not this scene's {lp.n_lifters}")
-    cal = calibrate(args, rec, lp)
+    cal = calibrate(args, rec)
     if args.cycles > 1 and "options" not in rec.summary:
         raise InputError(f"--mill {args.mill}: its summary.json has no options to run the mill again with (--cycles 1)")
     out = args.out if args.out is not None else default_out(Path(args.scene).stem, prefix="life-")

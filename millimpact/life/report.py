@@ -26,7 +26,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from .loop import hours_to_reline, run_life
-from .wear import SURFACES, depth_rates
+from .wear import PLACE_OF, SURFACES, depth_rates
 
 
 def metal_flow(damage: str | None, rpm: float) -> dict | None:
@@ -105,7 +105,7 @@ def write_life_outputs(stage: Path, summary: dict, rec, cal, plots: bool = True)
         )
         for k in range(rec.surface.size):
             a, i = r["abrasion_mm_per_1000h"][k], r["impact_mm_per_1000h"][k]
-            place = {"top": "lifter_top", "plate": "plate"}.get(str(rec.surface[k]), "lifter_face")
+            place = PLACE_OF[str(rec.surface[k])]
             w.writerow(
                 [
                     rec.surface[k],

@@ -33,12 +33,13 @@ from pathlib import Path
 import numpy as np
 
 from ..dem.impacts import read_impacts
+from ..dem.mill.abrasion import SURFACES as UNIT_SURFACES
 from ..dem.mill.geometry import MillProfile
 from ..errors import InputError
 
-#: the surfaces of a lifter's unit, in the profile's order, and their places
-SURFACES = ("trailing_face", "top", "leading_face", "plate")
-PLACE_OF = {"trailing_face": "lifter_face", "top": "lifter_top", "leading_face": "lifter_face", "plate": "plate"}
+#: the surfaces of a lifter's unit, in the profile's order, and their places (abrasion.csv's)
+SURFACES = tuple(name for name, _ in UNIT_SURFACES)
+PLACE_OF = dict(UNIT_SURFACES)
 
 
 @dataclass(frozen=True)

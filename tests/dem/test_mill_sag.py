@@ -67,7 +67,7 @@ def _sliding_input(v0: float, mu: float, r: float = 0.03) -> dict:
 @needs_yade
 def test_a_sliding_ball_does_friction_work_m_v0_squared_over_7(tmp_path):
     """abrasion_raw.csv's friction work of a ball launched at 1.5 m/s without spin on a still plate
-    (mu 0.3): m v0^2 / 7 within 2 % (the issue's tolerance: the sum is sampled every 3 steps with
+    (mu 0.3): m v0^2 / 7 within 2 % (the sum is sampled every 3 steps with
     the normal force at the sample; the contact's bounce-free start keeps F_n = m g), and its slip
     path v0^2 / (7 mu g) within 2 %, so the friction work is mu m g times the path."""
     v0, mu, r = 1.5, 0.3, 0.03
@@ -121,7 +121,7 @@ def test_a_sag_charge_fills_what_the_options_say():
 def test_a_sag_run_balances_its_energy_and_logs_rock_and_abrasion(tmp_path):
     """Without rolling resistance (whose dissipation Yade does not count) the drive's work equals
     the particles' energy change plus the dissipation by kind (impact damping, friction at the liner,
-    friction in the bed) within 5 % (the issue's tolerance); impacts.csv holds the rock's impacts with
+    friction in the bed) within 5 % (the mill's energy test's bound); impacts.csv holds the rock's impacts with
     kind and mass, which the damage map's reader takes; abrasion.csv holds both kinds."""
     scene = small_mill_scene()
     opts = _sag_opts(rolling_resistance=0.0)

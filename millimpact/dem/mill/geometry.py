@@ -28,6 +28,7 @@ does not count as a new impact.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -87,6 +88,10 @@ class MillProfile:
         """The surface position (m) where each segment starts, measured along the profile from its
         lifter unit's start (the lifter's trailing foot: trailing face, top, leading face, then the
         plate to the next lifter), and the length of a unit (m). All units are alike."""
+        return self._unit_starts
+
+    @functools.cached_property
+    def _unit_starts(self) -> tuple[list[float], float]:
         starts, s = [], 0.0
         for seg in self.segments:
             if seg.place == "lifter_face" and seg.part % 4 == 0:  # a unit's first segment

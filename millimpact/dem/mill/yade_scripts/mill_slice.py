@@ -266,9 +266,9 @@ n_balls = len(ball_ids)
 def surface_bin(c, seg):
     """The bin of contact point c's surface position on segment seg: the distance along the profile
     from the lifter unit's start (segment_s0), the point turned back by omega t to the liner's frame."""
-    th = -omega * O.time
-    xl = math.cos(th) * c[0] - math.sin(th) * c[1]
-    yl = math.sin(th) * c[0] + math.cos(th) * c[1]
+    cos_t, sin_t = state["turn_back"]
+    xl = cos_t * c[0] - sin_t * c[1]
+    yl = sin_t * c[0] + cos_t * c[1]
     x0, y0, x1, y1, _ = cfg["segments"][seg]
     dx, dy = x1 - x0, y1 - y0
     length = math.hypot(dx, dy)
@@ -322,6 +322,7 @@ def check_impacts():
     sliding of every particle-liner contact (slide); no rolling resistance on new contacts without rock."""
     last = state["last_check"]
     now = O.iter
+    state["turn_back"] = (math.cos(-omega * O.time), math.sin(-omega * O.time))  # the liner's frame, once a check
     touching = set()
     seen = set()
     new = []
