@@ -119,12 +119,12 @@ def test_a_sag_charge_fills_what_the_options_say():
 
 @needs_yade
 def test_a_sag_run_balances_its_energy_and_logs_rock_and_abrasion(tmp_path):
-    """Without rolling resistance (whose dissipation Yade does not count) the drive's work equals
-    the particles' energy change plus the dissipation by kind (impact damping, friction at the liner,
-    friction in the bed) within 5 % (the mill's energy test's bound); impacts.csv holds the rock's impacts with
-    kind and mass, which the damage map's reader takes; abrasion.csv holds both kinds."""
+    """The drive's work equals the particles' energy change plus the dissipation by kind (impact
+    damping, friction at the liner, friction in the bed, the rock's rolling resistance) within 5 %
+    (the mill's energy test's bound); impacts.csv holds the rock's impacts with kind and mass, which
+    the damage map's reader takes; abrasion.csv holds both kinds."""
     scene = small_mill_scene()
-    opts = _sag_opts(rolling_resistance=0.0)
+    opts = _sag_opts()
     setup = plan_mill(scene, opts)
     stage = tmp_path / "sag"
     stage.mkdir()
@@ -181,7 +181,7 @@ def test_a_rolling_rock_stops_where_its_rolling_resistance_says(tmp_path):
     after 7 v0^2 / (10 mu_r g); within 5 % (the spring's elastic start, ~k_r-limited, and the contact's
     overlap, 0.1 % of R, shorten it a little). Without rolling resistance it rolls on."""
     v0, r, mu_r = 0.5, 0.03, 0.2
-    stops = {}
+    stops, rolled = {}, {}
     for eta in (mu_r, 0.0):
         cfg = _sliding_input(v0, 0.6, r)
         m = 4.0 / 3.0 * math.pi * r**3 * 2700.0
@@ -201,5 +201,12 @@ def test_a_rolling_rock_stops_where_its_rolling_resistance_says(tmp_path):
         with open(work / "trace.csv") as fh:
             x = [float(row["x_m"]) for row in csv.DictReader(fh)]
         stops[eta] = x[-1] - x[0]
+        with open(work / "energy.csv") as fh:
+            rows = list(csv.DictReader(fh))
+        rolled[eta] = float(rows[-1]["rolling_J"]) - float(rows[0]["rolling_J"])
     assert stops[mu_r] == pytest.approx(7 * v0**2 / (10 * mu_r * 9.81), rel=0.05)
+    # the rolling moments' work is the rock's whole kinetic energy, (1/2) m v0^2 (1 + 2/5), less the
+    # moment's stored energy M^2 / (2 k_r) at rest (1e-4 of it): 1 % bounds the sampled sum
+    assert rolled[mu_r] == pytest.approx(0.7 * m * v0**2, rel=0.01)
+    assert rolled[0.0] == 0.0
     assert stops[0.0] > 2 * stops[mu_r]

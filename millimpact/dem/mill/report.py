@@ -113,10 +113,14 @@ def _centrifuged(snapshots: dict[str, np.ndarray], setup: MillSetup, band: np.nd
 
 
 def energy_balance(energy: dict[str, np.ndarray]) -> dict:
-    """The drive's work against where it went, from the first to the last energy sample (J)."""
+    """The drive's work against where it went, from the first to the last energy sample (J): the
+    particles' kinetic and potential energy, the contacts' stored energy, and the dissipation by
+    kind (impact damping, friction at the liner and in the bed, and the rock's rolling resistance:
+    the bending moments' work less their stored energy, which ``elastic_shear_J`` holds)."""
     d = {k: float(v[-1] - v[0]) for k, v in energy.items()}
     mech = d["kinetic_J"] + d["potential_J"]
-    dissipated = d["damping_normal_J"] + d["damping_shear_J"] + d["friction_J"]
+    rolling = d.get("rolling_J", 0.0)
+    dissipated = d["damping_normal_J"] + d["damping_shear_J"] + d["friction_J"] + rolling
     stored = d["elastic_normal_J"] + d["elastic_shear_J"]
     w = d["drive_work_J"]
     liner = d.get("liner_friction_J")
@@ -134,6 +138,8 @@ def energy_balance(energy: dict[str, np.ndarray]) -> dict:
             "friction_at_liner": liner,
             "friction_in_bed": d["friction_J"] - liner,
         }
+        if rolling:
+            out["dissipated_by_kind_J"]["rolling_resistance"] = rolling
     return out
 
 

@@ -132,9 +132,6 @@ def run_mill(
             "impacts_per_revolution": {row["place"]: row["impacts_per_revolution"] for row in tables["rock"]},
             "energy_per_revolution_J": {row["place"]: row["energy_per_revolution_J"] for row in tables["rock"]},
         }
-        summary["energy_balance"]["rolling_resistance"] = (
-            "the rock's rolling resistance dissipates energy Yade does not count: it lies in the balance's error"
-        )
     return summary
 
 

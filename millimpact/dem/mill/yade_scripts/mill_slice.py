@@ -19,7 +19,8 @@
 # the overlap and the Hertz coefficient kno when found. Every `power_every` steps the charge's
 # torque on the liner about the axis is summed into the drive's work; snapshots of the balls go to
 # charge.csv, energies to energy.csv (evenly spaced samples and one at the warm-up's end), traced
-# balls to trace.csv. Lines starting with "PROGRESS "
+# balls to trace.csv. With rolling resistance, every rolling_every checks the contacts' bending
+# moments' power -M . (w2 - w1) is summed into rolling_J (Yade's law does not count it). Lines starting with "PROGRESS "
 # report progress.
 import csv
 import json
@@ -218,6 +219,7 @@ energy.writerow(
         "damping_shear_J",
         "friction_J",
         "liner_friction_J",
+        "rolling_J",
     ]
 )
 trace_fh = open("trace.csv", "w", newline="")
@@ -253,8 +255,11 @@ state = {
     "n_impacts": 0,
     "touching": set(),
     "liner_friction": 0.0,
+    "rolling_work": 0.0,  # the rolling moments' work on the contacts, sampled (check_impacts)
     "checks": 0,
 }
+rolling_every = int(cfg.get("rolling_every", 1))
+liner_spin = Vector3(0.0, 0.0, omega)
 # abrasion: per contact with the liner, its plastic slip vector (usTotal - usElastic) at the previous
 # check; per (particle kind, part, arc bin) after the warm-up: friction work, normal force x slip, slip
 slip_prev = {}
@@ -315,11 +320,14 @@ def count_contact(i, id1, id2, last):
 contacts = {}
 
 
-def check_impacts():
+def check_impacts(sample_rolling=True):
     """Particle-liner interactions made real since the previous check that start a contact of the
     particle with a part of the liner it was not touching at the previous check (the two facets of a
     segment, or a particle rolling from one chord of the plate to the next, make no new impact); the
-    sliding of every particle-liner contact (slide); no rolling resistance on new contacts without rock."""
+    sliding of every particle-liner contact (slide); no rolling resistance on new contacts without rock;
+    every rolling_every checks, the rolling moments' work (rolling_work)."""
+    sample = sample_rolling and rolling and state["checks"] % rolling_every == 0
+    rolling_power = 0.0
     last = state["last_check"]
     now = O.iter
     state["turn_back"] = (math.cos(-omega * O.time), math.sin(-omega * O.time))  # the liner's frame, once a check
@@ -339,6 +347,11 @@ def check_impacts():
                 # Yade takes a facet as a sphere of twice the particle's radius (R_mean = 1.5 r): the
                 # rock's own radius instead, M <= mu_r r F_n on the liner
                 i.phys.maxBendPl = rock["eta"] * O.bodies[id2 if id1 in part_of else id1].shape.radius
+        if sample and i.phys.kr > 0:
+            # the moment's power on the contact, -M . (w2 - w1) (the torque on id2 is +M, on id1 -M)
+            w1 = liner_spin if id1 in part_of else O.bodies[id1].state.angVel
+            w2 = liner_spin if id2 in part_of else O.bodies[id2].state.angVel
+            rolling_power -= i.phys.momentBend.dot(w2 - w1)
         if fresh and id1 in is_particle and id2 in is_particle:
             count_contact(i, id1, id2, last)
             continue
@@ -351,6 +364,9 @@ def check_impacts():
         slide(i, b, part, seen, facet)
         if i.iterMadeReal > last:
             new.append((i, b, part, sign))
+    if sample:
+        # the rectangle rule over the sampling period: Yade's law does not count this dissipation
+        state["rolling_work"] += rolling_power * check_every * rolling_every * O.dt
     for key in [k for k in slip_prev if k not in seen]:
         del slip_prev[key]
     before = state["touching"]
@@ -441,6 +457,7 @@ def write_energy():
             law.shearDampDissip,
             law.frictionDissipation,
             state["liner_friction"],
+            state["rolling_work"],
         ]
     )
 
@@ -492,7 +509,7 @@ write_energy()
 state["esample"] = 1
 n_steps = int(math.ceil(t_end / O.dt / power_every)) * power_every
 O.run(n_steps, True)
-check_impacts()
+check_impacts(sample_rolling=False)
 write_energy()
 for fh in (impacts_fh, charge_fh, energy_fh, trace_fh):
     fh.close()
