@@ -158,6 +158,8 @@ def test_a_sag_run_balances_its_energy_and_logs_rock_and_abrasion(tmp_path):
         (["--charge", "sag", "--rock-top-size", "3"], "--rock-top-size 3 m: must be below half the mill's radius"),
         (["--charge", "sag", "--rock-top-size", "0.3"], "--rock-top-size 0.3 m: must be at most the slice's thickness"),
         (["--charge", "sag", "--rolling-resistance", "1.5"], "--rolling-resistance 1.5: must lie in [0, 1]"),
+        (["--charge", "sag", "--slurry-density", "500"], "--slurry-density 500 kg/m^3: must be 0 (a dry charge) or"),
+        (["--slurry-density", "1800"], "--slurry-density: a rock option; give --charge sag"),
         (["--rock-cutoff", "0.05"], "--rock-cutoff: a rock option; give --charge sag"),
         (["--charge", "sag", "--balls", "10"], "--balls: with --charge sag give --fill and --ball-fill"),
         (["--charge", "gravel"], "--charge"),

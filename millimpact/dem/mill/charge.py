@@ -35,6 +35,12 @@ soft contacts (B. K. Mishra, Int. J. Miner. Process. 71 (2003) 73-93; P. W. Clea
   peak of a 1 m/s impact. A rock rolling on the liner then stops after 7 v0^2 / (10 mu_r g).
   mu_r 0.2 is the middle of the 0.1-0.3 that mill DEM gives spheres standing for angular rock.
   Balls and the liner keep the scene's contact (no rolling resistance).
+- Slurry (``--slurry-density``, default 0: dry): the slurry filling the bed's voids (U = 1, the
+  C-model's wet charge) carried with the particles as mass: each particle's density is raised by
+  E / (1 - E) rho_p (E = 0.4), so the charge weighs what a wet charge of that fill weighs
+  (rho_c = [(J - J_B)(1 - E) rho_o + J_B (1 - E) rho_b + J E rho_p] / J, Morrell 1996). The
+  slurry's drag and lubrication are left out: a check of the power and the charge's shape against
+  wet mills, not a model of the slurry's flow. The impacts' energies stay the solid particle's.
 - Starting positions: random, largest first, without overlaps, in the lowest part of the mill
   that holds them at a third of its volume (:func:`place_particles`).
 """
@@ -65,6 +71,8 @@ ROCK_POISSON = 0.29
 DEFAULT_ROCK_RESTITUTION = 0.3
 DEFAULT_ROCK_FRICTION = 0.6
 DEFAULT_ROLLING_RESISTANCE = 0.2
+#: a slurry's density (kg/m^3): water to a dense ore slurry
+SLURRY_DENSITY = (1000.0, 2500.0)
 #: the starting region holds the particles at this fraction of its volume
 START_PACKING = 1.0 / 3.0
 #: the charges the command knows
@@ -84,6 +92,7 @@ class RockSpec:
     restitution: float = DEFAULT_ROCK_RESTITUTION
     friction: float = DEFAULT_ROCK_FRICTION
     rolling_resistance: float = DEFAULT_ROLLING_RESISTANCE
+    slurry_density: float = 0.0  # kg/m^3 of the slurry in the bed's voids, carried as mass; 0: dry
 
     def summary(self) -> dict:
         """summary.json's record of the rock and its contacts, with the sources."""
@@ -105,6 +114,10 @@ class RockSpec:
             "0.1-0.3 of mill DEM for spheres standing for angular rock",
             "fines": "rock below the cut-off is slurry: its volume is given to the modelled rock; the slurry "
             "itself (drag, lubrication) is left out",
+            "slurry_density_kg_m3": self.slurry_density,
+            "slurry_is": "the bed's voids full of slurry, carried as mass on the particles (no drag, no lubrication)"
+            if self.slurry_density
+            else "none: a dry charge",
         }
 
 
@@ -141,6 +154,11 @@ def check_sag_options(total: float, balls: float, rock: RockSpec, mill_radius: f
         if not lo <= x <= hi or (name == "--rock-restitution" and x == 0.0):
             low = "(0" if name == "--rock-restitution" else "[0"
             raise InputError(f"{name} {x:g}: must lie in {low}, {hi:g}]")
+    if rock.slurry_density != 0.0 and not SLURRY_DENSITY[0] <= rock.slurry_density <= SLURRY_DENSITY[1]:
+        raise InputError(
+            f"--slurry-density {rock.slurry_density:g} kg/m^3: must be 0 (a dry charge) or lie in "
+            f"[{SLURRY_DENSITY[0]:g}, {SLURRY_DENSITY[1]:g}] (water to a dense slurry)"
+        )
 
 
 def rock_diameters(volume: float, rock: RockSpec, rng: np.random.Generator) -> np.ndarray:

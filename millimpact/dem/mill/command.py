@@ -91,6 +91,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="MU_R",
         help="the rock's rolling resistance, M <= MU_R R F_n, in [0, 1] (default 0.2)",
     )
+    sag.add_argument(
+        "--slurry-density",
+        type=float,
+        metavar="RHO",
+        help="slurry (kg/m^3) filling the bed's voids, carried as mass on the particles: 0 (dry, the "
+        "default) or 1000-2500",
+    )
     p.add_argument(
         "--speed-fraction",
         type=float,
@@ -184,6 +191,7 @@ def options_from_args(args: argparse.Namespace):
         rock_restitution=args.rock_restitution,
         rock_friction=args.rock_friction,
         rolling_resistance=args.rolling_resistance,
+        slurry_density=args.slurry_density,
     )
     check_mill_options(opts)
     return opts
@@ -235,11 +243,10 @@ def main(args: argparse.Namespace) -> int:
         return 0
     n = summary["impacts_per_revolution"]
     who = "ball impacts" if "rock_impacts" in summary else "impacts"
-    rolling = " (with the rock's rolling resistance, which Yade does not count)" if "rock_impacts" in summary else ""
     say(
         f"{who} per revolution: {n['all']:.4g} (lifter faces {n['lifter_face']:.4g}, tops {n['lifter_top']:.4g}, "
         f"plate {n['plate']:.4g}); {_charge_text(summary)}; "
-        f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %{rolling}"
+        f"energy balance error {100 * (summary['energy_balance']['relative_error'] or 0):.2f} %"
     )
     if "rock_impacts" in summary:
         share = summary["charge"]["ball_contacts_on_rock_share"]
@@ -282,9 +289,11 @@ def _comparison_lines(summary: dict) -> list[str]:
         )
         power = (
             f"net power {m['net_W']:.4g} W in the slice = {m['net_per_metre_W_m'] / 1e3:.4g} kW/m{length}; "
-            f"Morrell {pw['morrell_net_per_metre_W_m'] / 1e3:.4g} kW/m ({_percent(pw['morrell_relative_difference'])}), "
-            f"Austin {pw['austin_per_metre_W_m'] / 1e3:.4g} kW/m at the pinion "
-            f"({_percent(pw['austin_relative_difference'])}); J {pw['model_inputs']['fill']:.3f}"
+            f"at the shell, Morrell k P_C {pw['morrell_shell_per_metre_W_m'] / 1e3:.4g} kW/m "
+            f"({_percent(pw['morrell_shell_relative_difference'])}; P_C {pw['morrell_net_per_metre_W_m'] / 1e3:.4g}), "
+            f"Austin less no-load {pw['austin_shell_per_metre_W_m'] / 1e3:.4g} kW/m "
+            f"({_percent(pw['austin_shell_relative_difference'])}; pinion {pw['austin_per_metre_W_m'] / 1e3:.4g}); "
+            f"J {pw['model_inputs']['fill']:.3f}"
         )
 
     def angle(name: str) -> str:

@@ -21,6 +21,26 @@
   ore (ore density 0: the bed's voids hold nothing), per metre. Austin's is a drive-side (pinion)
   figure: above the shell's net power by the drive's losses (Morrell's gross/net is ~1.35 for an
   industrial mill), so a net power compares with it only through them.
+- With a SAG charge: ore density the rock's; with ``--slurry-density`` rho_p the C-model's charge
+  density counts the voids full of slurry (U = 1), as the run's particles carry it.
+
+What the run measures is the power the shell gives the charge: every joule the charge turns into
+heat passes through the liner's torque. The models give other things, so each is also put in
+those terms (``*_shell_*`` in summary.json, the figures to judge the run by):
+
+- Morrell: the motor draws P_0 + k P_C (:func:`~millimpact.theory.mill_power.morrell_gross_power`),
+  P_C the C-model's lift-and-throw power and k = 1.26 a calibration on industrial mills that lumps
+  what P_C leaves out. Above the empty mill's draw P_0 the motor gives k P_C, which is the shell's
+  power less the drive's load-dependent losses (motor and gears, a few per cent), and the heat the
+  charge makes beyond lifting and throwing itself is inside k: the shell's power lies between
+  ~0.95 k P_C and k P_C. The run is set against k P_C.
+- Austin: his figure is the pinion's, which Morrell's gross power matches within 2 % on a
+  10.4 m mill (:func:`~millimpact.theory.mill_power.austin_power`), so the shell's share is
+  Austin's less the empty mill's P_0 (Morrell's no-load,
+  :func:`~millimpact.theory.mill_power.morrell_no_load_power`, for the scene's mill length, else
+  L = D / 2, a SAG mill's usual aspect; P_0 per metre goes as L^-0.18, 4 % for L 20 % off). His
+  constants assume a wet charge (solids 80 % of the charge's mass, w_C): a dry run's charge is
+  lighter than his by that slurry.
 
 Relative differences are (measured - model) / model; the angles' differences are measured - model
 in degrees, both angles from the vertical below the axis, positive in the direction of rotation.
@@ -34,10 +54,12 @@ import numpy as np
 
 from ...theory.mill_power import (
     BED_POROSITY,
+    MORRELL_GROSS_FACTOR,
     austin_power,
     charge_density,
     charge_shape,
     morrell_net_power,
+    morrell_no_load_power,
 )
 from .setup import MillSetup
 
@@ -107,6 +129,8 @@ def model_inputs(setup: MillSetup) -> dict:
     ball_fill = volumetric_fill(setup, balls_only=True)
     rho_b = setup.ball_material[2]
     rho_o = setup.rock_material[2] if setup.n_rocks else 0.0
+    rho_p = setup.rock.slurry_density if setup.rock is not None else 0.0
+    charge = "balls and rock" if setup.n_rocks else "balls alone: J_B = J, no rock"
     return {
         "diameter_m": setup.profile.diameter,
         "speed_fraction": setup.speed_fraction,
@@ -116,8 +140,9 @@ def model_inputs(setup: MillSetup) -> dict:
         "bed_porosity_source": POROSITY_SOURCE,
         "ball_density_kg_m3": rho_b,
         "ore_density_kg_m3": rho_o,
-        "charge_density_kg_m3": charge_density(fill, ball_fill, rho_o, rho_b, 0.0, 0.0, BED_POROSITY),
-        "charge_is": "balls and rock, no slurry" if setup.n_rocks else "balls alone: J_B = J, no rock, no slurry",
+        "slurry_density_kg_m3": rho_p,
+        "charge_density_kg_m3": charge_density(fill, ball_fill, rho_o, rho_b, rho_p, 1.0, BED_POROSITY),
+        "charge_is": charge + (f", voids full of slurry of {rho_p:g} kg/m^3" if rho_p else ", no slurry"),
     }
 
 
@@ -131,6 +156,8 @@ def power_report(setup: MillSetup, energy: dict[str, np.ndarray], mill_length: f
     d, phi, j = m["diameter_m"], m["speed_fraction"], m["fill"]
     morrell = morrell_net_power(d, 1.0, phi, j, m["charge_density_kg_m3"]).net
     austin = austin_power(d, 1.0, phi, j, m["ball_fill"], m["ore_density_kg_m3"], m["ball_density_kg_m3"])
+    length = mill_length if mill_length is not None else 0.5 * d
+    no_load = morrell_no_load_power(d, length, phi) / length
     per_m = measured["net_per_metre_W_m"]
     return {
         "measured": measured,
@@ -147,6 +174,16 @@ def power_report(setup: MillSetup, energy: dict[str, np.ndarray], mill_length: f
         "austin_relative_difference": _relative(per_m, austin),
         "austin_source": "Austin 1990 SAG equation (millimpact.theory.mill_power)",
         "austin_is": "a drive-side (pinion) figure: above the shell's net power by the drive's losses",
+        "morrell_shell_per_metre_W_m": MORRELL_GROSS_FACTOR * morrell,
+        "morrell_shell_relative_difference": _relative(per_m, MORRELL_GROSS_FACTOR * morrell),
+        "morrell_shell_is": f"k P_C, k = {MORRELL_GROSS_FACTOR}: the motor's draw above the empty mill's in "
+        "Morrell's model, the shell's power less the drive's load-dependent losses",
+        "no_load_per_metre_W_m": no_load,
+        "no_load_is": f"Morrell's empty-mill draw P_0 per metre for a {length:g} m mill"
+        + ("" if mill_length is not None else " (L = D / 2: the scene gives no mill length)"),
+        "austin_shell_per_metre_W_m": austin - no_load,
+        "austin_shell_relative_difference": _relative(per_m, austin - no_load),
+        "austin_shell_is": "Austin's pinion power less the empty mill's P_0",
         "units": "W, W/m (per metre of mill length), s, J; relative differences (measured - model) / model",
     }
 

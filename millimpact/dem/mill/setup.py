@@ -98,11 +98,20 @@ class MillOptions:
     rock_restitution: float | None = None
     rock_friction: float | None = None
     rolling_resistance: float | None = None
+    slurry_density: float | None = None
 
     @property
     def rock_options(self) -> dict[str, float]:
         """The rock options given (option name -> value)."""
-        names = ("ball_fill", "rock_top_size", "rock_cutoff", "rock_restitution", "rock_friction", "rolling_resistance")
+        names = (
+            "ball_fill",
+            "rock_top_size",
+            "rock_cutoff",
+            "rock_restitution",
+            "rock_friction",
+            "rolling_resistance",
+            "slurry_density",
+        )
         return {"--" + n.replace("_", "-"): getattr(self, n) for n in names if getattr(self, n) is not None}
 
     def rock(self) -> RockSpec:
@@ -113,6 +122,7 @@ class MillOptions:
             "restitution": self.rock_restitution,
             "friction": self.rock_friction,
             "rolling_resistance": self.rolling_resistance,
+            "slurry_density": self.slurry_density,
         }
         return RockSpec(**{k: float(v) for k, v in given.items() if v is not None})
 
@@ -262,6 +272,7 @@ class MillSetup:
         if self.rock is None:
             return None
         E, nu, rho = self.rock_material
+        rho += self.slurry_mass_density
         return {
             "positions": [list(p) for p in self.positions[self.n_balls :]],
             "radii": list(self.rock_radii),
@@ -279,9 +290,17 @@ class MillSetup:
         """One revolution (s)."""
         return 2.0 * math.pi / self.omega
 
+    @property
+    def slurry_mass_density(self) -> float:
+        """The slurry carried with each particle per unit of its volume, E / (1 - E) rho_p (kg/m^3):
+        the bed's voids full of slurry (:mod:`.charge`); 0 for a dry charge."""
+        rho_p = self.rock.slurry_density if self.rock is not None else 0.0
+        return BED_POROSITY / (1.0 - BED_POROSITY) * rho_p
+
     def yade_input(self) -> dict:
         """The JSON of ``mill_slice.py``."""
         E_b, nu_b, rho_b = self.ball_material
+        rho_b += self.slurry_mass_density
         E_l, nu_l, rho_l = self.liner_material
         return {
             "thickness_m": self.thickness,
