@@ -4,9 +4,12 @@ against a balls-only charge of the same ball fill, and its cost at 1 and 2 Yade 
 Cases (each a ``millimpact mill`` command, one warm-up revolution and ``--revolutions`` logged):
 
 - ``sag-J{J}-S{S}``: ``--charge sag --fill J --speed-fraction S`` (balls 0.12, rock 0.2-0.1 m) at
-  S 0.75 and 0.80 and J 0.28 and 0.35: net power within 15 % of Morrell's C-model and of Austin's
-  equation (a pinion figure: the drive's losses put it above a net power), toe and shoulder
-  within 10 degrees of Morrell's correlations;
+  S 0.75 and 0.80 and J 0.28 and 0.35: the shell's power within 15 % of Morrell's and of Austin's
+  models put at the shell (Morrell's k P_C, the motor's draw above the empty mill's; Austin's
+  pinion figure less Morrell's no-load P_0: millimpact.dem.mill.power), toe and shoulder within
+  10 degrees of Morrell's correlations;
+- ``sag-J28-S0.75-slurry``: one change, the bed's voids full of a 1790 kg/m^3 slurry carried as
+  mass (``--slurry-density``): Austin's constants assume a wet charge;
 - ``balls-J12-S0.75``: balls alone at the SAG charge's ball fill (``--fill 0.12``): the balls'
   cumulative impact spectrum on the liner beside the SAG charge's (spectra.png), and the share
   of the balls' contacts that land on rock;
@@ -35,6 +38,8 @@ from _report import write_report  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SAG_CASES = [(j, s) for j in (0.28, 0.35) for s in (0.75, 0.80)]
+#: a SAG mill's discharge slurry, 70 % solids by mass (ore 2700 kg/m^3): 1 / (0.7 / 2700 + 0.3 / 1000)
+SLURRY_DENSITY = 1790.0
 
 
 def _command(args: list[str], folder: Path, threads: int = 1) -> float:
@@ -53,6 +58,8 @@ def cases(revolutions: float) -> dict[str, list[str]]:
         for j, s in SAG_CASES
     }
     out["balls-J12-S0.75"] = ["--fill", "0.12", "--speed-fraction", "0.75", *rev]
+    # one change: the voids' slurry carried as mass (70 % solids of 2700 kg/m^3: 1790 kg/m^3)
+    out["sag-J28-S0.75-slurry"] = [*out["sag-J28-S0.75"], "--slurry-density", str(SLURRY_DENSITY)]
     return out
 
 
@@ -60,6 +67,7 @@ def row_of(name: str, folder: Path) -> dict:
     s = json.loads((folder / "summary.json").read_text())
     p, c = s["power"], s["charge_shape"]
     m = p["model_inputs"]
+    shell = _shell_figures(p)
     return {
         "case": name,
         "fill": m["fill"],
@@ -72,6 +80,8 @@ def row_of(name: str, folder: Path) -> dict:
         "morrell_diff": p["morrell_relative_difference"],
         "austin_kW_m": p["austin_per_metre_W_m"] / 1e3,
         "austin_diff": p["austin_relative_difference"],
+        **shell,
+        "slurry_kg_m3": m.get("slurry_density_kg_m3", 0.0),
         "toe_deg": c["toe_deg"],
         "morrell_toe_deg": c["morrell_toe_deg"],
         "shoulder_deg": c["shoulder_deg"],
@@ -84,6 +94,31 @@ def row_of(name: str, folder: Path) -> dict:
         "liner_friction_J_per_rev": s["abrasion"]["friction_work_J_per_revolution"],
         "yade_wall_s": s["yade"]["wall_s"],
         "steps": s["yade"]["steps"],
+    }
+
+
+def _shell_figures(p: dict) -> dict:
+    """Morrell's k P_C and Austin's pinion power less the empty mill's P_0 (kW/m), and the run's
+    differences to them: summary.json's, or computed as millimpact.dem.mill.power does for a
+    summary written before it gave them."""
+    if "morrell_shell_per_metre_W_m" not in p:
+        from millimpact.theory.mill_power import MORRELL_GROSS_FACTOR, morrell_no_load_power
+
+        d, phi = p["model_inputs"]["diameter_m"], p["model_inputs"]["speed_fraction"]
+        no_load = morrell_no_load_power(d, 0.5 * d, phi) / (0.5 * d)
+        p = {
+            **p,
+            "morrell_shell_per_metre_W_m": MORRELL_GROSS_FACTOR * p["morrell_net_per_metre_W_m"],
+            "austin_shell_per_metre_W_m": p["austin_per_metre_W_m"] - no_load,
+        }
+        x = p["measured"]["net_per_metre_W_m"]
+        p["morrell_shell_relative_difference"] = x / p["morrell_shell_per_metre_W_m"] - 1.0
+        p["austin_shell_relative_difference"] = x / p["austin_shell_per_metre_W_m"] - 1.0
+    return {
+        "morrell_shell_kW_m": p["morrell_shell_per_metre_W_m"] / 1e3,
+        "morrell_shell_diff": p["morrell_shell_relative_difference"],
+        "austin_shell_kW_m": p["austin_shell_per_metre_W_m"] / 1e3,
+        "austin_shell_diff": p["austin_shell_relative_difference"],
     }
 
 
@@ -107,8 +142,11 @@ def report(out: Path, rows: list[dict]) -> None:
             "J_B",
             "speed",
             "balls + rocks",
+            "slurry (kg/m^3)",
             "net (kW/m)",
-            "Morrell (kW/m)",
+            "Morrell k P_C (kW/m)",
+            "Austin - P_0 (kW/m)",
+            "Morrell P_C (kW/m)",
             "Austin, pinion (kW/m)",
             "toe, Morrell (deg)",
             "shoulder, Morrell (deg)",
@@ -122,7 +160,10 @@ def report(out: Path, rows: list[dict]) -> None:
             f"{r['ball_fill']:.3f}",
             f"{r['speed_fraction']:.2f}",
             f"{r['balls']} + {r['rocks']}",
+            f"{r['slurry_kg_m3']:.0f}",
             f"{r['net_kW_m']:.1f}",
+            f"{r['morrell_shell_kW_m']:.1f} ({_pct(r['morrell_shell_diff'])})",
+            f"{r['austin_shell_kW_m']:.1f} ({_pct(r['austin_shell_diff'])})",
             f"{r['morrell_kW_m']:.1f} ({_pct(r['morrell_diff'])})",
             f"{r['austin_kW_m']:.1f} ({_pct(r['austin_diff'])})",
             f"{_deg(r['toe_deg'])}, {_deg(r['morrell_toe_deg'])}",
