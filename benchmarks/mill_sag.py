@@ -209,6 +209,36 @@ def spectra_figure(out: Path) -> None:
     plt.close(fig)
 
 
+def checks_figure(out: Path, rows: list[dict]) -> None:
+    """checks.png: each run's power against the two models put at the shell (left, a parity plot
+    with the +-15 % band), and its toe and shoulder against Morrell's correlations (right, +-10 deg)."""
+    from millimpact.results.plots import pyplot
+
+    plt = pyplot()
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10.5, 4.6))
+    top = 1.15 * max(max(r["net_kW_m"], r["morrell_shell_kW_m"], r["austin_shell_kW_m"]) for r in rows)
+    ax.fill_between([0, top], [0, 0.85 * top], [0, 1.15 * top], color="0.9", label="+-15 %")
+    ax.plot([0, top], [0, top], "k-", lw=0.8)
+    for k, r in enumerate(rows):
+        c = f"C{k}"
+        ax.plot(r["morrell_shell_kW_m"], r["net_kW_m"], "o", color=c, label=f"{r['case']}: Morrell k P_C")
+        ax.plot(r["austin_shell_kW_m"], r["net_kW_m"], "s", mfc="none", color=c, label="  Austin - P_0")
+        for name, marker in (("toe", "v"), ("shoulder", "^")):
+            bx.plot(r[f"morrell_{name}_deg"], r[f"{name}_deg"], marker, color=c, label=f"{r['case']}: {name}")
+    ax.set(xlim=(0, top), ylim=(0, top), xlabel="model, at the shell (kW/m)", ylabel="the run's net power (kW/m)")
+    ax.set_title("power draw: the run against the models", fontsize=9)
+    ax.legend(fontsize=6)
+    lo, hi = -60.0, 160.0
+    bx.fill_between([lo, hi], [lo - 10, hi - 10], [lo + 10, hi + 10], color="0.9", label="+-10 deg")
+    bx.plot([lo, hi], [lo, hi], "k-", lw=0.8)
+    bx.set(xlim=(lo, hi), ylim=(lo, hi), xlabel="Morrell's correlation (deg from the bottom)", ylabel="the run (deg)")
+    bx.set_title("charge shape: toe and shoulder", fontsize=9)
+    bx.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(out / "checks.png", dpi=120)
+    plt.close(fig)
+
+
 def threads_check(out: Path) -> None:
     rows = []
     for threads in (1, 2):
@@ -267,8 +297,10 @@ def main() -> None:
 
     if a.report_only:
         done = [k for k in todo if (out / k / "summary.json").exists()]
-        report(out, [row_of(k, out / k) for k in done])
+        rows = [row_of(k, out / k) for k in done]
+        report(out, rows)
         spectra_figure(out)
+        checks_figure(out, rows)
         return
 
     def run(item):
@@ -283,6 +315,7 @@ def main() -> None:
             rows.append(row_of(name, out / name))
             report(out, rows)
     spectra_figure(out)
+    checks_figure(out, rows)
     if not a.no_threads:
         threads_check(out)
 
