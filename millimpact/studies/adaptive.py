@@ -2,7 +2,7 @@
 
 A DEM code reads the table's law by bilinear interpolation in (ln speed, angle) over a grid of
 speeds x angles, held at the nearest edge outside it (the Yade export's runtime,
-:mod:`millimpact.dem.export.contact_law`, interpolates the Hertz-dashpot law's zeta and E*: the
+:mod:`millimpact.theory.hertz_dashpot`, interpolates the Hertz-dashpot law's zeta and E*: the
 ``law`` the checks measure, :func:`millimpact.studies.table_adaptive.export_law`; by default here
 e_n, e_t and F_max themselves, :func:`interpolate`). A grid fixed in advance computes cases the
 law does not need and says nothing about the error between them. Here the grid grows where the

@@ -44,8 +44,8 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -265,24 +265,53 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
 
 
 # --- the table ----------------------------------------------------------------------------------------
-def run_table(
-    scene_name: str | None,
-    speeds: Sequence[float],
-    angles: Sequence[float],
-    radii: Sequence[float] | None,
-    method: str,
-    options: dict,
-    out: Path | OutputFolder,
-    sets: Sequence[str] = (),
-    ranks_per_case: int = 1,
-    quiet: bool = False,
-) -> list[dict]:
-    """Compute (or take from ``out/cases``) every case and write the table (rank 0) into ``out``, a
-    folder or one claimed with :func:`~millimpact.results.output_folder.claim_output`. Returns the rows."""
+@dataclass
+class TableRun:
+    """A table's computing on every rank: its base scene, method, claimed output and ``cases/``
+    folder, this rank's group of ranks, and the group's kept reduction (by band key)."""
+
+    base: Scene
+    method: str
+    options: dict
+    target: OutputFolder
+    folder: Path
+    world: Any
+    group: Any
+    say: Callable[..., None]
+    setups: dict = field(default_factory=dict)
+
+    @property
+    def n_groups(self) -> int:
+        return self.world.size // self.group.size
+
+    def compute(self, cases: Sequence[TableCase], said: Callable[[int, int], None] | None = None) -> dict[int, dict]:
+        """Each case's row by its index, on rank 0 ({} on the others): from ``cases/``, or computed by
+        the groups (collective). ``said(n_stored, n_todo)`` prints the line before computing."""
+        store = PieceStore(self.folder)
+        done = {c.index: row for c in cases if (row := store.load(c.key)) is not None}
+        # computed band after band (a group keeps only its current band's reduction), listed by speed
+        todo = sorted([c for c in cases if c.index not in done], key=lambda c: (c.band, c.index))
+        if said is not None:
+            said(len(done), len(todo))
+        rows = (
+            compute_cases(todo, self.method, self.options, self.folder, self.world, self.group, self.say, self.setups)
+            if todo
+            else []
+        )
+        gathered = self.world.gather(rows, root=0)
+        if self.world.rank != 0 or gathered is None:
+            return {}
+        for part in gathered:
+            for r in part:
+                done[r["case"]] = r
+        return done
+
+
+def check_table_method(method: str, ranks_per_case: int) -> None:
+    """InputError (one line) unless ``method`` is one and ``ranks_per_case`` divides the ranks."""
     from mpi4py import MPI
 
     from ..methods.registry import method_entry
-    from .table_report import write_table
 
     world = MPI.COMM_WORLD
     if ranks_per_case < 1 or ranks_per_case > world.size or world.size % ranks_per_case:
@@ -297,34 +326,59 @@ def run_table(
             f"--method {method} with {world.size // ranks_per_case} groups: this method runs on all "
             f"ranks; use --ranks-per-case {world.size} (or a reduced method, or hertz)"
         )
-    base = table_scene(scene_name, sets)
-    cases = define_cases(base, speeds, angles, radii or [base.ball.radius], method, options)
+
+
+def open_table(
+    base: Scene, method: str, options: dict, out: Path | OutputFolder, ranks_per_case: int, quiet: bool
+) -> TableRun:
+    """Open ``out`` (a folder, or one claimed with :func:`claim_output`) and its ``cases/`` and
+    split the ranks into groups of ``ranks_per_case`` (collective)."""
+    from mpi4py import MPI
+
+    world = MPI.COMM_WORLD
     target = out if isinstance(out, OutputFolder) else claim_output(out, "table")
     folder = target.open(["cases"], note=lambda: kept_cases_note(target)) / "cases"
-    say = sayer(quiet, world)
     if world.rank == 0:
         folder.mkdir(exist_ok=True)
     world.barrier()
-    store = PieceStore(folder)
-    done = {c.index: row for c in cases if (row := store.load(c.key)) is not None}
-    # computed band after band (a group keeps only its current band's reduction), listed by speed
-    todo = sorted([c for c in cases if c.index not in done], key=lambda c: (c.band, c.index))
-    n_bands = len({c.band for c in cases})
-    say(
-        f"table {base.name}: {len(speeds)} speeds x {len(angles)} angles x {len(radii or [0])} radii = {len(cases)} "
-        f"cases in {n_bands} mesh band(s), method {method}; {len(done)} from {folder}, {len(todo)} to compute "
-        f"on {world.size // ranks_per_case} group(s) of {ranks_per_case} rank(s)"
-    )
     group = world.Split(world.rank // ranks_per_case, world.rank)
-    rows = compute_cases(todo, method, options, folder, world, group, say)
-    gathered = world.gather(rows, root=0)
-    if world.rank != 0 or gathered is None:
+    return TableRun(base, method, options, target, folder, world, group, sayer(quiet, world))
+
+
+def run_table(
+    scene_name: str | None,
+    speeds: Sequence[float],
+    angles: Sequence[float],
+    radii: Sequence[float] | None,
+    method: str,
+    options: dict,
+    out: Path | OutputFolder,
+    sets: Sequence[str] = (),
+    ranks_per_case: int = 1,
+    quiet: bool = False,
+) -> list[dict]:
+    """Compute (or take from ``out/cases``) every case and write the table (rank 0) into ``out``, a
+    folder or one claimed with :func:`~millimpact.results.output_folder.claim_output`. Returns the rows."""
+    from .table_report import write_table
+
+    check_table_method(method, ranks_per_case)
+    base = table_scene(scene_name, sets)
+    cases = define_cases(base, speeds, angles, radii or [base.ball.radius], method, options)
+    run = open_table(base, method, options, out, ranks_per_case, quiet)
+    n_bands = len({c.band for c in cases})
+
+    def said(n_done: int, n_todo: int) -> None:
+        run.say(
+            f"table {base.name}: {len(speeds)} speeds x {len(angles)} angles x {len(radii or [0])} radii = "
+            f"{len(cases)} cases in {n_bands} mesh band(s), method {method}; {n_done} from {run.folder}, {n_todo} "
+            f"to compute on {run.n_groups} group(s) of {ranks_per_case} rank(s)"
+        )
+
+    done = run.compute(cases, said)
+    if run.world.rank != 0:
         return []
-    for part in gathered:
-        for r in part:
-            done[r["case"]] = r
     all_rows = [done[c.index] for c in cases if c.index in done]
-    with target.staged(keep=["cases"], collective=False) as stage:
+    with run.target.staged(keep=["cases"], collective=False) as stage:
         write_table(stage, base, cases, all_rows, method, options)
     return all_rows
 
