@@ -83,7 +83,8 @@ class AdaptiveResult:
 
     @property
     def cases(self) -> int:
-        return len(self.grid) + len(self.checks)
+        """The cases computed: the grid's and the checks' (a check a split made a grid point once)."""
+        return len(set(self.grid) | {c.point for c in self.checks})
 
     def law_errors(self, check: Check) -> Values:
         """The check's errors against the law of the grid as it is now (a later split may have put a
@@ -211,14 +212,18 @@ def adaptive_table(
     passed = result.passed
 
     def fill_grid() -> None:
+        # a check on the new line (the centre of the cell it split) is a grid case already computed
+        checked = {c.point: c.values for c in result.checks}
         todo = [(v, a) for v in result.speeds for a in result.angles if (v, a) not in result.grid]
+        result.grid.update({p: checked[p] for p in todo if p in checked})
+        todo = [p for p in todo if p not in checked]
         if todo:
             result.grid.update(compute(todo))
 
     fill_grid()
     while True:
         if _recheck(result, tolerance):
-            if len(result.grid) + len(result.checks) + _new_cases(result) > max_cases:
+            if result.cases + _new_cases(result) > max_cases:
                 result.stopped_by_budget = True
                 _drop_unfilled(result)
                 return result
@@ -245,7 +250,7 @@ def adaptive_table(
             else:
                 split = _split(result, cell, ev, ea) or split
         if split:
-            if len(result.grid) + len(result.checks) + _new_cases(result) > max_cases:
+            if result.cases + _new_cases(result) > max_cases:
                 result.stopped_by_budget = True
                 _drop_unfilled(result)
                 return result
@@ -325,7 +330,9 @@ def _split(result: AdaptiveResult, cell, ev: float, ea: float) -> bool:
 
 
 def _new_cases(result: AdaptiveResult) -> int:
-    return sum(1 for v in result.speeds for a in result.angles if (v, a) not in result.grid)
+    """The cases the grid's new lines need (a check on them is computed already)."""
+    checked = {c.point for c in result.checks}
+    return sum(1 for v in result.speeds for a in result.angles if (v, a) not in result.grid and (v, a) not in checked)
 
 
 def _drop_unfilled(result: AdaptiveResult) -> None:

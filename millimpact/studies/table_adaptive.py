@@ -30,8 +30,6 @@ from ..results.output_folder import OutputFolder
 from .adaptive import QUANTITIES, AdaptiveResult, Law, Point, Values, adaptive_table, bilinear_weights
 from .table import check_table_method, define_cases, open_table, table_scene
 
-#: the speeds (and angles, with an angle range) of the engine's starting grid
-START = 3
 #: the table's columns of the law's quantities (e_n, e_t, F_max)
 ROW_KEYS = {"e_n": "restitution_normal", "e_t": "restitution_tangential", "f_max": "peak_normal_force_N"}
 
@@ -66,11 +64,6 @@ def _check_columns() -> list[tuple[str, str, str]]:
 CHECK_COLUMNS = _check_columns()
 
 
-def start_cases(angle_range: tuple[float, float]) -> int:
-    """The cases of the starting grid: START speeds x START angles (one angle without a range)."""
-    return START * (START if angle_range[1] > angle_range[0] else 1)
-
-
 def run_adaptive_table(
     scene_name: str | None,
     speed_range: tuple[float, float],
@@ -84,10 +77,11 @@ def run_adaptive_table(
     sets: Sequence[str] = (),
     ranks_per_case: int = 1,
     quiet: bool = False,
+    start: int = 3,
 ) -> tuple[list[dict], dict[str, Any] | None]:
-    """Choose and compute the table's cases (module docstring) and write the table (rank 0) into
-    ``out``. Returns the rows and the summary (:func:`adaptive_summary`; rank 0, [] and None
-    elsewhere)."""
+    """Choose and compute the table's cases (module docstring), starting from ``start`` speeds x
+    ``start`` angles, and write the table (rank 0) into ``out``. Returns the rows and the summary
+    (:func:`adaptive_summary`; rank 0, [] and None elsewhere)."""
     from .table_report import write_table
 
     check_table_method(method, ranks_per_case)
@@ -129,7 +123,7 @@ def run_adaptive_table(
         angle_range,
         tolerance,
         max_cases,
-        START,
+        start,
         max(2, run.n_groups),
         run.say,
         export_law(ball.mass, r),

@@ -27,8 +27,8 @@ factorizations. Finished cases are kept in DIR/cases/ and a rerun computes only 
 Under mpirun, --ranks-per-case K makes groups of K ranks that take cases from a shared counter.
 
 With --tolerance TOL the table chooses its cases: --velocity V_LOW,V_HIGH and --angle A_LOW,A_HIGH
-give the ranges, a 3 x 3 grid starts the law (bilinear in ln speed and angle, as the DEM export
-reads it), cases at the centres of the cells where the grid's second differences predict the
+give the ranges, a 3 x 3 grid starts the law (the DEM export's: zeta and E* bilinear in ln speed
+and angle), cases at the centres of the cells where the grid's second differences predict the
 largest error check it, and a cell that misses (|e_n|, |e_t| error > TOL, F_max > 2 TOL relative)
 gets a new grid line, until every cell passes or --max-cases is spent (then a warning, exit 0).
 The rows say role grid or check; checks.csv holds each check's error, adaptive_points.png shows
@@ -45,6 +45,8 @@ Examples:
 MAX_TOLERANCE = 0.5
 #: the most cases --max-cases allows
 MAX_CASES = 10000
+#: an adaptive table starts from START speeds x START angles (START speeds at one angle)
+START = 3
 
 
 def parse_list(
@@ -121,8 +123,6 @@ def adaptive_ranges(
     args: argparse.Namespace, speeds: list[float], angles: list[float], radii: list[float] | None
 ) -> tuple[float, int]:
     """The tolerance and budget of an adaptive table, checked with its ranges (one InputError line)."""
-    from .table_adaptive import START, start_cases
-
     tol = args.tolerance
     if not (math.isfinite(tol) and 0.0 < tol < MAX_TOLERANCE):
         raise InputError(f"--tolerance {tol:g}: outside (0, {MAX_TOLERANCE:g}) (e_n and e_t; F_max: 2 x, relative)")
@@ -132,7 +132,7 @@ def adaptive_ranges(
         raise InputError(f"--angle {args.angle!r}: with --tolerance, one angle or the range's ends A_LOW,A_HIGH (deg)")
     if radii is not None and len(radii) > 1:
         raise InputError(f"--radius {args.radius!r}: with --tolerance, one ball radius")
-    low = start_cases((angles[0], angles[-1]))
+    low = START * (START if len(angles) == 2 else 1)
     n = 30 if args.max_cases is None else args.max_cases
     if not low <= n <= MAX_CASES:
         grid = f"{START} speeds x {START} angles" if low > START else f"{START} speeds"
@@ -171,6 +171,7 @@ def main(args: argparse.Namespace) -> int:
             args.set,
             args.ranks_per_case,
             args.quiet,
+            START,
         )
         if summary is not None and not args.quiet:
             print(f"  adaptive: {summary_line(summary)}", flush=True)

@@ -67,7 +67,7 @@ def main(args: argparse.Namespace) -> int:
             f"(scene {table.scene_name}, method {table.method})"
         )
         for line in checked_lines(table, " "):
-            talk(" " + line)
+            talk(line)
         if law.band:
             talk(f"  constant law (LIGGGHTS/LAMMPS): valid for normal speeds {law.band[0]:.3g}-{law.band[1]:.3g} m/s")
         files[1:1] = extra_law_files(code, law, stage, talk)
