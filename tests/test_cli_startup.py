@@ -57,6 +57,8 @@ def test_version_reads_the_stack_versions_without_importing_it():
     ["study", "no-such-study"],
     ["study", "velocity", "--set", "nosuch=1"],
     ["table", "--velocity", "abc"],
+    ["table", "--velocity", "1,2", "--tolerance", "0.7"],
+    ["table", "--velocity", "1,2", "--angle", "0,30", "--tolerance", "0.01", "--max-cases", "4"],
 ])
 def test_help_and_refusals_import_no_heavy_module(argv):
     code = ("import sys, contextlib, io\nfrom millimpact.cli import main\n"

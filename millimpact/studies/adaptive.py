@@ -2,23 +2,35 @@
 
 A DEM code reads the table's law by bilinear interpolation in (ln speed, angle) over a grid of
 speeds x angles, held at the nearest edge outside it (the Yade export's runtime,
-:mod:`millimpact.dem.export.contact_law`). A grid fixed in advance computes cases the law does not
-need and says nothing about the error between them. Here the grid grows where the law is wrong:
+:mod:`millimpact.theory.hertz_dashpot`, interpolates the Hertz-dashpot law's zeta and E*: the
+``law`` the checks measure, :func:`millimpact.studies.table_adaptive.export_law`; by default here
+e_n, e_t and F_max themselves, :func:`interpolate`). A grid fixed in advance computes cases the
+law does not need and says nothing about the error between them. Here the grid grows where the
+law is wrong:
 
 1. Start from ``start`` speeds (geometric between the range's ends) x ``start`` angles (linear).
 2. Predict each cell's interpolation error from the grid's second differences around it: the
    error of linear interpolation at a cell's midpoint is |f''| h^2 / 8 along each direction, and
-   (f_{i-1} - 2 f_i + f_{i+1}) / h^2 estimates f'' (in ln speed and in angle), so each cell gets
-   the largest |second difference| / 4 of its edges' grid lines in each direction.
+   the divided second difference estimates f'' (in ln speed and in angle), in units of the
+   tolerance (F_max: relative to its value, in units of 2 ``tolerance``); each cell gets the
+   largest of its edges' grid lines in each direction.
 3. Compute the check case at the centre of the cells whose prediction is largest (a batch at a
-   time, so that every rank has a case), and compare it with the law's bilinear value there:
-   |e_n - law|, |e_t - law| against ``tolerance`` and |F_max / law - 1| against 2 ``tolerance``.
+   time, so that every rank has a case), and compare it with the law's value there:
+   |e_n - law|, |e_t - law| against ``tolerance`` and |F_max / law - 1| against 2 ``tolerance``
+   (e_t is not compared where the law has none: a cell with a normal-incidence corner).
 4. A cell that misses is split: a new speed (the geometric mean of its two) where its predicted
    error along speed is the larger, else a new angle (the mean); the new grid line's cases are
    computed, and the new cells are checked in turn. A cell that meets the tolerance is not
    checked again; the cells a split makes from a cell that met it inherit its check.
-5. Stop when every cell has met the tolerance, or when the next batch would pass ``max_cases``
-   (said, with the largest error checked).
+5. After every new grid line, every earlier check is compared with the law as it now is
+   (:func:`_recheck`): a check whose point the law now misses (its centre passed with the errors
+   along speed and angle cancelling, and a split beside it uncovered one) gets the grid lines
+   through its point, and the cells around it are checked again. So at the end every check
+   meets the tolerance against the final law.
+6. Stop when every cell has met the tolerance, or when the next batch or grid line would pass
+   ``max_cases`` (a grid line the budget cannot pay for is dropped). The largest error is the
+   checks' against the final law, and a missed check's own where its cell's parts are unchecked
+   (:meth:`AdaptiveResult.largest_error`).
 
 Every case is one impact of the table engine (:mod:`millimpact.studies.table`), so the engine's
 bands, reductions and case cache serve the grid and the checks alike; :func:`adaptive_table`
@@ -38,6 +50,8 @@ QUANTITIES = (("e_n", False), ("e_t", False), ("f_max", True))
 
 Point = tuple[float, float]
 Values = dict[str, float]
+#: a law: its values at (v, a) from the grid's speeds, angles and cases
+Law = Callable[[Sequence[float], Sequence[float], dict[Point, Values], float, float], Values]
 
 
 @dataclass
@@ -62,21 +76,39 @@ class AdaptiveResult:
     checks: list[Check] = field(default_factory=list)
     reached: bool = False
     stopped_by_budget: bool = False
+    #: the cells (corners) whose check met the tolerance; a cell inside one needs no check
+    passed: set[tuple[Point, Point]] = field(default_factory=set)
+    #: the law the checks measure (default :func:`interpolate`)
+    law: Law = field(default=lambda *args: interpolate(*args), repr=False)
 
     @property
     def cases(self) -> int:
-        return len(self.grid) + len(self.checks)
+        """The cases computed: the grid's and the checks' (a check a split made a grid point once)."""
+        return len(set(self.grid) | {c.point for c in self.checks})
+
+    def law_errors(self, check: Check) -> Values:
+        """The check's errors against the law of the grid as it is now (a later split may have put a
+        grid line through its point or next to it): what the exported law's error is there."""
+        return _errors(check.values, self.law(self.speeds, self.angles, self.grid, *check.point))
 
     def largest_error(self) -> Values:
-        """The largest error of each quantity over the checks (0 without checks)."""
-        return {q: max((c.errors[q] for c in self.checks), default=0.0) for q, _ in QUANTITIES}
+        """The largest error of each quantity the checks measured on the law as it is now (0 without
+        checks; a quantity the law does not define at a check, NaN, is left out): each check's
+        error against the law now, and a missed check's own error while a cell inside its cell is
+        still unchecked (a budget stop: the split law there is not verified, the miss stands)."""
+        open_cells = [cell for _, cell, _ in _open_cells(self, self.passed, 1.0)] if not self.reached else []
+        errors = []
+        for c in self.checks:
+            e = self.law_errors(c)
+            if not c.passed and any(_inside(o, c.cell) for o in open_cells):
+                e = {q: float(np.fmax(e[q], c.errors[q])) for q in e}
+            errors.append(e)
+        return {q: max((e[q] for e in errors if math.isfinite(e[q])), default=0.0) for q, _ in QUANTITIES}
 
 
-def interpolate(
-    speeds: Sequence[float], angles: Sequence[float], grid: dict[Point, Values], v: float, a: float
-) -> Values:
-    """The law's value at (v, a): bilinear in (ln speed, angle), held at the nearest edge outside."""
-    out = {}
+def bilinear_weights(speeds: Sequence[float], angles: Sequence[float], v: float, a: float) -> list[tuple[Point, float]]:
+    """The grid points around (v, a) and their weights of bilinear interpolation in (ln speed,
+    angle), (v, a) held at the nearest edge outside the grid (the Yade export's runtime)."""
     lv = np.log(speeds)
     x = float(np.clip(math.log(v), lv[0], lv[-1]))
     y = float(np.clip(a, angles[0], angles[-1]))
@@ -85,18 +117,32 @@ def interpolate(
     i1, j1 = min(i + 1, len(speeds) - 1), min(j + 1, len(angles) - 1)
     tx = 0.0 if i1 == i else (x - lv[i]) / (lv[i1] - lv[i])
     ty = 0.0 if j1 == j else (y - angles[j]) / (angles[j1] - angles[j])
-    for q, _ in QUANTITIES:
-        f = [[grid[(speeds[ii], angles[jj])][q] for jj in (j, j1)] for ii in (i, i1)]
-        out[q] = (1 - tx) * ((1 - ty) * f[0][0] + ty * f[0][1]) + tx * ((1 - ty) * f[1][0] + ty * f[1][1])
-    return out
+    return [
+        ((speeds[i], angles[j]), (1 - tx) * (1 - ty)),
+        ((speeds[i], angles[j1]), (1 - tx) * ty),
+        ((speeds[i1], angles[j]), tx * (1 - ty)),
+        ((speeds[i1], angles[j1]), tx * ty),
+    ]
+
+
+def interpolate(
+    speeds: Sequence[float], angles: Sequence[float], grid: dict[Point, Values], v: float, a: float
+) -> Values:
+    """The law's value at (v, a): e_n, e_t and F_max bilinear in (ln speed, angle), held at the
+    nearest edge outside."""
+    w = bilinear_weights(speeds, angles, v, a)
+    return {q: sum(wk * grid[p][q] for p, wk in w if wk != 0.0) for q, _ in QUANTITIES}
 
 
 def _errors(values: Values, law: Values) -> Values:
+    """Each quantity's error: absolute, relative for F_max; NaN where the case or the law has no
+    value (e_t of a normal impact, and so of the law on a cell with a normal-incidence corner)."""
     return {q: abs(values[q] / law[q] - 1.0) if rel and law[q] else abs(values[q] - law[q]) for q, rel in QUANTITIES}
 
 
 def _passes(errors: Values, tolerance: float) -> bool:
-    return all(errors[q] <= (2.0 * tolerance if rel else tolerance) for q, rel in QUANTITIES)
+    """Within the tolerance (2 ``tolerance`` relative for F_max); a NaN error is not checked."""
+    return not any(errors[q] > (2.0 * tolerance if rel else tolerance) for q, rel in QUANTITIES)
 
 
 def _scaled_second_differences(xs: Sequence[float], column: Callable[[int], float]) -> list[float]:
@@ -117,19 +163,22 @@ def predicted_errors(result: AdaptiveResult, tolerance: float) -> dict[tuple[int
     sv, sa, g = result.speeds, result.angles, result.grid
     lv = [math.log(v) for v in sv]
 
-    def scale(q: str, rel: bool, value: float) -> float:
-        return value / (2.0 * tolerance) if not rel else math.log(max(value, 1e-300)) / (2.0 * tolerance)
-
     along_v = np.zeros((len(sv), len(sa)))
     along_a = np.zeros((len(sv), len(sa)))
     for q, rel in QUANTITIES:
-        table = np.array([[scale(q, rel, g[(v, a)][q]) for a in sa] for v in sv])
+        raw = np.array([[g[(v, a)][q] for a in sa] for v in sv])
+        # e_n, e_t in units of the tolerance; F_max relative to its value at the line, in units of
+        # 2 tolerance: the law interpolates F_max itself (not ln F_max), so a power law F ~ v^1.2,
+        # straight in (ln v, ln F), is curved for it (F'' / F = 1.2^2 in ln v)
+        table = raw / (2.0 * tolerance if rel else tolerance)
         for j in range(len(sa)):
-            d = _scaled_second_differences(lv, table[:, j].__getitem__)
-            along_v[:, j] = np.maximum(along_v[:, j], d)
+            d = np.array(_scaled_second_differences(lv, table[:, j].__getitem__))
+            d = d / np.abs(raw[:, j]) if rel else d
+            along_v[:, j] = np.fmax(along_v[:, j], d)  # fmax: a NaN (undefined e_t) predicts nothing
         for i in range(len(sv)):
-            d = _scaled_second_differences(sa, table[i, :].__getitem__)
-            along_a[i, :] = np.maximum(along_a[i, :], d)
+            d = np.array(_scaled_second_differences(sa, table[i, :].__getitem__))
+            d = d / np.abs(raw[i, :]) if rel else d
+            along_a[i, :] = np.fmax(along_a[i, :], d)
     out = {}
     for i in range(len(sv) - 1):
         for j in range(max(len(sa) - 1, 1)):
@@ -150,23 +199,36 @@ def adaptive_table(
     start: int = 3,
     batch: int = 2,
     say: Callable[[str], None] = lambda s: None,
+    law: Law = interpolate,
 ) -> AdaptiveResult:
     """Choose the table's cases (the module docstring); ``compute(points)`` returns each point's
-    e_n, e_t and f_max."""
+    e_n, e_t and f_max; ``law`` is the law the checks measure (the exported law's own
+    interpolation: :func:`interpolate` of e_n, e_t, F_max by default)."""
     v0, v1 = speed_range
     a0, a1 = angle_range
     speeds = [float(x) for x in np.geomspace(v0, v1, start)]
     angles = [float(x) for x in np.linspace(a0, a1, start)] if a1 > a0 else [float(a0)]
-    result = AdaptiveResult(speeds, angles, {})
-    passed: set[tuple[Point, Point]] = set()
+    result = AdaptiveResult(speeds, angles, {}, law=law)
+    passed = result.passed
 
     def fill_grid() -> None:
+        # a check on the new line (the centre of the cell it split) is a grid case already computed
+        checked = {c.point: c.values for c in result.checks}
         todo = [(v, a) for v in result.speeds for a in result.angles if (v, a) not in result.grid]
+        result.grid.update({p: checked[p] for p in todo if p in checked})
+        todo = [p for p in todo if p not in checked]
         if todo:
             result.grid.update(compute(todo))
 
     fill_grid()
     while True:
+        if _recheck(result, tolerance):
+            if result.cases + _new_cases(result) > max_cases:
+                result.stopped_by_budget = True
+                _drop_unfilled(result)
+                return result
+            fill_grid()
+            continue
         cells = _open_cells(result, passed, tolerance)
         if not cells:
             result.reached = True
@@ -177,26 +239,52 @@ def adaptive_table(
             return result
         centres = [_centre(c) for _, c, _ in pick]
         values = compute(centres)
-        laws = [interpolate(result.speeds, result.angles, result.grid, *p) for p in centres]  # before any split
+        laws = [law(result.speeds, result.angles, result.grid, *p) for p in centres]  # before any split
         split = False
-        for (_, cell, (ev, ea)), p, law in zip(pick, centres, laws):
-            errors = _errors(values[p], law)
+        for (_, cell, (ev, ea)), p, at in zip(pick, centres, laws):
+            errors = _errors(values[p], at)
             ok = _passes(errors, tolerance)
-            result.checks.append(Check(p, cell, values[p], law, errors, ok))
+            result.checks.append(Check(p, cell, values[p], at, errors, ok))
             if ok:
                 passed.add(cell)
             else:
                 split = _split(result, cell, ev, ea) or split
-        say(
-            f"  adaptive: {len(result.speeds)} x {len(result.angles)} grid, {len(result.checks)} checks, "
-            f"largest error {max(result.largest_error().values()):.3g}"
-        )
         if split:
-            if len(result.grid) + len(result.checks) + _new_cases(result) > max_cases:
+            if result.cases + _new_cases(result) > max_cases:
                 result.stopped_by_budget = True
                 _drop_unfilled(result)
                 return result
             fill_grid()
+        worst = result.largest_error()
+        say(
+            f"  adaptive: {len(result.speeds)} x {len(result.angles)} grid, {len(result.checks)} checks "
+            f"({sum(not c.passed for c in result.checks)} missed); the law's largest error at the checks: e_n "
+            f"{worst['e_n']:.3g}, e_t {worst['e_t']:.3g}, F_max {worst['f_max']:.2%}"
+        )
+
+
+def _recheck(result: AdaptiveResult, tolerance: float) -> bool:
+    """Every check against the law as it now is (step 5 of the module docstring): a split changes
+    the law at earlier check points, where the values are known, and a cell's check at its centre
+    can pass where the errors along speed and along angle cancel there (F_max convex in ln v and
+    concave in the angle) and the split of a neighbour then uncovers one of them. A check the law
+    now misses gets the grid line(s) through its point (its speed, else its angle: the point
+    becomes a grid case, exact) and the cells that had passed around it are checked again.
+    Returns whether a line was added."""
+    added = False
+    missed = [c for c in result.checks if not _passes(result.law_errors(c), tolerance)]  # before adding lines
+    for c in missed:
+        v, a = c.point
+        if v not in result.speeds:
+            result.speeds = sorted([*result.speeds, v])
+        elif a not in result.angles:
+            result.angles = sorted([*result.angles, a])
+        else:
+            continue  # a grid case already: exact once its line is filled
+        added = True
+        for cell in [p for p in result.passed if _inside(((v, a), (v, a)), p)]:
+            result.passed.discard(cell)
+    return added
 
 
 def _open_cells(result: AdaptiveResult, passed: set, tolerance: float) -> list:
@@ -242,10 +330,14 @@ def _split(result: AdaptiveResult, cell, ev: float, ea: float) -> bool:
 
 
 def _new_cases(result: AdaptiveResult) -> int:
-    return sum(1 for v in result.speeds for a in result.angles if (v, a) not in result.grid)
+    """The cases the grid's new lines need (a check on them is computed already)."""
+    checked = {c.point for c in result.checks}
+    return sum(1 for v in result.speeds for a in result.angles if (v, a) not in result.grid and (v, a) not in checked)
 
 
 def _drop_unfilled(result: AdaptiveResult) -> None:
-    """Back to the grid lines whose cases are computed (a split the budget could not pay for)."""
-    result.speeds = [v for v in result.speeds if all((v, a) in result.grid for a in result.angles)]
-    result.angles = [a for a in result.angles if all((v, a) in result.grid for v in result.speeds)]
+    """Back to the grid lines whose cases are computed (a split the budget could not pay for): a
+    grid line is filled at once or not at all, so the lines to drop are those without a case."""
+    speeds = [v for v in result.speeds if any((v, a) in result.grid for a in result.angles)]
+    angles = [a for a in result.angles if any((v, a) in result.grid for v in result.speeds)]
+    result.speeds, result.angles = speeds, angles

@@ -12,13 +12,18 @@ which holds n for the block and every liner face and keeps the half model's symm
 ``v = V (-cos(angle) n + sin(angle) t)``. Each case runs the impact only: to ``gap / v_n +
 CUT_CONTACT_TIMES t_c`` (Hertz t_c of its normal speed), not the scene's end time.
 
-Reuse. Cases of one radius whose normal speeds lie within a factor BAND_RATIO share one mesh and one
-offline reduction (the reduced methods): the band's mesh has h_contact = a_max / 4 of its slowest
-case and the zone (and contact candidates), the modal cutoff and the time step t_c / 100 of its
-fastest, one gap and one symmetry (the least symmetric case's), so every case of the band runs on
-the same reduced model, with the same factorized step operators and contact operator W, from its
-own initial velocity (:func:`millimpact.methods.reduced.run_reduced_case`). ``full`` and ``hertz`` run each case
-as a standalone run (no reduction to reuse).
+Reuse. Cases of one radius whose normal speeds lie on one rung of a fixed ladder, [BAND_BASE
+BAND_RATIO^k, BAND_BASE BAND_RATIO^(k+1)) (:func:`band_rung`), and whose own symmetry is the same
+(a normal impact on a back-clamped block keeps a quarter, an oblique one a half), share one mesh and
+one offline reduction (the reduced methods): the band's mesh has h_contact = a_max / 4 of the rung's
+slow edge and the zone (and contact candidates), the modal cutoff and the time step t_c / 100 of a
+normal impact at its fast edge (the band scene, :func:`band_settings`), one gap, so every case of
+the band runs on the same reduced model, with the same factorized step operators and contact
+operator W, from its own initial velocity (:func:`millimpact.methods.reduced.run_reduced_case`).
+The ladder is fixed, not fitted to the table's speeds, so that a case's mesh, reduction and result
+depend on the case alone: the same case in two tables (a fixed grid and an adaptive one,
+:mod:`.table_adaptive`) is the same computation and the same key. ``full`` and ``hertz`` run each
+case as a standalone run (no reduction to reuse).
 
 Reruns. Each finished case is kept as ``cases/<key>.json`` (key: a hash of the case's resolved
 scene, the method, its options and the version); a rerun computes only missing or changed cases,
@@ -39,8 +44,8 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -59,10 +64,13 @@ if TYPE_CHECKING:
 # numpy, the plan (scipy), the methods and PETSc are imported where a table computes, so that
 # building the command line (`millimpact --help`) imports none of them
 
-#: cases whose normal speeds lie within this factor share a mesh and a reduction (a_max ~ v^(2/5):
-#: a factor 1.5 in speed is 1.18 in a_max, so the slowest case has 4 and the fastest 4.7 elements
-#: across its contact radius)
+#: the bands' ratio of normal speeds: a band holds the normal speeds [BAND_BASE BAND_RATIO^k,
+#: BAND_BASE BAND_RATIO^(k+1)) (a_max ~ v^(2/5): a factor 1.5 in speed is 1.18 in a_max, so a case at
+#: the rung's slow edge has 4 and one at its fast edge 4.7 elements across its contact radius)
 BAND_RATIO = 1.5
+#: the speed (m/s) the band ladder's rungs are counted from: a fixed ladder, so that a case's band
+#: (and so its mesh and result) does not depend on which other cases the table holds
+BAND_BASE = 1.0
 #: each case runs to gap / v_n + CUT_CONTACT_TIMES Hertz contact times, CUT_CONTACT_TIMES being
 #: :data:`millimpact.methods.free_phase.FIRST_SPAN_CONTACTS` (1.5): past the separation (plastic and
 #: finite-body contacts last up to ~1.1 t_c; a contact still on at the end is flagged in the status
@@ -84,7 +92,8 @@ class TableCase:
     band: int
     scene: Scene
     key: str
-    band_scene: Scene | None = None  #: the band's fastest case: its reduction serves the band
+    band_scene: Scene | None = None  #: a normal impact at the band's fastest speed: its reduction serves the band
+    band_key: str = ""  #: the band scene's key: a group keeps a band's reduction under it
 
 
 def table_scene(name: str | None, sets: Sequence[str] = ()) -> Scene:
@@ -94,6 +103,13 @@ def table_scene(name: str | None, sets: Sequence[str] = ()) -> Scene:
 
 
 case_velocity = oblique_velocity  # the name the table and the damage map call it by
+
+
+def band_rung(normal_speed: float) -> int:
+    """The rung k of the band ladder that holds ``normal_speed`` (m/s): BAND_BASE BAND_RATIO^k <=
+    v_n < BAND_BASE BAND_RATIO^(k+1). A speed within 1e-9 of a rung (relative, in rungs) of its upper
+    edge counts as above it, so that v cos(angle) rounding to either side of an edge is one band."""
+    return math.floor(math.log(normal_speed / BAND_BASE) / math.log(BAND_RATIO) + 1e-9)
 
 
 def define_cases(
@@ -106,8 +122,39 @@ def define_cases(
     pairs: Sequence[tuple[float, float]] | None = None,
 ) -> list[TableCase]:
     """The table's cases, grouped in bands that share a mesh (module docstring), each case's scene
-    carrying its band's h_contact, zone radius, gap and symmetry. ``pairs`` (speed, angle), when
-    given, replace the product speeds x angles (the damage map's bins)."""
+    carrying its band's h_contact, zone radius, gap, cutoff, time step and symmetry. ``pairs``
+    (speed, angle), when given, replace the product speeds x angles (the damage map's bins, the
+    adaptive table's batches). A case's scene, key and band scene depend on the case alone (its
+    radius, its rung of the band ladder and its own symmetry), not on the other cases."""
+    from ..scene.plan import decide_symmetry
+
+    bands: dict[tuple[float, int, str], list[tuple[float, float, Scene]]] = {}
+    for r in radii:
+        b = base.with_value("ball.radius", r) if r != base.ball.radius else base
+        for v, a in pairs if pairs is not None else [(v, a) for v in speeds for a in angles]:
+            sc = b.with_value("impact.velocity", case_velocity(b, v, a))
+            bands.setdefault((r, band_rung(sc.normal_speed), decide_symmetry(sc)[0]), []).append((v, a, sc))
+    cases = []
+    for band, (r, rung, sym) in enumerate(sorted(bands)):
+        sets, fast = band_settings(base, r, rung, sym, method)
+        fast_key = case_key(fast, method, options)
+        for v, a, sc in bands[(r, rung, sym)]:
+            for k, val in sets.items():
+                sc = sc.with_value(k, val)
+            cases.append((v, a, r, band, sc, fast, fast_key))
+    cases.sort(key=lambda c: (c[2], c[0], c[1]))
+    return [
+        TableCase(i, v, a, r, b, sc, case_key(sc, method, options), fast, fast_key)
+        for i, (v, a, r, b, sc, fast, fast_key) in enumerate(cases)
+    ]
+
+
+def band_settings(base: Scene, radius: float, rung: int, symmetry: str, method: str) -> tuple[dict[str, object], Scene]:
+    """The settings a band's cases share and the scene its reduction is built for (module
+    docstring): h_contact = a_max / ELEMENTS_ACROSS_CONTACT and the gap GAP_FACTOR delta_max at
+    the rung's slow edge, the cutoff F_CUT_FACTOR / t_c, the step t_c / STEPS_PER_CONTACT and the
+    zone at its fast edge (a normal impact at that speed: the band scene), the band's symmetry;
+    the fine radius 1.5 a_max at the fast edge; each unless the base scene sets it."""
     from ..scene.plan import (
         ELEMENTS_ACROSS_CONTACT,
         F_CUT_FACTOR,
@@ -117,55 +164,31 @@ def define_cases(
         scene_hertz,
     )
 
-    raw = []
-    for r in radii:
-        b = base.with_value("ball.radius", r) if r != base.ball.radius else base
-        for v, a in pairs if pairs is not None else [(v, a) for v in speeds for a in angles]:
-            raw.append((v, a, r, b.with_value("impact.velocity", case_velocity(b, v, a))))
-    # bands per radius by normal speed
-    cases, band = [], -1
-    for r in radii:
-        mine = sorted([c for c in raw if c[2] == r], key=lambda c: c[3].normal_speed)
-        start = None
-        groups: list[list] = []
-        for c in mine:
-            if start is None or c[3].normal_speed > BAND_RATIO * start:
-                groups.append([])
-                start = c[3].normal_speed
-            groups[-1].append(c)
-        for g in groups:
-            band += 1
-            slow = min(g, key=lambda c: c[3].normal_speed)[3]
-            fast = max(g, key=lambda c: c[3].normal_speed)[3]
-            hs, hf = scene_hertz(slow), scene_hertz(fast)
-            sets: dict[str, object] = {
-                "model.h_contact": base.model.h_contact or hs.a_max / ELEMENTS_ACROSS_CONTACT,
-                "impact.gap": base.impact.gap or GAP_FACTOR * hs.delta_max,
-                # the reduction's cutoff and the time step for the shortest contact of the band:
-                # one step size, so the cases share the factorized step operators too
-                "model.f_cut": base.model.f_cut or F_CUT_FACTOR / hf.contact_time,
-                "time.dt_contact": base.time.dt_contact or hf.contact_time / STEPS_PER_CONTACT,
-            }
-            syms = {make_plan(c[3]).symmetry for c in g}
-            sym = "full" if "full" in syms else ("half" if "half" in syms else "quarter")
-            sets["model.symmetry"] = sym
-            zone = base.model.zone_radius or _band_zone(fast, sets, method)
-            sets["model.zone_radius"] = zone
-            for k, val in sets.items():
-                fast = fast.with_value(k, val)
-            for v, a, rr, sc in g:
-                for k, val in sets.items():
-                    sc = sc.with_value(k, val)
-                cases.append((v, a, rr, band, sc, fast))
-    cases.sort(key=lambda c: (c[2], c[0], c[1]))
-    return [
-        TableCase(i, v, a, r, b, sc, case_key(sc, method, options), fast)
-        for i, (v, a, r, b, sc, fast) in enumerate(cases)
-    ]
+    b = base.with_value("ball.radius", radius) if radius != base.ball.radius else base
+    slow = b.with_value("impact.velocity", case_velocity(b, BAND_BASE * BAND_RATIO**rung, 0.0))
+    fast = b.with_value("impact.velocity", case_velocity(b, BAND_BASE * BAND_RATIO ** (rung + 1), 0.0))
+    hs, hf = scene_hertz(slow), scene_hertz(fast)
+    sets: dict[str, object] = {
+        "model.h_contact": base.model.h_contact or hs.a_max / ELEMENTS_ACROSS_CONTACT,
+        "impact.gap": base.impact.gap or GAP_FACTOR * hs.delta_max,
+        # the reduction's cutoff and the time step for the shortest contact of the band: one step
+        # size, so the cases share the factorized step operators too
+        "model.f_cut": base.model.f_cut or F_CUT_FACTOR / hf.contact_time,
+        "time.dt_contact": base.time.dt_contact or hf.contact_time / STEPS_PER_CONTACT,
+        "model.symmetry": symmetry,
+    }
+    sets["model.zone_radius"] = base.model.zone_radius or _band_zone(fast, sets, method)
+    for k, val in sets.items():
+        fast = fast.with_value(k, val)
+    # the mesh's fine radius (1.5 a_max) at the fast edge too, in every case's scene: a standalone
+    # run of a case's scene meshes the band's mesh
+    sets["model.fine_radius"] = base.model.fine_radius or make_plan(fast).fine_radius
+    fast = fast.with_value("model.fine_radius", sets["model.fine_radius"])
+    return sets, fast.with_value("outputs.xdmf", False).with_value("time.end", case_t_end(fast))
 
 
 def _band_zone(fast: Scene, sets: dict, method: str) -> float | None:
-    """The contact-zone radius of a band: the method's zone for its fastest case (m)."""
+    """The contact-zone radius of a band: the method's zone for its band scene (m)."""
     from ..scene.plan import make_plan
 
     sc = fast
@@ -217,11 +240,11 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
         # of the saddle-point solver's several (exact with the factorization; the rig: 8.6 -> 3.3 s
         # a reused case)
         options = {"contact_solve": "schur", **options}
-        if case.band not in setups:
-            # built for the band's fastest case: its contact candidates cover every case's patch
-            assert case.band_scene is not None  # banded cases carry their band's fastest scene
-            fast = case.band_scene.with_value("outputs.xdmf", False).with_value("time.end", scene.time.end)
-            setups[case.band] = build_reduced_setup(
+        if case.band_key not in setups:
+            # built for the band scene (its fast edge): its contact candidates cover every case's patch
+            assert case.band_scene is not None  # banded cases carry their band scene
+            fast = case.band_scene
+            setups[case.band_key] = build_reduced_setup(
                 fast, make_plan(fast), dict(options), method, comm, share_operators=True
             )
         else:
@@ -229,7 +252,7 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
         # the case's scene carries the band's mesh sizes, zone, gap, cutoff and symmetry: its plan
         # describes the setup's mesh with its own velocity, time steps and probes
         out = run_reduced_case(
-            setups[case.band], scene, plan, dict(options), False, t_end=scene.time.end, impact_only=True
+            setups[case.band_key], scene, plan, dict(options), False, t_end=scene.time.end, impact_only=True
         )
     else:
         out, _ = compute(scene, method, dict(options), False)
@@ -237,29 +260,58 @@ def run_case(case: TableCase, method: str, options: dict, setups: dict, comm) ->
     row["reduction_reused"] = reused
     if method in REUSED_METHODS:
         # the band's constraint and fixed-interface modes came from the on-disk cache (reduction.cache)
-        row["reduction_from_cache"] = any(b.from_cache for b in setups[case.band].red.bodies)
+        row["reduction_from_cache"] = any(b.from_cache for b in setups[case.band_key].red.bodies)
     return row
 
 
 # --- the table ----------------------------------------------------------------------------------------
-def run_table(
-    scene_name: str | None,
-    speeds: Sequence[float],
-    angles: Sequence[float],
-    radii: Sequence[float] | None,
-    method: str,
-    options: dict,
-    out: Path | OutputFolder,
-    sets: Sequence[str] = (),
-    ranks_per_case: int = 1,
-    quiet: bool = False,
-) -> list[dict]:
-    """Compute (or take from ``out/cases``) every case and write the table (rank 0) into ``out``, a
-    folder or one claimed with :func:`~millimpact.results.output_folder.claim_output`. Returns the rows."""
+@dataclass
+class TableRun:
+    """A table's computing on every rank: its base scene, method, claimed output and ``cases/``
+    folder, this rank's group of ranks, and the group's kept reduction (by band key)."""
+
+    base: Scene
+    method: str
+    options: dict
+    target: OutputFolder
+    folder: Path
+    world: Any
+    group: Any
+    say: Callable[..., None]
+    setups: dict = field(default_factory=dict)
+
+    @property
+    def n_groups(self) -> int:
+        return self.world.size // self.group.size
+
+    def compute(self, cases: Sequence[TableCase], said: Callable[[int, int], None] | None = None) -> dict[int, dict]:
+        """Each case's row by its index, on rank 0 ({} on the others): from ``cases/``, or computed by
+        the groups (collective). ``said(n_stored, n_todo)`` prints the line before computing."""
+        store = PieceStore(self.folder)
+        done = {c.index: row for c in cases if (row := store.load(c.key)) is not None}
+        # computed band after band (a group keeps only its current band's reduction), listed by speed
+        todo = sorted([c for c in cases if c.index not in done], key=lambda c: (c.band, c.index))
+        if said is not None:
+            said(len(done), len(todo))
+        rows = (
+            compute_cases(todo, self.method, self.options, self.folder, self.world, self.group, self.say, self.setups)
+            if todo
+            else []
+        )
+        gathered = self.world.gather(rows, root=0)
+        if self.world.rank != 0 or gathered is None:
+            return {}
+        for part in gathered:
+            for r in part:
+                done[r["case"]] = r
+        return done
+
+
+def check_table_method(method: str, ranks_per_case: int) -> None:
+    """InputError (one line) unless ``method`` is one and ``ranks_per_case`` divides the ranks."""
     from mpi4py import MPI
 
     from ..methods.registry import method_entry
-    from .table_report import write_table
 
     world = MPI.COMM_WORLD
     if ranks_per_case < 1 or ranks_per_case > world.size or world.size % ranks_per_case:
@@ -274,34 +326,59 @@ def run_table(
             f"--method {method} with {world.size // ranks_per_case} groups: this method runs on all "
             f"ranks; use --ranks-per-case {world.size} (or a reduced method, or hertz)"
         )
-    base = table_scene(scene_name, sets)
-    cases = define_cases(base, speeds, angles, radii or [base.ball.radius], method, options)
+
+
+def open_table(
+    base: Scene, method: str, options: dict, out: Path | OutputFolder, ranks_per_case: int, quiet: bool
+) -> TableRun:
+    """Open ``out`` (a folder, or one claimed with :func:`claim_output`) and its ``cases/`` and
+    split the ranks into groups of ``ranks_per_case`` (collective)."""
+    from mpi4py import MPI
+
+    world = MPI.COMM_WORLD
     target = out if isinstance(out, OutputFolder) else claim_output(out, "table")
     folder = target.open(["cases"], note=lambda: kept_cases_note(target)) / "cases"
-    say = sayer(quiet, world)
     if world.rank == 0:
         folder.mkdir(exist_ok=True)
     world.barrier()
-    store = PieceStore(folder)
-    done = {c.index: row for c in cases if (row := store.load(c.key)) is not None}
-    # computed band after band (a group keeps only its current band's reduction), listed by speed
-    todo = sorted([c for c in cases if c.index not in done], key=lambda c: (c.band, c.index))
-    n_bands = len({c.band for c in cases})
-    say(
-        f"table {base.name}: {len(speeds)} speeds x {len(angles)} angles x {len(radii or [0])} radii = {len(cases)} "
-        f"cases in {n_bands} mesh band(s), method {method}; {len(done)} from {folder}, {len(todo)} to compute "
-        f"on {world.size // ranks_per_case} group(s) of {ranks_per_case} rank(s)"
-    )
     group = world.Split(world.rank // ranks_per_case, world.rank)
-    rows = compute_cases(todo, method, options, folder, world, group, say)
-    gathered = world.gather(rows, root=0)
-    if world.rank != 0 or gathered is None:
+    return TableRun(base, method, options, target, folder, world, group, sayer(quiet, world))
+
+
+def run_table(
+    scene_name: str | None,
+    speeds: Sequence[float],
+    angles: Sequence[float],
+    radii: Sequence[float] | None,
+    method: str,
+    options: dict,
+    out: Path | OutputFolder,
+    sets: Sequence[str] = (),
+    ranks_per_case: int = 1,
+    quiet: bool = False,
+) -> list[dict]:
+    """Compute (or take from ``out/cases``) every case and write the table (rank 0) into ``out``, a
+    folder or one claimed with :func:`~millimpact.results.output_folder.claim_output`. Returns the rows."""
+    from .table_report import write_table
+
+    check_table_method(method, ranks_per_case)
+    base = table_scene(scene_name, sets)
+    cases = define_cases(base, speeds, angles, radii or [base.ball.radius], method, options)
+    run = open_table(base, method, options, out, ranks_per_case, quiet)
+    n_bands = len({c.band for c in cases})
+
+    def said(n_done: int, n_todo: int) -> None:
+        run.say(
+            f"table {base.name}: {len(speeds)} speeds x {len(angles)} angles x {len(radii or [0])} radii = "
+            f"{len(cases)} cases in {n_bands} mesh band(s), method {method}; {n_done} from {run.folder}, {n_todo} "
+            f"to compute on {run.n_groups} group(s) of {ranks_per_case} rank(s)"
+        )
+
+    done = run.compute(cases, said)
+    if run.world.rank != 0:
         return []
-    for part in gathered:
-        for r in part:
-            done[r["case"]] = r
     all_rows = [done[c.index] for c in cases if c.index in done]
-    with target.staged(keep=["cases"], collective=False) as stage:
+    with run.target.staged(keep=["cases"], collective=False) as stage:
         write_table(stage, base, cases, all_rows, method, options)
     return all_rows
 
@@ -362,11 +439,14 @@ def costliest_first(todo: Sequence[TableCase]) -> list[list[TableCase]]:
     return [sorted(g, key=lambda c: -c.scene.normal_speed) for g in order]
 
 
-def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say) -> list[dict]:
+def compute_cases(
+    todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say, setups: dict | None = None
+) -> list[dict]:
     """This group's share of ``todo`` (``group``: this rank's group of ranks of ``world``): cases
     taken from a shared state (:func:`next_case`) on world rank 0 until none is left, each finished
     case stored as ``folder/<key>.json``; the rows this group computed (the table's and the damage
-    map's bins)."""
+    map's bins). ``setups``: the group's reduction by band key, kept by the caller between calls
+    (the adaptive table's batches); a fresh one per call by default."""
     import numpy as np
     from mpi4py import MPI
 
@@ -386,7 +466,7 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
     one, got = np.ones(1, dtype="i8"), np.zeros(1, dtype="i8")
     state = np.zeros(n_state, dtype="i8")
     current: int | None = None
-    setups: dict = {}
+    setups = {} if setups is None else setups
     rows = []
     warned = False
     t0 = time.perf_counter()
@@ -407,7 +487,7 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
             case = by_band[pick[0]][pick[1]]
             # a group takes a band's cases until none is left (next_case): a band's reduction is not
             # needed again once it moves on; keeping them all grew a rank to 12 GB on the 100-case table
-            for band in [b for b in setups if b != case.band]:
+            for band in [b for b in setups if b != case.band_key]:
                 dropped = setups.pop(band)
                 release_petsc_garbage(dropped.model.V.mesh.comm)
                 destroy_petsc_tree(dropped)  # its Python handles alone would keep it (see there)
@@ -415,8 +495,8 @@ def compute_cases(todo: list[TableCase], method: str, options: dict, folder: Pat
             # the last case's dropped objects: parked on the communicator they were made on (the
             # mesh's), not the group's; 17.5 MB a case on a coarse hertz-halfspace table until freed
             release_petsc_garbage(group)
-            if case.band in setups:
-                release_petsc_garbage(setups[case.band].model.V.mesh.comm)
+            if case.band_key in setups:
+                release_petsc_garbage(setups[case.band_key].model.V.mesh.comm)
             reset_option_usage()
             try:
                 row = run_case(case, method, options, setups, group)

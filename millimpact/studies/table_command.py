@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 
 from ..commandkit.settings import parse_options
@@ -25,11 +26,27 @@ modal-p2, cases whose normal speeds lie within a factor 1.5 share one mesh, one 
 factorizations. Finished cases are kept in DIR/cases/ and a rerun computes only what is missing.
 Under mpirun, --ranks-per-case K makes groups of K ranks that take cases from a shared counter.
 
+With --tolerance TOL the table chooses its cases: --velocity V_LOW,V_HIGH and --angle A_LOW,A_HIGH
+give the ranges, a 3 x 3 grid starts the law (the DEM export's: zeta and E* bilinear in ln speed
+and angle), cases at the centres of the cells where the grid's second differences predict the
+largest error check it, and a cell that misses (|e_n|, |e_t| error > TOL, F_max > 2 TOL relative)
+gets a new grid line, until every cell passes or --max-cases is spent (then a warning, exit 0).
+The rows say role grid or check; checks.csv holds each check's error, adaptive_points.png shows
+the chosen points.
+
 Examples:
   millimpact table paper-rig --velocity 0.5,1,2,4,8 --angle 0,15,30,45,60
   millimpact table liner-segment --velocity 2,4,8 --angle 0,30,60 --out out/liner-table
   mpirun -n 4 millimpact table paper-rig --velocity 1,3 --angle 0,30 --ranks-per-case 1
+  millimpact table paper-rig-plastic --velocity 0.5,10 --angle 0,60 --tolerance 0.01 --max-cases 30
 """
+
+#: the largest --tolerance: e_n and e_t lie in [0, 1], and F_max within 2 x 0.5 = 100 % says nothing
+MAX_TOLERANCE = 0.5
+#: the most cases --max-cases allows
+MAX_CASES = 10000
+#: an adaptive table starts from START speeds x START angles (START speeds at one angle)
+START = 3
 
 
 def parse_list(
@@ -80,6 +97,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="K",
         help="under mpirun: ranks per case (divides the rank count; default 1)",
     )
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        metavar="TOL",
+        help="choose the cases: refine until the law is within TOL in e_n and e_t and 2 TOL relative in "
+        "F_max at every checked point, in (0, 0.5); --velocity and --angle then give the ranges' ends",
+    )
+    p.add_argument(
+        "--max-cases",
+        type=int,
+        metavar="N",
+        help="with --tolerance: at most N finite-element cases, grid and checks (default 30)",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
@@ -89,24 +119,79 @@ def command_scene(args: argparse.Namespace):
     return table_scene(args.scene, args.set)
 
 
+def adaptive_ranges(
+    args: argparse.Namespace, speeds: list[float], angles: list[float], radii: list[float] | None
+) -> tuple[float, int]:
+    """The tolerance and budget of an adaptive table, checked with its ranges (one InputError line)."""
+    tol = args.tolerance
+    if not (math.isfinite(tol) and 0.0 < tol < MAX_TOLERANCE):
+        raise InputError(f"--tolerance {tol:g}: outside (0, {MAX_TOLERANCE:g}) (e_n and e_t; F_max: 2 x, relative)")
+    if len(speeds) != 2 or speeds[0] >= speeds[1]:
+        raise InputError(f"--velocity {args.velocity!r}: with --tolerance, the range's ends V_LOW,V_HIGH (m/s)")
+    if len(angles) > 2 or (len(angles) == 2 and angles[0] >= angles[1]):
+        raise InputError(f"--angle {args.angle!r}: with --tolerance, one angle or the range's ends A_LOW,A_HIGH (deg)")
+    if radii is not None and len(radii) > 1:
+        raise InputError(f"--radius {args.radius!r}: with --tolerance, one ball radius")
+    low = START * (START if len(angles) == 2 else 1)
+    n = 30 if args.max_cases is None else args.max_cases
+    if not low <= n <= MAX_CASES:
+        grid = f"{START} speeds x {START} angles" if low > START else f"{START} speeds"
+        raise InputError(f"--max-cases {n}: outside [{low}, {MAX_CASES}] (the starting grid is {grid})")
+    return tol, n
+
+
 def main(args: argparse.Namespace) -> int:
     speeds = parse_list(args.velocity, "--velocity", 0.0, 100.0, True, False, "m/s")
     angles = parse_list(args.angle, "--angle", 0.0, 90.0, False, True, "deg")
     radii = parse_list(args.radius, "--radius", 1e-4, 1.0, False, False, "m") if args.radius else None
     options = parse_options(args.option)
+    adaptive = args.tolerance is not None
+    if adaptive:
+        tolerance, max_cases = adaptive_ranges(args, speeds, angles, radii)
+    elif args.max_cases is not None:
+        raise InputError("--max-cases: only with --tolerance (an adaptive table's budget)")
     name = args.scene or "paper-rig"
     target = claim_output(
         args.out if args.out is not None else default_out(Path(name).stem, prefix="table-"), "table", force=args.force
     )  # before any computing
     out = target.shown
-    rows = run_table(
-        args.scene, speeds, angles, radii, args.method, options, target, args.set, args.ranks_per_case, args.quiet
-    )
+    if adaptive:
+        from .table_adaptive import largest_errors_text, run_adaptive_table, summary_line
+
+        rows, summary = run_adaptive_table(
+            args.scene,
+            (speeds[0], speeds[1]),
+            (angles[0], angles[-1]),
+            radii[0] if radii else None,
+            args.method,
+            options,
+            target,
+            tolerance,
+            max_cases,
+            args.set,
+            args.ranks_per_case,
+            args.quiet,
+            START,
+        )
+        if summary is not None and not args.quiet:
+            print(f"  adaptive: {summary_line(summary)}", flush=True)
+        if summary is not None and not summary["reached"]:
+            print(
+                f"millimpact: warning: tolerance {tolerance:g} not reached within --max-cases {max_cases}: largest "
+                f"checked error {largest_errors_text(summary)} ({out}/checks.csv); raise --max-cases or --tolerance",
+                file=sys.stderr,
+                flush=True,
+            )
+    else:
+        rows = run_table(
+            args.scene, speeds, angles, radii, args.method, options, target, args.set, args.ranks_per_case, args.quiet
+        )
     failed = [r for r in rows if not str(r.get("status", "")).startswith("ok")]
     if rows and not args.quiet:
+        extra = ", checks.csv, adaptive_points.png" if adaptive else ""
         print(
             f"  results in {out}/ (contact_table.csv, contact_table.json, contact_table.h5, contact_laws.json, "
-            f"e_n_speed.png, e_t_angle.png, force_speed.png){target.replaced_note()}",
+            f"e_n_speed.png, e_t_angle.png, force_speed.png{extra}){target.replaced_note()}",
             flush=True,
         )
     if failed:

@@ -179,17 +179,34 @@ def fit_laws(rows: Sequence[dict], base: Scene) -> dict[str, Any]:
 
 
 # --- files and figures --------------------------------------------------------------------------------
-def write_table(out: Path, base: Scene, cases, rows: Sequence[dict], method: str, options: dict) -> None:
-    """contact_table.csv / .json / .h5, contact_laws.json and the figures (rank 0)."""
+#: the column an adaptive table adds (:mod:`.table_adaptive`)
+ROLE_COLUMN = (
+    "role",
+    "",
+    "grid: a case the law (bilinear in ln speed and angle) is built on; check: a case that measures its error",
+)
+
+
+def write_table(
+    out: Path, base: Scene, cases, rows: Sequence[dict], method: str, options: dict, adaptive: dict | None = None
+) -> None:
+    """contact_table.csv / .json / .h5, contact_laws.json and the figures (rank 0). ``adaptive``:
+    an adaptive table's summary (:func:`millimpact.studies.table_adaptive.adaptive_summary`), said
+    in the files' headers and kept in contact_table.json; its rows carry the ``role`` column."""
     from ..results.output_folder import hdf5_file
 
     out.mkdir(parents=True, exist_ok=True)
-    names = [c[0] for c in COLUMNS]
+    columns = COLUMNS + [ROLE_COLUMN] if adaptive is not None else COLUMNS
+    names = [c[0] for c in columns]
     head = [
         f"# millimpact {__version__} contact table: scene {base.name}, method {method}, options {json.dumps(options)}",
         f"# {len(rows)} impacts; the angle is measured from the face normal; SI units (in the column names)",
     ]
-    head += [f"# {n} [{u}]: {d}" for n, u, d in COLUMNS]
+    if adaptive is not None:
+        from .table_adaptive import summary_line
+
+        head.append(f"# adaptive table (grid and check cases, checks.csv): {summary_line(adaptive)}")
+    head += [f"# {n} [{u}]: {d}" for n, u, d in columns]
     tmp = out / ".contact_table.csv.tmp"
     with open(tmp, "w", newline="") as fh:
         fh.write("\n".join(head) + "\n")
@@ -204,11 +221,12 @@ def write_table(out: Path, base: Scene, cases, rows: Sequence[dict], method: str
         "scene": base.name,
         "method": method,
         "options": options,
-        "columns": [{"name": n, "unit": u, "definition": d} for n, u, d in COLUMNS],
+        "columns": [{"name": n, "unit": u, "definition": d} for n, u, d in columns],
         "scene_resolved": dump_scene(base),
         "case_keys": {str(c.index): c.key for c in cases},
         "rows": list(rows),
         "laws": laws,
+        **({"adaptive": adaptive} if adaptive is not None else {}),
     }
     (out / "contact_table.json").write_text(json.dumps(jsonable(doc), indent=1) + "\n")
     (out / "contact_laws.json").write_text(json.dumps(jsonable(laws), indent=1) + "\n")
@@ -216,9 +234,10 @@ def write_table(out: Path, base: Scene, cases, rows: Sequence[dict], method: str
         h5.attrs["millimpact_version"] = __version__
         h5.attrs["scene"] = base.name
         h5.attrs["method"] = method
-        for n, u, d in COLUMNS:
+        for n, u, d in columns:
             vals = [r.get(n, "") for r in rows]
-            data = np.array([str(x) for x in vals], dtype="S") if n == "status" else np.array(vals, dtype=float)
+            text = n in ("status", "role")
+            data = np.array([str(x) for x in vals], dtype="S") if text else np.array(vals, dtype=float)
             ds = h5.create_dataset(n, data=data)
             ds.attrs["unit"], ds.attrs["definition"] = u, d
     plot_table(out, base, rows, laws)

@@ -97,10 +97,11 @@ def test_a_move_too_large_for_the_place_refuses_the_bin_and_the_sums_say_so(tmp_
 
 def test_a_band_moved_off_an_edge_stays_one_band_and_a_refused_bin_does_not_split_it():
     # the coarse mesh (h_contact 4 mm) cannot hold the slow bin's contact zone: refused; the two
-    # fast bins (normal speeds within the table's band ratio) keep one band, one margin, one place
+    # fast bins (normal speeds on one rung of the table's band ladder, [2.25, 3.375) m/s) keep one
+    # band, one margin, one place
     coarse = SCENE.with_value("model.h_far", 0.04).with_value("model.h_contact", 0.004)
-    imps = [_impact(0.2, 0.1, "lifter_top", TOP_HALF - 0.001), _impact(3.0, 1.0, "lifter_top", TOP_HALF - 0.001),
-            _impact(3.6, 1.0, "lifter_top", TOP_HALF - 0.001)]
+    imps = [_impact(0.2, 0.1, "lifter_top", TOP_HALF - 0.001), _impact(2.6, 0.9, "lifter_top", TOP_HALF - 0.001),
+            _impact(3.1, 0.9, "lifter_top", TOP_HALF - 0.001)]
     choice = choose_bins(imps, yield_onset_speed(coarse), 30)
     assert len(choice.bins) == 3
     placed = {b.index: place_scene(coarse, b.place, b.arc_m) for b in choice.bins}

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from millimpact.dem.export.contact_law import (HERTZ_PEAK, code_restitution, code_restitution_for_damping,
+from millimpact.theory.hertz_dashpot import (HERTZ_PEAK, code_restitution, code_restitution_for_damping,
                                         damping_of_code_restitution, peak_force_factor,
                                         restitution_of_damping)
 

@@ -70,3 +70,40 @@ def test_interpolation_is_held_at_the_edges():
     grid = {(v, a): {"e_n": v + a, "e_t": 0.0, "f_max": 1.0} for v in (1.0, 4.0) for a in (0.0, 10.0)}
     assert interpolate([1.0, 4.0], [0.0, 10.0], grid, 2.0, 5.0)["e_n"] == pytest.approx(0.5 * (1 + 4) + 5.0)
     assert interpolate([1.0, 4.0], [0.0, 10.0], grid, 100.0, 50.0)["e_n"] == pytest.approx(14.0)
+
+
+def test_a_power_law_force_is_refined_along_speed():
+    """F_max = 1e4 v^1.2 (Hertz), e_n and e_t constant: the law interpolates F_max itself, convex in
+    ln v (F'' / F = 1.44), so its error is along speed alone: every line added is a speed."""
+    def law(v, a):
+        return {"e_n": 0.8, "e_t": 0.5, "f_max": 1e4 * v**1.2}
+
+    compute, _ = _compute(law)
+    res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=200)
+    assert res.reached and len(res.angles) == 3 and len(res.speeds) > 3
+
+
+def test_checks_hold_on_the_final_law_where_errors_cancel_at_a_cell_centre():
+    """F_max = 1e4 (v cos a)^1.2: convex in ln v, concave in the angle, so a cell's centre can pass
+    with the two errors cancelling there; a split beside it then uncovers the angle error at that
+    centre. Every check is held against the final law: each meets the tolerance there."""
+    def law(v, a):
+        return {"e_n": 0.8, "e_t": 0.5, "f_max": 1e4 * (v * math.cos(math.radians(a))) ** 1.2}
+
+    compute, _ = _compute(law)
+    res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=400)
+    assert res.reached
+    assert all(res.law_errors(c)["f_max"] <= 0.02 for c in res.checks)
+    assert res.largest_error()["f_max"] <= 0.02
+
+
+def test_a_budget_stop_after_an_angle_split_keeps_the_computed_grid():
+    """e_n curved in the angle only: the first checks miss and split along angle, which the budget
+    (9 + 2 checks) cannot pay for; the grid goes back to its computed 3 x 3 lines."""
+    def law(v, a):
+        return {"e_n": 0.9 - 1e-4 * a**2, "e_t": 0.6, "f_max": 1e4}
+
+    compute, _ = _compute(law)
+    res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=11)
+    assert res.stopped_by_budget and (len(res.speeds), len(res.angles)) == (3, 3)
+    assert res.largest_error()["e_n"] > 0.01

@@ -15,9 +15,12 @@ from conftest import run_cli
 from millimpact.scene.builtin import builtin_scene
 from millimpact.studies.table import case_t_end, case_velocity
 
-COARSE = ["--set", "model.h_contact=5.8e-4", "--set", "model.h_far=0.012"]
+#: the half model for every case: the normal impacts (which alone keep a quarter) share the oblique
+#: ones' mesh, so that the two are compared on one mesh
+COARSE = ["--set", "model.h_contact=5.8e-4", "--set", "model.h_far=0.012", "--set", "model.symmetry=half"]
 #: v = 3 m/s normal and 30 deg oblique, and the normal impact at the oblique one's normal speed
-#: (3 cos 30 = 2.598 m/s): one mesh band (normal speeds within a factor BAND_RATIO = 1.5)
+#: (3 cos 30 = 2.598 m/s): normal speeds 2.25-3 m/s, one rung of the band ladder ([2.25, 3.375) m/s):
+#: one mesh band
 SPEEDS, ANGLES = "2.598076211353316,3", "0,30"
 
 
@@ -73,7 +76,8 @@ def test_frictionless_oblique_impact_is_the_normal_impact_of_its_normal_speed(ta
 def test_normal_case_equals_the_standalone_run(table, tmp_path):
     """A table case is the standalone run of its scene on the same mesh, cut to the impact:
     the same numbers to round-off (the same model, reduction and steps; the band's reduction is
-    built for its fastest case, this one)."""
+    built for a normal impact at its rung's fast edge, 3.375 m/s, whose contact candidates and
+    mesh cover this case's)."""
     out, _ = table
     row = [r for r in _rows(out) if r["impact_angle_deg"] == 0 and r["impact_speed_m_s"] == 3][0]
     assert json.loads((out / "cases" / f"{row['key']}.json").read_text())["case"] == row["case"]
@@ -88,12 +92,19 @@ def test_normal_case_equals_the_standalone_run(table, tmp_path):
 def _band_sets(out, row):
     """--set arguments that give the standalone run the table case's band settings."""
     from millimpact.studies.table import define_cases
-    base = builtin_scene("hertz-halfspace").with_value("model.h_contact", 5.8e-4).with_value("model.h_far", 0.012)
+    base = (builtin_scene("hertz-halfspace").with_value("model.h_contact", 5.8e-4).with_value("model.h_far", 0.012)
+            .with_value("model.symmetry", "half"))
     cases = define_cases(base, [2.598076211353316, 3.0], [0.0, 30.0], [base.ball.radius], "improved", {})
     case = [c for c in cases if c.key == row["key"]][0]
     sc = case.scene
-    return ["--set", f"model.zone_radius={sc.model.zone_radius!r}", "--set", f"impact.gap={sc.impact.gap!r}",
-            "--set", f"model.f_cut={sc.model.f_cut!r}", "--set", f"model.symmetry={sc.model.symmetry}",
+    from millimpact.methods.reduced import reduced_plan
+    from millimpact.scene.plan import make_plan
+    # the band's contact candidates: the band scene's (a normal impact at its rung's fast edge)
+    radius = reduced_plan(case.band_scene, make_plan(case.band_scene))[2]
+    return ["-candidate_radius", repr(radius), "--set", f"model.fine_radius={sc.model.fine_radius!r}",
+            "--set", f"model.zone_radius={sc.model.zone_radius!r}", "--set", f"impact.gap={sc.impact.gap!r}",
+            "--set", f"model.f_cut={sc.model.f_cut!r}", "--set", f"time.dt_contact={sc.time.dt_contact!r}",
+            "--set", f"model.symmetry={sc.model.symmetry}",
             "--set", f"time.end={case_t_end(sc)!r}"]
 
 
@@ -189,8 +200,8 @@ def test_case_velocity_angle():
 
 
 def test_bands_are_computed_one_after_the_other(tmp_path):
-    """Normal speeds 1.5, 0.75, 3, 1.5 m/s (speeds 1.5 and 3 at 0 and 60 deg): three bands of
-    BAND_RATIO 1.5, {0.75}, {1.5, 1.5} and {3}, listed interleaved by speed (the first and last
+    """Normal speeds 1.5, 0.75, 3, 1.5 m/s (speeds 1.5 and 3 at 0 and 60 deg): three rungs of the
+    band ladder, {0.75}, {1.5, 1.5} and {3}, listed interleaved by speed (the first and last
     rows share a band). Computed band after band, each reduction is built once (a group keeps only
     its current band: computing in the listed order rebuilt bands, 19 reductions instead of 6 on
     the 100-case benchmark)."""

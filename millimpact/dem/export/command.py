@@ -2,7 +2,7 @@
 
 Reads a ``millimpact table`` folder (:mod:`.table_input`), fits the Hertz-dashpot law that gives
 the table's e_n and F_max at each of its points in that code's own damping formula
-(:mod:`.contact_law`, :mod:`.files`; LAMMPS' plastic mdr law, :mod:`.mdr_fit`) and writes the
+(:mod:`millimpact.theory.hertz_dashpot`, :mod:`.files`; LAMMPS' plastic mdr law, :mod:`.mdr_fit`) and writes the
 files to include. ``--check`` runs them in the code, one ball per table point, and writes
 ``roundtrip.csv`` and ``roundtrip.png`` (:mod:`.code_checks`).
 """
@@ -46,7 +46,7 @@ def main(args: argparse.Namespace) -> int:
     from ...errors import InputError
     from ...results.output_folder import claim_output, default_out
     from .code_checks import extra_law_files, require_code, run_check
-    from .files import CODES, WRITERS, fit_law, write_law_json
+    from .files import CODES, WRITERS, checked_lines, fit_law, write_law_json
     from .table_input import read_table
 
     code = str(args.to).lower()
@@ -66,6 +66,8 @@ def main(args: argparse.Namespace) -> int:
             f"export {code}: {len(table.speeds)} speeds x {len(table.angles)} angles of {table.folder} "
             f"(scene {table.scene_name}, method {table.method})"
         )
+        for line in checked_lines(table, " "):
+            talk(line)
         if law.band:
             talk(f"  constant law (LIGGGHTS/LAMMPS): valid for normal speeds {law.band[0]:.3g}-{law.band[1]:.3g} m/s")
         files[1:1] = extra_law_files(code, law, stage, talk)

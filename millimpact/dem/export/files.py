@@ -1,6 +1,6 @@
 """The contact law of a table, fitted per DEM code and written as files ready to include.
 
-Per table point (impact speed V, angle a): the Hertz-dashpot law (:mod:`.contact_law`) that gives
+Per table point (impact speed V, angle a): the Hertz-dashpot law (:mod:`millimpact.theory.hertz_dashpot`) that gives
 the table's e_n and F_max at its normal speed - damping ratio zeta from e_n, then the Hertz
 coefficient k_no = (4/3) E* R^(1/2) from F_max. The tangential law is Mindlin's stiffness
 k_t / k_n = 4 G* / E* of the scene's materials (Johnson 1985, section 7.2) with the scene's
@@ -26,7 +26,7 @@ import numpy as np
 
 from ... import __version__
 from ...errors import InputError
-from .contact_law import code_restitution_for_damping, peak_force_factor, point_law, restitution_of_damping
+from ...theory.hertz_dashpot import code_restitution_for_damping, peak_force_factor, point_law, restitution_of_damping
 from .table_input import ContactTable
 
 #: a constant law "holds" at a table point within these (the round trip's tolerances: docs/dem.md)
@@ -98,6 +98,8 @@ def fit_law(t: ContactTable) -> ExportedLaw:
 
 
 def source_lines(t: ContactTable, comment: str) -> list[str]:
+    """The header lines naming the table the law comes from (and, for an adaptive table, the
+    largest error of its law that the table's checks measured)."""
     return [
         f"{comment} From the millimpact contact table {t.folder.resolve()}",
         f"{comment}   scene {t.scene_name}, method {t.method}, millimpact {t.version}; exported by millimpact "
@@ -107,6 +109,23 @@ def source_lines(t: ContactTable, comment: str) -> list[str]:
         f"mass {t.ball_mass:.5g} kg",
         f"{comment} Units: SI (m, kg, s, N, Pa). Normal law of every code here: F_n = max(0, k_no delta^1.5 + zeta "
         f"(m k_no)^0.5 delta^0.25 d(delta)/dt), k_no = (4/3) E* R^0.5 (docs/dem.md).",
+        *checked_lines(t, comment),
+    ]
+
+
+def checked_lines(t: ContactTable, comment: str) -> list[str]:
+    """An adaptive table's measured interpolation error: the largest error of the law (zeta and E*
+    bilinear in ln speed and angle) at the finite-element cases that checked it."""
+    a = t.adaptive
+    if a is None:
+        return []
+    from ...studies.table_adaptive import largest_errors_text, percent
+
+    state = "reached" if a["reached"] else f"NOT reached (budget of {a['max_cases']} cases spent)"
+    return [
+        f"{comment} Interpolation error checked at {a['checks']} of the table's cases between its grid's: largest "
+        f"{largest_errors_text(a)}; tolerance {a['tolerance']:g} (F_max {percent(a['tolerance_peak_force_rel'])}) "
+        f"{state} (the table's checks.csv)."
     ]
 
 
@@ -158,6 +177,8 @@ def law_data(law: ExportedLaw) -> dict:
         "peak_normal_force_N_table": t.peak_force.tolist(),
         "friction": t.friction,
         "tangential_stiffness_ratio": t.tangential_stiffness_ratio,
+        "interpolation_checked": t.adaptive
+        and {k: t.adaptive[k] for k in ("tolerance", "reached", "checks", "largest_checked_error")},
         "yade": {
             "ball_material": BALL_MATERIAL,
             "liner_material": LINER_MATERIAL,
@@ -302,6 +323,8 @@ def write_law_json(folder: Path, law: ExportedLaw, code: str) -> Path:
         "friction": t.friction,
         "tangential_stiffness_ratio": t.tangential_stiffness_ratio,
         "contact_modulus_of_the_materials_Pa": t.e_star_materials,
+        "interpolation_checked": t.adaptive
+        and {k: t.adaptive[k] for k in ("tolerance", "reached", "checks", "largest_checked_error")},
         "points": points,
         "constant": {
             "damping_ratio_zeta": law.zeta_const,

@@ -3,7 +3,9 @@
 The folder must hold ``contact_table.json`` as :func:`millimpact.studies.table_report.write_table`
 writes it (the rows, the resolved base scene as TOML, the method) and ``contact_table.csv``. The
 export uses the rows whose status is ok, on the grid impact speed x angle of one ball radius (the
-table's first radius when it has several); each grid point must be present once.
+table's first radius when it has several); each grid point must be present once. An adaptive
+table's check rows (role check) are not on its grid: the export leaves them out and carries the
+table's largest checked error (its ``adaptive`` block) into the files it writes.
 """
 
 from __future__ import annotations
@@ -53,6 +55,8 @@ class ContactTable(NamedTuple):
     e_n: np.ndarray
     e_t: np.ndarray  #: NaN at normal incidence
     peak_force: np.ndarray  #: N
+    #: an adaptive table's summary (tolerance, reached, largest_checked_error, checks); None: a fixed grid
+    adaptive: dict | None = None
 
 
 def _not_a_table(folder: Path, why: str) -> InputError:
@@ -90,6 +94,9 @@ def read_table(folder: Path | str) -> ContactTable:
         or any(not isinstance(r, dict) or any(k not in r for k in NEEDED) for r in rows)
     ):
         raise _not_a_table(folder, f"contact_table.json rows lack the columns {', '.join(NEEDED)}")
+    # an adaptive table's checks measure its law between the grid's cases; the law is the grid's
+    rows = [r for r in rows if r.get("role", "grid") != "check"]
+    adaptive = doc.get("adaptive") if isinstance(doc.get("adaptive"), dict) else None
     ok = [r for r in rows if str(r["status"]).startswith("ok")]
     if not ok:
         raise InputError(f"TABLE_DIR {folder}: no case of the table finished (status column); rerun millimpact table")
@@ -140,4 +147,5 @@ def read_table(folder: Path | str) -> ContactTable:
         vals["en"],
         vals["et"],
         vals["f"],
+        adaptive,
     )

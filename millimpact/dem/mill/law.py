@@ -12,7 +12,7 @@ angle) over the table's grid.
 
 - Stiffness: the law's contact moduli (E* per table point, and the constant one of the materials)
   are multiplied by ``--stiffness-scale`` like the scene's. The law's restitution depends on zeta
-  alone, e(zeta) of the Hertz-dashpot law (:mod:`.contact_law`, equation (2)), not on k_no: the
+  alone, e(zeta) of the Hertz-dashpot law (:mod:`millimpact.theory.hertz_dashpot`, equation (2)), not on k_no: the
   softer contact keeps every e_n of the table; F_max scales as K^(2/5).
 - Cost: the runtime's update loops over Yade's interactions in Python. It runs every
   ``law_every`` steps (default: the impact check's period, t_c / 8): a contact then runs at most
