@@ -115,3 +115,23 @@ def test_without_liggghts_one_line_says_how_to_install_it(tmp_path, monkeypatch)
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "apt-get install liggghts" in lines[0], res.stderr
     assert not list(tmp_path.iterdir())
+
+
+@needs_liggghts
+def test_the_command_writes_the_summary_and_the_liggghts_folder(tmp_path):
+    """``millimpact mill liner-panel --engine liggghts``, 50 balls for one snapshot interval (1/36
+    revolution, 3,320 steps) from rest: exit 0, the printed lines, summary.json's engine, the
+    run's cost and its files; the balls have not left the box (LIGGGHTS stops on a lost atom)."""
+    import json
+
+    out = tmp_path / "mill"
+    args = ["--engine", "liggghts", "--balls", "50", "--warmup", "0", "--revolutions", "0.0277"]
+    res = run_cli("mill", "liner-panel", *args, "--out", str(out), "--no-plots", timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert "steps/s on 1 rank(s)" in res.stdout and "net power" in res.stdout, res.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["engine"] == "liggghts" and summary["charge"]["balls"] == 50
+    assert summary["liggghts"]["steps"] == summary["run"]["steps"] == 3320
+    assert summary["power"]["ends_share"] is None  # a slice: frictionless ends
+    for name in ("mill.in", "params.in", "walls.in", "shell.stl", "particles.data", "torque.txt", "charge.dump"):
+        assert (out / "liggghts" / name).is_file(), name

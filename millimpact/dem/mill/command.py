@@ -299,8 +299,9 @@ def _percent(x: float | None) -> str:
     return "n/a" if x is None else f"{100 * x:+.0f} %"
 
 
-def _comparison_lines(summary: dict) -> list[str]:
-    """The two printed lines: net power against Morrell and Austin; toe and shoulder against Morrell."""
+def _comparison_lines(summary: dict, where: str = "in the slice") -> list[str]:
+    """The two printed lines: net power (``where``: the run's extent) against Morrell and Austin;
+    toe and shoulder against Morrell."""
     pw, shape = summary["power"], summary["charge_shape"]
     m = pw["measured"]
     if m["net_W"] is None:
@@ -312,7 +313,7 @@ def _comparison_lines(summary: dict) -> list[str]:
             else f", {m['net_mill_W'] / 1e3:.4g} kW for the mill's {m['mill_length_m']:g} m"
         )
         power = (
-            f"net power {m['net_W']:.4g} W in the slice = {m['net_per_metre_W_m'] / 1e3:.4g} kW/m{length}; "
+            f"net power {m['net_W']:.4g} W {where} = {m['net_per_metre_W_m'] / 1e3:.4g} kW/m{length}; "
             f"Morrell {pw['morrell_net_per_metre_W_m'] / 1e3:.4g} kW/m ({_percent(pw['morrell_relative_difference'])}), "
             f"Austin {pw['austin_per_metre_W_m'] / 1e3:.4g} kW/m at the pinion "
             f"({_percent(pw['austin_relative_difference'])}); J {pw['model_inputs']['fill']:.3f}"
@@ -364,8 +365,13 @@ def _main_liggghts(args: argparse.Namespace) -> int:
         return 0
     cost = summary["liggghts"]
     rate = "n/a" if cost["steps_per_s"] is None else f"{cost['steps_per_s']:.4g}"
-    say(f"{_charge_text(summary)}; {cost['steps']} steps at {rate} steps/s on {ranks} rank(s)")
-    for line in _comparison_lines(summary):
+    rev = cost["projected_s_per_revolution"]
+    say(
+        f"{_charge_text(summary)}; {cost['steps']} steps at {rate} steps/s on {ranks} rank(s)"
+        + ("" if rev is None else f", {rev:.4g} s a revolution at the logged part's rate")
+    )
+    where = f"in the {plan.length:g} m mill" if plan.end_plates else "in the slice"
+    for line in _comparison_lines(summary, where):
         say(line)
     say(f"results in {target.shown}/" + target.replaced_note())
     return 0

@@ -435,6 +435,9 @@ def run_liggghts(work: Path, plan: LiggghtsMill, on_progress=None, timeout: floa
         "steps": steps,
         "steps_per_s": steps / loop_s if loop_s > 0 else None,
         "runs": [{"steps": int(w[8]), "loop_s": float(w[3])} for w in loops],
+        "projected_s_per_revolution": plan.steps_per_revolution * float(loops[-1][3]) / int(loops[-1][8])
+        if loops and int(loops[-1][8]) > 0
+        else None,
         "runs_are": "LIGGGHTS' loop times: the warm-up, then the logged revolutions (the charge in motion)",
         "particles": plan.setup.n_balls,
     }
