@@ -18,7 +18,7 @@ from ...console import say
 from ...errors import InputError
 from ...results.output_folder import FORCE_HELP, OUT_HELP
 
-HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe, net power"
+HELP = "a slice of the mill in Yade (or LIGGGHTS on MPI ranks): the impact spectrum, shoulder and toe, net power"
 
 DESCRIPTION = """\
 Build a slice of the mill from SCENE's liner (the lifters round the whole shell at the scene's
