@@ -18,7 +18,7 @@ from ...console import say
 from ...errors import InputError
 from ...results.output_folder import FORCE_HELP, OUT_HELP
 
-HELP = "a slice of the mill in Yade: the ball-liner impact-energy spectrum, shoulder and toe, net power"
+HELP = "a slice of the mill in Yade (or LIGGGHTS on MPI ranks): the impact spectrum, shoulder and toe, net power"
 
 DESCRIPTION = """\
 Build a slice of the mill from SCENE's liner (the lifters round the whole shell at the scene's
@@ -37,13 +37,23 @@ settings; the net power drawn, per metre of mill length, and toe and shoulder be
 C-model and correlations and Austin's SAG equation for the run's mill: "power", "charge_shape") and
 yade/ (the script, its input and its raw output). Needs Yade (apt-get install yade).
 
+--engine liggghts runs a balls-only charge in LIGGGHTS instead (apt-get install liggghts), as
+`mpirun -n N liggghts` on --ranks N MPI processes: the slice, or with --length full|METRES the mill's
+length between steel end plates that turn with the shell. It writes summary.json (net power
+beside Morrell and Austin, toe and shoulder, the run's cost in steps per second), charge.png and
+liggghts/ (the script, its inputs, torque.txt, charge.dump, the log); no impacts, spectrum or abrasion.
+
   millimpact mill liner-panel --revolutions 2 --balls 200 --out out/mill
   millimpact mill liner-panel --revolutions 3 --fill 0.1 --speed-fraction 0.8 --out out/mill80
   millimpact mill liner-panel --revolutions 2 --balls 200 --law out/dem-yade --out out/mill-law
+  millimpact mill liner-panel --revolutions 1 --engine liggghts --ranks 2 --out out/mill-lig
+  millimpact mill liner-panel --revolutions 1 --engine liggghts --ranks 2 --length full --out out/mill-full
 """
 
 #: the charges (millimpact.dem.mill.charge.CHARGES: argparse's choices without importing numpy)
 CHARGE_NAMES = ("balls", "sag")
+#: the DEM codes that run the mill
+ENGINES = ("yade", "liggghts")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -152,6 +162,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="Yade's OpenMP threads, 1-64 (default 1, or MILLIMPACT_YADE_THREADS): more only on idle cores",
     )
+    eng = p.add_argument_group("the DEM engine")
+    eng.add_argument(
+        "--engine",
+        choices=ENGINES,
+        default="yade",
+        help="yade (the default: impacts, spectrum, abrasion, SAG charges) or liggghts (a balls-only charge on "
+        "MPI ranks: power, toe and shoulder; a slice or the whole mill)",
+    )
+    eng.add_argument(
+        "--ranks", type=int, metavar="N", help="with --engine liggghts: MPI processes, mpirun -n N (default 1)"
+    )
+    eng.add_argument(
+        "--length",
+        metavar="full|METRES",
+        help="with --engine liggghts: the mill's length between steel end plates turning with the shell "
+        "(full: the scene's mill length, else half its diameter), instead of the slice",
+    )
     p.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
     p.add_argument("--out", help=OUT_HELP.format(default="out/mill-SCENE"))
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
@@ -207,12 +234,16 @@ def main(args: argparse.Namespace) -> int:
     from ...results.output_folder import claim_output, default_out
     from ...results.timeseries import write_summary
     from ..yade import yade_executable
+    from .liggghts_mill import check_engine_options
     from .run import run_mill
     from .setup import plan_mill
 
     # every check before any folder is made: options, scene, the plan, Yade, then --out
     if args.threads is not None and not 1 <= args.threads <= 64:
         raise InputError(f"--threads {args.threads}: must be an integer in [1, 64]")
+    check_engine_options(args)
+    if getattr(args, "engine", "yade") == "liggghts":
+        return _main_liggghts(args)
     opts = options_from_args(args)
     scene = command_scene(args)
     setup = plan_mill(scene, opts)
@@ -275,8 +306,9 @@ def _percent(x: float | None) -> str:
     return "n/a" if x is None else f"{100 * x:+.0f} %"
 
 
-def _comparison_lines(summary: dict) -> list[str]:
-    """The two printed lines: net power against Morrell and Austin; toe and shoulder against Morrell."""
+def _comparison_lines(summary: dict, where: str = "in the slice") -> list[str]:
+    """The two printed lines: net power (``where``: the run's extent) against Morrell and Austin;
+    toe and shoulder against Morrell."""
     pw, shape = summary["power"], summary["charge_shape"]
     m = pw["measured"]
     if m["net_W"] is None:
@@ -288,7 +320,7 @@ def _comparison_lines(summary: dict) -> list[str]:
             else f", {m['net_mill_W'] / 1e3:.4g} kW for the mill's {m['mill_length_m']:g} m"
         )
         power = (
-            f"net power {m['net_W']:.4g} W in the slice = {m['net_per_metre_W_m'] / 1e3:.4g} kW/m{length}; "
+            f"net power {m['net_W']:.4g} W {where} = {m['net_per_metre_W_m'] / 1e3:.4g} kW/m{length}; "
             f"at the shell, Morrell k P_C {pw['morrell_shell_per_metre_W_m'] / 1e3:.4g} kW/m "
             f"({_percent(pw['morrell_shell_relative_difference'])}; P_C {pw['morrell_net_per_metre_W_m'] / 1e3:.4g}), "
             f"Austin less no-load {pw['austin_shell_per_metre_W_m'] / 1e3:.4g} kW/m "
@@ -303,3 +335,52 @@ def _comparison_lines(summary: dict) -> list[str]:
         return f"{name} {got}, Morrell {shape[f'morrell_{name}_deg']:.0f} deg{off}"
 
     return [power, f"charge shape: {angle('toe')}; {angle('shoulder')}"]
+
+
+def _main_liggghts(args: argparse.Namespace) -> int:
+    """``--engine liggghts``: the plan in LIGGGHTS on ``--ranks`` MPI processes (a slice, or
+    ``--length`` between end plates); summary.json, charge.png and liggghts/."""
+    from ...results.output_folder import claim_output, default_out
+    from ...results.timeseries import write_summary
+    from ..export.wall_impacts import DemCodeError
+    from .liggghts_mill import liggghts_command, plan_liggghts_mill, run_liggghts_mill
+
+    opts = options_from_args(args)
+    scene = command_scene(args)
+    ranks = args.ranks or 1
+    plan = plan_liggghts_mill(scene, opts, args.length, ranks)
+    liggghts_command(ranks)
+    setup = plan.setup
+    out = args.out if args.out is not None else default_out(scene.name, prefix="mill-")
+    target = claim_output(out, "mill", force=args.force)
+    quiet = getattr(args, "quiet", False)
+    if not quiet:
+        say(
+            f"mill (LIGGGHTS, {ranks} rank{'s' if ranks > 1 else ''}): scene '{scene.name}', "
+            f"D {setup.profile.diameter:g} m, {setup.profile.n_lifters} lifters, {setup.n_balls} balls of "
+            f"{2e3 * setup.ball_radius:g} mm, {plan.length:.4g} m long ({plan.length_source}), "
+            f"{100 * setup.speed_fraction:g} % of n_c = {setup.critical_rpm:.3g} rpm; e {setup.restitution:.3g}, "
+            f"mu {setup.friction:g}, moduli x {setup.stiffness_scale:g}; "
+            f"{plan.warm_steps + plan.run_steps} steps of {setup.dt:.3g} s",
+            file=sys.stderr,
+        )
+    try:
+        with target.staged(collective=False) as stage:
+            summary = run_liggghts_mill(scene, opts, stage, plan, plots=not args.no_plots, quiet=quiet)
+            write_summary(stage, summary)
+    except DemCodeError as exc:
+        raise DemCodeError(f"{exc}; {target.note}") from None
+    if quiet:
+        return 0
+    cost = summary["liggghts"]
+    rate = "n/a" if cost["steps_per_s"] is None else f"{cost['steps_per_s']:.4g}"
+    rev = cost["projected_s_per_revolution"]
+    say(
+        f"{_charge_text(summary)}; {cost['steps']} steps at {rate} steps/s on {ranks} rank(s)"
+        + ("" if rev is None else f", {rev:.4g} s a revolution at the logged part's rate")
+    )
+    where = f"in the {plan.length:g} m mill" if plan.end_plates else "in the slice"
+    for line in _comparison_lines(summary, where):
+        say(line)
+    say(f"results in {target.shown}/" + target.replaced_note())
+    return 0
