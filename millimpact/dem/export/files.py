@@ -158,6 +158,11 @@ def _band_lines(law: ExportedLaw, comment: str) -> list[str]:
     return out
 
 
+#: the law is embedded as JSON (the mill reads it back so); these make its null, true and false
+#: Python too
+JSON_NAMES = "null, true, false = None, True, False  # the JSON below, read as Python\n"
+
+
 def law_data(law: ExportedLaw) -> dict:
     """The grid law as the JSON the Yade file embeds (``MILLIMPACT_LAW``)."""
     t = law.table
@@ -217,7 +222,8 @@ def write_yade(folder: Path, law: ExportedLaw) -> Path:
         "# first steps on millimpact_ip2()'s median values).",
         "",
     ]
-    text = "\n".join(head) + "\nMILLIMPACT_LAW = " + json.dumps(law_data(law), indent=1) + "\n\n" + RUNTIME.read_text()
+    text = "\n".join(head) + "\n" + JSON_NAMES + "MILLIMPACT_LAW = " + json.dumps(law_data(law), indent=1)
+    text += "\n\n" + RUNTIME.read_text()
     path = folder / "contact_law_yade.py"
     path.write_text(text)
     return path

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..yade import run_yade
-from .files import ExportedLaw, law_data
+from .files import JSON_NAMES, ExportedLaw, law_data
 from .table_input import ContactTable
 
 SCRIPT = Path(__file__).with_name("yade_scripts") / "roundtrip.py"
@@ -64,7 +64,7 @@ def constant_law_file(law: ExportedLaw, path: Path) -> Path:
 
     data = law_data(law)
     data.update(speeds_m_s=[1.0], angles_deg=[0.0], zeta=[[law.zeta_const]], e_star_Pa=[[law.e_star_const]])
-    path.write_text("MILLIMPACT_LAW = " + json.dumps(data) + "\n\n" + RUNTIME.read_text())
+    path.write_text(JSON_NAMES + "MILLIMPACT_LAW = " + json.dumps(data) + "\n\n" + RUNTIME.read_text())
     return path
 
 
