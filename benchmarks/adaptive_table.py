@@ -76,13 +76,15 @@ def run_table(folder: Path, scene: str, ranks: int, args: list[str]) -> dict:
     if code != 0:
         raise SystemExit(f"millimpact table exited {code}: {' '.join(cmd)}")
     print(f"  {folder.name}: {wall:.0f} s wall, {cpu:.0f} s CPU", flush=True)
-    return {
+    timing = {
         "wall_s": wall,
         "cpu_s": cpu,
         "peak_rss_per_rank_GB": peak_gb,
         "load_1min_before": load_before[0],
         "load_1_5_15min_after": " ".join(f"{x:.2f}" for x in load_after),
     }
+    (folder.parent / f"{folder.name}_run.json").write_text(json.dumps(timing))  # for --report-only
+    return timing
 
 
 def compare(fixed, law, tolerance: float) -> list[dict]:
@@ -202,13 +204,23 @@ def main() -> int:
     ap.add_argument("--ranks", type=int, default=2)
     ap.add_argument("--set", action="append", default=[], help="FIELD=VALUE for both tables")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "adaptive_table"))
+    ap.add_argument("--report-only", action="store_true", help="no runs: the report of the tables in --out")
     a = ap.parse_args()
     out = Path(a.out)
+    if a.report_only:
+        fixed_run, adaptive_run = (json.loads((out / f"{n}_run.json").read_text()) for n in ("fixed", "adaptive"))
+    else:
+        fixed_run, adaptive_run = run_both(a, out)
+    report(a, out, fixed_run, adaptive_run)
+    return 0
+
+
+def run_both(a: argparse.Namespace, out: Path) -> tuple[dict, dict]:
+    """The fixed table, then the adaptive one, each in a fresh folder: their timings."""
     for name in ("fixed", "adaptive", "mesh-cache-fixed", "mesh-cache-adaptive"):
         shutil.rmtree(out / name, ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)
     common = ["--method", a.method, *[x for s in a.set for x in ("--set", s)]]
-
     fixed_run = run_table(out / "fixed", a.scene, a.ranks, ["--velocity", a.speeds, "--angle", a.angles, *common])
     adaptive_run = run_table(
         out / "adaptive",
@@ -227,6 +239,11 @@ def main() -> int:
         ],
     )
 
+    return fixed_run, adaptive_run
+
+
+def report(a: argparse.Namespace, out: Path, fixed_run: dict, adaptive_run: dict) -> None:
+    """The comparison of the law with the fixed table, the reports and the figure."""
     from millimpact.dem.export.files import law_at
     from millimpact.dem.export.table_input import read_table
 
@@ -387,7 +404,6 @@ def main() -> int:
         note=note,
     )
     plot(out / "adaptive_table_errors.png", points, doc, a.scene, a.tolerance)
-    return 0
 
 
 if __name__ == "__main__":
