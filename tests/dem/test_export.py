@@ -97,6 +97,36 @@ def test_code_restitution_input_round_trip():
     assert code_restitution(0.3) - 0.3 > 0.09 and code_restitution(0.8) - 0.8 > 0.007
 
 
+def test_law_at_is_the_hertz_dashpot_law_between_and_beyond_the_grid(tmp_path):
+    """The exported law of a table evaluated anywhere (files.law_at): on a grid whose points all
+    share one damping ratio zeta = 0.3 and one contact modulus E* (e_n = e(zeta), F_max of the law
+    (2) at each point's normal speed), it is the law (2) itself at every (v, angle), between the
+    grid's points and held at its edge outside: e(zeta) to 1e-7 (e -> zeta -> e through the tabulated
+    interpolants, ~1e-8: theory/hertz_dashpot.py) and F_max = phi(zeta) k_no^(2/5) (m v_n^2)^(3/5) to
+    1e-12 (the fitted E* absorbs phi's round trip exactly; the rest is rounding). e_t, linear in ln v
+    and angle on the grid, is bilinear there exactly (1e-12), and the nearest edge's outside."""
+    from millimpact.dem.export.files import law_at
+    from millimpact.dem.export.table_input import ContactTable
+
+    zeta, e_star, radius, density = 0.3, 1.1e11, 0.015, 7800.0
+    mass = density * 4.0 / 3.0 * math.pi * radius**3
+    k_no = 4.0 / 3.0 * e_star * math.sqrt(radius)
+    speeds, angles = np.array([1.0, 4.0]), np.array([10.0, 40.0])
+    vn = speeds[:, None] * np.cos(np.radians(angles))[None, :]
+    force = lambda v_n: peak_force_factor(zeta) * k_no**0.4 * (mass * v_n**2) ** 0.6  # noqa: E731
+    e_t = lambda v, a: 0.2 + 0.1 * math.log(v) + 0.003 * a  # noqa: E731
+    t = ContactTable(tmp_path, "synthetic", "improved", "0", speeds, angles, radius, density, mass, density,
+                     2.1e11, 0.3, e_star, 1.0, 0.2, vn, np.full((2, 2), restitution_of_damping(zeta)),
+                     np.array([[e_t(v, a) for a in angles] for v in speeds]), force(vn))
+    law = law_at(t)
+    for v, a, held in ((2.0, 25.0, (2.0, 25.0)), (1.0, 10.0, (1.0, 10.0)), (8.0, 55.0, (4.0, 40.0)),
+                       (0.5, 0.0, (1.0, 10.0))):
+        got = law(v, a)
+        assert got["e_n"] == pytest.approx(restitution_of_damping(zeta), abs=1e-7)
+        assert got["f_max"] == pytest.approx(force(v * math.cos(math.radians(a))), rel=1e-12)
+        assert got["e_t"] == pytest.approx(e_t(*held), abs=1e-12)
+
+
 # --- the round trip in Yade -------------------------------------------------------------------------
 @needs_yade
 def test_yade_reproduces_the_table_with_the_exported_law(table, tmp_path):

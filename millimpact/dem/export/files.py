@@ -19,6 +19,7 @@ from __future__ import annotations
 import datetime
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
@@ -95,6 +96,27 @@ def fit_law(t: ContactTable) -> ExportedLaw:
         f_c,
         band,
     )
+
+
+def law_at(t: ContactTable) -> Callable[[float, float], dict[str, float]]:
+    """The exported law of table ``t`` as a function of (impact speed |v| in m/s, angle from the face
+    normal in deg), giving ``{"e_n", "e_t", "f_max"}`` (F_max in N): the law the Yade export's runtime
+    applies and an adaptive table's checks measure (:func:`millimpact.studies.table_adaptive.export_law`
+    over ``t``'s grid). Each grid point's Hertz-dashpot zeta (from its e_n) and E* (from its F_max at
+    its normal speed), as :func:`fit_law` fits them; zeta and E* bilinear in (ln speed, angle), held
+    at the nearest edge outside the grid; then e_n = e(zeta) and F_max = phi(zeta) k_no^(2/5)
+    (m v_n^2)^(3/5), k_no = (4/3) E* R^(1/2), v_n = v cos(angle). e_t (left to the DEM code's
+    Mindlin-Coulomb law) is the table's, bilinear: NaN on a cell with a normal-incidence corner."""
+    from ...studies.table_adaptive import export_law
+
+    law = export_law(t.ball_mass, t.radius)
+    speeds, angles = [float(v) for v in t.speeds], [float(a) for a in t.angles]
+    grid = {
+        (v, a): {"e_n": float(t.e_n[i, j]), "e_t": float(t.e_t[i, j]), "f_max": float(t.peak_force[i, j])}
+        for i, v in enumerate(speeds)
+        for j, a in enumerate(angles)
+    }
+    return lambda v, a: law(speeds, angles, grid, v, a)
 
 
 def source_lines(t: ContactTable, comment: str) -> list[str]:
