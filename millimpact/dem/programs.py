@@ -19,11 +19,15 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, MillimpactError
 from ..interrupts import children_signals
 
 #: a line of a DEM script's output that reports progress
 PROGRESS_PREFIX = "PROGRESS "
+
+
+class DemCodeError(MillimpactError):
+    """A LIGGGHTS or LAMMPS run that did not end normally."""
 
 
 def find_program(name: str, env_var: str, install_hint: str, needed_by: str = "this command") -> str:

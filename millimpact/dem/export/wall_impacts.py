@@ -20,18 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import MillimpactError
-from ..programs import PROGRESS_PREFIX, run_program
+from ..programs import PROGRESS_PREFIX, DemCodeError, run_program
 from .table_input import ContactTable
 
 #: time steps per contact duration (the Yade round trip's)
 STEPS_PER_CONTACT = 2000
 #: steps a case runs: the contact, and the flight after separation
 CASE_STEPS = 3 * STEPS_PER_CONTACT
-
-
-class DemCodeError(MillimpactError):
-    """A LIGGGHTS or LAMMPS run that did not end normally."""
 
 
 def table_points(table: ContactTable) -> list[tuple[float, float, float]]:

@@ -35,12 +35,10 @@ soft contacts (B. K. Mishra, Int. J. Miner. Process. 71 (2003) 73-93; P. W. Clea
   peak of a 1 m/s impact. A rock rolling on the liner then stops after 7 v0^2 / (10 mu_r g).
   mu_r 0.2 is the middle of the 0.1-0.3 that mill DEM gives spheres standing for angular rock.
   Balls and the liner keep the scene's contact (no rolling resistance).
-- Slurry (``--slurry-density``, default 0: dry): the slurry filling the bed's voids (U = 1, the
-  C-model's wet charge) carried with the particles as mass: each particle's density is raised by
-  E / (1 - E) rho_p (E = 0.4), so the charge weighs what a wet charge of that fill weighs
-  (rho_c = [(J - J_B)(1 - E) rho_o + J_B (1 - E) rho_b + J E rho_p] / J, Morrell 1996). The
-  slurry's drag and lubrication are left out: a check of the power and the charge's shape against
-  wet mills, not a model of the slurry's flow. The impacts' energies stay the solid particle's.
+- Slurry (``--slurry-density``, default 0: dry): the bed's voids full of slurry (the C-model's wet
+  charge, Morrell 1996) carried as mass, each particle's density raised by E / (1 - E) rho_p
+  (E = 0.4); no drag or lubrication: a check of power and shape against wet mills. The impacts'
+  energies stay the solid particle's.
 - Starting positions: random, largest first, without overlaps, in the lowest part of the mill
   that holds them at a third of its volume (:func:`place_particles`).
 """

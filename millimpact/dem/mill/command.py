@@ -75,39 +75,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="fraction of the mill's volume the bed fills, 0.05-0.5 (default 0.1 of balls; with "
         "--charge sag the whole charge, default 0.28)",
     )
-    sag = p.add_argument_group("a SAG charge (--charge sag)")
-    sag.add_argument(
-        "--ball-fill",
-        type=float,
-        metavar="J_B",
-        help="the balls' share of the mill's volume, (0, --fill] (default 0.12)",
-    )
-    sag.add_argument("--rock-top-size", type=float, metavar="M", help="the largest rock's diameter, m (default 0.2)")
-    sag.add_argument(
-        "--rock-cutoff",
-        type=float,
-        metavar="M",
-        help="rock finer than this (m) is slurry, its volume given to the rock modelled (default 0.1)",
-    )
-    sag.add_argument(
-        "--rock-restitution", type=float, metavar="E", help="restitution of contacts with rock (default 0.3)"
-    )
-    sag.add_argument(
-        "--rock-friction", type=float, metavar="MU", help="Coulomb friction of contacts with rock (default 0.6)"
-    )
-    sag.add_argument(
-        "--rolling-resistance",
-        type=float,
-        metavar="MU_R",
-        help="the rock's rolling resistance, M <= MU_R R F_n, in [0, 1] (default 0.2)",
-    )
-    sag.add_argument(
-        "--slurry-density",
-        type=float,
-        metavar="RHO",
-        help="slurry (kg/m^3) filling the bed's voids, carried as mass on the particles: 0 (dry, the "
-        "default) or 1000-2500",
-    )
+    _add_sag_arguments(p)
     p.add_argument(
         "--speed-fraction",
         type=float,
@@ -162,6 +130,53 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="Yade's OpenMP threads, 1-64 (default 1, or MILLIMPACT_YADE_THREADS): more only on idle cores",
     )
+    _add_engine_arguments(p)
+    p.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
+    p.add_argument("--out", help=OUT_HELP.format(default="out/mill-SCENE"))
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
+    p.add_argument("--no-plots", action="store_true", help="skip spectrum.png and charge.png")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+
+
+def _add_sag_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of a SAG charge: rock sizes, contacts, slurry."""
+    sag = p.add_argument_group("a SAG charge (--charge sag)")
+    sag.add_argument(
+        "--ball-fill",
+        type=float,
+        metavar="J_B",
+        help="the balls' share of the mill's volume, (0, --fill] (default 0.12)",
+    )
+    sag.add_argument("--rock-top-size", type=float, metavar="M", help="the largest rock's diameter, m (default 0.2)")
+    sag.add_argument(
+        "--rock-cutoff",
+        type=float,
+        metavar="M",
+        help="rock finer than this (m) is slurry, its volume given to the rock modelled (default 0.1)",
+    )
+    sag.add_argument(
+        "--rock-restitution", type=float, metavar="E", help="restitution of contacts with rock (default 0.3)"
+    )
+    sag.add_argument(
+        "--rock-friction", type=float, metavar="MU", help="Coulomb friction of contacts with rock (default 0.6)"
+    )
+    sag.add_argument(
+        "--rolling-resistance",
+        type=float,
+        metavar="MU_R",
+        help="the rock's rolling resistance, M <= MU_R R F_n, in [0, 1] (default 0.2)",
+    )
+    sag.add_argument(
+        "--slurry-density",
+        type=float,
+        metavar="RHO",
+        help="slurry (kg/m^3) filling the bed's voids, carried as mass on the particles: 0 (dry, the "
+        "default) or 1000-2500",
+    )
+
+
+def _add_engine_arguments(p: argparse.ArgumentParser) -> None:
+    """The DEM engine and, for LIGGGHTS, its ranks and the mill's length."""
     eng = p.add_argument_group("the DEM engine")
     eng.add_argument(
         "--engine",
@@ -179,11 +194,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="with --engine liggghts: the mill's length between steel end plates turning with the shell "
         "(full: the scene's mill length, else half its diameter), instead of the slice",
     )
-    p.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a scene field")
-    p.add_argument("--out", help=OUT_HELP.format(default="out/mill-SCENE"))
-    p.add_argument("--force", action="store_true", help=FORCE_HELP)
-    p.add_argument("--no-plots", action="store_true", help="skip spectrum.png and charge.png")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
 def command_scene(args: argparse.Namespace):
@@ -342,7 +352,7 @@ def _main_liggghts(args: argparse.Namespace) -> int:
     ``--length`` between end plates); summary.json, charge.png and liggghts/."""
     from ...results.output_folder import claim_output, default_out
     from ...results.timeseries import write_summary
-    from ..export.wall_impacts import DemCodeError
+    from ..programs import DemCodeError
     from .liggghts_mill import liggghts_command, plan_liggghts_mill, run_liggghts_mill
 
     opts = options_from_args(args)

@@ -413,7 +413,7 @@ def run_liggghts(work: Path, plan: LiggghtsMill, on_progress=None, timeout: floa
     times. DemCodeError with the output's last lines when it fails."""
     import time
 
-    from ..export.wall_impacts import DemCodeError
+    from ..programs import DemCodeError
 
     cmd = [*liggghts_command(plan.ranks), "-in", SCRIPT.name, "-log", "log.liggghts"]
     t0 = time.perf_counter()

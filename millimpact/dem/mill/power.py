@@ -29,11 +29,9 @@ heat passes through the liner's torque. The models give other things, so each is
 those terms (``*_shell_*`` in summary.json, the figures to judge the run by):
 
 - Morrell: the motor draws P_0 + k P_C (:func:`~millimpact.theory.mill_power.morrell_gross_power`),
-  P_C the C-model's lift-and-throw power and k = 1.26 a calibration on industrial mills that lumps
-  what P_C leaves out. Above the empty mill's draw P_0 the motor gives k P_C, which is the shell's
-  power less the drive's load-dependent losses (motor and gears, a few per cent), and the heat the
-  charge makes beyond lifting and throwing itself is inside k: the shell's power lies between
-  ~0.95 k P_C and k P_C. The run is set against k P_C.
+  k = 1.26 lumping what the C-model's P_C leaves out. Above the empty mill's P_0 the motor gives
+  k P_C: the shell's power (the charge's heat beyond lifting and throwing inside k) plus the
+  drive's load-dependent losses, a few per cent. The run is set against k P_C.
 - Austin: his figure is the pinion's, which Morrell's gross power matches within 2 % on a
   10.4 m mill (:func:`~millimpact.theory.mill_power.austin_power`), so the shell's share is
   Austin's less the empty mill's P_0 (Morrell's no-load,
