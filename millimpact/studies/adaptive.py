@@ -16,7 +16,7 @@ law is wrong:
    largest of its edges' grid lines in each direction.
 3. Compute the check case at the centre of the cells whose prediction is largest (a batch at a
    time, so that every rank has a case), and compare it with the law's value there:
-   |e_n - law|, |e_t - law| against ``tolerance`` and |F_max / law - 1| against 2 ``tolerance``
+   ``|e_n - law|``, ``|e_t - law|`` against ``tolerance`` and ``|F_max / law - 1|`` against 2 ``tolerance``
    (e_t is not compared where the law has none: a cell with a normal-incidence corner).
 4. A cell that misses is split: a new speed (the geometric mean of its two) where its predicted
    error along speed is the larger, else a new angle (the mean); the new grid line's cases are

@@ -29,7 +29,7 @@ Under mpirun, --ranks-per-case K makes groups of K ranks that take cases from a 
 With --tolerance TOL the table chooses its cases: --velocity V_LOW,V_HIGH and --angle A_LOW,A_HIGH
 give the ranges, a 3 x 3 grid starts the law (the DEM export's: zeta and E* bilinear in ln speed
 and angle), cases at the centres of the cells where the grid's second differences predict the
-largest error check it, and a cell that misses (|e_n|, |e_t| error > TOL, F_max > 2 TOL relative)
+largest error check it, and a cell that misses (e_n or e_t off by more than TOL, F_max by 2 TOL relative)
 gets a new grid line, until every cell passes or --max-cases is spent (then a warning, exit 0).
 The rows say role grid or check; checks.csv holds each check's error, adaptive_points.png shows
 the chosen points.
