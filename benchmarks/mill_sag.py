@@ -102,15 +102,11 @@ def _shell_figures(p: dict) -> dict:
     differences to them: summary.json's, or computed as millimpact.dem.mill.power does for a
     summary written before it gave them."""
     if "morrell_shell_per_metre_W_m" not in p:
-        from millimpact.theory.mill_power import MORRELL_GROSS_FACTOR, morrell_no_load_power
+        from millimpact.dem.mill.power import shell_power
 
         d, phi = p["model_inputs"]["diameter_m"], p["model_inputs"]["speed_fraction"]
-        no_load = morrell_no_load_power(d, 0.5 * d, phi) / (0.5 * d)
-        p = {
-            **p,
-            "morrell_shell_per_metre_W_m": MORRELL_GROSS_FACTOR * p["morrell_net_per_metre_W_m"],
-            "austin_shell_per_metre_W_m": p["austin_per_metre_W_m"] - no_load,
-        }
+        morrell, austin, _ = shell_power(d, phi, p["morrell_net_per_metre_W_m"], p["austin_per_metre_W_m"], 0.5 * d)
+        p = {**p, "morrell_shell_per_metre_W_m": morrell, "austin_shell_per_metre_W_m": austin}
         x = p["measured"]["net_per_metre_W_m"]
         p["morrell_shell_relative_difference"] = x / p["morrell_shell_per_metre_W_m"] - 1.0
         p["austin_shell_relative_difference"] = x / p["austin_shell_per_metre_W_m"] - 1.0

@@ -144,6 +144,14 @@ def model_inputs(setup: MillSetup) -> dict:
     }
 
 
+def shell_power(diameter: float, speed: float, morrell: float, austin: float, length: float) -> tuple:
+    """The models put at the shell (module docstring), per metre (W/m): Morrell's k P_C, Austin's
+    pinion figure less the empty mill's P_0, and P_0 itself, for a mill ``length`` m long, from
+    Morrell's net P_C and Austin's figure per metre."""
+    no_load = morrell_no_load_power(diameter, length, speed) / length
+    return MORRELL_GROSS_FACTOR * morrell, austin - no_load, no_load
+
+
 def power_report(setup: MillSetup, energy: dict[str, np.ndarray], mill_length: float | None = None) -> dict:
     """summary.json's "power": the measured net power (W, W/m, and W for the scene's mill length if
     it has one) beside Morrell's net and Austin's pinion power per metre, with relative differences."""
@@ -155,7 +163,7 @@ def power_report(setup: MillSetup, energy: dict[str, np.ndarray], mill_length: f
     morrell = morrell_net_power(d, 1.0, phi, j, m["charge_density_kg_m3"]).net
     austin = austin_power(d, 1.0, phi, j, m["ball_fill"], m["ore_density_kg_m3"], m["ball_density_kg_m3"])
     length = mill_length if mill_length is not None else 0.5 * d
-    no_load = morrell_no_load_power(d, length, phi) / length
+    morrell_shell, austin_shell, no_load = shell_power(d, phi, morrell, austin, length)
     per_m = measured["net_per_metre_W_m"]
     return {
         "measured": measured,
@@ -172,15 +180,15 @@ def power_report(setup: MillSetup, energy: dict[str, np.ndarray], mill_length: f
         "austin_relative_difference": _relative(per_m, austin),
         "austin_source": "Austin 1990 SAG equation (millimpact.theory.mill_power)",
         "austin_is": "a drive-side (pinion) figure: above the shell's net power by the drive's losses",
-        "morrell_shell_per_metre_W_m": MORRELL_GROSS_FACTOR * morrell,
-        "morrell_shell_relative_difference": _relative(per_m, MORRELL_GROSS_FACTOR * morrell),
+        "morrell_shell_per_metre_W_m": morrell_shell,
+        "morrell_shell_relative_difference": _relative(per_m, morrell_shell),
         "morrell_shell_is": f"k P_C, k = {MORRELL_GROSS_FACTOR}: the motor's draw above the empty mill's in "
         "Morrell's model, the shell's power less the drive's load-dependent losses",
         "no_load_per_metre_W_m": no_load,
         "no_load_is": f"Morrell's empty-mill draw P_0 per metre for a {length:g} m mill"
         + ("" if mill_length is not None else " (L = D / 2: the scene gives no mill length)"),
-        "austin_shell_per_metre_W_m": austin - no_load,
-        "austin_shell_relative_difference": _relative(per_m, austin - no_load),
+        "austin_shell_per_metre_W_m": austin_shell,
+        "austin_shell_relative_difference": _relative(per_m, austin_shell),
         "austin_shell_is": "Austin's pinion power less the empty mill's P_0",
         "units": "W, W/m (per metre of mill length), s, J; relative differences (measured - model) / model",
     }
