@@ -68,6 +68,10 @@ CHECKS_PER_CONTACT = 8
 #: pass over every contact in Yade's Python, which at every check doubled the SAG slice's CPU time;
 #: a sample at fixed steps is unbiased, and the bed's rolling contacts last many samples)
 ROLLING_EVERY_CHECKS = 10
+#: the contacts between particles are visited every this many checks (their new ones counted,
+#: ball-ball contacts freed of rolling resistance): a pass over every contact in Yade's Python is
+#: most of a check's cost; 2 checks (6 steps) stay well inside the shortest contact (25 steps)
+PAIR_EVERY_CHECKS = 2
 #: abrasion.csv's bins of surface position (m): 10 mm, a twentieth of a lifter's height
 ABRASION_BIN = 0.01
 #: a lattice of balls: centres this many radii apart in a layer, layers this many radii apart
@@ -324,6 +328,7 @@ class MillSetup:
             "check_every": self.check_every,
             "power_every": self.power_every,
             "rolling_every": ROLLING_EVERY_CHECKS,
+            "pair_every": PAIR_EVERY_CHECKS,
             "warmup_s": self.warmup_s,
             "run_s": self.run_s,
             "snapshot_every_s": self.period_s / self.snapshots_per_revolution,

@@ -257,8 +257,10 @@ state = {
     "liner_friction": 0.0,
     "rolling_work": 0.0,  # the rolling moments' work on the contacts, sampled (check_impacts)
     "checks": 0,
+    "last_pair": -1,  # the iteration of the previous pair_pass
 }
 rolling_every = int(cfg.get("rolling_every", 1))
+pair_every = int(cfg.get("pair_every", 1))
 liner_spin = Vector3(0.0, 0.0, omega)
 # abrasion: per contact with the liner, its plastic slip vector (usTotal - usElastic) at the previous
 # check; per (particle kind, part, arc bin) after the warm-up: friction work, normal force x slip, slip
@@ -281,22 +283,23 @@ def surface_bin(c, seg):
     return int(math.floor((arc_cfg["segment_s0_m"][seg] + t) / arc_cfg["bin_m"]))
 
 
-def slide(i, b, part, seen, facet):
+def slide(i, b, part, facet, seen, logging):
     """This contact's sliding since the previous check: slip ds = |change of the plastic slip
-    vector|, friction work tan(phi) F_n ds (the Coulomb force while it slides), F_n ds."""
-    key = (i.id1, i.id2)
+    vector|, friction work tan(phi) F_n ds (the Coulomb force while it slides), F_n ds; binned by
+    place once logging (after the warm-up)."""
+    key = (facet, b)
     seen.add(key)
     ph = i.phys
     p = ph.usTotal - ph.usElastic
     prev = slip_prev.get(key)
     ds = (p - prev).norm() if prev is not None else p.norm()
-    slip_prev[key] = Vector3(p)
+    slip_prev[key] = p  # a new vector (the difference), not a view of the contact's
     if ds <= 0.0:
         return
     fn = ph.normalForce.norm()
     w = ph.tangensOfFrictionAngle * fn * ds
     state["liner_friction"] += w
-    if O.time >= cfg["warmup_s"]:
+    if logging:
         k = (0 if b - first_id < n_balls else 1, part % 4, surface_bin(i.geom.contactPoint, seg_of[facet]))
         acc = abrasion.setdefault(k, [0.0, 0.0, 0.0])
         acc[0] += w
@@ -304,69 +307,97 @@ def slide(i, b, part, seen, facet):
         acc[2] += ds
 
 
-def count_contact(i, id1, id2, last):
+def count_contact(i, id1, id2):
     """A new contact between two particles after the warm-up, counted by the kinds' pair, and
-    again when they approach at >= 1 m/s along its normal (velocities at the previous check)."""
+    again when they approached at >= 1 m/s along its normal. The approach speed is the normal
+    relative speed v_n now with the Hertz spring's energy (2/5) k_no delta^(5/2) given back,
+    v_0^2 = v_n^2 + (4/5) k_no delta^(5/2) / m*, m* = m1 m2 / (m1 + m2) (Johnson 1985, sec. 11.1:
+    the undamped Hertz impact; the damping's loss in the steps since contact is not given back)."""
     if O.time < cfg["warmup_s"]:
         return
-    k1, k2 = sorted((0 if id1 - first_id < n_balls else 1, 0 if id2 - first_id < n_balls else 1))
+    j1, j2 = id1 - first_id, id2 - first_id
+    k1, k2 = sorted((0 if j1 < n_balls else 1, 0 if j2 < n_balls else 1))
     key = ("ball", "rock")[k1] + "-" + ("ball", "rock")[k2]
     c = contacts.setdefault(key, [0, 0])
     c[0] += 1
-    if -(O.bodies[id2].state.vel - O.bodies[id1].state.vel).dot(i.geom.normal) >= 1.0:
+    vn = (O.bodies[id2].state.vel - O.bodies[id1].state.vel).dot(i.geom.normal)
+    m_eff = masses[j1] * masses[j2] / (masses[j1] + masses[j2])
+    delta = max(i.geom.penetrationDepth, 0.0)
+    if vn * vn + 0.8 * i.phys.kno * delta**2.5 / m_eff >= 1.0:
         c[1] += 1
 
 
 contacts = {}
 
 
+def pair_pass(sample):
+    """Every pair_every checks, over every contact: those between two particles (or a particle and
+    an end wall) made real since the previous pass (every contact lasts more than a pass's
+    interval: pair_every * check_every steps < STEPS_PER_CONTACT), counted (count_contact) and
+    without rolling resistance when neither is rock; with sample, the rolling moments' power
+    -M . (w2 - w1) on every contact (the torque on id2 is +M, on id1 -M), returned."""
+    last = state["last_pair"]
+    power = 0.0
+    for i in O.interactions:
+        if not i.isReal:
+            continue
+        id1, id2 = i.id1, i.id2
+        if i.iterMadeReal > last and id1 not in part_of and id2 not in part_of:
+            if rolling and id1 not in is_rock and id2 not in is_rock:
+                i.phys.kr = 0.0
+                i.phys.momentBend = Vector3(0.0, 0.0, 0.0)
+            if id1 in is_particle and id2 in is_particle:
+                count_contact(i, id1, id2)
+        if sample and i.phys.kr > 0:
+            w1 = liner_spin if id1 in part_of else O.bodies[id1].state.angVel
+            w2 = liner_spin if id2 in part_of else O.bodies[id2].state.angVel
+            power -= i.phys.momentBend.dot(w2 - w1)
+    state["last_pair"] = O.iter
+    return power
+
+
 def check_impacts(sample_rolling=True):
     """Particle-liner interactions made real since the previous check that start a contact of the
     particle with a part of the liner it was not touching at the previous check (the two facets of a
     segment, or a particle rolling from one chord of the plate to the next, make no new impact); the
-    sliding of every particle-liner contact (slide); no rolling resistance on new contacts without rock;
-    every rolling_every checks, the rolling moments' work (rolling_work)."""
-    sample = sample_rolling and rolling and state["checks"] % rolling_every == 0
-    rolling_power = 0.0
+    sliding of every particle-liner contact (slide); rolling resistance on new liner contacts: none
+    without rock, M <= mu_r r F_n with rock; every pair_every checks the contacts between particles
+    (pair_pass), and every rolling_every checks the rolling moments' work (rolling_work)."""
     last = state["last_check"]
     now = O.iter
     state["turn_back"] = (math.cos(-omega * O.time), math.sin(-omega * O.time))  # the liner's frame, once a check
     touching = set()
     seen = set()
     new = []
-    for i in O.interactions:
-        if not i.isReal:
-            continue
-        id1, id2 = i.id1, i.id2
-        fresh = i.iterMadeReal > last
-        if fresh and rolling:
-            if id1 not in is_rock and id2 not in is_rock:
-                i.phys.kr = 0.0
-                i.phys.momentBend = Vector3(0.0, 0.0, 0.0)
-            elif id1 in part_of or id2 in part_of:
-                # Yade takes a facet as a sphere of twice the particle's radius (R_mean = 1.5 r): the
-                # rock's own radius instead, M <= mu_r r F_n on the liner
-                i.phys.maxBendPl = rock["eta"] * O.bodies[id2 if id1 in part_of else id1].shape.radius
-        if sample and i.phys.kr > 0:
-            # the moment's power on the contact, -M . (w2 - w1) (the torque on id2 is +M, on id1 -M)
-            w1 = liner_spin if id1 in part_of else O.bodies[id1].state.angVel
-            w2 = liner_spin if id2 in part_of else O.bodies[id2].state.angVel
-            rolling_power -= i.phys.momentBend.dot(w2 - w1)
-        if fresh and id1 in is_particle and id2 in is_particle:
-            count_contact(i, id1, id2, last)
-            continue
-        part, b, sign, facet = part_of.get(id1), id2, 1.0, id1
-        if part is None:
-            part, b, sign, facet = part_of.get(id2), id1, -1.0, id2
-        if part is None or b not in is_particle:
-            continue
-        touching.add((b, part))
-        slide(i, b, part, seen, facet)
-        if i.iterMadeReal > last:
-            new.append((i, b, part, sign))
-    if sample:
-        # the rectangle rule over the sampling period: Yade's law does not count this dissipation
-        state["rolling_work"] += rolling_power * check_every * rolling_every * O.dt
+    logging = O.time >= cfg["warmup_s"]
+    # the liner's contacts from its facets' own lists: a pass over a few hundred, not the thousands
+    # between particles
+    for facet in member_ids:
+        for i in O.interactions.withBody(facet):
+            id1 = i.id1
+            b, sign = (i.id2, 1.0) if id1 == facet else (id1, -1.0)
+            if b not in is_particle:
+                continue
+            part = part_of[facet]
+            fresh = i.iterMadeReal > last
+            if fresh and rolling:
+                if b not in is_rock:
+                    i.phys.kr = 0.0
+                    i.phys.momentBend = Vector3(0.0, 0.0, 0.0)
+                else:
+                    # Yade takes a facet as a sphere of twice the particle's radius (R_mean = 1.5 r):
+                    # the rock's own radius instead, M <= mu_r r F_n on the liner
+                    i.phys.maxBendPl = rock["eta"] * O.bodies[b].shape.radius
+            touching.add((b, part))
+            slide(i, b, part, facet, seen, logging)
+            if fresh:
+                new.append((i, b, part, sign))
+    if state["checks"] % pair_every == 0:
+        sample = sample_rolling and rolling and state["checks"] % rolling_every == 0
+        power = pair_pass(sample)
+        if sample:
+            # the rectangle rule over the sampling period: Yade's law does not count this dissipation
+            state["rolling_work"] += power * check_every * rolling_every * O.dt
     for key in [k for k in slip_prev if k not in seen]:
         del slip_prev[key]
     before = state["touching"]
@@ -505,6 +536,8 @@ def every_step():
 
 if check_every % power_every:
     raise SystemExit("check_every must be a multiple of power_every")
+if rolling_every % pair_every:
+    raise SystemExit("rolling_every must be a multiple of pair_every")
 write_energy()
 state["esample"] = 1
 n_steps = int(math.ceil(t_end / O.dt / power_every)) * power_every
