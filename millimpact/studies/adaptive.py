@@ -16,8 +16,9 @@ law is wrong:
    largest of its edges' grid lines in each direction.
 3. Compute the check case at the centre of the cells whose prediction is largest (a batch at a
    time, so that every rank has a case), and compare it with the law's value there:
-   ``|e_n - law|``, ``|e_t - law|`` against ``tolerance`` and ``|F_max / law - 1|`` against 2 ``tolerance``
-   (e_t is not compared where the law has none: a cell with a normal-incidence corner).
+   ``|e_n - law|``, ``|e_t - law|`` against ``tolerance`` and ``|F_max / law - 1|`` against 2 ``tolerance``,
+   each with a margin for the cases' own scatter (``CHECK_MARGIN``: a check passes within 0.8 of
+   them; e_t is not compared where the law has none: a cell with a normal-incidence corner).
 4. A cell that misses is split: a new speed (the geometric mean of its two) where its predicted
    error along speed is the larger, else a new angle (the mean); the new grid line's cases are
    computed, and the new cells are checked in turn. A cell that meets the tolerance is not
@@ -45,6 +46,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: a check passes within this fraction of the tolerance. A check measures the law against one
+#: case, and every case carries its mesh's scatter: the plastic paper-rig table's 100 cases (10
+#: speeds x 10 angles) depart from a smooth surface (degree 5 in ln v x 4 in angle, least squares)
+#: by 0.0007 rms and 0.0025 at most in e_n, a quarter of a 0.01 tolerance; a check understating the
+#: law's error by that, or a point beside it overstating it, is covered by the margin. Measured:
+#: with checks at the full tolerance, a cell whose centre passed at 0.0087 held points at 0.0123
+#: (benchmarks/adaptive_table.py)
+CHECK_MARGIN = 0.8
 #: the quantities a law carries, and whether their error is absolute (e_n, e_t) or relative (F_max)
 QUANTITIES = (("e_n", False), ("e_t", False), ("f_max", True))
 
@@ -141,8 +150,10 @@ def _errors(values: Values, law: Values) -> Values:
 
 
 def _passes(errors: Values, tolerance: float) -> bool:
-    """Within the tolerance (2 ``tolerance`` relative for F_max); a NaN error is not checked."""
-    return not any(errors[q] > (2.0 * tolerance if rel else tolerance) for q, rel in QUANTITIES)
+    """Within ``CHECK_MARGIN`` times the tolerance (2 ``tolerance`` relative for F_max); a NaN error
+    is not checked."""
+    limit = CHECK_MARGIN * tolerance
+    return not any(errors[q] > (2.0 * limit if rel else limit) for q, rel in QUANTITIES)
 
 
 def _scaled_second_differences(xs: Sequence[float], column: Callable[[int], float]) -> list[float]:
