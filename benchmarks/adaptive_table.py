@@ -27,6 +27,9 @@ tables themselves in ``fixed/`` and ``adaptive/``.
     .venv/bin/python benchmarks/adaptive_table.py --scene hertz-halfspace --speeds 1,2.4,6 --angles 0,30 \\
         --velocity 1,6 --angle-range 0,30 --max-cases 11 --set model.h_contact=5.8e-4 --set model.h_far=0.012
                                                               # a quick look (coarse half-space, ~1 min)
+    .venv/bin/python benchmarks/adaptive_table.py --fixed-from OLD/adaptive_table_points.csv --out NEW
+        # the adaptive table alone, against the fixed table's values and time of an earlier run
+        # (computed once: a case equals the same case of any run to 1e-10; the time is not side by side)
 """
 
 from __future__ import annotations
@@ -205,24 +208,77 @@ def main() -> int:
     ap.add_argument("--set", action="append", default=[], help="FIELD=VALUE for both tables")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "adaptive_table"))
     ap.add_argument("--report-only", action="store_true", help="no runs: the report of the tables in --out")
+    ap.add_argument(
+        "--fixed-from",
+        metavar="CSV",
+        help="the fixed table's finite-element values from an earlier report's adaptive_table_points.csv "
+        "(its *_fe columns) and its time from the adaptive_table_bench.csv beside it, instead of "
+        "computing it again (its cases equal the same cases of any run to 1e-10)",
+    )
     a = ap.parse_args()
     out = Path(a.out)
-    if a.report_only:
+    fixed = None
+    if a.fixed_from:
+        fixed, fixed_run = fixed_from_report(Path(a.fixed_from))
+        out.mkdir(parents=True, exist_ok=True)
+        adaptive_run = json.loads((out / "adaptive_run.json").read_text()) if a.report_only else run_adaptive(a, out)
+    elif a.report_only:
         fixed_run, adaptive_run = (json.loads((out / f"{n}_run.json").read_text()) for n in ("fixed", "adaptive"))
     else:
         fixed_run, adaptive_run = run_both(a, out)
-    report(a, out, fixed_run, adaptive_run)
+    report(a, out, fixed_run, adaptive_run, fixed)
     return 0
+
+
+class FixedValues:
+    """A fixed table's values as :func:`compare` reads them: speeds, angles, e_n, e_t, peak_force."""
+
+    def __init__(self, rows: list[dict]):
+        self.speeds = np.array(sorted({float(r["impact_speed_m_s"]) for r in rows}))
+        self.angles = np.array(sorted({float(r["impact_angle_deg"]) for r in rows}))
+        at = {(float(r["impact_speed_m_s"]), float(r["impact_angle_deg"])): r for r in rows}
+
+        def grid(key: str) -> np.ndarray:
+            return np.array([[float(at[(v, a)][key]) for a in self.angles] for v in self.speeds])
+
+        self.e_n, self.e_t, self.peak_force = grid("e_n_fe"), grid("e_t_fe"), grid("F_max_fe")
+
+
+def fixed_from_report(points_csv: Path) -> tuple[FixedValues, dict]:
+    """The fixed table's values and its run's timing (marked as taken from that report)."""
+    import csv
+
+    with open(points_csv, newline="") as fh:
+        fixed = FixedValues(list(csv.DictReader(fh)))
+    with open(points_csv.parent / "adaptive_table_bench.csv", newline="") as fh:
+        row = next(r for r in csv.DictReader(fh) if r["table"].startswith("fixed"))
+    run = {
+        "wall_s": float(row["wall_s"]),
+        "cpu_s": float(row["cpu_s"]),
+        "peak_rss_per_rank_GB": float(row["peak_rss_per_rank_GB"]),
+        "load_1min_before": float(row["load_1min_before"]),
+        "load_1_5_15min_after": row["load_1_5_15min_after"] + " (an earlier run)",
+    }
+    return fixed, run
 
 
 def run_both(a: argparse.Namespace, out: Path) -> tuple[dict, dict]:
     """The fixed table, then the adaptive one, each in a fresh folder: their timings."""
-    for name in ("fixed", "adaptive", "mesh-cache-fixed", "mesh-cache-adaptive"):
+    for name in ("fixed", "mesh-cache-fixed"):
         shutil.rmtree(out / name, ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)
     common = ["--method", a.method, *[x for s in a.set for x in ("--set", s)]]
     fixed_run = run_table(out / "fixed", a.scene, a.ranks, ["--velocity", a.speeds, "--angle", a.angles, *common])
-    adaptive_run = run_table(
+    return fixed_run, run_adaptive(a, out)
+
+
+def run_adaptive(a: argparse.Namespace, out: Path) -> dict:
+    """The adaptive table in a fresh folder: its timing."""
+    for name in ("adaptive", "mesh-cache-adaptive"):
+        shutil.rmtree(out / name, ignore_errors=True)
+    out.mkdir(parents=True, exist_ok=True)
+    common = ["--method", a.method, *[x for s in a.set for x in ("--set", s)]]
+    return run_table(
         out / "adaptive",
         a.scene,
         a.ranks,
@@ -239,15 +295,14 @@ def run_both(a: argparse.Namespace, out: Path) -> tuple[dict, dict]:
         ],
     )
 
-    return fixed_run, adaptive_run
 
-
-def report(a: argparse.Namespace, out: Path, fixed_run: dict, adaptive_run: dict) -> None:
-    """The comparison of the law with the fixed table, the reports and the figure."""
+def report(a: argparse.Namespace, out: Path, fixed_run: dict, adaptive_run: dict, fixed=None) -> None:
+    """The comparison of the law with the fixed table (``fixed``: its values from an earlier report,
+    else the table in ``out/fixed``), the reports and the figure."""
     from millimpact.dem.export.files import law_at
     from millimpact.dem.export.table_input import read_table
 
-    fixed = read_table(out / "fixed")
+    fixed = read_table(out / "fixed") if fixed is None else fixed
     points = compare(fixed, law_at(read_table(out / "adaptive")), a.tolerance)
     doc = json.loads((out / "adaptive" / "contact_table.json").read_text())
     block = doc["adaptive"]
@@ -293,6 +348,7 @@ def report(a: argparse.Namespace, out: Path, fixed_run: dict, adaptive_run: dict
     note = (
         f"; {os.cpu_count()} cores; scene {a.scene}, method {a.method}, each table under mpirun -n {a.ranks} "
         f"--ranks-per-case 1 in its own folder (no case, mesh or reduction reused between them)"
+        + (f"; the fixed table's values and time from an earlier run ({a.fixed_from})" if a.fixed_from else "")
     )
 
     def num(x: float) -> str:
