@@ -59,9 +59,13 @@ def extra_law_files(code: str, law: ExportedLaw, stage: Path, talk: Callable[...
     work = stage / "lammps_mdr_fit"
     mdr = fit_mdr(law.table, work, on_progress=lambda line: talk(f"    {line}"))
     shutil.rmtree(work)
+    fitted = "normal-incidence points" if not mdr.fitted.all() else "points"
     talk(
-        f"  LAMMPS mdr: yield stress {mdr.yield_stress:.4g} Pa, eta_n0 {mdr.damping:.3g}, e_n residual largest {mdr.worst:.4f}, rms {mdr.rms:.4f}"
+        f"  LAMMPS mdr: yield stress {mdr.yield_stress:.4g} Pa, eta_n0 {mdr.damping:.3g}; e_n residual at the table's "
+        f"{fitted}: largest {mdr.worst:.4f} ({mdr.worst_between:.4f} with the speeds between), rms {mdr.rms:.4f}"
     )
+    if not mdr.fitted.all():
+        talk(f"  LAMMPS mdr: at the oblique points (not fitted, no normal law follows them): {mdr.worst_oblique:.4f}")
     return [write_lammps_mdr(stage, law, mdr)]
 
 
