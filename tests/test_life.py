@@ -157,11 +157,39 @@ def test_a_mass_calibration_gives_its_g_per_kwh_back(tmp_path):
     rec = _record(tmp_path)
     args = argparse.Namespace(calibration=None, calibrate_height=None, calibrate_mass=2.6, impact_ratio=0.5,
                               spread=None)
-    cal = calibrate(args, rec)
+    cal = calibrate(args, rec, {"yield_stress_Pa": 9.5e8})
     assert cal.law.impact == pytest.approx(0.5 * cal.law.abrasion, rel=1e-12)
     kg_per_1000h_per_m = sum(r["mass_kg_per_1000h_per_metre"] for r in place_rates(rec, depth_rates(rec, cal.law)).values())
     kwh_per_1000h_per_m = 2.0e5 / 1e3 * 1000
     assert 1e3 * kg_per_1000h_per_m / kwh_per_1000h_per_m == pytest.approx(2.6, rel=1e-12)
+
+
+def test_a_calibration_made_on_another_steel_is_refused(tmp_path):
+    """A calibration made on liner-segment's Cr-Mo liner serves it and is refused, one line naming
+    both steels, for the same scene with a Hadfield liner (the constants are the steel's); a file
+    that does not say which steel (an older one) is taken as it is."""
+    import argparse
+
+    from millimpact.errors import InputError
+    from millimpact.life.calibration import liner_steel
+    from millimpact.life.command import calibrate
+    from millimpact.scene.builtin import builtin_scene
+
+    crmo = liner_steel(builtin_scene("liner-segment").liner.material)
+    hadfield = liner_steel(builtin_scene("liner-segment").with_value("liner.material", "hadfield-mn-liner").liner.material)
+    rec = _record(tmp_path)
+    made = calibrate(argparse.Namespace(calibration=None, calibrate_height=None, calibrate_mass=2.6, impact_ratio=1.0,
+                                        spread=None), rec, crmo)
+    path = tmp_path / "calibration.json"
+    path.write_text(made.to_json())
+    use = argparse.Namespace(calibration=str(path), calibrate_height=None, calibrate_mass=None, spread=None)
+    assert calibrate(use, rec, crmo).law == made.law
+    with pytest.raises(InputError, match="another liner steel, Cr-Mo liner steel of yield 950 MPa, than this scene's, Hadfield .* of yield 380 MPa"):
+        calibrate(use, rec, hadfield)
+    older = json.loads(path.read_text())
+    del older["calibrated_on"]["liner_steel"]
+    path.write_text(json.dumps(older))
+    assert calibrate(use, rec, hadfield).law == made.law
 
 
 def test_metal_flow_is_the_dent_growth_over_1000_hours(tmp_path):

@@ -92,3 +92,39 @@ def scaled(law: WearLaw, factor: float, impact_ratio: float) -> WearLaw:
     return WearLaw(
         abrasion=k_a, impact=impact_ratio * k_a, hardness_Pa=law.hardness_Pa, density_kg_m3=law.density_kg_m3
     )
+
+
+def liner_steel(material) -> dict:
+    """What a calibration holds of the liner's steel (a scene's ``liner.material``): its elastic
+    and plastic data and source. The constants k_a, k_i are the steel's (its hardness and its
+    response to abrasion and impact), so a calibration serves the steel it was made on."""
+    return {
+        "density_kg_m3": material.density,
+        "shear_modulus_Pa": material.shear_modulus,
+        "yield_stress_Pa": material.yield_stress,
+        "hardening": [material.hardening_modulus, material.flow_curve, material.voce, material.swift],
+        "source": material.source,
+    }
+
+
+def check_same_steel(cal: Calibration, steel: dict, path) -> None:
+    """InputError when ``cal`` was made on another liner steel than ``steel`` (:func:`liner_steel`;
+    a calibration that does not say, or an uncalibrated one, is taken as it is)."""
+    theirs = cal.calibrated_on.get("liner_steel")
+    if not isinstance(theirs, dict):
+        return
+    ours = json.loads(json.dumps(steel))  # as the file holds it (tuples as lists)
+    keys = ("density_kg_m3", "shear_modulus_Pa", "yield_stress_Pa", "hardening")
+    if any(theirs.get(k) != ours.get(k) for k in keys):
+
+        def say(s: dict) -> str:
+            y = s.get("yield_stress_Pa")
+            curve = (s.get("hardening") or [None, None])[1]
+            y = curve[0][1] if y is None and curve else y
+            name = str(s.get("source", "")).split("(")[0].split(",")[0].strip()
+            return f"{name or 'a steel'} of yield {'(elastic)' if y is None else f'{y / 1e6:g} MPa'}"
+
+        raise InputError(
+            f"--calibration {path}: made on another liner steel, {say(theirs)}, than this scene's, {say(ours)}; "
+            "calibrate on this steel (--calibrate-height or --calibrate-mass)"
+        )

@@ -107,20 +107,23 @@ def check_args(args: argparse.Namespace) -> None:
         raise InputError(f"--revolutions {args.revolutions!r}: must lie in (0, 1000]")
 
 
-def calibrate(args, rec):
-    """The calibration the command uses: the file, the default, or one fitted on a figure."""
+def calibrate(args, rec, steel: dict):
+    """The calibration the command uses: the file (refused when made on another steel than the
+    scene's liner ``steel``, :func:`~millimpact.life.calibration.liner_steel`), the default, or one
+    fitted on a figure."""
     from .calibration import DEFAULT_LAW, DEFAULT_SPREAD, Calibration, initial_height_rate, parse_height_figure, scaled
     from .wear import depth_rates, place_rates
 
     if args.calibration is not None:
-        from .calibration import read_calibration
+        from .calibration import check_same_steel, read_calibration
 
         cal = read_calibration(args.calibration)
+        check_same_steel(cal, steel, args.calibration)
         return cal if args.spread is None else Calibration(cal.law, cal.calibrated_on, args.spread)
     spread = DEFAULT_SPREAD if args.spread is None else args.spread
     law = scaled(DEFAULT_LAW, 1.0, args.impact_ratio)
     rates = place_rates(rec, depth_rates(rec, law))
-    on = {"mill": str(rec.folder), "impact_ratio": args.impact_ratio}
+    on = {"mill": str(rec.folder), "impact_ratio": args.impact_ratio, "liner_steel": steel}
     if args.calibrate_height is not None:
         h0, h1, hours = parse_height_figure(args.calibrate_height)
         target = initial_height_rate(h0, h1, hours)
@@ -166,7 +169,9 @@ def main(args: argparse.Namespace) -> int:
     rec = read_mill_record(args.mill, lp.mill_profile(r))
     if rec.n_lifters != lp.n_lifters:
         raise InputError(f"--mill {args.mill}: a mill of {rec.n_lifters} lifters, not this scene's {lp.n_lifters}")
-    cal = calibrate(args, rec)
+    from .calibration import liner_steel
+
+    cal = calibrate(args, rec, liner_steel(scene.liner.material))
     if args.cycles > 1 and "options" not in rec.summary:
         raise InputError(f"--mill {args.mill}: its summary.json has no options to run the mill again with (--cycles 1)")
     out = args.out if args.out is not None else default_out(Path(args.scene).stem, prefix="life-")
