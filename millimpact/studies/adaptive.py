@@ -21,8 +21,11 @@ law is wrong:
    them; e_t is not compared where the law has none: a cell with a normal-incidence corner).
 4. A cell that misses is split: a new speed (the geometric mean of its two) where its predicted
    error along speed is the larger, else a new angle (the mean); the new grid line's cases are
-   computed, and the new cells are checked in turn. A cell that meets the tolerance is not
-   checked again; the cells a split makes from a cell that met it inherit its check.
+   computed, and the new cells are checked in turn: their centres are computed in the same batch
+   as the line (known before it is: a batch of two ranks' work instead of two batches that each
+   wait for their slowest case), kept as spare cases until their cell's check takes them. A cell
+   that meets the tolerance is not checked again; the cells a split makes from a cell that met it
+   inherit its check.
 5. After every new grid line, every earlier check is compared with the law as it now is
    (:func:`_recheck`): a check whose point the law now misses (its centre passed with the errors
    along speed and angle cancelling, and a split beside it uncovered one) gets the grid lines
@@ -89,11 +92,14 @@ class AdaptiveResult:
     passed: set[tuple[Point, Point]] = field(default_factory=set)
     #: the law the checks measure (default :func:`interpolate`)
     law: Law = field(default=lambda *args: interpolate(*args), repr=False)
+    #: cases computed ahead with a grid line, the centres of the cells it made (step 4), not yet a check
+    spare: dict[Point, Values] = field(default_factory=dict)
 
     @property
     def cases(self) -> int:
-        """The cases computed: the grid's and the checks' (a check a split made a grid point once)."""
-        return len(set(self.grid) | {c.point for c in self.checks})
+        """The cases computed: the grid's, the checks' (a check a split made a grid point once) and
+        the spare centres'."""
+        return len(set(self.grid) | {c.point for c in self.checks} | set(self.spare))
 
     def law_errors(self, check: Check) -> Values:
         """The check's errors against the law of the grid as it is now (a later split may have put a
@@ -222,14 +228,20 @@ def adaptive_table(
     result = AdaptiveResult(speeds, angles, {}, law=law)
     passed = result.passed
 
-    def fill_grid() -> None:
-        # a check on the new line (the centre of the cell it split) is a grid case already computed
-        checked = {c.point: c.values for c in result.checks}
+    def fill_grid(ahead: Sequence[Point] = ()) -> None:
+        # a check on the new line (the centre of the cell it split) is a grid case already computed;
+        # ``ahead``: the centres of the cells the line makes, computed in the same batch (spare)
+        known = {**result.spare, **{c.point: c.values for c in result.checks}}
         todo = [(v, a) for v in result.speeds for a in result.angles if (v, a) not in result.grid]
-        result.grid.update({p: checked[p] for p in todo if p in checked})
-        todo = [p for p in todo if p not in checked]
-        if todo:
-            result.grid.update(compute(todo))
+        result.grid.update({p: known[p] for p in todo if p in known})
+        for p in todo:
+            result.spare.pop(p, None)
+        extra = [p for p in ahead if p not in known and p not in todo]
+        todo = [p for p in todo if p not in known]
+        if todo or extra:
+            values = compute(todo + extra)
+            result.grid.update({p: values[p] for p in todo})
+            result.spare.update({p: values[p] for p in extra})
 
     fill_grid()
     while True:
@@ -244,28 +256,32 @@ def adaptive_table(
         if not cells:
             result.reached = True
             return result
-        pick = cells[:batch]
-        if result.cases + len(pick) > max_cases:
+        pick = _batch(cells, batch, result.spare)
+        centres = [_centre(c) for _, c, _ in pick]
+        needed = [p for p in centres if p not in result.spare]
+        if result.cases + len(needed) > max_cases:
             result.stopped_by_budget = True
             return result
-        centres = [_centre(c) for _, c, _ in pick]
-        values = compute(centres)
+        values = compute(needed) if needed else {}
+        values.update({p: result.spare.pop(p) for p in centres if p in result.spare})
         laws = [law(result.speeds, result.angles, result.grid, *p) for p in centres]  # before any split
-        split = False
+        missed = []
         for (_, cell, (ev, ea)), p, at in zip(pick, centres, laws):
             errors = _errors(values[p], at)
             ok = _passes(errors, tolerance)
             result.checks.append(Check(p, cell, values[p], at, errors, ok))
             if ok:
                 passed.add(cell)
-            else:
-                split = _split(result, cell, ev, ea) or split
-        if split:
-            if result.cases + _new_cases(result) > max_cases:
+            elif _split(result, cell, ev, ea):
+                missed.append(cell)
+        if missed:
+            line = _new_cases(result)
+            if result.cases + line > max_cases:
                 result.stopped_by_budget = True
                 _drop_unfilled(result)
                 return result
-            fill_grid()
+            ahead = [_centre(c) for m in missed for c in _cells_within(result, m)]
+            fill_grid(ahead if result.cases + line + len(ahead) <= max_cases else ())
         worst = result.largest_error()
         say(
             f"  adaptive: {len(result.speeds)} x {len(result.angles)} grid, {len(result.checks)} checks "
@@ -312,6 +328,28 @@ def _open_cells(result: AdaptiveResult, passed: set, tolerance: float) -> list:
     return out
 
 
+def _batch(cells: list, batch: int, spare: dict[Point, Values]) -> list:
+    """The open cells (largest prediction first) a batch checks: the first ``batch`` whose centre
+    must be computed, and every open cell whose centre was computed ahead (no case to pay)."""
+    pick, paid = [], 0
+    for c in cells:
+        free = _centre(c[1]) in spare
+        if free or paid < batch:
+            pick.append(c)
+            paid += not free
+    return pick
+
+
+def _cells_within(result: AdaptiveResult, cell: tuple[Point, Point]) -> list[tuple[Point, Point]]:
+    """The cells of the grid as it now is inside ``cell`` (a split cell's parts)."""
+    (v0, a0), (v1, a1) = cell
+    sv = [v for v in result.speeds if v0 <= v <= v1]
+    sa = [a for a in result.angles if a0 <= a <= a1]
+    if len(sa) == 1:
+        return [((sv[i], sa[0]), (sv[i + 1], sa[0])) for i in range(len(sv) - 1)]
+    return [((sv[i], sa[j]), (sv[i + 1], sa[j + 1])) for i in range(len(sv) - 1) for j in range(len(sa) - 1)]
+
+
 def _inside(cell: tuple[Point, Point], parent: tuple[Point, Point]) -> bool:
     """Whether ``cell`` lies within ``parent`` (a cell that met the tolerance)."""
     (v0, a0), (v1, a1) = cell
@@ -341,8 +379,8 @@ def _split(result: AdaptiveResult, cell, ev: float, ea: float) -> bool:
 
 
 def _new_cases(result: AdaptiveResult) -> int:
-    """The cases the grid's new lines need (a check on them is computed already)."""
-    checked = {c.point for c in result.checks}
+    """The cases the grid's new lines need (a check or a spare case on them is computed already)."""
+    checked = {c.point for c in result.checks} | set(result.spare)
     return sum(1 for v in result.speeds for a in result.angles if (v, a) not in result.grid and (v, a) not in checked)
 
 

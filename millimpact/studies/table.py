@@ -42,6 +42,7 @@ the progress.
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -279,6 +280,8 @@ class TableRun:
     group: Any
     say: Callable[..., None]
     setups: dict = field(default_factory=dict)
+    #: keep every band's reduction below this resident memory per rank (GB; 0: the current band's only)
+    keep_gb: float = 0.0
 
     @property
     def n_groups(self) -> int:
@@ -294,7 +297,17 @@ class TableRun:
         if said is not None:
             said(len(done), len(todo))
         rows = (
-            compute_cases(todo, self.method, self.options, self.folder, self.world, self.group, self.say, self.setups)
+            compute_cases(
+                todo,
+                self.method,
+                self.options,
+                self.folder,
+                self.world,
+                self.group,
+                self.say,
+                self.setups,
+                self.keep_gb,
+            )
             if todo
             else []
         )
@@ -305,6 +318,27 @@ class TableRun:
             for r in part:
                 done[r["case"]] = r
         return done
+
+
+def _resident_gb() -> float:
+    """This process's resident memory (GB; Linux /proc, 0 where it cannot be read)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return float(line.split()[1]) / 1024.0**2
+    except OSError:
+        pass
+    return 0.0
+
+
+def keep_budget_gb(world) -> float:
+    """The resident memory (GB) below which a rank keeps every band's reduction it builds: a quarter
+    of the machine's memory shared by the ranks on it (the world's ranks; 0 where unknown)."""
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 1024.0**3
+    except (ValueError, OSError, AttributeError):
+        return 0.0
+    return 0.25 * total / world.size
 
 
 def check_table_method(method: str, ranks_per_case: int) -> None:
@@ -391,7 +425,9 @@ def kept_cases_note(target: OutputFolder) -> str:
     )
 
 
-def next_case(state: np.ndarray, band_sizes: Sequence[int], current: int | None) -> tuple[int, int] | None:
+def next_case(
+    state: np.ndarray, band_sizes: Sequence[int], current: int | None, held: Sequence[int] = ()
+) -> tuple[int, int] | None:
     """Pick a group's next case from the shared ``state`` = [done, taken per band..., groups per
     band...] (updated in place): (band, index within the band), or None when all are taken.
 
@@ -399,7 +435,8 @@ def next_case(state: np.ndarray, band_sizes: Sequence[int], current: int | None)
     takes the first band in order that no group works on, so groups build different bands rather
     than each building every band (the 100-case table at 2 ranks built 12 reductions for 6
     bands); only when every band with cases left has a group does it join the one with the most
-    cases left per group."""
+    cases left per group. ``held``: the bands whose reduction the group keeps from an earlier
+    batch (an adaptive table's); among the bands it may take, it takes those first (no build)."""
     nb = len(band_sizes)
     taken, groups = state[1 : 1 + nb], state[1 + nb : 1 + 2 * nb]
     left = [band_sizes[b] - int(taken[b]) for b in range(nb)]
@@ -412,7 +449,11 @@ def next_case(state: np.ndarray, band_sizes: Sequence[int], current: int | None)
         if not open_:
             return None
         free = [b for b in open_ if groups[b] == 0]
-        band = free[0] if free else max(open_, key=lambda b: left[b] / (groups[b] + 1))
+        mine = [b for b in (free or open_) if b in held]
+        if free:
+            band = (mine or free)[0]
+        else:
+            band = max(mine or open_, key=lambda b: left[b] / (groups[b] + 1))
         groups[band] += 1
     index = int(taken[band])
     taken[band] += 1
@@ -440,13 +481,23 @@ def costliest_first(todo: Sequence[TableCase]) -> list[list[TableCase]]:
 
 
 def compute_cases(
-    todo: list[TableCase], method: str, options: dict, folder: Path, world, group, say, setups: dict | None = None
+    todo: list[TableCase],
+    method: str,
+    options: dict,
+    folder: Path,
+    world,
+    group,
+    say,
+    setups: dict | None = None,
+    keep_gb: float = 0.0,
 ) -> list[dict]:
     """This group's share of ``todo`` (``group``: this rank's group of ranks of ``world``): cases
     taken from a shared state (:func:`next_case`) on world rank 0 until none is left, each finished
     case stored as ``folder/<key>.json``; the rows this group computed (the table's and the damage
     map's bins). ``setups``: the group's reduction by band key, kept by the caller between calls
-    (the adaptive table's batches); a fresh one per call by default."""
+    (the adaptive table's batches); a fresh one per call by default. A new band's reduction is
+    added to them while this rank's resident memory is below ``keep_gb`` (GB), else replaces
+    them (0: only the current band's is kept)."""
     import numpy as np
     from mpi4py import MPI
 
@@ -474,10 +525,11 @@ def compute_cases(
         while True:
             pick = None
             if group.rank == 0:
+                held = [b for b, band in enumerate(by_band) if band[0].band_key in setups]
                 win.Lock(0, MPI.LOCK_EXCLUSIVE)
                 win.Get(state, 0)
                 win.Flush(0)
-                pick = next_case(state, sizes, current)
+                pick = next_case(state, sizes, current, held)
                 win.Put(state, 0)
                 win.Unlock(0)
             pick = group.bcast(pick, root=0)
@@ -485,9 +537,12 @@ def compute_cases(
                 break
             current = pick[0]
             case = by_band[pick[0]][pick[1]]
-            # a group takes a band's cases until none is left (next_case): a band's reduction is not
-            # needed again once it moves on; keeping them all grew a rank to 12 GB on the 100-case table
-            for band in [b for b in setups if b != case.band_key]:
+            # a group takes a band's cases until none is left (next_case): in a table computed at once
+            # a band's reduction is not needed again once it moves on, and keeping them all grew a rank
+            # to 12 GB on the 100-case table; an adaptive table's batches come back to bands
+            # (keep_gb: kept while this rank's memory allows)
+            kept = case.band_key in setups or _resident_gb() < keep_gb
+            for band in [b for b in setups if b != case.band_key and not kept]:
                 dropped = setups.pop(band)
                 release_petsc_garbage(dropped.model.V.mesh.comm)
                 destroy_petsc_tree(dropped)  # its Python handles alone would keep it (see there)

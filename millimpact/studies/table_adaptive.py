@@ -28,7 +28,7 @@ from typing import Any
 from ..errors import MillimpactError
 from ..results.output_folder import OutputFolder
 from .adaptive import QUANTITIES, AdaptiveResult, Law, Point, Values, adaptive_table, bilinear_weights
-from .table import check_table_method, define_cases, open_table, table_scene
+from .table import check_table_method, define_cases, keep_budget_gb, open_table, table_scene
 
 #: the table's columns of the law's quantities (e_n, e_t, F_max)
 ROW_KEYS = {"e_n": "restitution_normal", "e_t": "restitution_tangential", "f_max": "peak_normal_force_N"}
@@ -91,6 +91,8 @@ def run_adaptive_table(
     # is one line and no folder
     define_cases(base, [speed_range[0], speed_range[1]], sorted(set(angle_range)), [r], method, options)
     run = open_table(base, method, options, out, ranks_per_case, quiet)
+    # the batches come back to bands: each group keeps the reductions it builds while memory allows
+    run.keep_gb = keep_budget_gb(run.world)
     angles = f"{angle_range[0]:g}-{angle_range[1]:g}" if angle_range[1] > angle_range[0] else f"{angle_range[0]:g}"
     run.say(
         f"table {base.name}, adaptive: {speed_range[0]:g}-{speed_range[1]:g} m/s x {angles} deg, tolerance "
@@ -129,16 +131,19 @@ def run_adaptive_table(
         export_law(ball.mass, r),
     )
     grid = [(v, a) for v in result.speeds for a in result.angles]
-    points = grid + [c.point for c in result.checks if c.point not in set(grid)]
+    checks = [c.point for c in result.checks if c.point not in set(grid)]
+    # a spare case (a centre computed ahead whose cell a later split divided): computed, in no law
+    points = grid + checks + [p for p in result.spare if p not in set(grid) | set(checks)]
     cases = define_cases(base, [], [], [r], method, options, pairs=points)
     done = run.compute(cases)  # every case is in cases/ now: nothing is computed
     if run.world.rank != 0:
         return [], None
-    in_grid = set(grid)
+    in_grid, in_checks = set(grid), set(checks)
     rows = []
     for c in cases:
         row = dict(done[c.index], case=c.index, band=c.band)
-        row["role"] = "grid" if (c.speed, c.angle) in in_grid else "check"
+        p = (c.speed, c.angle)
+        row["role"] = "grid" if p in in_grid else "check" if p in in_checks else "spare"
         rows.append(row)
     summary = adaptive_summary(result, tolerance, max_cases, len(cases))
     with run.target.staged(keep=["cases"], collective=False) as stage:

@@ -183,7 +183,8 @@ def fit_laws(rows: Sequence[dict], base: Scene) -> dict[str, Any]:
 ROLE_COLUMN = (
     "role",
     "",
-    "grid: a case the law (bilinear in ln speed and angle) is built on; check: a case that measures its error",
+    "grid: a case the law (bilinear in ln speed and angle) is built on; check: a case that measures its "
+    "error; spare: a cell's centre computed ahead that a later split made no check",
 )
 
 

@@ -107,3 +107,25 @@ def test_a_budget_stop_after_an_angle_split_keeps_the_computed_grid():
     res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=11)
     assert res.stopped_by_budget and (len(res.speeds), len(res.angles)) == (3, 3)
     assert res.largest_error()["e_n"] > 0.01
+
+
+def test_a_new_lines_cells_are_checked_from_the_batch_that_computed_it():
+    """The kink law of test_the_grid_grows_at_a_kink: a split's grid line is computed with the centres
+    of the cells it makes (one batch: the ranks busy on both instead of two batches each waiting for
+    its slowest case). Every such centre is then either a check or a grid point (a later split through
+    it) or left as a spare case, counted in the cases; every compute call after the start grid that
+    carries a grid line carries cell centres with it."""
+    def law(v, a):
+        return {"e_n": 0.9 - 0.25 * max(math.log(v / 2.0), 0.0), "e_t": 0.6, "f_max": 1e4 * (3 + math.log(v))}
+
+    compute, calls = _compute(law)
+    res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=200)
+    assert res.reached
+    computed = [p for c in calls for p in c]
+    assert len(computed) == len(set(computed)) == res.cases  # no case computed twice, every one counted
+    used = set(res.grid) | {c.point for c in res.checks}
+    assert set(computed) == used | set(res.spare)
+    assert len(res.spare) <= 2  # the centres computed ahead are nearly all used
+    # fewer batches than cases: the lines' batches carry their cells' centres
+    line_batches = [c for c in calls[1:] if any(p in res.grid for p in c)]
+    assert line_batches and all(any(p not in res.grid for p in c) for c in line_batches)

@@ -236,6 +236,27 @@ def test_groups_take_different_bands():
     assert sorted(t for t in taken if t) == [(0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2)]
 
 
+def test_a_group_takes_the_band_it_holds_first():
+    """next_case with ``held`` (an adaptive table's group keeps its reductions between batches): the
+    first group, holding band 1's reduction, takes band 1 rather than the dearest band 0; the second
+    then starts band 0 (no group on it); when every open band has a group, a group joins the one it
+    holds rather than the one with the most cases left. Without ``held``, the order is today's."""
+    from millimpact.studies.table import next_case
+
+    sizes = [3, 1]
+    state = np.zeros(1 + 2 * len(sizes), dtype="i8")
+    assert next_case(state, sizes, None, held=[1]) == (1, 0)
+    assert next_case(state, sizes, None) == (0, 0)
+    # band 1 is done: the first group leaves it and joins band 0 (the only band left)
+    assert next_case(state, sizes, 1, held=[1]) == (0, 1)
+    sizes = [4, 2]
+    state = np.zeros(1 + 2 * len(sizes), dtype="i8")
+    assert next_case(state, sizes, None) == (0, 0) and next_case(state, sizes, None) == (1, 0)
+    # a third group, holding band 1: both bands have a group; it joins band 1, not band 0 (3 left of 4)
+    assert next_case(state, sizes, None, held=[1]) == (1, 1)
+    assert next_case(state, sizes, None) == (0, 1)
+
+
 def test_bands_and_cases_are_taken_dearest_first():
     """costliest_first: the band with the fastest normal speed comes first, and within a band the
     case with the fastest normal speed (angle 0 before 60 deg); every case once. Two radii: at equal

@@ -94,8 +94,8 @@ def read_table(folder: Path | str) -> ContactTable:
         or any(not isinstance(r, dict) or any(k not in r for k in NEEDED) for r in rows)
     ):
         raise _not_a_table(folder, f"contact_table.json rows lack the columns {', '.join(NEEDED)}")
-    # an adaptive table's checks measure its law between the grid's cases; the law is the grid's
-    rows = [r for r in rows if r.get("role", "grid") != "check"]
+    # an adaptive table's checks (and spare cases) lie between the grid's cases; the law is the grid's
+    rows = [r for r in rows if r.get("role", "grid") == "grid"]
     adaptive = doc.get("adaptive") if isinstance(doc.get("adaptive"), dict) else None
     ok = [r for r in rows if str(r["status"]).startswith("ok")]
     if not ok:
