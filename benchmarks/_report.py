@@ -18,17 +18,23 @@ def timed_run(cmd: list[str], ranks: int, cwd: Path) -> tuple[int, float, float]
     return timed_run_cpu(cmd, ranks, cwd)[:3]
 
 
-def timed_run_cpu(cmd: list[str], ranks: int, cwd: Path) -> tuple[int, float, float, float]:
+def timed_run_cpu(cmd: list[str], ranks: int, cwd: Path, log: Path | None = None
+                  ) -> tuple[int, float, float, float]:
     """:func:`timed_run` and the CPU time (s, user + system) of the process and the descendants
     it waited for, from the same ``wait4``: on a loaded machine the wall time is inflated, the CPU
-    time much less."""
+    time much less. ``log``: a file for the run's output (stdout and stderr), else the terminal."""
     if ranks > 1:
         cmd = ["mpirun", "-n", str(ranks), *cmd]
     env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
            "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+    fh = open(log, "w") if log is not None else None
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=cwd, env=env)
-    _, status, usage = os.wait4(proc.pid, 0)
+    try:
+        proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=fh, stderr=subprocess.STDOUT if fh else None)
+        _, status, usage = os.wait4(proc.pid, 0)
+    finally:
+        if fh is not None:
+            fh.close()
     return (os.waitstatus_to_exitcode(status), time.perf_counter() - t0, usage.ru_maxrss / 1024**2,
             usage.ru_utime + usage.ru_stime)
 

@@ -135,6 +135,11 @@ def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path):
     second = json.loads((life / "mills" / "cycle-1" / "summary.json").read_text())
     assert second["mill"]["lifter_height_m"] * 1e3 == pytest.approx(rows[1]["lifter_height_mm"], rel=1e-9)
     assert rows[1]["net_power_kW_m"] > 0
+    # the stage times: the re-run's lap holds its Yade run (Yade's own clock, in the re-run's summary)
+    t, laps = s["wall_time_s"], s["wall_time_s_per_cycle"]
+    assert len(laps["mill_reruns"]) == 1 and laps["mill_reruns"][0] >= second["yade"]["wall_s"]
+    assert t["mill_reruns"] == pytest.approx(sum(laps["mill_reruns"]), rel=1e-12)
+    assert sum(v for k, v in t.items() if k != "total") == pytest.approx(t["total"], rel=1e-12)
 
 
 def _record(tmp_path, power_W_m=2.0e5):
@@ -275,6 +280,41 @@ def test_twice_the_hours_wear_twice_the_depth_on_a_fixed_profile():
     a, b = worn_profile(lp, one), worn_profile(lp, two)
     assert lp.height - b.height == pytest.approx(2.0 * (lp.height - a.height), rel=1e-12)
     assert b.plate_wear == pytest.approx(2.0 * a.plate_wear, rel=1e-12)
+
+
+def test_the_loop_times_each_cycle_and_each_mill_rerun(tmp_path, monkeypatch):
+    """run_life over 3 cycles with a mill runner that sleeps 0.4 s: one lap of wear and profile
+    update per cycle, one mill re-run (and one read of it) per cycle but the last; each re-run's lap
+    at least its 0.4 s and less than 0.3 s over (the fake's own work is microseconds; room for a
+    loaded machine); the clock's stages and other add up to its total (to round-off)."""
+    import dataclasses
+    import time
+
+    from millimpact.commandkit.timing import StageClock
+    from millimpact.life import loop
+
+    summary = {"power": {"measured": {"net_per_metre_W_m": 1e5}}, "toe_deg": -30, "shoulder_deg": 130,
+               "impacts_per_revolution": {"all": 1.0}, "energy_per_revolution_J": {"all": 1.0}}
+    worn = {}
+
+    def record(lp):
+        return dataclasses.replace(_unit_record(lp), summary=summary)
+
+    def run_mill_on(lp, cycle):
+        time.sleep(0.4)
+        worn["lp"] = lp
+        return tmp_path
+
+    monkeypatch.setattr(loop, "read_mill_record", lambda folder, profile: record(worn["lp"]))
+    lp = _lifter()
+    law = WearLaw(abrasion=1e-3, impact=0.0, hardness_Pa=3e9, density_kg_m3=7850.0)
+    clock = StageClock()
+    steps, _, why = loop.run_life(lp, record(lp), law, 300.0, 3, (1.0, 1.0), run_mill_on, 0.0625, clock=clock)
+    assert why is None and len(steps) == 4
+    assert len(clock.laps["wear_and_profile"]) == 3 and len(clock.laps["read"]) == 2
+    assert len(clock.laps["mill_reruns"]) == 2 and all(0.4 <= t < 0.7 for t in clock.laps["mill_reruns"])
+    t = clock.record()
+    assert sum(v for k, v in t.items() if k != "total") == pytest.approx(t["total"], rel=1e-12)
 
 
 def test_an_unworn_profile_is_the_scenes_own():

@@ -190,15 +190,27 @@ def command_scene(args: argparse.Namespace):
     return resolve(args.scene, args.set, {"impact.velocity": "the bins' speeds and angles (from IMPACTS)"})
 
 
+#: the stages of damage.json's wall_time_s, in the words of the last lines
+STAGE_WORDS = {
+    "bins": "bins (table cases)",
+    "repeated_impacts": "repeated impacts",
+    "plan": "binning and placing",
+    "read_impacts": "reading the log",
+    "report": "outputs",
+}
+
+
 def main(args: argparse.Namespace) -> int:
     from mpi4py import MPI
 
     from ..commandkit.settings import parse_options
+    from ..commandkit.timing import StageClock, time_line
     from ..console import sayer
     from ..dem.impacts import ball_impacts, kind_totals, read_impacts
     from ..results.output_folder import claim_output, default_out
     from .damage_map import MapSettings, plan_map, run_damage_map
 
+    clock = StageClock()
     check_settings(args)
     scene = command_scene(args)
     if scene.liner is None:
@@ -210,7 +222,8 @@ def main(args: argparse.Namespace) -> int:
     check_log_liner(scene, path)
     world = MPI.COMM_WORLD
     say = sayer(args.quiet, world)
-    logged = read_impacts(path, say)
+    with clock.stage("read_impacts"):
+        logged = read_impacts(path, say)
     # the map computes the balls' impacts; the rock's (a SAG charge's log) are set beside them per place
     impacts = ball_impacts(logged)
     if len(impacts) == 0:
@@ -235,12 +248,16 @@ def main(args: argparse.Namespace) -> int:
     if world.size % args.ranks_per_case or args.ranks_per_case > world.size:
         raise InputError(f"--ranks-per-case {args.ranks_per_case}: must divide the number of ranks ({world.size})")
     # bins, placed scenes, cases: a setting every bin hits is one line before any folder
-    prepared = plan_map(scene, impacts, settings, say)
+    with clock.stage("plan"):
+        prepared = plan_map(scene, impacts, settings, say)
     out = args.out if args.out is not None else default_out(Path(args.scene).stem, prefix="damage-")
     # before computing: checks, lock, leftovers (collective); an interruption's one line says which
     # finished bins and sequences are kept (damage_map.kept_bins_note)
     target = claim_output(out, "damage", force=args.force, comm=world)
-    run_damage_map(scene, impacts, target, settings, str(path), quiet=args.quiet, comm=world, prepared=prepared)
+    summary = run_damage_map(
+        scene, impacts, target, settings, str(path), quiet=args.quiet, comm=world, prepared=prepared, clock=clock
+    )
+    say("  " + time_line(summary["wall_time_s"], STAGE_WORDS))
     if not args.quiet and world.rank == 0:
         print(
             f"  results in {target.shown}/ (damage.csv, bins.csv, profile.csv, damage.json, damage_map.png)"

@@ -17,6 +17,7 @@ import numpy as np
 
 from .. import __version__
 from ..commandkit.store import PieceStore, kept_note
+from ..commandkit.timing import StageClock
 from ..console import sayer
 from ..dem.impacts import Impact, impact_column
 from ..errors import InputError
@@ -37,6 +38,13 @@ SUBYIELD_PLASTIC_FLAG = 1e-6
 RADIUS_MISMATCH = 0.05
 #: what a map keeps in its folder as it goes (finished bins, finished sequences): reused by a rerun
 KEPT = ("cases", "repeat")
+#: what damage.json's wall_time_s holds
+WALL_TIME_IS = (
+    "this command's wall seconds on rank 0: reading the impact log (read_impacts), binning and placing "
+    "the bins (plan), the bins' table cases (bins), the repeated-impact sequences (repeated_impacts), the "
+    "outputs up to this file (report), the rest (other) and the whole (total); bins and sequences taken "
+    "from DIR/cases and DIR/repeat cost nothing"
+)
 
 
 @dataclass
@@ -170,6 +178,7 @@ def run_damage_map(
     quiet: bool = False,
     comm=None,
     prepared: MapPlan | None = None,
+    clock: StageClock | None = None,
 ) -> dict:
     """Compute the damage map of ``impacts`` on the liner ``scene`` into ``out``, a folder or one
     claimed with :func:`~millimpact.results.output_folder.claim_output` (docs/outputs.md); returns
@@ -177,13 +186,18 @@ def run_damage_map(
     finish (:data:`KEPT`); the reports are staged and published at the end (rank 0).
     ``case_runner`` (default: the table engine) and ``run_sequence`` / ``classify`` (default:
     :mod:`millimpact.repeat.sequence`) may be given; ``prepared``: the map's :func:`plan_map`
-    (made here, before the folder is touched, when not given)."""
+    (made here, before the folder is touched, when not given); ``clock``: the command's
+    :class:`~millimpact.commandkit.timing.StageClock`, whose stages end in ``wall_time_s``."""
     rank = 0 if comm is None else comm.rank
+    clock = StageClock() if clock is None else clock
     say = sayer(quiet, comm)
     st = settings
     if run_sequence is None:
         check_repeat_method(st.method, st.repeat_impacts)
-    plan = prepared if prepared is not None else plan_map(scene, impacts, st, say)
+    if prepared is None:
+        with clock.stage("plan"):
+            prepared = plan_map(scene, impacts, st, say)
+    plan = prepared
     target = out if isinstance(out, OutputFolder) else claim_output(out, "damage", comm=comm)
     out = target.open(KEPT, note=lambda: kept_bins_note(target))
     if comm is not None:
@@ -196,7 +210,8 @@ def run_damage_map(
 
     choice, bcs, edges = plan.choice, plan.bin_cases, plan.edges
     runner = case_runner or table_runner(st.method, st.options, st.ranks_per_case)
-    rows = compute_bin_rows(bcs, out / "cases", runner, say, comm)
+    with clock.stage("bins"):
+        rows = compute_bin_rows(bcs, out / "cases", runner, say, comm)
     per_bin, shares = accumulate(
         impacts, choice.bins, rows, scene.ball.material.density, scene.ball.mass, st.revolutions, st.lifters
     )
@@ -222,9 +237,10 @@ def run_damage_map(
                     f"{r['plastic_dissipation_J']:.3g} J (counted as 0)"
                 )
     slice_length = st.slice_length_m or liner_of(scene).length
-    repeats = _repeat_responses(
-        scene, choice, bcs, per_bin, places, st, out, slice_length, run_sequence, classify, comm, say, warn
-    )
+    with clock.stage("repeated_impacts"):
+        repeats = _repeat_responses(
+            scene, choice, bcs, per_bin, places, st, out, slice_length, run_sequence, classify, comm, say, warn
+        )
     profile = profile_rates(impacts, shares, st.cell_m, st.revolutions, st.lifters)
     bin_rows = [_bin_row(bc, rows.get(bc.bin.index, {}), per_bin.get(bc.bin.index, {}), edges) for bc in bcs]
     summary = {
@@ -246,8 +262,13 @@ def run_damage_map(
     if rank == 0:
         from .report import write_outputs
 
-        with target.staged(keep=KEPT, collective=False) as stage:
-            write_outputs(stage, summary, places, bin_rows, profile, impacts, scene.liner, st.revolutions, st.lifters)
+        def timing() -> dict:  # damage.json's, taken just before it is written
+            return {"wall_time_s": clock.record(), "wall_time_is": WALL_TIME_IS}
+
+        with target.staged(keep=KEPT, collective=False) as stage, clock.stage("report"):
+            write_outputs(
+                stage, summary, places, bin_rows, profile, impacts, scene.liner, st.revolutions, st.lifters, timing
+            )
     for p, t in places.items():
         growth = t["dent_growth_m_per_rev"]
         say(
@@ -255,7 +276,7 @@ def run_damage_map(
             f"plastic work {t['plastic_work_J_per_rev']:.4g} J/rev; repeat: {t['repeat_verdict']}"
             + (f", dent growth {growth:.3g} m/rev at a spot" if math.isfinite(growth) else "")
         )
-    return {**summary, "places": places, "bins": bin_rows}
+    return {**summary, "places": places, "bins": bin_rows, "wall_time_s": clock.record()}
 
 
 def _repeat_responses(

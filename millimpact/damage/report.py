@@ -1,6 +1,6 @@
 """The damage map's files (rank 0): ``damage.csv`` (one row per place), ``bins.csv`` (one row per
 bin), ``profile.csv`` (rates along the profile), ``damage.json`` (the summary: the bin choice,
-the places, the warnings, the model's limits) and ``damage_map.png`` (the liner's profile
+the places, the warnings, the model's limits, the wall time per stage) and ``damage_map.png`` (the liner's profile
 coloured by plastic work per revolution beside the impact-energy spectrum).
 
 Each file is written to a temporary name and renamed; ``damage.json`` comes last and says
@@ -12,7 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -119,8 +119,10 @@ def write_outputs(
     liner,
     revolutions: float,
     lifters: int,
+    times: Callable[[], dict] | None = None,
 ) -> None:
-    """Write the map's files into ``out`` (module docstring); ``damage.json`` last."""
+    """Write the map's files into ``out`` (module docstring); ``damage.json`` last, with the
+    entries ``times()`` gives just before it (the command's wall time per stage)."""
     out = Path(out)
     head = [
         f"millimpact {__version__} damage map of scene '{summary['scene']}' from {summary['impacts_file']}",
@@ -148,7 +150,8 @@ def write_outputs(
     write_atomic(
         out / "damage_map.png", lambda tmp: plot_map(tmp, profile, impacts, liner, revolutions, lifters, places)
     )
-    full = {**summary, "places": places, "bins": bin_rows, "model_limits": LIMITS, "complete": True}
+    timing = times() if times is not None else {}
+    full = {**summary, "places": places, "bins": bin_rows, "model_limits": LIMITS, **timing, "complete": True}
     write_atomic(out / "damage.json", lambda tmp: tmp.write_text(json.dumps(full, indent=1, default=_jsonable)))
 
 

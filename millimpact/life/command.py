@@ -144,8 +144,18 @@ def calibrate(args, rec, steel: dict):
     return cal
 
 
+#: the stages of summary.json's wall_time_s, in the words of the last line
+STAGE_WORDS = {
+    "mill_reruns": "mill re-runs (DEM)",
+    "wear_and_profile": "wear and profile update",
+    "read": "reading mill runs",
+    "report": "outputs",
+}
+
+
 def main(args: argparse.Namespace) -> int:
     from ..commandkit.settings import command_scene
+    from ..commandkit.timing import StageClock, time_line
     from ..console import sayer
     from ..results.output_folder import claim_output, default_out
     from ..results.timeseries import write_summary
@@ -153,6 +163,7 @@ def main(args: argparse.Namespace) -> int:
     from .report import life_summary, write_life_outputs
     from .wear import read_mill_record
 
+    clock = StageClock()
     check_args(args)
     scene = command_scene(args.scene, args.set)
     if scene.liner is None or not scene.liner.mill_radius > 0:
@@ -166,7 +177,8 @@ def main(args: argparse.Namespace) -> int:
         if limit >= 1e3 * new:
             raise InputError(f"{name} {limit:g} mm: must be below the new liner's {1e3 * new:g} mm")
     r = scene.ball.radius
-    rec = read_mill_record(args.mill, lp.mill_profile(r))
+    with clock.stage("read"):
+        rec = read_mill_record(args.mill, lp.mill_profile(r))
     if rec.n_lifters != lp.n_lifters:
         raise InputError(f"--mill {args.mill}: a mill of {rec.n_lifters} lifters, not this scene's {lp.n_lifters}")
     from .calibration import liner_steel
@@ -178,10 +190,12 @@ def main(args: argparse.Namespace) -> int:
     target = claim_output(out, "life", force=args.force)
     with target.staged(collective=False) as stage:
         runner = _mill_runner(scene, rec, stage, args) if args.cycles > 1 else None
-        summary = life_summary(args, scene, lp, rec, cal, runner, say)
-        write_life_outputs(stage, summary, rec, cal, plots=not args.no_plots)
-        write_summary(stage, summary)
-        (stage / "calibration.json").write_text(cal.to_json() + "\n")
+        summary = life_summary(args, scene, lp, rec, cal, runner, say, clock)
+        with clock.stage("report"):
+            write_life_outputs(stage, summary, rec, cal, plots=not args.no_plots)
+            (stage / "calibration.json").write_text(cal.to_json() + "\n")
+            summary.update(wall_times(clock))
+            write_summary(stage, summary)
     first = summary["relining"]
     say(
         f"life: {summary['rates'][0]['top']['mean_mm_per_1000h']:.3g} mm per 1000 h off the lifters' tops, "
@@ -189,8 +203,20 @@ def main(args: argparse.Namespace) -> int:
         f"{summary['rates'][0]['plate']['mean_mm_per_1000h']:.3g} off the plate; relining after "
         f"{first['hours']:.0f} h ({first['criterion']})"
     )
+    say(time_line(summary["wall_time_s"], STAGE_WORDS))
     say(f"results in {target.shown}/" + target.replaced_note())
     return 0
+
+
+def wall_times(clock) -> dict:
+    """summary.json's wall times (s): per stage of the command, and per cycle."""
+    return {
+        "wall_time_s": clock.record(),
+        "wall_time_s_per_cycle": {k: list(clock.laps.get(k, [])) for k in ("wear_and_profile", "mill_reruns")},
+        "wall_time_is": "this command's wall seconds: reading the mill runs (read), the wear and profile update "
+        "(wear_and_profile), the mill re-run on each worn profile (mill_reruns, DEM), the outputs and figures "
+        "(report), the rest (other: the scene, the calibration, ...) and the whole (total)",
+    }
 
 
 def _mill_runner(scene, rec, stage: Path, args):

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..commandkit.timing import StageClock
 from .profile import LifterProfile, worn_profile
 from .wear import MillRecord, WearLaw, depth_rates, place_rates, read_mill_record, surface_depths
 
@@ -62,19 +63,23 @@ def run_life(
     run_mill_on: Callable[[LifterProfile, int], Path] | None,
     ball_radius: float,
     say: Callable[[str], None] = lambda s: None,
+    clock: StageClock | None = None,
 ) -> tuple[list[LifeStep], list[dict], str | None]:
     """The steps (the profile at 0, hours/cycles, ...), the per-surface rates of each cycle's mill
     run, and the relining reason if reached. ``run_mill_on(profile, cycle)`` runs the mill on a
-    worn profile and returns its folder (None: one cycle only)."""
+    worn profile and returns its folder (None: one cycle only). ``clock`` gets a lap of
+    ``wear_and_profile`` per cycle, of ``mill_reruns`` per re-run and of ``read`` per re-run read."""
+    clock = StageClock() if clock is None else clock
     dt = hours / cycles
     steps = [LifeStep(0.0, lp, mill_state(first))]
     rates_per_cycle = []
     rec, why = first, None
     for k in range(cycles):
-        rates = depth_rates(rec, law)
-        rates_per_cycle.append(place_rates(rec, rates))
-        depths = surface_depths(rec, rates, dt)
-        lp = worn_profile(lp, depths)
+        with clock.stage("wear_and_profile"):
+            rates = depth_rates(rec, law)
+            rates_per_cycle.append(place_rates(rec, rates))
+            depths = surface_depths(rec, rates, dt)
+            lp = worn_profile(lp, depths)
         largest = max((float(d.max()) for _, d in depths.values() if d.size), default=0.0)
         steps[-1].largest_step_depth_mm = 1e3 * largest
         say(
@@ -85,7 +90,10 @@ def run_life(
         why = relined(lp, *reline)
         last = k == cycles - 1 or why is not None
         if not last and run_mill_on is not None:
-            rec = read_mill_record(run_mill_on(lp, k + 1), lp.mill_profile(ball_radius))
+            with clock.stage("mill_reruns"):
+                folder = run_mill_on(lp, k + 1)
+            with clock.stage("read"):
+                rec = read_mill_record(folder, lp.mill_profile(ball_radius))
         steps.append(LifeStep(steps[-1].hours + dt, lp, {} if last or run_mill_on is None else mill_state(rec)))
         if why is not None:
             break

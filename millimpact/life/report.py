@@ -9,7 +9,9 @@
 - ``summary.json``: the rates per surface for every cycle (mean and largest mm per 1000 h, shares
   of abrasion and impact, kg per 1000 h per metre of mill length), the metal flow beside them, the
   hours to relining per criterion at the calibration's constants and at their spread, the place
-  that fails first, the calibration;
+  that fails first, the calibration; the command's wall time per stage (``wall_time_s``: reading
+  the mill runs, the wear and profile update, the mill re-runs, the outputs, the rest and the
+  whole, s; ``wall_time_s_per_cycle``: each cycle's update and each re-run);
 - ``wear.png`` (rates along the unit, the new profile drawn), ``profiles.png`` (the profiles over
   time, like a liner scan), ``height_angle.png`` (lifter height and face angles against hours).
 
@@ -50,10 +52,13 @@ def metal_flow(damage: str | None, rpm: float) -> dict | None:
     return out
 
 
-def life_summary(args, scene, lp, rec, cal, runner, say) -> dict:
-    """Run the life (:func:`~millimpact.life.loop.run_life`) and gather summary.json."""
+def life_summary(args, scene, lp, rec, cal, runner, say, clock=None) -> dict:
+    """Run the life (:func:`~millimpact.life.loop.run_life`, its stages timed on ``clock``) and
+    gather summary.json."""
     reline = (args.reline_height, args.reline_plate)
-    steps, rates, why = run_life(lp, rec, cal.law, args.hours, args.cycles, reline, runner, scene.ball.radius, say)
+    steps, rates, why = run_life(
+        lp, rec, cal.law, args.hours, args.cycles, reline, runner, scene.ball.radius, say, clock
+    )
     first = rates[0]
     spread = {
         f"{label}": hours_to_reline(lp, first, reline, f)

@@ -238,6 +238,35 @@ def test_an_interrupted_map_keeps_its_bins_and_a_rerun_continues(tmp_path):
     assert res["places"] == whole["places"]
 
 
+def test_damage_json_gives_each_stage_its_own_wall_time(tmp_path):
+    """damage.json's wall_time_s: a case runner that sleeps 0.5 s a case (one bin) and a sequence
+    that sleeps 0.5 s an impact (3 impacts at the one place) put at least 0.5 s in the bins and
+    1.5 s in the repeated impacts, each less than 0.5 s over (the fakes' own work is milliseconds;
+    0.5 s is room for a loaded machine, and less than the 1 s between the two, so swapped stages
+    fail); the stages and other add up to the total (to round-off)."""
+    import time
+
+    class SlowRunner(FakeRunner):
+        def __call__(self, todo, folder, say):
+            time.sleep(0.5 * len(todo))
+            super().__call__(todo, folder, say)
+
+    def slow_sequence(scene, impacts, **kw):
+        time.sleep(0.5 * len(impacts))
+        return fake_sequence(scene, impacts, **kw)
+
+    out = tmp_path / "m"
+    out.mkdir()
+    res = run_damage_map(SCENE, [_impact(3.0, 1.0)] * 3, out, MapSettings(revolutions=1.0, repeat_impacts=3),
+                         case_runner=SlowRunner(), run_sequence=slow_sequence, classify=fake_classify, quiet=True)
+    t = json.loads((out / "damage.json").read_text())["wall_time_s"]
+    assert 0.5 <= t["bins"] < 1.0 and 1.5 <= t["repeated_impacts"] < 2.0
+    assert set(t) == {"plan", "bins", "repeated_impacts", "report", "other", "total"}
+    assert sum(v for k, v in t.items() if k != "total") == pytest.approx(t["total"], rel=1e-12)
+    # the file's figures are taken just before it is written: the returned ones, after, are no smaller
+    assert res["wall_time_s"]["total"] >= t["total"] and t["report"] > 0
+
+
 # --- bad input: one line, exit 2, no folder ----------------------------------------------------
 def _write(path: Path, header, rows):
     with open(path, "w", newline="") as fh:
