@@ -244,10 +244,10 @@ def run_engine(
         a_range,
         tolerance,
         len(group.engine),
-        START,
-        batch,
-        lambda s: say(f"  {s}"),
-        map_law,
+        start=START,
+        batch=batch,
+        say=lambda s: say(f"  {s}"),
+        law=map_law,
     )
     return result
 
