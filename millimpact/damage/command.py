@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..results.output_folder import FORCE_HELP, OUT_HELP
+from .adaptive_bins import BINS_FROM, DEFAULT_BINS_FROM
 
 HELP = "the liner's damage map: energy, plastic work and dent growth per place and revolution"
 
@@ -29,6 +30,9 @@ plastic work, the dent growth (shakedown or ratcheting, impacts to shakedown) an
 largest plastic strain: damage.csv, bins.csv, profile.csv, damage.json, damage_map.png.
 Speed bins keep Thornton's restitution within --restitution-tolerance across each bin, with the
 yield-onset speed V_y as an edge (bins below it add no plastic work); at most --max-bins bins.
+With --bins-from adaptive, a placed scene's bins are read from the adaptive table engine's cases
+where they need fewer cases than the bins, within --restitution-tolerance (damage.json's
+bins_from says where and the largest checked error); else, and by default, each bin is one case.
 Finished bins are kept in DIR/cases and DIR/repeat: a rerun continues an interrupted map.
 The model stops at small strain (plastic strain ~0.1), removes no material (no wear) and has no
 fatigue cracking.
@@ -69,6 +73,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=0.02,
         metavar="DE",
         help="largest spread of Thornton's restitution across a speed bin (default 0.02)",
+    )
+    p.add_argument(
+        "--bins-from",
+        choices=BINS_FROM,
+        default=DEFAULT_BINS_FROM,
+        help="the bins' responses: adaptive (a placed scene's bins interpolated from the adaptive table "
+        "engine's cases where they need fewer cases than the bins, within --restitution-tolerance; else one "
+        f"case per bin) or cases (one case per bin); default {DEFAULT_BINS_FROM}",
     )
     p.add_argument("--angle-bins", type=int, default=2, metavar="N", help="angle bins per place (default 2)")
     p.add_argument(
@@ -234,6 +246,7 @@ def main(args: argparse.Namespace) -> int:
         slice_length_m=args.slice_length,
         max_bins=args.max_bins,
         tolerance=args.restitution_tolerance,
+        bins_from=args.bins_from,
         angle_bins=args.angle_bins,
         arc_bins=args.arc_bins,
         cell_m=args.cell,

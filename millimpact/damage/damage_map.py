@@ -26,10 +26,11 @@ from ..results.output_folder import OutputFolder, claim_output
 from ..scene.schema import Scene
 from ..scene.toml_io import scene_to_dict
 from .accumulate import accumulate, dent_trend, dominant_bin, place_extent, place_totals, profile_rates
+from .adaptive_bins import DEFAULT_BINS_FROM, check_bins_from, compute_map_rows
 from .bins import choose_bins, describe, yield_onset_speed
 from .edges import fit_contacts
 from .places import liner_of, place_scene
-from .responses import BinCase, CaseRunner, compute_bin_rows, define_bin_cases, finite, run_repeat, table_runner
+from .responses import BinCase, CaseRunner, define_bin_cases, finite, run_repeat, table_runner
 
 #: a bin at or below V_y whose table case reports more plastic work than this fraction of its
 #: kinetic energy is flagged (the map counts no plastic work there: Thornton 1997)
@@ -64,6 +65,8 @@ class MapSettings:
     petsc_options: dict = field(default_factory=dict)
     repeat_impacts: int = 6
     ranks_per_case: int = 1
+    #: the bins' rows: "adaptive" (the table engine's grid where it saves cases) or "cases" (one per bin)
+    bins_from: str = DEFAULT_BINS_FROM
     #: the log's rock impacts per place (:func:`millimpact.dem.impacts.kind_totals`), set beside the balls'
     rock_per_place: dict | None = None
 
@@ -105,6 +108,7 @@ def plan_map(
         warnings.append(text)
         say(f"  warning: {text}")
 
+    check_bins_from(st.bins_from)
     v_y = yield_onset_speed(scene)
     choice = choose_bins(impacts, v_y, st.max_bins, st.tolerance, st.angle_bins, st.arc_bins)
     say(
@@ -210,8 +214,11 @@ def run_damage_map(
 
     choice, bcs, edges = plan.choice, plan.bin_cases, plan.edges
     runner = case_runner or table_runner(st.method, st.options, st.ranks_per_case)
+    groups = (comm.size if comm is not None else 1) // st.ranks_per_case
     with clock.stage("bins"):
-        rows = compute_bin_rows(bcs, out / "cases", runner, say, comm)
+        rows, bins_from = compute_map_rows(
+            bcs, out / "cases", runner, say, comm, st.bins_from, choice.tolerance, st.method, st.options, max(2, groups)
+        )
     per_bin, shares = accumulate(
         impacts, choice.bins, rows, scene.ball.material.density, scene.ball.mass, st.revolutions, st.lifters
     )
@@ -255,6 +262,7 @@ def run_damage_map(
         "options": st.options,
         "repeat_impacts": st.repeat_impacts,
         "binning": choice.report(),
+        "bins_from": bins_from,
         "warnings": warnings,
         "repeats": {p: r for p, r in repeats.items()},
         "base_scene": scene_to_dict(scene),
@@ -355,12 +363,14 @@ def _bin_row(bc: BinCase, r: dict, pb: dict, edges: dict) -> dict:
         "restitution_tangential": finite(r.get("restitution_tangential")),
         "table_plastic_dissipation_J": finite(r.get("plastic_dissipation_J")),
         "residual_dent_depth_m": finite(r.get("residual_dent_depth_m")),
+        "peak_normal_force_N": finite(r.get("peak_normal_force_N")),
         "impacts_per_rev": pb.get("impacts_per_rev", math.nan),
         "energy_absorbed_J_per_rev": pb.get("energy_absorbed_J_per_rev", math.nan),
         "plastic_work_J_per_rev": pb.get("plastic_work_J_per_rev", math.nan),
         "contact_margin_m": edges.get(b.index, {}).get("contact_margin_m", math.nan),
         "edge_shift_m": edges.get(b.index, {}).get("edge_shift_m", math.nan),
-        "case_key": bc.case.key if bc.case else "",
+        "case_key": bc.case.key if bc.case and not r.get("interpolated_from") else "",
+        "response": ("interpolated" if r.get("interpolated_from") else "case") if r else "",
         "status": (r.get("status", "not computed") if bc.case else "refused"),
         "note": bc.refused or bc.placed.note,
     }
