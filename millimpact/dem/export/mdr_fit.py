@@ -34,7 +34,12 @@ On the plastic rig's table (0.5, 2, 6 m/s x 0, 40 deg): Y 0.922 GPa, eta_n0 0.19
 0.0465 at normal incidence over 0.5-6 m/s (rms 0.039 at the points), the 40 deg points within
 0.029; ~160 s. mdr cannot follow it to 0.03: below V_y its e_n is one value where the table's falls,
 and above V_y it falls faster (v^(-0.24) against v^(-0.14)); no (Y, eta_n0) of a 41 x 33 map does
-better than 0.044. The measurements, and the settings tried: docs/development/module-notes.md.
+better than 0.044. The damping cannot help: LAMMPS takes no damping but its mdr class with mdr
+(velocity, viscoelastic, tsuji, ... stop at init), and its class 2 (eta_n = eta_n0 kg/s) makes e_n
+rise with speed below V_y; mapped, its best is 0.041 (Y 0.826 GPa, 261 kg/s; the 40 deg points
+0.052 off, and a dashpot in kg/s does not scale with the ball). Above V_y both classes fall as
+v^(-0.24), undamped mdr as v^(-0.26): that slope alone keeps a law 0.035 off the table's 2 or 6 m/s
+point. The measurements, and the settings tried: docs/development/module-notes.md.
 """
 
 from __future__ import annotations
