@@ -18,6 +18,18 @@ os.environ.setdefault("OMPI_MCA_ess_singleton_isolated", "1")
 # ranks beside the other worker: one BLAS thread a process (a serial run alone takes its cores,
 # millimpact/__init__.py), set here so that every process the tests start keeps it
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# each test worker's MPI processes keep their session directories under a folder of their own: Open
+# MPI's singletons share /tmp/ompi.<host>.<uid>/ otherwise, and one finishing removes that folder
+# while another, started by the other worker, is creating its own inside it ("A call to mkdir was
+# unable to create the desired directory: /tmp/ompi.vm.0/jf.0", MPI_Init aborts): seen once in a
+# clean-clone run of the suite on 2 workers. Set in every process that loads this file (the
+# controller and each worker: a worker inherits the controller's environment)
+import atexit  # noqa: E402
+import tempfile  # noqa: E402
+
+_ompi_tmp = tempfile.mkdtemp(prefix="millimpact-tests-ompi-")
+os.environ["OMPI_MCA_orte_tmpdir_base"] = _ompi_tmp
+atexit.register(shutil.rmtree, _ompi_tmp, ignore_errors=True)
 # OpenBLAS's kernels for this CPU (OPENBLAS_CORETYPE, millimpact/__init__.py), chosen before numpy
 # loads OpenBLAS in this process and kept by every process the tests start
 import millimpact  # noqa: E402,F401
