@@ -543,8 +543,8 @@ def compute_cases(
             # a band's reduction is not needed again once it moves on, and keeping them all grew a rank
             # to 12 GB on the 100-case table; an adaptive table's batches come back to bands
             # (keep_gb: kept while this rank's memory allows)
-            kept = case.band_key in setups or _resident_gb() < keep_gb
-            for band in [b for b in setups if b != case.band_key and not kept]:
+            keep_others = case.band_key in setups or _resident_gb() < keep_gb
+            for band in [] if keep_others else [b for b in setups if b != case.band_key]:
                 dropped = setups.pop(band)
                 release_petsc_garbage(dropped.model.V.mesh.comm)
                 destroy_petsc_tree(dropped)  # its Python handles alone would keep it (see there)
