@@ -112,6 +112,9 @@ def read_mill_record(folder: Path | str, profile: MillProfile) -> MillRecord:
             imp_acc.get((surf, k), 0.0) + (1 - e[i.kind] ** 2) * 0.5 * i.mass_kg * i.normal_speed_m_s**2
         )
     keys |= set(imp_acc)
+    # every bin of every surface, so that means and face lines count the bins nothing touched as 0
+    for name, (a, b) in zip(SURFACES, profile.unit_surfaces()):
+        keys |= {(name, k) for k in range(int(a // w), int(math.ceil(b / w))) if a <= (k + 0.5) * w < b}
     order = sorted(keys, key=lambda sk: sk[1])
     arch = {(r["surface"], int(round(float(r["surface_position_m"]) / w - 0.5))): 0.0 for r in rows}
     for r in rows:
