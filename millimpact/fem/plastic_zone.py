@@ -120,6 +120,8 @@ class PlasticZone:
         self._cache: dict = {}
         #: evaluations without the tangent by the compiled pass (:mod:`.return_map_kernel`); False: numpy
         self.compiled = True
+        #: the time step (s) the integrator is taking: a strain-rate factor's dg / dt (None: none)
+        self.time_step: float | None = None
         self._kernel: CompiledPass | Literal[False] | None = None  # False: tried, none here
         self._compiled_force: np.ndarray | None = None
 
@@ -171,7 +173,7 @@ class PlasticZone:
                 eps_p, alpha, slots = self.plastic_strain[k], self.alpha[k], self._slots[k]
             else:
                 eps_p, alpha, slots = picked[k]
-            res = return_map(zone.material, eps, eps_p, alpha, tangent)
+            res = return_map(zone.material, eps, eps_p, alpha, tangent, self.time_step)
             if pos is None:
                 # sigma - C eps = -C eps_p,n+1 (sigma = C (eps - eps_p,n+1)): the frozen force's
                 # own expression where a point stays elastic
@@ -226,7 +228,7 @@ class PlasticZone:
             f[:] = 0.0
         positions = self._candidates if restricted else [np.arange(len(c)) for c in self.cells]
         n_yield, trial = self._compiled().evaluate(
-            u, positions, self.plastic_strain, self.alpha, f, keep_state=not restricted
+            u, positions, self.plastic_strain, self.alpha, f, keep_state=not restricted, dt=self.time_step
         )
         self._compiled_force = f
         self._trial = None if restricted else trial
@@ -585,7 +587,8 @@ def create_plastic_zone(model, zone_materials) -> PlasticZone | None:
     for tag, mat in zone_materials:
         flow = flow_curve_from_fields(mat.initial_yield_stress, mat.hardening_modulus, tabulated(mat))
         if flow is not None:
-            zones.append(ZoneMaterial(tag, J2Material(mat.youngs_modulus, mat.poisson, flow)))
+            rate = None if mat.johnson_cook_rate is None else tuple(float(x) for x in mat.johnson_cook_rate)
+            zones.append(ZoneMaterial(tag, J2Material(mat.youngs_modulus, mat.poisson, flow, rate)))
     if not zones:
         return None
     return PlasticZone(model.V, model.meshdata.cell_tags, zones, model.bcs)

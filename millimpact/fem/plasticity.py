@@ -17,6 +17,16 @@ dg solves q_tr - 3 G dg - sigma_y(alpha_n + dg) = 0 (one linear solve for linear
 Newton per point for a tabulated curve), then n = sqrt(3/2) dev sigma_tr / q_tr (unit Mandel
 vector), eps_p += sqrt(3/2) dg n, alpha += dg, sigma = sigma_tr - 2 G sqrt(3/2) dg n.
 
+Strain rate (optional, ``J2Material.rate = (C, rate0)``): Johnson and Cook's factor (G. R. Johnson
+and W. H. Cook, Proc. 7th Int. Symp. on Ballistics, The Hague, 1983, 541-547, eq. 1) multiplies
+the flow stress, sigma_y(alpha) (1 + C ln(alpha_dot / rate0)) for alpha_dot > rate0 (1 below),
+with alpha_dot = dg / dt over the step (backward Euler, the step ``dt`` the caller gives; none: the
+rate-independent map). The consistency equation becomes q_tr - 3 G dg - sigma_y(alpha_n + dg)
+R(dg) = 0, R = 1 + C ln(dg / (rate0 dt)); its root lies between rate0 dt and the rate-independent
+dg (where the left side is <= 0), and a Newton iteration kept inside that bracket (bisection
+where a step leaves it) finds it. In the tangent H becomes d (sigma_y R) / d dg = H R +
+sigma_y C / dg.
+
 Consistent tangent (de Souza Neto et al. eq. 7.120): at a yielding point
 
     C_t = C - 6 G^2 dg / q_tr P_dev + 6 G^2 (dg / q_tr - 1 / (3 G + H)) n (x) n,
@@ -173,6 +183,7 @@ class J2Material:
     youngs_modulus: float
     poisson: float
     flow: FlowCurve
+    rate: tuple[float, float] | None = None  #: Johnson-Cook's (C, reference rate 1/s), the module docstring
 
     @property
     def shear_modulus(self) -> float:
@@ -228,13 +239,62 @@ def _consistency(flow: FlowCurve, q_tr: np.ndarray, alpha: np.ndarray, G: float)
     raise PlasticityError(f"return map: the consistency equation did not converge at {bad} point(s)")
 
 
+def _consistency_with_rate(
+    flow: FlowCurve, q_tr: np.ndarray, alpha: np.ndarray, G: float, c: float, dg0: float
+) -> np.ndarray:
+    """dg solving q_tr - 3 G dg - sigma_y(alpha + dg) (1 + c ln(dg / dg0)) = 0 where the
+    rate-independent root exceeds dg0 = rate0 dt (that root elsewhere): Newton kept inside the
+    bracket [dg0, rate-independent root] (the module docstring)."""
+    hi = _consistency(flow, q_tr, alpha, G)
+    dg = hi.copy()
+    act = np.flatnonzero(hi > dg0)
+    if not act.size:
+        return dg
+    q, al, lo, up = q_tr[act], alpha[act], np.full(act.size, dg0), hi[act].copy()
+    x = up.copy()
+    tol = CONSISTENCY_RTOL * flow.yield_stress
+    for _ in range(4 * CONSISTENCY_MAX_ITERATIONS):
+        rf = 1.0 + c * np.log(x / dg0)
+        sy = flow.flow_stress(al + x)
+        r = q - 3.0 * G * x - sy * rf
+        if np.all(np.abs(r) <= tol):
+            dg[act] = x
+            return dg
+        pos = r > 0
+        lo = np.where(pos, x, lo)
+        up = np.where(pos, up, x)
+        step = x + r / (3.0 * G + flow.slope(al + x) * rf + sy * c / x)
+        inside = (step > lo) & (step < up)
+        x = np.where(inside, step, 0.5 * (lo + up))
+    raise PlasticityError(
+        f"return map: the rate-dependent consistency equation did not converge at {int(np.count_nonzero(np.abs(r) > tol))} point(s)"
+    )
+
+
+def rate_factor(material: J2Material, dg: np.ndarray, dt: float | None) -> np.ndarray:
+    """Johnson-Cook's 1 + C ln(dg / (rate0 dt)) (1 where the rate is below rate0 or no rate is set)."""
+    dg = np.asarray(dg, dtype=float)
+    if material.rate is None or dt is None:
+        return np.ones_like(dg)
+    c, rate0 = material.rate
+    ratio = np.maximum(dg / (rate0 * dt), 1.0)
+    return 1.0 + c * np.log(ratio)
+
+
 def return_map(
-    material: J2Material, strain: np.ndarray, plastic_strain: np.ndarray, alpha: np.ndarray, tangent: bool = True
+    material: J2Material,
+    strain: np.ndarray,
+    plastic_strain: np.ndarray,
+    alpha: np.ndarray,
+    tangent: bool = True,
+    dt: float | None = None,
 ) -> ReturnMapResult:
     """Radial return of total strains ``strain`` (n, 6) from the committed state (plastic strain
     (n, 6), alpha (n,)); see the module docstring for the equations. ``tangent=False`` leaves the
-    consistent tangent out (``None``): an iteration on the elastic operator needs none."""
+    consistent tangent out (``None``): an iteration on the elastic operator needs none. ``dt`` (s):
+    the step, for a material with a strain-rate factor (ignored without one)."""
     G, flow = material.shear_modulus, material.flow
+    rated = material.rate is not None and dt is not None
     strain, plastic_strain, alpha = (np.asarray(x, dtype=float) for x in (strain, plastic_strain, alpha))
     # the trial stress C (eps - eps_p), elementwise: dev sigma_tr = 2 G dev(eps - eps_p), so
     # q_tr = sqrt(3/2) 2 G |dev(eps - eps_p)| and n = dev / |dev|
@@ -252,7 +312,10 @@ def return_map(
     work = np.zeros(len(strain))
     y = np.flatnonzero(yielding)  # integer rows: a boolean mask gathers 10x slower when few yield
     if y.size:
-        dg = _consistency(flow, q_tr[y], alpha[y], G)
+        if rated:
+            dg = _consistency_with_rate(flow, q_tr[y], alpha[y], G, material.rate[0], material.rate[1] * dt)
+        else:
+            dg = _consistency(flow, q_tr[y], alpha[y], G)
         d = dev[y]
         d.T[...] *= np.sqrt(1.5) * dg / dev_norm[y]  # sqrt(3/2) dg n, n = dev / |dev| (unit Mandel normal)
         deps_p[y] = d
@@ -264,6 +327,9 @@ def return_map(
             n = dev[y] / dev_norm[y, None]
             C = material.elastic_matrix()
             H = flow.slope(alpha_new[y])
+            if rated:  # d (sigma_y R) / d dg (the module docstring)
+                rf = rate_factor(material, dg, dt)
+                H = H * rf + np.where(rf > 1.0, flow.flow_stress(alpha_new[y]) * material.rate[0] / dg, 0.0)
             a = 6.0 * G * G * dg / q_tr[y]
             b = 6.0 * G * G * (dg / q_tr[y] - 1.0 / (3.0 * G + H))
             C_t[y] = C[None] - a[:, None, None] * P_DEV[None] + b[:, None, None] * np.einsum("pi,pj->pij", n, n)

@@ -53,7 +53,7 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
                const double *weights, const int *dofs, const double *jinv, const double *det,
                const double *u, const double *eps_p, const double *alpha,
                double G, double K, int n_pts, const double *a, const double *s, const double *k,
-               double tol, int max_it, double *f,
+               double rate_c, double rate_dg0, double tol, int max_it, double *f,
                double *stress_out, double *deps_out, double *dg_out, unsigned char *yield_out);
 """
 
@@ -74,7 +74,9 @@ static int segment(int n, const double *a, double alpha)
    ref_grad (n_q, n_nodes, 3) the reference gradients, weights (n_q), dofs (cells, n_nodes) block
    indices into u and f (3 per node), jinv (cells, 3, 3) J^-1, det (cells) |det J|, eps_p
    (cells * n_q, 6) and alpha (cells * n_q) the committed state; the flow table has n_pts rows
-   (a linear curve: one row, a = 0, s = yield stress, k = hardening modulus); tol (Pa) both the
+   (a linear curve: one row, a = 0, s = yield stress, k = hardening modulus); rate_c > 0: Johnson-
+   Cook's C, the flow stress times 1 + C ln(dg / rate_dg0) where dg > rate_dg0 = rate0 dt
+   (plasticity._consistency_with_rate); tol (Pa) both the
    yield test's margin and the consistency equation's (plasticity.CONSISTENCY_RTOL). f is added to.
    With stress_out (not NULL) the trial state is kept per point (ip * n_q + q): the stress (6),
    the plastic strain increment (6), dg (the increment of alpha) and whether it yields. */
@@ -82,7 +84,7 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
                const double *weights, const int *dofs, const double *jinv, const double *det,
                const double *u, const double *eps_p, const double *alpha,
                double G, double K, int n_pts, const double *a, const double *s, const double *k,
-               double tol, int max_it, double *f,
+               double rate_c, double rate_dg0, double tol, int max_it, double *f,
                double *stress_out, double *deps_out, double *dg_out, unsigned char *yield_out)
 {
     const double s2 = sqrt(2.0), s15 = sqrt(1.5);
@@ -145,6 +147,23 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
                     if (fabs(q_tr - 3.0 * G * dg - (s[i1] + k[i1] * (al + dg - a[i1]))) > tol)
                         return -1 - (int)p;
                 }
+            }
+            if (rate_c > 0.0 && dg > rate_dg0) {
+                /* the rate-dependent root lies in [rate_dg0, dg]: Newton kept inside the bracket */
+                double lo = rate_dg0, up = dg, x = dg, r = 0.0;
+                int ok = 0;
+                for (int it = 0; it < 4 * max_it; it++) {
+                    int i1 = segment(n_pts, a, al + x);
+                    const double rf = 1.0 + rate_c * log(x / rate_dg0);
+                    const double sy = s[i1] + k[i1] * (al + x - a[i1]);
+                    r = q_tr - 3.0 * G * x - sy * rf;
+                    if (fabs(r) <= tol) { ok = 1; break; }
+                    if (r > 0.0) lo = x; else up = x;
+                    const double nx = x + r / (3.0 * G + k[i1] * rf + sy * rate_c / x);
+                    x = (nx > lo && nx < up) ? nx : 0.5 * (lo + up);
+                }
+                if (!ok) return -1 - (int)p;
+                dg = x;
             }
             /* d eps_p = sqrt(3/2) dg dev / |dev|; the stress correction -C d eps_p (Mandel) */
             const double scale = s15 * dg / nrm;
@@ -282,17 +301,20 @@ def zone_force(
     max_iterations: int,
     f: np.ndarray,
     state: tuple | None = None,
+    dt: float | None = None,
 ) -> int:
     """Add the cells' (``pos``, positions in the zone's cells) force correction beyond the frozen
     one, -int B^T C d eps_p dV, to ``f`` (the local array, ghosts included) for the displacement
     ``u`` (local array); returns the number of yielding points, or -1 - (a point's index) where
     the consistency equation failed. ``state``: arrays (stress (n, 6), d eps_p (n, 6), d alpha (n,),
-    yielding (n,) bool) filled with the trial state of the cells' points, in ``pos`` order."""
+    yielding (n,) bool) filled with the trial state of the cells' points, in ``pos`` order; ``dt``
+    (s) the step, for a material with a strain-rate factor."""
     ffi, lib = module.ffi, module.lib
     pos = np.ascontiguousarray(pos, dtype=np.int32)
     plastic_strain = np.ascontiguousarray(plastic_strain, dtype=float)
     alpha = np.ascontiguousarray(alpha, dtype=float)
     a, s, k = table
+    rate_c, rate_dg0 = (0.0, 0.0) if material.rate is None or dt is None else (material.rate[0], material.rate[1] * dt)
 
     def ptr(arr, kind="double *"):
         return ffi.cast(kind, arr.ctypes.data)
@@ -323,6 +345,8 @@ def zone_force(
             ptr(a),
             ptr(s),
             ptr(k),
+            rate_c,
+            rate_dg0,
             tol,
             max_iterations,
             ptr(f),
@@ -358,6 +382,7 @@ class CompiledPass:
         alpha: Sequence[np.ndarray],
         f: np.ndarray,
         keep_state: bool,
+        dt: float | None = None,
     ) -> tuple[int, list[ReturnMapResult | None]]:
         """Per body, return-map the points of the cells at ``positions`` (in its cell list) from the
         committed (``plastic_strain``, ``alpha``) and add their force correction beyond the frozen
@@ -389,6 +414,7 @@ class CompiledPass:
                 CONSISTENCY_MAX_ITERATIONS,
                 f,
                 state,
+                dt,
             )
             if n < 0:
                 raise PlasticityError(

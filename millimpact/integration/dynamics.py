@@ -65,9 +65,11 @@ class NonlinearZone(Protocol):
     ``evaluate(u, candidates_only=True)`` then return-maps those alone (f_c elsewhere the frozen
     one); such a state is confirmed by a full evaluation before it is committed. ``compiled``
     chooses the compiled pass for the evaluations without the tangent (``evaluate(u, False)``);
-    ``version`` changes whenever the committed state does."""
+    ``version`` changes whenever the committed state does; ``time_step`` is the step (s) the
+    integrator takes (a strain-rate law's dg / dt)."""
 
     compiled: bool
+    time_step: float | None
 
     @property
     def version(self) -> int: ...

@@ -171,6 +171,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
 
     # --- one step -------------------------------------------------------------------------------
     def step(self, dt: float, t_new: float, step: int, allow_reject: bool) -> bool:
+        self.zone.time_step = dt  # a strain-rate factor's dg / dt
         op = self._ops(dt)
         self.friction_rtol = PASS_RTOL  # the test of the last solve (the step's first: none)
         self._predictor_rhs(dt)

@@ -60,6 +60,14 @@ class ProjectedPlasticZone:
     def compiled(self, value: bool) -> None:
         self.zone.compiled = value
 
+    @property
+    def time_step(self) -> float | None:
+        return self.zone.time_step
+
+    @time_step.setter
+    def time_step(self, value: float | None) -> None:
+        self.zone.time_step = value
+
     def evaluate(self, q: PETSc.Vec, tangent: bool = True, candidates_only: bool = False) -> int:
         return self.zone.evaluate(self._expand(q), tangent, candidates_only)
 

@@ -39,6 +39,11 @@ MATERIAL_DOCS: dict[str, tuple[str, str, str]] = {
         "[K > 0, 0 < eps0 <= 1, 0 <= n < 1]",
         "Swift hardening, sigma_y = K (eps0 + eps_p)^n, yield at K eps0^n (instead of Y, H or a flow curve)",
     ),
+    "johnson_cook_rate": (
+        "-, 1/s",
+        "[0 < C <= 0.5, 0 < rate0 <= 1e6], with a plastic law",
+        "strain-rate factor 1 + C ln(rate / rate0) on the flow stress above rate0 (Johnson-Cook)",
+    ),
     "source": ("", "text", "where the values come from (paper, standard or datasheet)"),
 }
 

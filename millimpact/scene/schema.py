@@ -49,7 +49,9 @@ class Material:
     beside the table: ``voce = [Q, b]`` with ``yield_stress`` Y, sigma_y = Y + Q (1 - exp(-b eps_p))
     (E. Voce, J. Inst. Metals 74 (1948) 537), or ``swift = [K, eps0, n]``, sigma_y = K (eps0 +
     eps_p)^n (H. W. Swift, J. Mech. Phys. Solids 1 (1952) 1), its yield stress K eps0^n
-    (:mod:`millimpact.fem.hardening` tabulates them for the return map)."""
+    (:mod:`millimpact.fem.hardening` tabulates them for the return map). A strain-rate factor:
+    ``johnson_cook_rate = [C, rate0]``, the flow stress times 1 + C ln(rate / rate0) above the
+    reference rate rate0 (1/s; G. R. Johnson and W. H. Cook, 7th Int. Symp. Ballistics, 1983)."""
 
     density: float = 7800.0
     shear_modulus: float = 70.0e9
@@ -59,6 +61,7 @@ class Material:
     flow_curve: tuple[tuple[float, float], ...] | None = None
     voce: tuple[float, float] | None = None
     swift: tuple[float, float, float] | None = None
+    johnson_cook_rate: tuple[float, float] | None = None
     source: str = ""
 
     def validate(self, where: str) -> None:
@@ -125,6 +128,16 @@ class Material:
                 )
             if not (math.isfinite(q) and q >= 0 and math.isfinite(b) and b > 0):
                 raise SceneError(f"{where}.voce", list(self.voce), "must be [Q >= 0 Pa, b > 0]")
+        if self.johnson_cook_rate is not None:
+            c, rate0 = (float(x) for x in self.johnson_cook_rate)
+            if not self.plastic:
+                raise SceneError(f"{where}.johnson_cook_rate", list(self.johnson_cook_rate), "needs a plastic material")
+            if not (math.isfinite(c) and 0 < c <= 0.5 and math.isfinite(rate0) and 0 < rate0 <= 1e6):
+                raise SceneError(
+                    f"{where}.johnson_cook_rate",
+                    list(self.johnson_cook_rate),
+                    "must be [0 < C <= 0.5, 0 < rate0 <= 1e6 1/s]",
+                )
         if self.swift is not None:
             k, e0, n = (float(x) for x in self.swift)
             if not (math.isfinite(k) and k > 0 and 0 < e0 <= 1 and 0 <= n < 1):

@@ -72,3 +72,49 @@ def test_the_table_is_dense_where_the_curves_bend():
     a = strains()
     assert a[0] == 0.0 and a[-1] == pytest.approx(3.0) and np.all(np.diff(a) > 0)
     assert a[1] < 1e-4  # the first segment is short: Swift bends hardest at alpha 0
+
+
+#: tensile tests spanning the steels the package meets: an annealed carbon steel, a quenched and
+#: tempered one, a hardened one (Y, S_u, e_u; representative values, the functions' domain)
+TENSILE = [(295e6, 395e6, 0.25), (1100e6, 1300e6, 0.08), (1860e6, 1980e6, 0.04)]
+
+
+@pytest.mark.parametrize("law", ["swift", "voce"])
+@pytest.mark.parametrize("y, su, eu", TENSILE)
+def test_a_law_from_a_tensile_test_necks_where_the_test_did(law, y, su, eu):
+    """The law fitted to (Y, S_u, e_u), driven through a uniaxial tension by the return map on its
+    table (true strain eps, engineering stress S = sigma exp(-eps), engineering strain e = exp(eps)
+    - 1): it yields at Y, its largest S is S_u and lies at e_u. Tolerances: the table's 0.1 % and
+    Considere's condition taken on the plastic strain (the elastic share sigma / E of the strain
+    increment, < 1 %) give S_max within 0.3 %; the maximum is flat (S'' ~ -sigma_u / n there), so
+    the strain at the largest S on a grid of 0.02 % strain is within 10 % of e_u."""
+    from test_plasticity import uniaxial
+
+    from millimpact.fem.hardening import swift_from_tensile, voce_from_tensile
+
+    E, nu = 205e9, 0.3
+    if law == "swift":
+        mat = Material(swift=swift_from_tensile(y, su, eu, E))
+    else:
+        mat = Material(yield_stress=y, voce=voce_from_tensile(y, su, eu, E))
+    mat.validate("block.material")
+    assert mat.initial_yield_stress == pytest.approx(y, rel=1e-9)
+    j2 = J2Material(E, nu, FlowCurve(mat.initial_yield_stress, 0.0, tabulated(mat)))
+    eps = np.arange(1, int(2.0 * np.log1p(eu) / 2e-4)) * 2e-4
+    res, _, _ = uniaxial(j2, eps)
+    s_eng = res[:, 0] * np.exp(-eps)
+    k = int(np.argmax(s_eng))
+    assert s_eng[k] == pytest.approx(su, rel=3e-3)
+    assert np.expm1(eps[k]) == pytest.approx(eu, rel=0.1)
+
+
+def test_a_steel_that_necks_before_it_hardens_enough_has_no_voce_law():
+    """Y = 0.99 S_u with e_u = 0.25: (sigma_u - Y) / (sigma_u alpha_u) = 0.96 < 1, so no Voce law
+    with its yield at Y necks at e_u; Swift's law exists (its condition ln(sigma_u / Y) > alpha_u
+    holds whenever Y <= S_u, since alpha_u < ln(1 + e_u)) and necks there."""
+    from millimpact.fem.hardening import swift_from_tensile, voce_from_tensile
+
+    with pytest.raises(ValueError, match="no Voce law"):
+        voce_from_tensile(990e6, 1000e6, 0.25, 205e9)
+    k, e0, n = swift_from_tensile(990e6, 1000e6, 0.25, 205e9)
+    assert k * e0**n == pytest.approx(990e6)
