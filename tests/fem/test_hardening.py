@@ -118,3 +118,23 @@ def test_a_steel_that_necks_before_it_hardens_enough_has_no_voce_law():
         voce_from_tensile(990e6, 1000e6, 0.25, 205e9)
     k, e0, n = swift_from_tensile(990e6, 1000e6, 0.25, 205e9)
     assert k * e0**n == pytest.approx(990e6)
+
+
+@pytest.mark.parametrize("name, y, su, n", [
+    ("aisi-1020-as-rolled", 260e6, 441e6, 0.19),
+    ("aisi-4142-qt450", 1378e6, 1413e6, 0.051),
+    ("aisi-4142-qt205", 1688e6, 2240e6, 0.091),
+])
+def test_named_steels_swift_laws_come_from_their_tensile_data(name, y, su, n):
+    """Each tensile-data steel's Swift law is the one swift_from_tensile gives for its source's
+    yield, tensile strength and uniform true strain n (Considere), to the file's 6 digits."""
+    import math
+
+    from millimpact.fem.hardening import swift_from_tensile
+    from millimpact.scene.materials import named_material
+
+    fields = named_material(name, "block.material")
+    mat = Material(**{k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()})
+    fitted = swift_from_tensile(y, su, math.expm1(n), mat.youngs_modulus)
+    assert mat.swift == pytest.approx(fitted, rel=1e-5)
+    assert mat.initial_yield_stress == pytest.approx(y, rel=1e-4)
