@@ -462,28 +462,45 @@ class PlasticZone:
             self._qp_xyz = [X.eval(c).reshape(-1, 3) if len(c) else np.zeros((0, 3)) for c in self.cells]
         return self._qp_xyz
 
-    def plastic_strain_near(self, points: np.ndarray) -> np.ndarray:
-        """The committed plastic strain (Mandel, (n_points, 6)) at the zone's quadrature point
-        nearest each point (global over ranks; zeros where the zone is farther than a cell)."""
-        key = ("near", self.version, np.asarray(points, dtype=float).tobytes())
+    def _state_near(
+        self, points: np.ndarray, zone_tag: int | None = None
+    ) -> list[tuple[np.ndarray, float, float] | None]:
+        """Per point, (plastic strain (Mandel, 6), alpha, flow stress sigma_y(alpha) in Pa) of the
+        committed state at the quadrature point nearest it of the zones (or of the zone with cell
+        tag ``zone_tag``), over all ranks (None where no such zone has a point)."""
+        key = ("near", self.version, zone_tag, np.asarray(points, dtype=float).tobytes())
         if key in self._cache:
             return self._cache[key]
         qps = self.quadrature_points()
-        out = np.zeros((len(points), 6))
-        for i, x in enumerate(np.asarray(points, dtype=float)):
+        out: list[tuple[np.ndarray, float, float] | None] = []
+        for x in np.asarray(points, dtype=float):
             best = (np.inf, -1, -1)
             for k, xyz in enumerate(qps):
-                if len(xyz):
+                if len(xyz) and zone_tag in (None, self.zones[k].cell_tag):
                     d = np.linalg.norm(xyz - x, axis=1)
                     j = int(np.argmin(d))
                     best = min(best, (float(d[j]), k, j))
             dist = self.comm.allgather(best[0])
             owner = int(np.argmin(dist))
-            value = self.plastic_strain[best[1]][best[2]] if self.comm.rank == owner and best[1] >= 0 else None
-            value = self.comm.bcast(value, root=owner)
-            out[i] = value if value is not None else 0.0
+            value = None
+            if self.comm.rank == owner and best[1] >= 0:
+                k, j = best[1], best[2]
+                a = float(self.alpha[k][j])
+                value = (self.plastic_strain[k][j].copy(), a, float(self.zones[k].material.flow.flow_stress(a)))
+            out.append(self.comm.bcast(value, root=owner))
         self._cache[key] = out
         return out
+
+    def plastic_strain_near(self, points: np.ndarray) -> np.ndarray:
+        """The committed plastic strain (Mandel, (n_points, 6)) at the zone's quadrature point
+        nearest each point (global over ranks; zeros where no zone has a point)."""
+        return np.array([np.zeros(6) if v is None else v[0] for v in self._state_near(points)]).reshape(-1, 6)
+
+    def flow_stress_near(self, points: np.ndarray, zone_tag: int | None = None) -> np.ndarray:
+        """The committed flow stress sigma_y(alpha) (Pa; the rate-independent curve, a hardness
+        test's) at the quadrature point nearest each point of the zones (or of the zone with cell
+        tag ``zone_tag``; NaN where none has a point)."""
+        return np.array([np.nan if v is None else v[2] for v in self._state_near(points, zone_tag)])
 
     def boundary_plastic_strain(self, interface_facets: np.ndarray) -> float:
         """The largest committed alpha in the zone cells that touch the zone/region interface

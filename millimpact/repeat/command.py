@@ -173,7 +173,7 @@ def main(args: argparse.Namespace) -> int:
             for note in summary["notes"]:
                 say(f"  note: {note}")
             say(
-                f"  results in {target.shown}/ (impacts.csv, restitution.png, dent.png, summary.json, summary.txt)"
+                f"  results in {target.shown}/ ({', '.join([*summary['files'], 'summary.json', 'summary.txt'])})"
                 + target.replaced_note()
             )
     return 0

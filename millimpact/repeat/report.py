@@ -4,7 +4,9 @@
 :data:`millimpact.repeat.sequence.OUTCOME_COLUMNS` (SI; the unit is each name's suffix,
 restitutions and the plastic strain dimensionless), with a ``#`` header saying so.
 Figures: ``restitution.png`` (e_n, and e_t for oblique impacts, against the impact number),
-``dent.png`` (dent depth and the plastic work of each impact against the impact number).
+``dent.png`` (dent depth and the plastic work of each impact against the impact number),
+``hardening.png`` for a plastic target (the surface hardness 3 sigma_y in HB at the impact point and
+the dent's diameter against the impact number).
 ``summary.json``: the scene, method, impacts, the verdict (:func:`millimpact.repeat.verdict.classify`)
 with its numbers, per-impact details (energy balance, rotation, launch shift, wall time) and the
 small-strain note; written last, its presence marks a complete sequence.
@@ -22,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..commandkit.store import write_atomic
-from .sequence import OUTCOME_COLUMNS, ImpactOutcome, ImpactSpec
+from .sequence import HB_PER_PA, OUTCOME_COLUMNS, ImpactOutcome, ImpactSpec
 from .verdict import Verdict
 
 
@@ -58,7 +60,10 @@ def read_impacts_csv(path: Path) -> list[ImpactOutcome]:
     for ln in rows[1:]:
         vals = dict(zip(head, ln.split(",")))
         out.append(
-            ImpactOutcome(impact=int(vals["impact"]), **{c: float(vals[c]) for c in OUTCOME_COLUMNS if c != "impact"})
+            ImpactOutcome(
+                impact=int(vals["impact"]),
+                **{c: float(vals.get(c, "nan")) for c in OUTCOME_COLUMNS if c != "impact"},
+            )
         )
     return out
 
@@ -102,7 +107,25 @@ def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -
     fig.tight_layout()
     fig.savefig(folder / "dent.png", dpi=120)
     plt.close(fig)
-    return ["restitution.png", "dent.png"]
+    names = ["restitution.png", "dent.png"]
+    hb = np.array([o.surface_flow_stress_Pa for o in outcomes]) * HB_PER_PA
+    if np.any(np.isfinite(hb)):
+        fig, ax = plt.subplots(figsize=(6.4, 4.0))
+        ax.plot(k, hb, "o-", color="C2", label="surface hardness")
+        ax.set_xlabel("impact number")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_ylabel("surface hardness 3 sigma_y (HB)", color="C2")
+        ax2 = ax.twinx()
+        ax2.plot(k, [2e3 * o.residual_dent_radius_m for o in outcomes], "s--", color="C0", label="dent diameter")
+        ax2.set_ylabel("residual dent diameter (mm)", color="C0")
+        ax2.set_ylim(bottom=0.0)
+        ax.set_title(f"{title}: work hardening at the impact point")
+        ax.grid(True, alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(folder / "hardening.png", dpi=120)
+        plt.close(fig)
+        names.append("hardening.png")
+    return names
 
 
 def verdict_text(v: Verdict) -> str:
@@ -163,13 +186,15 @@ def write_sequence(
         verdict_text(verdict),
         *notes,
         "",
-        f"{'impact':>6} {'e_n':>7} {'F_max kN':>9} {'t_c us':>7} {'W_p mJ':>8} {'dent um':>8} {'eps_p':>6}",
+        f"{'impact':>6} {'e_n':>7} {'F_max kN':>9} {'t_c us':>7} {'W_p mJ':>8} {'dent um':>8} {'dent mm':>8} "
+        f"{'eps_p':>6} {'HB':>5}",
     ]
     for o in outcomes:
         lines.append(
             f"{o.impact:6d} {o.restitution_normal:7.4f} {o.peak_normal_force_N / 1e3:9.4g} "
             f"{o.contact_duration_s * 1e6:7.4g} {o.plastic_dissipation_J * 1e3:8.4g} "
-            f"{o.residual_dent_depth_m * 1e6:8.4g} {o.max_equivalent_plastic_strain:6.3g}"
+            f"{o.residual_dent_depth_m * 1e6:8.4g} {2e3 * o.residual_dent_radius_m:8.4g} "
+            f"{o.max_equivalent_plastic_strain:6.3g} {o.surface_flow_stress_Pa * HB_PER_PA:5.0f}"
         )
     (folder / "summary.txt").write_text("\n".join(lines) + "\n")
     write_atomic(folder / "summary.json", json.dumps(_jsonable(summary), indent=1) + "\n")

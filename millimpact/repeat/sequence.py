@@ -96,7 +96,13 @@ OUTCOME_COLUMNS = (
     "residual_dent_depth_m",
     "residual_dent_radius_m",
     "max_equivalent_plastic_strain",
+    "surface_flow_stress_Pa",
 )
+
+#: Brinell hardness (kgf/mm^2) per Pa of flow stress: HB ~ 3 sigma_y (Tabor, The Hardness of Metals,
+#: Oxford 1951: the mean pressure of a fully plastic indentation ~ 3 Y), over g = 9.807 m/s^2 and
+#: 1e6 Pa per MPa
+HB_PER_PA = 3.0 / 9.807e6
 
 
 @dataclass(frozen=True)
@@ -125,6 +131,9 @@ class ImpactOutcome:
     residual_dent_depth_m: float
     residual_dent_radius_m: float
     max_equivalent_plastic_strain: float
+    #: the struck body's flow stress sigma_y(alpha) at the impact point (the zone's quadrature point
+    #: nearest it, just under the face) after this impact, Pa; NaN for an elastic target
+    surface_flow_stress_Pa: float = math.nan
 
 
 @dataclass
@@ -496,6 +505,7 @@ class _Engine:
             float(dent["residual_dent_depth_m"]),
             float(dent["residual_dent_radius_m"]),
             eps,
+            self.surface_flow_stress(),
         )
         details = {
             "energy_drift_over_impact_rel": float(results["energy_drift_over_impact_rel"]),
@@ -506,6 +516,16 @@ class _Engine:
             "dent_profile": dent.get("residual_dent_profile"),
         }
         return o, details
+
+    def surface_flow_stress(self) -> float:
+        """The struck body's committed flow stress (Pa) at its zone's quadrature point nearest the
+        impact point (just under the face): a hardness test's flow stress there, NaN when it is
+        elastic."""
+        from ..geometry.builders import BLOCK_ZONE
+
+        if self.zone is None:
+            return math.nan
+        return float(self.zone.flow_stress_near(np.array([self.plan.impact_point]), BLOCK_ZONE)[0])
 
     def boundary(self) -> dict:
         """Whether the plastic region stayed inside the contact zone (the model is linear beyond

@@ -134,9 +134,12 @@ def is_small_ball(scene: Scene) -> bool:
 
 def zone_radius_limit(scene: Scene) -> float:
     """The contact zone must stay below this radius (m): 0.45 of the smallest body size, so the
-    zone sphere does not reach the far side of the ball or the body. A small ball's zone in the
-    ball is capped on its own (:attr:`Plan.ball_zone_radius`): the limit is then the struck body's."""
-    return ZONE_SIZE_SHARE * (smallest_body_side(scene)[1] if is_small_ball(scene) else smallest_size(scene))
+    zone sphere does not reach the far side of the ball or the body. The ball's zone is capped on
+    its own (:attr:`Plan.ball_zone_radius`) for a small ball, and where ``model.zone_radius`` asks
+    for more than the ball allows (a struck body whose plastic region outgrows the ball's zone,
+    repeated impacts): the limit is then the struck body's."""
+    own = is_small_ball(scene) or scene.model.zone_radius is not None
+    return ZONE_SIZE_SHARE * (smallest_body_side(scene)[1] if own else smallest_size(scene))
 
 
 def predict_plastic_radius(h: HertzImpact, materials: tuple[Material, ...]) -> float:
@@ -510,18 +513,19 @@ def _ball_zone_radius(scene: Scene, zone: float, reasons: dict[str, str]) -> flo
     m = scene.model
     ball_zone = 0.0
     ball_limit = PLASTIC_ZONE_CAP * ZONE_SIZE_SHARE * scene.ball.radius
-    if is_small_ball(scene) and zone > ball_limit:
-        # the block's plastic region is larger than the ball: the ball's zone stays inside it and
-        # holds the contact patch (the candidates need 1.2 a_max + 2 h_contact)
+    own = is_small_ball(scene) or (m.zone_radius is not None and m.zone_radius > ball_limit)
+    if own and zone > ball_limit:
+        # the block's plastic region is larger than the ball allows: the ball's zone stays inside
+        # it and holds the contact patch (the candidates need 1.2 a_max + 2 h_contact)
         ball_zone = ball_limit
         reasons["ball_zone_radius"] = (
-            f"{PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} ball radius: a small ball's zone "
-            "in the ball (the block's is larger)"
+            f"{PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} ball radius: the ball's own zone "
+            "(the struck body's is larger)"
         )
     if m.ball_zone_radius is not None:
         # the ball's own zone (a repeated-impact sequence: the liner's plastic region grows, the
         # ball's stays small), no larger than the zone and than the ball allows
-        top = min(zone, ball_limit) if is_small_ball(scene) else zone
+        top = min(zone, ball_limit) if own else zone
         if m.ball_zone_radius > top:
             raise SceneError(
                 "model.ball_zone_radius",

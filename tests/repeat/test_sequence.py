@@ -132,3 +132,21 @@ def test_improved_carries_the_state_as_full_does(improved3):
     for a, b in zip(improved3, full):
         assert abs(a.restitution_normal - b.restitution_normal) < 0.01, (a, b)
     assert improved3[-1].residual_dent_depth_m == pytest.approx(full[-1].residual_dent_depth_m, rel=0.02)
+
+
+def test_the_surface_flow_stress_follows_the_hardening_law(perfectly_plastic, hardening):
+    """The block's flow stress at the impact point after each impact: the perfectly plastic block's
+    is its yield stress (0.95 GPa) whatever its strain; the linearly hardening block's (H 2.5 GPa)
+    rises above it from the first impact (the point under the contact yields), never falls
+    (alpha only grows), stays below Y + H times the impact's largest plastic strain (the point's
+    alpha is at most the largest), and rises less as the block shakes down (impact 5's rise below
+    impact 2's)."""
+    y, h = 0.95e9, 2.5e9
+    pp, _, _ = perfectly_plastic
+    assert all(o.surface_flow_stress_Pa == pytest.approx(y, rel=1e-12) for o in pp)
+    lin, _ = hardening
+    s = np.array([o.surface_flow_stress_Pa for o in lin])
+    assert s[0] > y * (1 + 1e-3)
+    assert np.all(np.diff(s) >= 0)
+    assert np.all(s <= y + h * np.array([o.max_equivalent_plastic_strain for o in lin]) * (1 + 1e-12))
+    assert s[4] - s[3] < s[1] - s[0]
