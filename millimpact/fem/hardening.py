@@ -83,7 +83,9 @@ def _necking(yield_stress: float, tensile_strength: float, uniform_elongation: f
     sigma_u = tensile_strength * (1.0 + uniform_elongation)
     alpha_u = math.log1p(uniform_elongation) - sigma_u / youngs_modulus
     if alpha_u <= 0:
-        raise ValueError(f"uniform elongation {uniform_elongation:g} is elastic (sigma_u / E {sigma_u / youngs_modulus:.3g})")
+        raise ValueError(
+            f"uniform elongation {uniform_elongation:g} is elastic (sigma_u / E {sigma_u / youngs_modulus:.3g})"
+        )
     return sigma_u, alpha_u
 
 

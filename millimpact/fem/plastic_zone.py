@@ -486,7 +486,11 @@ class PlasticZone:
             if self.comm.rank == owner and best[1] >= 0:
                 k, j = best[1], best[2]
                 a = float(self.alpha[k][j])
-                value = (self.plastic_strain[k][j].copy(), a, float(self.zones[k].material.flow.flow_stress(a)))
+                value = (
+                    self.plastic_strain[k][j].copy(),
+                    a,
+                    float(self.zones[k].material.flow.flow_stress(np.array(a))),
+                )
             out.append(self.comm.bcast(value, root=owner))
         self._cache[key] = out
         return out
@@ -604,7 +608,8 @@ def create_plastic_zone(model, zone_materials) -> PlasticZone | None:
     for tag, mat in zone_materials:
         flow = flow_curve_from_fields(mat.initial_yield_stress, mat.hardening_modulus, tabulated(mat))
         if flow is not None:
-            rate = None if mat.johnson_cook_rate is None else tuple(float(x) for x in mat.johnson_cook_rate)
+            jc = mat.johnson_cook_rate
+            rate = None if jc is None else (float(jc[0]), float(jc[1]))
             zones.append(ZoneMaterial(tag, J2Material(mat.youngs_modulus, mat.poisson, flow, rate)))
     if not zones:
         return None

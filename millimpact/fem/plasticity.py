@@ -294,7 +294,7 @@ def return_map(
     consistent tangent out (``None``): an iteration on the elastic operator needs none. ``dt`` (s):
     the step, for a material with a strain-rate factor (ignored without one)."""
     G, flow = material.shear_modulus, material.flow
-    rated = material.rate is not None and dt is not None
+    rate = material.rate if dt is not None else None  # (C, rate0) of a rate-dependent step
     strain, plastic_strain, alpha = (np.asarray(x, dtype=float) for x in (strain, plastic_strain, alpha))
     # the trial stress C (eps - eps_p), elementwise: dev sigma_tr = 2 G dev(eps - eps_p), so
     # q_tr = sqrt(3/2) 2 G |dev(eps - eps_p)| and n = dev / |dev|
@@ -312,8 +312,8 @@ def return_map(
     work = np.zeros(len(strain))
     y = np.flatnonzero(yielding)  # integer rows: a boolean mask gathers 10x slower when few yield
     if y.size:
-        if rated:
-            dg = _consistency_with_rate(flow, q_tr[y], alpha[y], G, material.rate[0], material.rate[1] * dt)
+        if rate is not None and dt is not None:
+            dg = _consistency_with_rate(flow, q_tr[y], alpha[y], G, rate[0], rate[1] * dt)
         else:
             dg = _consistency(flow, q_tr[y], alpha[y], G)
         d = dev[y]
@@ -327,9 +327,9 @@ def return_map(
             n = dev[y] / dev_norm[y, None]
             C = material.elastic_matrix()
             H = flow.slope(alpha_new[y])
-            if rated:  # d (sigma_y R) / d dg (the module docstring)
+            if rate is not None:  # d (sigma_y R) / d dg (the module docstring)
                 rf = rate_factor(material, dg, dt)
-                H = H * rf + np.where(rf > 1.0, flow.flow_stress(alpha_new[y]) * material.rate[0] / dg, 0.0)
+                H = H * rf + np.where(rf > 1.0, flow.flow_stress(alpha_new[y]) * rate[0] / dg, 0.0)
             a = 6.0 * G * G * dg / q_tr[y]
             b = 6.0 * G * G * (dg / q_tr[y] - 1.0 / (3.0 * G + H))
             C_t[y] = C[None] - a[:, None, None] * P_DEV[None] + b[:, None, None] * np.einsum("pi,pj->pij", n, n)

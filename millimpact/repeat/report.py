@@ -92,40 +92,51 @@ def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -
     fig.savefig(folder / "restitution.png", dpi=120)
     plt.close(fig)
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    ax.plot(k, [o.residual_dent_depth_m * 1e6 for o in outcomes], "o-", color="C0", label="dent depth")
-    ax.set_xlabel("impact number")
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ax.set_ylabel("residual dent depth (um)", color="C0")
-    ax2 = ax.twinx()
-    ax2.plot(k, [o.plastic_dissipation_J * 1e3 for o in outcomes], "s--", color="C3", label="plastic work")
-    ax2.set_ylabel("plastic work of the impact (mJ)", color="C3")
-    ax2.set_ylim(bottom=0.0)
-    ax.set_ylim(bottom=0.0)
-    ax.set_title(f"{title}: dent and plastic work")
-    ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(folder / "dent.png", dpi=120)
-    plt.close(fig)
+    depth = [o.residual_dent_depth_m * 1e6 for o in outcomes]
+    work = [o.plastic_dissipation_J * 1e3 for o in outcomes]
+    _twin_plot(
+        plt,
+        folder / "dent.png",
+        k,
+        (depth, "dent depth", "residual dent depth (um)", "C0", "o-"),
+        (work, "plastic work", "plastic work of the impact (mJ)", "C3", "s--"),
+        f"{title}: dent and plastic work",
+    )
     names = ["restitution.png", "dent.png"]
     hb = np.array([o.surface_flow_stress_Pa for o in outcomes]) * HB_PER_PA
     if np.any(np.isfinite(hb)):
-        fig, ax = plt.subplots(figsize=(6.4, 4.0))
-        ax.plot(k, hb, "o-", color="C2", label="surface hardness")
-        ax.set_xlabel("impact number")
-        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_ylabel("surface hardness 3 sigma_y (HB)", color="C2")
-        ax2 = ax.twinx()
-        ax2.plot(k, [2e3 * o.residual_dent_radius_m for o in outcomes], "s--", color="C0", label="dent diameter")
-        ax2.set_ylabel("residual dent diameter (mm)", color="C0")
-        ax2.set_ylim(bottom=0.0)
-        ax.set_title(f"{title}: work hardening at the impact point")
-        ax.grid(True, alpha=0.3)
-        fig.tight_layout()
-        fig.savefig(folder / "hardening.png", dpi=120)
-        plt.close(fig)
+        width = [2e3 * o.residual_dent_radius_m for o in outcomes]
+        _twin_plot(
+            plt,
+            folder / "hardening.png",
+            k,
+            (hb, "surface hardness", "surface hardness 3 sigma_y (HB)", "C2", "o-"),
+            (width, "dent diameter", "residual dent diameter (mm)", "C0", "s--"),
+            f"{title}: work hardening at the impact point",
+        )
         names.append("hardening.png")
     return names
+
+
+def _twin_plot(plt, path: Path, k, left: tuple, right: tuple, title: str) -> None:
+    """One figure against the impact number: ``left`` and ``right`` are (values, label, axis label,
+    colour, style) on two y axes."""
+    from matplotlib.ticker import MaxNLocator
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    axes = (ax, ax.twinx())
+    for a, (values, label, axis_label, colour, style) in zip(axes, (left, right)):
+        a.plot(k, values, style, color=colour, label=label)
+        a.set_ylabel(axis_label, color=colour)
+    for a in axes:
+        a.set_ylim(bottom=0.0)
+    ax.set_xlabel("impact number")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def verdict_text(v: Verdict) -> str:

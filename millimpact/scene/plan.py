@@ -519,8 +519,7 @@ def _ball_zone_radius(scene: Scene, zone: float, reasons: dict[str, str]) -> flo
         # it and holds the contact patch (the candidates need 1.2 a_max + 2 h_contact)
         ball_zone = ball_limit
         reasons["ball_zone_radius"] = (
-            f"{PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} ball radius: the ball's own zone "
-            "(the struck body's is larger)"
+            f"{PLASTIC_ZONE_CAP:g} x {ZONE_SIZE_SHARE:g} ball radius: the ball's own zone (the struck body's is larger)"
         )
     if m.ball_zone_radius is not None:
         # the ball's own zone (a repeated-impact sequence: the liner's plastic region grows, the
