@@ -140,6 +140,21 @@ def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path):
     assert len(laps["mill_reruns"]) == 1 and laps["mill_reruns"][0] >= second["yade"]["wall_s"]
     assert t["mill_reruns"] == pytest.approx(sum(laps["mill_reruns"]), rel=1e-12)
     assert sum(v for k, v in t.items() if k != "total") == pytest.approx(t["total"], rel=1e-12)
+    # every bin of every surface is in the record, the ones nothing touched as zero, so a surface's
+    # mean is over its whole length (a plate touched on a third of its bins is not worn three times
+    # as deep): the bins' centres tile each surface at the bin width
+    from millimpact.life.profile import LifterProfile
+    from millimpact.life.wear import read_mill_record
+    from millimpact.scene.builtin import resolve_scene
+
+    scene = resolve_scene("liner-segment").with_values(
+        [(sets[k + 1].split("=")[0], float(sets[k + 1].split("=")[1])) for k in range(0, len(sets), 2)])
+    rec = read_mill_record(mill, LifterProfile.from_liner(scene.liner).mill_profile(scene.ball.radius))
+    for name, (a, b) in zip(("trailing_face", "top", "leading_face", "plate"), rec.surfaces):
+        centres = np.sort(rec.position[rec.surface == name])
+        expected = [x for x in (np.arange(int(b / rec.bin_m) + 2) + 0.5) * rec.bin_m if a <= x < b]
+        assert set(np.round(expected, 9)) <= set(np.round(centres, 9)), name
+    assert np.count_nonzero(rec.archard + rec.absorbed == 0) > 0  # some bins are untouched
 
 
 def _record(tmp_path, power_W_m=2.0e5):
