@@ -6,7 +6,7 @@ The sources we could read give the lifters only; the mill around them is assumed
 a 32 ft (9.75 m) shell, 4.8 m to the plates' inner face, 64 lifter rows (0.47 m apart), 100 mm
 tops, 125 mm balls (liner-segment's), the plan's SAG charge (J 0.28, J_B 0.12) at 75 % of critical.
 
-    .venv/bin/python benchmarks/liner_life.py [--cycles 4] [--revolutions 0.4] [--warmup 0.6]
+    .venv/bin/python benchmarks/liner_life.py [--cycles 4] [--revolutions 2] [--warmup 0.6] [--seed 0]
 
 Steps (each skipped when its folder is complete): ``millimpact mill`` on the new liner, then
 ``millimpact life --calibrate-height 152:58:4000 --hours 4000 --cycles N``, which runs the mill
@@ -59,6 +59,7 @@ def main() -> None:
     ap.add_argument("--cycles", type=int, default=4)
     ap.add_argument("--revolutions", type=float, default=0.4)
     ap.add_argument("--warmup", type=float, default=0.6)
+    ap.add_argument("--seed", type=int, default=0, help="the mill's seed (another charge: a replicate)")
     ap.add_argument("--no-transfer", action="store_true", help="skip the second mill (Yanacocha-like)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "liner_life"))
     a = ap.parse_args()
@@ -67,7 +68,7 @@ def main() -> None:
     mill, life = out / "mill", out / "life"
     if not (mill / "summary.json").exists():
         _run(["mill", *SCENE, "--charge", "sag", "--revolutions", str(a.revolutions), "--warmup", str(a.warmup),
-              "--force", "--out", str(mill)], out / "mill.log")
+              "--seed", str(a.seed), "--force", "--out", str(mill)], out / "mill.log")
     if not (life / "summary.json").exists():
         _run(["life", *SCENE, "--mill", str(mill), "--calibrate-height", "152:58:4000", "--hours", "4000",
               "--cycles", str(a.cycles), "--force", "--out", str(life)], out / "life.log")
