@@ -1,4 +1,4 @@
-"""Repeated impacts at one spot (issue 32): the physics gates on a coarse rig.
+"""Repeated impacts at one spot: the physics gates on a coarse rig.
 
 The scene: paper-rig-plastic with an elastic ball (its 1.9 GPa yield is not reached: the block's
 0.95 GPa yield caps the pressure), the block clamped at its BACK face (no cantilever bending: the
