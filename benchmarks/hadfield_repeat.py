@@ -33,11 +33,13 @@ from _report import timed_run, write_report  # noqa: E402
 
 from millimpact.fem.hardening import voce_stress  # noqa: E402
 from millimpact.repeat.report import read_impacts_csv  # noqa: E402
+from millimpact.scene.materials import named_material  # noqa: E402
 from millimpact.repeat.sequence import HB_PER_PA  # noqa: E402
 
-#: hadfield-mn-liner-voce's law (Y, Q, b; scene/materials.toml), its saturation (Y + Q = 1.8 GPa) as
+#: hadfield-mn-liner-voce's law (Y, Q, b, from scene/materials.toml), its saturation (Y + Q = 1.8 GPa) as
 #: a hardness, and the field's work-hardened surface
-VOCE = (380e6, 1.42e9, 2.5)
+_STEEL = named_material("hadfield-mn-liner-voce", "block.material")
+VOCE = (float(_STEEL["yield_stress"]), *(float(x) for x in _STEEL["voce"]))
 SATURATION_HB = (VOCE[0] + VOCE[1]) * HB_PER_PA
 FIELD_HB = (500.0, 550.0)
 

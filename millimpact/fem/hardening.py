@@ -89,21 +89,6 @@ def _necking(yield_stress: float, tensile_strength: float, uniform_elongation: f
     return sigma_u, alpha_u
 
 
-def _bisect(f, lo: float, hi: float) -> float:
-    """The root of a function that changes sign between lo and hi (to 1e-14 relative)."""
-    flo = f(lo)
-    for _ in range(200):
-        mid = 0.5 * (lo + hi) if hi / lo < 4 else math.sqrt(lo * hi)
-        fm = f(mid)
-        if (fm > 0) == (flo > 0):
-            lo, flo = mid, fm
-        else:
-            hi = mid
-        if hi - lo <= 1e-14 * hi:
-            break
-    return 0.5 * (lo + hi)
-
-
 def swift_from_tensile(
     yield_stress: float, tensile_strength: float, uniform_elongation: float, youngs_modulus: float
 ) -> tuple[float, float, float]:
@@ -114,8 +99,10 @@ def swift_from_tensile(
         raise ValueError(
             f"ln(sigma_u / Y) = {target:.4g} <= alpha_u = {alpha_u:.4g}: no Swift law necks at e_u with its yield at Y"
         )
+    from scipy.optimize import brentq
+
     # g decreases from +inf (eps0 -> 0) towards alpha_u - target < 0 (eps0 -> inf)
-    eps0 = _bisect(lambda e0: (e0 + alpha_u) * math.log1p(alpha_u / e0) - target, 1e-12, 1e6)
+    eps0 = brentq(lambda e0: (e0 + alpha_u) * math.log1p(alpha_u / e0) - target, 1e-12, 1e6, xtol=1e-16, rtol=1e-14)
     n = eps0 + alpha_u
     return sigma_u / n**n, eps0, n
 
@@ -131,6 +118,8 @@ def voce_from_tensile(
         raise ValueError(
             f"(sigma_u - Y) / (sigma_u alpha_u) = {r:.4g} <= 1: no Voce law necks at e_u with its yield at Y"
         )
-    x = _bisect(lambda x: math.expm1(x) / x - r, 1e-12, 700.0)
+    from scipy.optimize import brentq
+
+    x = brentq(lambda x: math.expm1(x) / x - r, 1e-12, 700.0, xtol=1e-16, rtol=1e-14)
     b = x / alpha_u
     return sigma_u * math.exp(x) / b, b

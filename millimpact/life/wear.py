@@ -102,7 +102,8 @@ def read_mill_record(folder: Path | str, profile: MillProfile) -> MillRecord:
     e = _restitutions(summary)
     rev = float(summary["clock"]["revolutions"])
     imp_acc: dict[tuple[str, int], float] = {}
-    bounds = [b for _, b in profile.unit_surfaces()]
+    surfaces = profile.unit_surfaces()
+    bounds = [b for _, b in surfaces]
     for i in impacts:
         if i.surface_position_m is None or i.mass_kg is None:
             raise InputError(f"--mill {folder}: impacts.csv has no surface positions or masses (an older run)")
@@ -113,7 +114,7 @@ def read_mill_record(folder: Path | str, profile: MillProfile) -> MillRecord:
         )
     keys |= set(imp_acc)
     # every bin of every surface, so that means and face lines count the bins nothing touched as 0
-    for name, (a, b) in zip(SURFACES, profile.unit_surfaces()):
+    for name, (a, b) in zip(SURFACES, surfaces):
         keys |= {(name, k) for k in range(int(a // w), int(math.ceil(b / w))) if a <= (k + 0.5) * w < b}
     order = sorted(keys, key=lambda sk: sk[1])
     arch = {(r["surface"], int(round(float(r["surface_position_m"]) / w - 0.5))): 0.0 for r in rows}
@@ -132,7 +133,7 @@ def read_mill_record(folder: Path | str, profile: MillProfile) -> MillRecord:
         n_lifters=int(mill["lifters"]),
         rpm=float(mill["speed_rpm"]),
         summary=summary,
-        surfaces=profile.unit_surfaces(),
+        surfaces=surfaces,
     )
 
 

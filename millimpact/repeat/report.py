@@ -92,30 +92,39 @@ def plot_sequence(folder: Path, outcomes: Sequence[ImpactOutcome], title: str) -
     fig.savefig(folder / "restitution.png", dpi=120)
     plt.close(fig)
 
-    depth = [o.residual_dent_depth_m * 1e6 for o in outcomes]
-    work = [o.plastic_dissipation_J * 1e3 for o in outcomes]
-    _twin_plot(
-        plt,
-        folder / "dent.png",
-        k,
-        (depth, "dent depth", "residual dent depth (um)", "C0", "o-"),
-        (work, "plastic work", "plastic work of the impact (mJ)", "C3", "s--"),
-        f"{title}: dent and plastic work",
-    )
-    names = ["restitution.png", "dent.png"]
+    figures = [
+        (
+            "dent.png",
+            ([o.residual_dent_depth_m * 1e6 for o in outcomes], "dent depth", "residual dent depth (um)", "C0", "o-"),
+            (
+                [o.plastic_dissipation_J * 1e3 for o in outcomes],
+                "plastic work",
+                "plastic work of the impact (mJ)",
+                "C3",
+                "s--",
+            ),
+            "dent and plastic work",
+        )
+    ]
     hb = np.array([o.surface_flow_stress_Pa for o in outcomes]) * HB_PER_PA
     if np.any(np.isfinite(hb)):
-        width = [2e3 * o.residual_dent_radius_m for o in outcomes]
-        _twin_plot(
-            plt,
-            folder / "hardening.png",
-            k,
-            (hb, "surface hardness", "surface hardness 3 sigma_y (HB)", "C2", "o-"),
-            (width, "dent diameter", "residual dent diameter (mm)", "C0", "s--"),
-            f"{title}: work hardening at the impact point",
+        figures.append(
+            (
+                "hardening.png",
+                (hb.tolist(), "surface hardness", "surface hardness 3 sigma_y (HB)", "C2", "o-"),
+                (
+                    [2e3 * o.residual_dent_radius_m for o in outcomes],
+                    "dent diameter",
+                    "residual dent diameter (mm)",
+                    "C0",
+                    "s--",
+                ),
+                "work hardening at the impact point",
+            )
         )
-        names.append("hardening.png")
-    return names
+    for name, left, right, what in figures:
+        _twin_plot(plt, folder / name, k, left, right, f"{title}: {what}")
+    return ["restitution.png", *(f[0] for f in figures)]
 
 
 def _twin_plot(plt, path: Path, k, left: tuple, right: tuple, title: str) -> None:
