@@ -77,9 +77,11 @@ def loglog_slope(x, y) -> float:
     return float(np.polyfit(np.log(np.asarray(x, float)), np.log(np.asarray(y, float)), 1)[0])
 
 
-def case_settings(stiff, ratio: float, vy: float, hc: float, refine: float, whole_zone: bool = True) -> tuple[dict, dict]:
+def case_settings(stiff, ratio: float, vy: float, hc: float, refine: float, whole_zone: bool = True,
+                  strain: str = "auto") -> tuple[dict, dict]:
     """The run's --set values and the sizes behind them (SI, mm in the info); ``whole_zone``: the
-    size is h over the whole contact zone (model.fine_radius = zone radius), else the plan's 1.5 a_max."""
+    size is h over the whole contact zone (model.fine_radius = zone radius), else the plan's 1.5 a_max;
+    ``strain``: model.strain (auto: the plan's choice)."""
     v = ratio * vy
     scene = stiff.with_value("impact.velocity", [0.0, -v, 0.0]).with_value("ball.material.yield_stress", Y)
     plan = make_plan(scene)
@@ -96,6 +98,8 @@ def case_settings(stiff, ratio: float, vy: float, hc: float, refine: float, whol
             "ball.material.yield_stress": repr(Y), "model.h_contact": repr(h), "time.end": repr(t_run)}
     if whole_zone:
         sets["model.fine_radius"] = repr(fine)
+    if strain != "auto":
+        sets["model.strain"] = strain
     info = {"a_hertz_mm": hz.a_max * 1e3, "a_plastic_mm": a_p * 1e3,
             "a_fully_plastic_mm": fully_plastic_contact_radius(hz.radius, hz.mass, v, FULLY_PLASTIC_PRESSURE_FACTOR * Y) * 1e3,
             "cavity_radius_mm": c * 1e3, "zone_radius_mm": plan.zone_radius * 1e3, "fine_radius_mm": fine * 1e3,
@@ -143,6 +147,8 @@ def main() -> int:
                     help="keep the plan's fine radius (1.5 Hertz a_max) instead of meshing the whole zone at h")
     ap.add_argument("--method", default="full", choices=("full", "improved"),
                     help="full FE P1 (the default) or improved (P2, reduced: the cross-check of P1's contact)")
+    ap.add_argument("--strain", default="auto", choices=("auto", "small", "finite"),
+                    help="the plastic zone's kinematics (auto: the plan's choice, finite above 0.15 R contact radius)")
     ap.add_argument("--rerun", action="store_true", help="run every case even if its folder holds it")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "plastic_restitution"))
     a = ap.parse_args()
@@ -159,9 +165,9 @@ def main() -> int:
     third = [float(x) for x in a.third.split(",")] if a.third else []
     for ratio in ratios:
         for refine in refines + ([refines[-1] * 1.5] if ratio in third else []):
-            sets, info = case_settings(stiff, ratio, vy, a.hc, refine, not a.plan_fine)
+            sets, info = case_settings(stiff, ratio, vy, a.hc, refine, not a.plan_fine, a.strain)
             case = out / (f"v_over_vy_{ratio:g}_h_ac_over_{a.hc * refine:.4g}{'_planfine' if a.plan_fine else ''}"
-                          f"{'' if a.method == 'full' else '_' + a.method}")
+                          f"{'' if a.method == 'full' else '_' + a.method}{'' if a.strain == 'auto' else '_' + a.strain}")
             try:
                 s, wall = run_case(case, sets, a.rerun, a.method)
             except RuntimeError as err:
@@ -169,6 +175,7 @@ def main() -> int:
                 continue
             pz = s.get("plastic_zone_radius_m", {})
             row = {"v_over_vy": ratio, "refine": refine, "speed_m_s": ratio * vy, **info, "dofs": s["model"]["dofs"],
+                   "strain": s.get("strain", "small"), "plastic_whole": "+".join(s.get("plastic_whole", [])) or "-",
                    "restitution": s["restitution"], "restitution_thornton": restitution_thornton(ratio * vy, vy),
                    "plastic_share": s["plastic_dissipation_share"], "energy_drift": s["energy_drift_max_rel"],
                    "max_equivalent_plastic_strain": s["max_equivalent_plastic_strain"],

@@ -69,6 +69,8 @@ class PlasticZone:
 
     #: the committed stress per zone (None for an empty zone), set by commit() and set_state()
     _stress: list[np.ndarray | None]
+    #: small strain here; :class:`.finite_zone.FiniteStrainZone` is the finite-strain zone
+    finite = False
 
     def __init__(self, V: fem.FunctionSpace, cell_tags, zones: Sequence[ZoneMaterial], bcs: Sequence = ()):
         mesh = V.mesh
@@ -84,28 +86,19 @@ class PlasticZone:
             for z in self.zones
         ]
         self.u = fem.Function(V)
-        self._strain = fem.Expression(mandel_strain(self.u), points)
         cell = mesh.ufl_cell()
         quad = {"quadrature_degree": self.q_degree, "quadrature_scheme": "default"}
-        Q6 = fem.FunctionSpace(mesh, ufl.VectorElement("Quadrature", cell, self.q_degree, dim=6, quad_scheme="default"))
-        Q66 = fem.FunctionSpace(
-            mesh, ufl.TensorElement("Quadrature", cell, self.q_degree, shape=(6, 6), quad_scheme="default")
-        )
         Q1 = fem.FunctionSpace(mesh, ufl.FiniteElement("Quadrature", cell, self.q_degree, quad_scheme="default"))
-        self.stress_correction = fem.Function(Q6)  # sigma - C eps, Pa
-        self.tangent_correction = fem.Function(Q66)  # C_t - C, Pa
         self.density = fem.Function(Q1)  # a scalar density to integrate over the zones
         dx = ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags, metadata=quad)
         dxz = dx(tuple(z.cell_tag for z in self.zones))
-        v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
-        self._f_form = fem.form(ufl.inner(self.stress_correction, mandel_strain(v)) * dxz)
-        self._v = v
+        self._v = ufl.TestFunction(V)
+        self._quad = quad
+        self._define_forms(points, dxz)
         # select_candidates(): per zone the positions (in its cell list) of the candidate cells
         self._candidates: list[np.ndarray] | None = None
         self._candidate_form: fem.FormMetaClass | None = None
         self._restricted = False
-        self._k_integrand = ufl.inner(ufl.dot(self.tangent_correction, mandel_strain(du)), mandel_strain(v))
-        self._quad = quad
         self._int_form = fem.form(self.density * dxz)
         # committed and trial state per zone: plastic strain (n, 6), alpha (n,)
         n = [len(c) * self.n_q for c in self.cells]
@@ -124,6 +117,21 @@ class PlasticZone:
         self.time_step: float | None = None
         self._kernel: CompiledPass | Literal[False] | None = None  # False: tried, none here
         self._compiled_force: np.ndarray | None = None
+
+    def _define_forms(self, points: np.ndarray, dxz) -> None:
+        """The small-strain corrections (Mandel: sigma - C eps per point, C_t - C) and their forms:
+        f_c = int B^T (sigma - C eps) dV and dK's integrand B^T (C_t - C) B."""
+        mesh, cell = self.V.mesh, self.V.mesh.ufl_cell()
+        self._strain = fem.Expression(mandel_strain(self.u), points)
+        Q6 = fem.FunctionSpace(mesh, ufl.VectorElement("Quadrature", cell, self.q_degree, dim=6, quad_scheme="default"))
+        Q66 = fem.FunctionSpace(
+            mesh, ufl.TensorElement("Quadrature", cell, self.q_degree, shape=(6, 6), quad_scheme="default")
+        )
+        self.stress_correction = fem.Function(Q6)  # sigma - C eps, Pa
+        self.tangent_correction = fem.Function(Q66)  # C_t - C, Pa
+        du = ufl.TrialFunction(self.V)
+        self._f_form = fem.form(ufl.inner(self.stress_correction, mandel_strain(self._v)) * dxz)
+        self._k_integrand = ufl.inner(ufl.dot(self.tangent_correction, mandel_strain(du)), mandel_strain(self._v))
 
     # --- state --------------------------------------------------------------------------------
     def _set_displacement(self, u_vec) -> None:
@@ -601,9 +609,11 @@ class PlasticZone:
         return self._cache[key]
 
 
-def create_plastic_zone(model, zone_materials) -> PlasticZone | None:
+def create_plastic_zone(model, zone_materials, strain: str = "small") -> PlasticZone | None:
     """The plastic zone of a model: ``zone_materials`` pairs (cell tag of a body's contact zone,
-    its scene material); bodies whose material is elastic are left out; None if none yields."""
+    its scene material); bodies whose material is elastic are left out; None if none yields.
+    ``strain``: ``small`` (:class:`PlasticZone`) or ``finite``
+    (:class:`.finite_zone.FiniteStrainZone`, the plan's ``strain``)."""
     zones = []
     for tag, mat in zone_materials:
         flow = flow_curve_from_fields(mat.initial_yield_stress, mat.hardening_modulus, tabulated(mat))
@@ -613,4 +623,8 @@ def create_plastic_zone(model, zone_materials) -> PlasticZone | None:
             zones.append(ZoneMaterial(tag, J2Material(mat.youngs_modulus, mat.poisson, flow, rate)))
     if not zones:
         return None
+    if strain == "finite":
+        from .finite_zone import FiniteStrainZone
+
+        return FiniteStrainZone(model.V, model.meshdata.cell_tags, zones, model.bcs)
     return PlasticZone(model.V, model.meshdata.cell_tags, zones, model.bcs)

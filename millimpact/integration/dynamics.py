@@ -66,10 +66,15 @@ class NonlinearZone(Protocol):
     one); such a state is confirmed by a full evaluation before it is committed. ``compiled``
     chooses the compiled pass for the evaluations without the tangent (``evaluate(u, False)``);
     ``version`` changes whenever the committed state does; ``time_step`` is the step (s) the
-    integrator takes (a strain-rate law's dg / dt)."""
+    integrator takes (a strain-rate law's dg / dt). A ``finite`` (finite-strain) zone is nonlinear
+    wherever it is strained: no candidates, and its frozen force is f_c at the committed
+    displacement (:mod:`millimpact.fem.finite_zone`)."""
 
     compiled: bool
     time_step: float | None
+
+    @property
+    def finite(self) -> bool: ...
 
     @property
     def version(self) -> int: ...

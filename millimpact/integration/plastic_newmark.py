@@ -120,6 +120,8 @@ class PlasticNewmarkScheme(NewmarkScheme):
                 f"-impact_plastic_candidate_fraction {self.candidate_fraction}: must be in [0, 1) "
                 "(0 = every zone cell in every iteration)"
             )
+        if getattr(self.zone, "finite", False):
+            self.candidate_fraction = 0.0  # a finite-strain zone is nonlinear wherever it is strained
         # a factorized tangent kept for reuse: (dt, dK, A_t, ksp, W)
         self._held: tuple[float, PETSc.Mat, PETSc.Mat, PETSc.KSP, ContactOperator] | None = None
         self.forcing = float(solvers.get_option("plastic_friction_forcing", options, 0.1))

@@ -20,7 +20,7 @@ from ..errors import InputError
 from ..fem.contact import create_contact
 from ..fem.model import create_fe_model
 from ..fem.plastic_zone import create_plastic_zone
-from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
+from ..geometry.builders import BALL_REGION, BALL_ZONE, BLOCK_REGION, BLOCK_ZONE
 from ..geometry.mesh import create_mesh
 from ..integration import integrators
 from ..results.dent import plastic_report
@@ -32,6 +32,18 @@ from ..scene.schema import Scene
 from .options import take
 
 log = logging.getLogger(__name__)
+
+
+def plastic_cells(plan: Plan) -> list[tuple[int, Any]]:
+    """(cell tag, material) of the plastic cells: each body's contact zone, and its region too where
+    the plan makes the body plastic whole (``plan.plastic_whole``: its plastic region does not fit
+    the zone; the full method meshes every cell, so nothing is truncated)."""
+    cells = [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)]
+    if "ball" in plan.plastic_whole:
+        cells.append((BALL_REGION, plan.ball.material))
+    if "struck" in plan.plastic_whole:
+        cells.append((BLOCK_REGION, plan.target))
+    return cells
 
 
 def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, method: str = "full") -> RunOutput:
@@ -62,7 +74,7 @@ def run_fe(scene: Scene, plan: Plan, options: dict[str, Any], progress: bool, me
         model = create_fe_model(md, plan, degree)
         contact = create_contact(model, plan, radius=radius)
     t_assemble = time.perf_counter() - t0 - t_mesh
-    plastic = create_plastic_zone(model, [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)])
+    plastic = create_plastic_zone(model, plastic_cells(plan), plan.strain)
     system = integrators.LinearDynamics(
         M=model.M,
         K=model.K,

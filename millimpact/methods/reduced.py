@@ -450,7 +450,7 @@ def _run_reduced_case(
     t_end = opt.t_end if t_end is None else t_end
     t0 = time.perf_counter()
     system = setup.system if setup.system is not None else reduced_system(red, contact, plan.friction)
-    zone = create_plastic_zone(model, [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)])
+    zone = create_plastic_zone(model, [(BALL_ZONE, plan.ball.material), (BLOCK_ZONE, plan.target)], plan.strain)
     plastic = ProjectedPlasticZone(zone, red) if zone is not None else None
     system.plastic = plastic
     free_phase = opt.free_phase

@@ -61,6 +61,11 @@ class ProjectedPlasticZone:
         self.zone.compiled = value
 
     @property
+    def finite(self) -> bool:
+        """Whether the zone is the finite-strain one (:mod:`millimpact.fem.finite_zone`)."""
+        return self.zone.finite
+
+    @property
     def time_step(self) -> float | None:
         return self.zone.time_step
 
@@ -110,8 +115,15 @@ class ProjectedPlasticZone:
         K_r + (2 pi RESIDUAL_SHIFT_HZ)^2 M_r, which fixes the rigid part near zero (any rigid
         offset is carried by the rigid free modes). Prefix ``residual_``. The factorization is the
         reduced model's, kept (:meth:`ReducedModel.static_solve`): each impact of a
-        repeated-impact sequence ends at a new residual state, and a table's cases share it."""
-        b = self.frozen_force()
+        repeated-impact sequence ends at a new residual state, and a table's cases share it. A
+        finite-strain zone's is the linear unloading of its plastic strain, f_frozen taken at u = 0
+        (:meth:`millimpact.fem.finite_zone.FiniteStrainZone.unloaded_force`)."""
+        if self.zone.finite:
+            f = self.zone.unloaded_force()
+            b = self._restrict(f)
+            f.destroy()
+        else:
+            b = self.frozen_force()
         b.scale(-1.0)
         q = self.red.static_solve(
             b, (2.0 * math.pi * RESIDUAL_SHIFT_HZ) ** 2, "residual_", "residual state (K_r q_s = -f_frozen)"
@@ -147,7 +159,10 @@ class ProjectedPlasticZone:
 
     def strain_energy_correction(self, q: PETSc.Vec) -> float:
         """The zone's (:meth:`PlasticZone.strain_energy_correction`) in reduced coordinates:
-        (G q) . f_frozen = q . G^T f_frozen, no expansion of q (4 ms a row on the sequence model)."""
+        (G q) . f_frozen = q . G^T f_frozen, no expansion of q (4 ms a row on the sequence model);
+        a finite-strain zone's is not linear in q: evaluated at G q."""
+        if self.zone.finite:
+            return self.zone.strain_energy_correction(self._expand(q))
         return q.dot(self._frozen_force()) + self.zone.plastic_energy_constant()
 
     def plastic_strain_near(self, points: np.ndarray) -> np.ndarray:

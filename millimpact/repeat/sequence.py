@@ -423,6 +423,17 @@ def store_finished(folder: Path, key: str, k: int, record: ImpactRecord, engine,
 
 
 # --- engines: one model, its plastic zone, one impact at a time --------------------------------
+def small_strain_plan(plan):
+    """``plan`` with small strain and plasticity in the contact zones: a sequence carries the plastic
+    state through residual states solved linearly, which a finite-strain zone does not have."""
+    from dataclasses import replace
+
+    reasons = dict(plan.reasons)
+    if plan.strain != "small" or plan.plastic_whole:
+        reasons["strain"] = "repeated impacts: small-strain J2 in the contact zones (residual states solved linearly)"
+    return replace(plan, strain="small", plastic_whole=(), reasons=tuple(reasons.items()))
+
+
 class _Engine:
     """What the two engines share: the per-impact scene and plan, the contact rows per offset,
     the launch onto the deformed face and the outcome."""
@@ -437,8 +448,17 @@ class _Engine:
     def __init__(self, design, method: str, options: dict, comm):
         from ..scene.plan import make_plan
 
+        if design.model.strain == "finite":
+            from ..errors import SceneError
+
+            raise SceneError(
+                "model.strain",
+                "finite",
+                "must be auto or small for repeated impacts (each impact starts from "
+                "the last one's residual state, a linear solve)",
+            )
         self.design, self.method, self.options, self.comm = design, method, dict(options), comm
-        self.plan = make_plan(design)
+        self.plan = small_strain_plan(make_plan(design))
         self.contacts: dict[tuple, Any] = {}
         self.systems: dict[tuple, Any] = {}
         self.u_res = None  #: the residual state's vector (model or reduced), None before the first impact
@@ -458,7 +478,7 @@ class _Engine:
         from ..scene.plan import make_plan
 
         s = self.design.with_value("impact.velocity", impact_velocity(scene, spec))
-        return s, make_plan(s)
+        return s, small_strain_plan(make_plan(s))
 
     def contact_for(self, spec: ImpactSpec):
         from ..fem.contact import create_contact

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..fem.model import FEModel
 from ..fem.probes import create_probe
-from ..geometry.builders import BALL_INTERFACE, BALL_ZONE, BLOCK_INTERFACE, BLOCK_ZONE
+from ..geometry.builders import BALL_INTERFACE, BALL_REGION, BALL_ZONE, BLOCK_INTERFACE, BLOCK_REGION, BLOCK_ZONE
 from ..geometry.mesh import facet_indices
 from ..integration import solvers
 from ..scene.plan import Plan
@@ -39,25 +39,40 @@ def residual_displacement(model: FEModel, zone, reduced=None):
     (the free ball held by a mass shift 1e-9 x the largest K/M diagonal ratio). ``reduced`` (a
     :class:`~millimpact.reduction.reduced_model.ReducedModel`): solved in its space instead,
     u = T (K_r + s M_r)^-1 T^T (-f_p): the reduced method's own static answer, without factoring
-    the whole model (the 1.2M-DOF liner panel's factorization took the run past 23 GB)."""
-    f = zone.frozen_force()
-    f.scale(-1.0)
+    the whole model (the 1.2M-DOF liner panel's factorization took the run past 23 GB).
+
+    A finite-strain zone's residual state is the linear unloading of its plastic strain, f_p taken
+    at u = 0 (``zone.unloaded_force``): first order in the residual elastic strain (~Y/E). Its
+    fixed point K u = -f_c(u) is not used: a rigid rotation of the free ball (a half model's)
+    turns f_c, whose moment the mass shift barely holds, and the iteration diverges."""
     dk, dm = model.K.getDiagonal(), model.M.getDiagonal()
     s = 1e-9 * dk.max()[1] / max(dm.max()[1], 1e-300)
     if reduced is None:
         A = model.K.copy()
         A.axpy(s, model.M)
         ksp = solvers.create_factored_solver(A, "impact_dent_", solvers.effective_solver_defaults(model.comm))
-        u = A.createVecRight()
-        solvers.solve_checked(ksp, f, u, "residual (dent) solve", 0, 0.0)
-        owned = (ksp, A)
+        owned = [ksp, A]
+
+        def solve(f):
+            u = A.createVecRight()
+            solvers.solve_checked(ksp, f, u, "residual (dent) solve", 0, 0.0)
+            return u
     else:
-        rhs = reduced.restrict(f)
-        x = reduced.static_solve(rhs, s, "impact_dent_", "residual (dent) solve")  # kept with the model
-        u = reduced.expand(x)
-        owned = (x, rhs)
+        owned = []
+
+        def solve(f):
+            rhs = reduced.restrict(f)
+            x = reduced.static_solve(rhs, s, "impact_dent_", "residual (dent) solve")  # kept with the model
+            u = reduced.expand(x)
+            x.destroy(), rhs.destroy()
+            return u
+
+    f = zone.unloaded_force() if getattr(zone, "finite", False) else zone.frozen_force()
+    f.scale(-1.0)
+    u = solve(f)
+    f.destroy()
     # a dropped handle would park its object on the communicator's garbage (a table's every case)
-    for obj in (*owned, f, dk, dm):
+    for obj in (*owned, dk, dm):
         obj.destroy()
     return u
 
@@ -93,12 +108,16 @@ def residual_dent(model: FEModel, zone, plan: Plan, reduced=None) -> dict[str, A
 SMALL_STRAIN_LIMIT = 0.1
 
 
-def small_strain_note(max_plastic_strain: float, max_rotation: float, where: str = "of the residual state") -> str:
-    """One note line: the largest equivalent plastic strain and rotation (rad), and whether the
-    small-strain model holds (a warning past SMALL_STRAIN_LIMIT)."""
-    text = f"small strain: largest equivalent plastic strain {max_plastic_strain:.3g}"
+def small_strain_note(
+    max_plastic_strain: float, max_rotation: float, where: str = "of the residual state", finite: bool = False
+) -> str:
+    """One note line: the kinematics the run used, the largest equivalent plastic strain and
+    rotation (rad), and (small strain) whether the model holds (a warning past SMALL_STRAIN_LIMIT)."""
+    text = f"{'finite' if finite else 'small'} strain: largest equivalent plastic strain {max_plastic_strain:.3g}"
     if math.isfinite(max_rotation):  # not known when no impact state was kept at the peak force
         text += f", largest rotation {where} {max_rotation:.3g} rad"
+    if finite:
+        return text + " (logarithmic-strain J2: no small-strain limit)"
     if max_plastic_strain > SMALL_STRAIN_LIMIT:
         return (
             text + f"; WARNING: past {SMALL_STRAIN_LIMIT:g}, where the small-strain J2 model stops being a good "
@@ -154,10 +173,13 @@ BOUNDARY_ALPHA_TOL = 1e-6
 def zone_boundary_note(model: FEModel, zone, plan: Plan) -> tuple[dict[str, Any], list[str]]:
     """Whether the zone's boundary stayed elastic: summary keys and, if not, a warning note naming
     a zone radius to use (1.5x the plan's)."""
-    facets = facet_indices(model.meshdata, (BALL_INTERFACE, BLOCK_INTERFACE))
-    alpha = zone.boundary_plastic_strain(facets)
+    tags = {z.cell_tag for z in zone.zones}
+    whole = {"ball": BALL_REGION in tags, "struck": BLOCK_REGION in tags}  # plastic in every cell
+    interfaces = [tag for tag, body in ((BALL_INTERFACE, "ball"), (BLOCK_INTERFACE, "struck")) if not whole[body]]
+    alpha = zone.boundary_plastic_strain(facet_indices(model.meshdata, tuple(interfaces)))
     extents = zone.plastic_extent(plan.impact_point, BOUNDARY_ALPHA_TOL)
-    ball_r, target_r = extents.get(BALL_ZONE, 0.0), extents.get(BLOCK_ZONE, 0.0)
+    ball_r = max(extents.get(BALL_ZONE, 0.0), extents.get(BALL_REGION, 0.0))
+    target_r = max(extents.get(BLOCK_ZONE, 0.0), extents.get(BLOCK_REGION, 0.0))
     a = plan.hertz.a_max
     keys = {
         "zone_boundary_max_equivalent_plastic_strain": alpha,
@@ -174,14 +196,33 @@ def zone_boundary_note(model: FEModel, zone, plan: Plan) -> tuple[dict[str, Any]
         f"body, {ball_r * 1e3:.3g} mm in the ball; predicted {plan.plastic_radius * 1e3:.3g} mm "
         f"(Johnson's cavity model on Thornton's contact radius)"
     )
+    keys["plastic_whole"] = [body for body, w in whole.items() if w]
+    notes = [extent] + [
+        f"the whole {'ball' if body == 'ball' else 'struck body'} is plastic: its predicted plastic region does not "
+        "fit the contact zone (the plan's plastic_whole)"
+        for body in keys["plastic_whole"]
+    ]
+    notes += [
+        f"WARNING: the {'ball' if body == 'ball' else 'struck body'}'s predicted plastic region does not fit the "
+        "contact zone, and this method keeps plasticity in the zone: --method full makes the whole body plastic"
+        for body in plan.plastic_whole
+        if not whole[body]
+    ]
     if alpha <= BOUNDARY_ALPHA_TOL:
-        return keys, [
-            extent,
-            f"plasticity stayed inside the contact zone (radius {plan.zone_radius * 1e3:.4g} mm): "
-            "its boundary is elastic",
+        zoned = [body for body, w in whole.items() if not w]
+        where = (
+            "the contact zone"
+            if len(zoned) == 2
+            else f"the {'ball' if zoned[0] == 'ball' else 'struck body'}'s contact zone"
+            if zoned
+            else ""
+        )
+        return keys, notes + [
+            f"plasticity stayed inside {where} (radius {plan.zone_radius * 1e3:.4g} mm): its boundary is elastic"
+            if zoned
+            else "no zone boundary truncates the plastic region"
         ]
-    return keys, [
-        extent,
+    return keys, notes + [
         f"WARNING: plastic strain {alpha:.3g} at the contact zone's boundary (radius "
         f"{plan.zone_radius * 1e3:.4g} mm), where the model is linear: rerun with "
         f"--set model.zone_radius={1.5 * plan.zone_radius:.4g}",
@@ -208,7 +249,14 @@ def plastic_report(model: FEModel, zone, plan: Plan, stats, reduced=None) -> tup
     notes = [plastic_notes(zone, stats, model.sym_factor)]
     keys = residual_dent(model, zone, plan, reduced)
     keys["max_equivalent_plastic_strain_final"] = zone.max_equivalent_plastic_strain()
-    notes.append(small_strain_note(keys["max_equivalent_plastic_strain_final"], keys["max_residual_rotation_rad"]))
+    keys["strain"] = "finite" if getattr(zone, "finite", False) else "small"
+    notes.append(
+        small_strain_note(
+            keys["max_equivalent_plastic_strain_final"],
+            keys["max_residual_rotation_rad"],
+            finite=keys["strain"] == "finite",
+        )
+    )
     more_keys, more = zone_boundary_note(model, zone, plan)
     keys.update(more_keys)
     section = plastic_section(zone, plan, plan.h_contact)

@@ -89,6 +89,11 @@ FIELD_DOCS: dict[str, tuple[str, str, str]] = {
         "> 0, <= the zone radius; (plan)",
         "the ball's contact-zone radius (the zone radius; a small ball's: 0.9 x 0.45 its radius)",
     ),
+    "model.strain": (
+        "",
+        "auto | small | finite",
+        "plastic zone's kinematics (auto: finite where the predicted plastic strain passes 0.1)",
+    ),
     "model.symmetry": ("", "auto | full | half | quarter", "symmetry planes used (auto: all the scene allows)"),
     "model.degree": ("", "1 | 2", "Lagrange degree of the full FE model (reduced methods use their own)"),
     "model.f_cut": ("Hz", "> 0; (plan)", "modal cutoff of the reduction (4 / t_c)"),

@@ -142,6 +142,65 @@ def zone_radius_limit(scene: Scene) -> float:
     return ZONE_SIZE_SHARE * (smallest_body_side(scene)[1] if own else smallest_size(scene))
 
 
+#: ``model.strain = "auto"`` takes finite strain where Thornton's largest contact radius a_p
+#: (:func:`millimpact.theory.thornton.plastic_zone_radius`) passes this share of the effective
+#: radius: Tabor's representative strain 0.2 a/R is then 0.03, and the largest equivalent plastic
+#: strain measured on the perfectly plastic sphere, 3-4 times Tabor's (docs: plasticity,
+#: "Restitution against V / V_y"), passes the small-strain limit of 0.1 (between 100 and 183 V_y)
+FINITE_STRAIN_CONTACT_SHARE = 0.15
+
+
+#: a plastic body whose predicted plastic radius (Johnson's cavity c) passes this share of its
+#: contact zone's radius is plastic in every cell where the method allows it (the full method): on
+#: the perfectly plastic sphere (docs: plasticity) the plastic region reached the 6.6 mm zone's
+#: boundary at 300 V_y (c = 0.97 of the zone) and stayed 1.1 mm inside it at 183 V_y (c = 0.70)
+WHOLE_BODY_SHARE = 0.85
+
+
+def whole_plastic_bodies(scene: Scene, h: HertzImpact, zone: float, ball_zone: float, reasons: dict[str, str]):
+    """The bodies ("ball", "struck") whose predicted plastic region does not fit their contact zone
+    (c > WHOLE_BODY_SHARE x its radius): the full method makes every cell of them plastic."""
+    out = []
+    for body, mat, z in (("ball", scene.ball.material, ball_zone or zone), ("struck", scene.target_material, zone)):
+        if (y := mat.initial_yield_stress) is None:
+            continue
+        c = plastic_zone_radius(h.radius, h.mass, h.speed, h.e_star, y, mat.poisson)[1]
+        if c > WHOLE_BODY_SHARE * z:
+            out.append(body)
+            reasons[f"plastic_whole_{body}"] = (
+                f"predicted plastic radius {c * 1e3:.3g} mm > {WHOLE_BODY_SHARE:g} x its zone ({z * 1e3:.3g} mm): "
+                f"every cell of the {'ball' if body == 'ball' else 'struck body'} is plastic (full method)"
+            )
+    return tuple(out)
+
+
+def choose_strain(scene: Scene, h: HertzImpact, reasons: dict[str, str]) -> str:
+    """``small`` or ``finite``: ``model.strain`` unless it is auto, else finite where a plastic
+    material's predicted contact radius passes FINITE_STRAIN_CONTACT_SHARE of the radius."""
+    asked = scene.model.strain
+    if asked != "auto":
+        reasons["strain"] = "user"
+        return asked
+    shares = [
+        plastic_zone_radius(h.radius, h.mass, h.speed, h.e_star, y, m.poisson)[0] / h.radius
+        for m in (scene.ball.material, scene.target_material)
+        if (y := m.initial_yield_stress) is not None
+    ]
+    share = max(shares, default=0.0)
+    if share > FINITE_STRAIN_CONTACT_SHARE:
+        reasons["strain"] = (
+            f"contact radius {share:.3g} R > {FINITE_STRAIN_CONTACT_SHARE:g} R: plastic strains past 0.1 "
+            "(logarithmic-strain J2)"
+        )
+        return "finite"
+    reasons["strain"] = (
+        f"contact radius {share:.3g} R <= {FINITE_STRAIN_CONTACT_SHARE:g} R: small-strain J2"
+        if shares
+        else "elastic materials"
+    )
+    return "small"
+
+
 def predict_plastic_radius(h: HertzImpact, materials: tuple[Material, ...]) -> float:
     """The radius (m) of the plastic region an impact ``h`` leaves about the impact point: the
     largest of Johnson's expanding-cavity radius c over the plastic ``materials`` (each with its
@@ -234,6 +293,11 @@ class Plan:
     #: the contact zone's radius in the ball (m) when smaller than zone_radius (a small ball whose
     #: zone in the block is larger than the ball allows); 0: zone_radius in both bodies
     ball_zone_radius: float = 0.0
+    #: the plastic zone's kinematics: ``small`` or ``finite`` strain (:func:`choose_strain`)
+    strain: str = "small"
+    #: the bodies ("ball", "struck") plastic in every cell, not in their zone alone: their plastic
+    #: region does not fit the zone (:func:`whole_plastic_bodies`; the full method)
+    plastic_whole: tuple[str, ...] = ()
 
     @property
     def ball_zone(self) -> float:
@@ -270,6 +334,10 @@ class Plan:
             ("f_cut", f"{self.f_cut / 1e3:.4g} kHz", why.get("f_cut", "")),
             ("degree", f"P{self.degree}", why.get("degree", "")),
         ]
+        if self.plastic_radius > 0 or self.strain == "finite":
+            rows.append(("strain", self.strain, why.get("strain", "")))
+        for body in self.plastic_whole:
+            rows.append((f"plastic_whole_{body}", "yes", why.get(f"plastic_whole_{body}", "")))
         if self.plastic_radius > 0:
             rows.insert(
                 4 if self.h_ball > 0 else 3,
@@ -605,6 +673,8 @@ def make_plan(scene: Scene) -> Plan:
     sizes = _element_sizes(scene, h, reasons)
     zones = _zones(scene, h, sizes.h_contact, reasons)
     steps = _time_steps(scene, h, reasons)
+    strain = choose_strain(scene, h, reasons)
+    whole = whole_plastic_bodies(scene, h, zones.zone, zones.ball_zone, reasons)
     return Plan(
         h,
         sym,
@@ -630,6 +700,8 @@ def make_plan(scene: Scene) -> Plan:
         backing_stiffness=scene.liner.backing_stiffness if scene.liner is not None else 0.0,
         h_ball=sizes.h_ball,
         ball_zone_radius=zones.ball_zone,
+        strain=strain,
+        plastic_whole=whole,
     )
 
 

@@ -404,7 +404,8 @@ class ModelOptions:
     ``degree`` Lagrange degree of the full model, ``f_cut`` modal cutoff (Hz), ``modes`` a fixed
     mode count per body, ``ball_zone_radius`` the ball's own contact-zone radius (m, at most
     ``zone_radius``; a repeated-impact sequence's ball, whose plastic region grows less than the
-    liner's).
+    liner's), ``strain`` the plastic zone's kinematics: auto (the plan's choice from the predicted
+    plastic strain), small or finite.
     """
 
     h_contact: float | None = None
@@ -416,6 +417,7 @@ class ModelOptions:
     modes: int | None = None
     fine_radius: float | None = None
     ball_zone_radius: float | None = None
+    strain: str = "auto"
 
 
 @dataclass(frozen=True)
@@ -636,6 +638,8 @@ class Scene:
                 m.zone_radius,
                 f"must be smaller than half the struck face ({min(blk.length, blk.height) / 2:g} m)",
             )
+        if m.strain not in ("auto", "small", "finite"):
+            raise SceneError("model.strain", m.strain, "must be one of auto, small, finite")
         if m.symmetry not in ("auto", "full", "half", "quarter"):
             raise SceneError("model.symmetry", m.symmetry, "must be one of auto, full, half, quarter")
         if m.degree not in (1, 2):
