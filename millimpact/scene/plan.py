@@ -159,7 +159,11 @@ WHOLE_BODY_SHARE = 0.85
 
 def whole_plastic_bodies(scene: Scene, h: HertzImpact, zone: float, ball_zone: float, reasons: dict[str, str]):
     """The bodies ("ball", "struck") whose predicted plastic region does not fit their contact zone
-    (c > WHOLE_BODY_SHARE x its radius): the full method makes every cell of them plastic."""
+    (c > WHOLE_BODY_SHARE x its radius): the full method makes every cell of them plastic. A zone the
+    scene gives (``model.zone_radius``) is the user's: kept, and a run warns if plasticity reaches
+    its boundary."""
+    if scene.model.zone_radius is not None:
+        return ()
     out = []
     for body, mat, z in (("ball", scene.ball.material, ball_zone or zone), ("struck", scene.target_material, zone)):
         if (y := mat.initial_yield_stress) is None:
