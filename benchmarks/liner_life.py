@@ -6,7 +6,7 @@ The sources we could read give the lifters only; the mill around them is assumed
 a 32 ft (9.75 m) shell, 4.8 m to the plates' inner face, 64 lifter rows (0.47 m apart), 100 mm
 tops, 125 mm balls (liner-segment's), the plan's SAG charge (J 0.28, J_B 0.12) at 75 % of critical.
 
-    .venv/bin/python benchmarks/liner_life.py [--cycles 4] [--revolutions 2] [--warmup 0.6] [--seed 0]
+    .venv/bin/python benchmarks/liner_life.py [--cycles 4] [--max-step-depth F] [--revolutions 2] [--warmup 0.6] [--seed 0]
 
 Steps (each skipped when its folder is complete): ``millimpact mill`` on the new liner, then
 ``millimpact life --calibrate-height 152:58:4000 --hours 4000 --cycles N``, which runs the mill
@@ -57,6 +57,8 @@ def _transfer(out: Path, life: Path, a) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cycles", type=int, default=4)
+    ap.add_argument("--max-step-depth", type=float, default=None,
+                    help="life's --max-step-depth: steps shortened so no bin loses more than F of the lifter")
     ap.add_argument("--revolutions", type=float, default=0.4)
     ap.add_argument("--warmup", type=float, default=0.6)
     ap.add_argument("--seed", type=int, default=0, help="the mill's seed (another charge: a replicate)")
@@ -71,7 +73,8 @@ def main() -> None:
               "--seed", str(a.seed), "--force", "--out", str(mill)], out / "mill.log")
     if not (life / "summary.json").exists():
         _run(["life", *SCENE, "--mill", str(mill), "--calibrate-height", "152:58:4000", "--hours", "4000",
-              "--cycles", str(a.cycles), "--force", "--out", str(life)], out / "life.log")
+              "--cycles", str(a.cycles), "--force", "--out", str(life),
+              *(["--max-step-depth", str(a.max_step_depth)] if a.max_step_depth is not None else [])], out / "life.log")
     transfer = _transfer(out, life, a) if not a.no_transfer else None
     s = json.loads((life / "summary.json").read_text())
     tau = 4000 / math.log(152 / 58)

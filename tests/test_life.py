@@ -83,6 +83,7 @@ def test_first_order_decay_rate():
     (["--hours", "0"], "--hours 0.0: must lie in (0"),
     (["--cycles", "0"], "--cycles 0: must be an integer in [1, 100]"),
     (["--spread", "1.5"], "--spread 1.5: must lie in [0, 1)"),
+    (["--max-step-depth", "0"], "--max-step-depth 0.0: must lie in (0, 1]"),
     (["--calibrate-height", "58:152:4000"], "needs H0 > H1 > 0 mm"),
     (["--calibrate-mass", "2.6", "--calibrate-height", "152:58:4000"], "give one of them"),
 ])
@@ -347,3 +348,42 @@ def test_an_unworn_profile_is_the_scenes_own():
         for p, q in zip(ours.segments, theirs.segments):
             assert (p.place, p.lifter, p.part) == (q.place, q.lifter, q.part)
             assert math.dist(p.start, q.start) < 1e-12 and math.dist(p.end, q.end) < 1e-12
+
+
+def test_a_step_limit_keeps_each_bins_loss_below_its_share_of_the_lifter(monkeypatch):
+    """--max-step-depth F: each step is the nominal hours / cycles, or shorter so that its largest
+    bin depth is F of the lifter's height above the plate (to round-off: the depth is linear in the
+    hours), never below a quarter of the nominal step; the steps still add up to the hours. The
+    fake mill wears the top corner fastest (_unit_record); at an abrasion constant of 0.5 its
+    2000 h step takes 15.5 mm there, more than F = 0.05 of the 180 mm lifter (9 mm): the limit
+    binds."""
+    import dataclasses
+
+    from millimpact.life import loop
+
+    summary = {"power": {"measured": {"net_per_metre_W_m": 1e5}}, "toe_deg": -30, "shoulder_deg": 130,
+               "impacts_per_revolution": {"all": 1.0}, "energy_per_revolution_J": {"all": 1.0}}
+    worn = {}
+
+    def record(lp):
+        return dataclasses.replace(_unit_record(lp), summary=summary)
+
+    def run_mill_on(lp, cycle):
+        worn["lp"] = lp
+        return Path(".")
+
+    monkeypatch.setattr(loop, "read_mill_record", lambda folder, profile: record(worn["lp"]))
+    lp = _lifter()
+    law = WearLaw(abrasion=0.5, impact=0.0, hardness_Pa=3e9, density_kg_m3=7850.0)
+    equal, _, _ = loop.run_life(lp, record(lp), law, 4000.0, 2, (1.0, 1.0), run_mill_on, 0.0625)
+    share = 0.05
+    steps, _, why = loop.run_life(lp, record(lp), law, 4000.0, 2, (1.0, 1.0), run_mill_on, 0.0625,
+                                  max_step_share=share)
+    assert why is None and steps[-1].hours == pytest.approx(4000.0, rel=1e-12)
+    assert len(equal) == 3 and len(steps) > len(equal)  # the limit binds: more, shorter steps
+    for before, after in zip(steps[:-1], steps[1:]):
+        dt = after.hours - before.hours
+        assert loop.MIN_STEP_SHARE * 2000.0 * (1 - 1e-12) <= dt <= 2000.0 * (1 + 1e-12) or after is steps[-1]
+        limit = share * 1e3 * before.profile.height_above_plate
+        assert before.largest_step_depth_mm <= limit * (1 + 1e-9) or dt == pytest.approx(loop.MIN_STEP_SHARE * 2000.0)
+    assert max(s.largest_step_depth_mm for s in steps[:-1]) < max(s.largest_step_depth_mm for s in equal[:-1])

@@ -57,6 +57,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--hours", type=float, default=1000.0, metavar="H", help="hours of operation (default 1000)")
     p.add_argument("--cycles", type=int, default=1, metavar="N", help="profile steps over --hours (default 1)")
     p.add_argument(
+        "--max-step-depth",
+        type=float,
+        metavar="F",
+        help="shorten a step so no bin loses more than F of the lifter's height (0 < F <= 1; default: equal steps)",
+    )
+    p.add_argument(
         "--revolutions", type=float, metavar="R", help="revolutions of each re-run mill (default: the given run's)"
     )
     p.add_argument(
@@ -84,6 +90,10 @@ def check_args(args: argparse.Namespace) -> None:
             raise InputError(f"{name} {x!r}: must lie in {'(' if name == '--hours' else '['}{lo:g}, {hi:g}]")
     if not 1 <= args.cycles <= 100:
         raise InputError(f"--cycles {args.cycles}: must be an integer in [1, 100]")
+    if args.max_step_depth is not None and not (
+        math.isfinite(args.max_step_depth) and 0.0 < args.max_step_depth <= 1.0
+    ):
+        raise InputError(f"--max-step-depth {args.max_step_depth!r}: must lie in (0, 1]")
     if args.spread is not None and not (math.isfinite(args.spread) and 0.0 <= args.spread < 1.0):
         raise InputError(f"--spread {args.spread!r}: must lie in [0, 1)")
     given = [

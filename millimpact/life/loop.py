@@ -5,8 +5,15 @@ Each cycle takes a mill run on the current profile (the user's on the new liner 
 (:func:`~millimpact.life.wear.depth_rates`) over a step of ``hours / cycles``, and moves the profile
 (:func:`~millimpact.life.profile.worn_profile`). The steps should be short enough that a step's wear
 is small against the lifter's height (each step's largest depth is reported) and long enough that
-the charge changes between runs. It stops at the relining criterion: the lifters' height above the
-plate or the plate's thickness at their limits.
+the charge changes between runs. With ``max_step_share`` F a step is also short enough that no bin
+of any surface loses more than F of the lifter's current height above the plate,
+
+    dt = min(hours / cycles, F h / d_max),   d_max the largest depth rate of the bins (m/h),
+
+but at least MIN_STEP_SHARE of hours / cycles: a worn lifter's faces meet at its top, where the
+corner bins wear 5-10 times the face's mean, and equal steps would carry a bin past the lifter in
+one step. It stops at the relining criterion: the lifters' height above the plate or the plate's
+thickness at their limits.
 """
 
 from __future__ import annotations
@@ -19,6 +26,10 @@ from pathlib import Path
 from ..commandkit.timing import StageClock
 from .profile import LifterProfile, worn_profile
 from .wear import MillRecord, WearLaw, depth_rates, place_rates, read_mill_record, surface_depths
+
+#: a step limited by ``max_step_share`` is at least this share of hours / cycles (the mill runs of a
+#: life are at most cycles / MIN_STEP_SHARE)
+MIN_STEP_SHARE = 0.25
 
 
 @dataclass
@@ -64,20 +75,24 @@ def run_life(
     ball_radius: float,
     say: Callable[[str], None] = lambda s: None,
     clock: StageClock | None = None,
+    max_step_share: float | None = None,
 ) -> tuple[list[LifeStep], list[dict], str | None]:
-    """The steps (the profile at 0, hours/cycles, ...), the per-surface rates of each cycle's mill
-    run, and the relining reason if reached. ``run_mill_on(profile, cycle)`` runs the mill on a
-    worn profile and returns its folder (None: one cycle only). ``clock`` gets a lap of
-    ``wear_and_profile`` per cycle, of ``mill_reruns`` per re-run and of ``read`` per re-run read."""
+    """The steps (the profile at 0, hours/cycles, ...; shorter ones with ``max_step_share``, the
+    module docstring), the per-surface rates of each cycle's mill run, and the relining reason if
+    reached. ``run_mill_on(profile, cycle)`` runs the mill on a worn profile and returns its folder
+    (None: one cycle only). ``clock`` gets a lap of ``wear_and_profile`` per cycle, of
+    ``mill_reruns`` per re-run and of ``read`` per re-run read."""
     clock = StageClock() if clock is None else clock
-    dt = hours / cycles
+    nominal = hours / cycles
     steps = [LifeStep(0.0, lp, mill_state(first))]
     rates_per_cycle = []
     rec, why = first, None
-    for k in range(cycles):
+    k = 0
+    while steps[-1].hours < hours * (1.0 - 1e-9):
         with clock.stage("wear_and_profile"):
             rates = depth_rates(rec, law)
             rates_per_cycle.append(place_rates(rec, rates))
+            dt = step_hours(rec, rates, lp, nominal, hours - steps[-1].hours, max_step_share)
             depths = surface_depths(rec, rates, dt)
             lp = worn_profile(lp, depths)
         largest = max((float(d.max()) for _, d in depths.values() if d.size), default=0.0)
@@ -88,16 +103,31 @@ def run_life(
             f"{1e3 * lp.plate_left:.1f} mm"
         )
         why = relined(lp, *reline)
-        last = k == cycles - 1 or why is not None
+        last = steps[-1].hours + dt >= hours * (1.0 - 1e-9) or why is not None
+        k += 1
         if not last and run_mill_on is not None:
             with clock.stage("mill_reruns"):
-                folder = run_mill_on(lp, k + 1)
+                folder = run_mill_on(lp, k)
             with clock.stage("read"):
                 rec = read_mill_record(folder, lp.mill_profile(ball_radius))
         steps.append(LifeStep(steps[-1].hours + dt, lp, {} if last or run_mill_on is None else mill_state(rec)))
         if why is not None:
             break
     return steps, rates_per_cycle, why
+
+
+def step_hours(
+    rec: MillRecord, rates, lp: LifterProfile, nominal: float, left: float, max_step_share: float | None
+) -> float:
+    """The next step (h): ``nominal`` (hours / cycles) or what is ``left``, and with
+    ``max_step_share`` F at most F h / d_max (h the lifter's height above the plate, d_max the
+    largest bin's depth rate), but not below MIN_STEP_SHARE x nominal (the module docstring)."""
+    dt = min(nominal, left)
+    if max_step_share is not None:
+        per_hour = max((float(d.max()) for _, d in surface_depths(rec, rates, 1.0).values() if d.size), default=0.0)
+        if per_hour > 0.0:
+            dt = min(dt, max(max_step_share * lp.height_above_plate / per_hour, MIN_STEP_SHARE * nominal))
+    return dt
 
 
 def hours_to_reline(lp: LifterProfile, rates: dict, reline: tuple[float, float], factor: float = 1.0) -> dict:

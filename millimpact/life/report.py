@@ -57,7 +57,17 @@ def life_summary(args, scene, lp, rec, cal, runner, say, clock=None) -> dict:
     gather summary.json."""
     reline = (args.reline_height, args.reline_plate)
     steps, rates, why = run_life(
-        lp, rec, cal.law, args.hours, args.cycles, reline, runner, scene.ball.radius, say, clock
+        lp,
+        rec,
+        cal.law,
+        args.hours,
+        args.cycles,
+        reline,
+        runner,
+        scene.ball.radius,
+        say,
+        clock,
+        getattr(args, "max_step_depth", None),
     )
     first = rates[0]
     spread = {
@@ -79,6 +89,8 @@ def life_summary(args, scene, lp, rec, cal, runner, say, clock=None) -> dict:
         "mill": str(rec.folder),
         "hours": args.hours,
         "cycles": args.cycles,
+        "max_step_depth": getattr(args, "max_step_depth", None),
+        "steps": len(steps) - 1,
         "calibration": {"law": vars(cal.law), "calibrated_on": cal.calibrated_on, "spread": cal.spread},
         "rates": rates,
         "rates_are": "per surface and mill run (cycle): mm per 1000 h (mean, largest), shares, kg per 1000 h per metre",
