@@ -38,7 +38,7 @@ from millimpact.theory.thornton import restitution_thornton, yield_onset_velocit
 
 #: LAMMPS 2025 ``mdr``, two 15 mm Y = 1 GPa steel spheres head-on: e at V / V_y (the module docstring)
 MDR = {30.0: 0.835, 100.0: 0.611, 183.0: 0.513, 300.0: 0.440, 1000.0: 0.280}
-#: the issue of validity: mdr's e within 10 % at 300 V_y and 15 % at 1000 V_y
+#: the validation's bounds: e within 10 % of mdr's at 300 V_y and 15 % at 1000 V_y
 MDR_BOUNDS = {300.0: 0.10, 1000.0: 0.15}
 #: mesh refinements run per strain (h = a_c / (3 x refine)); the convergence set at 300 and 1000 V_y
 REFINE = 1.5

@@ -59,7 +59,7 @@ def test_a_thousand_yield_speeds_make_the_whole_ball_plastic_with_the_energy_bal
     """At 1000 V_y Johnson's cavity radius (14.3 mm) is about the ball's radius: the plan takes
     finite strain and the whole ball plastic, the plastic region reaches past the 6.6 mm contact
     zone (which truncated it before), and kinetic plus elastic energy plus the plastic work stay the
-    impact energy within the issue's 0.5 %."""
+    impact energy within 0.5 % (the validation's bound for the regime)."""
     base = builtin_scene("hertz-halfspace")
     g = 10 * base.block.material.shear_modulus
     vy = yield_onset_velocity(1e9, effective_modulus(base.ball.material, base.with_value(
