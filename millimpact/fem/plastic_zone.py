@@ -36,8 +36,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .hardening import tabulated
-from .plasticity import J2Material, ReturnMapResult, flow_curve_from_fields, return_map
+from .plasticity import J2Material, ReturnMapResult, return_map
 
 if TYPE_CHECKING:
     from .return_map_kernel import CompiledPass
@@ -607,24 +606,3 @@ class PlasticZone:
             local = max((float(a.max()) for a in self.alpha if a.size), default=0.0)
             self._cache[key] = self.comm.allreduce(local, op=MPI.MAX)
         return self._cache[key]
-
-
-def create_plastic_zone(model, zone_materials, strain: str = "small") -> PlasticZone | None:
-    """The plastic zone of a model: ``zone_materials`` pairs (cell tag of a body's contact zone,
-    its scene material); bodies whose material is elastic are left out; None if none yields.
-    ``strain``: ``small`` (:class:`PlasticZone`) or ``finite``
-    (:class:`.finite_zone.FiniteStrainZone`, the plan's ``strain``)."""
-    zones = []
-    for tag, mat in zone_materials:
-        flow = flow_curve_from_fields(mat.initial_yield_stress, mat.hardening_modulus, tabulated(mat))
-        if flow is not None:
-            jc = mat.johnson_cook_rate
-            rate = None if jc is None else (float(jc[0]), float(jc[1]))
-            zones.append(ZoneMaterial(tag, J2Material(mat.youngs_modulus, mat.poisson, flow, rate)))
-    if not zones:
-        return None
-    if strain == "finite":
-        from .finite_zone import FiniteStrainZone
-
-        return FiniteStrainZone(model.V, model.meshdata.cell_tags, zones, model.bcs)
-    return PlasticZone(model.V, model.meshdata.cell_tags, zones, model.bcs)

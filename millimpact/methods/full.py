@@ -19,7 +19,7 @@ from ..console import stage
 from ..errors import InputError
 from ..fem.contact import create_contact
 from ..fem.model import create_fe_model
-from ..fem.plastic_zone import create_plastic_zone
+from ..fem.plastic_zones import create_plastic_zone
 from ..geometry.builders import BALL_REGION, BALL_ZONE, BLOCK_REGION, BLOCK_ZONE
 from ..geometry.mesh import create_mesh
 from ..integration import integrators

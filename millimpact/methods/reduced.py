@@ -51,7 +51,7 @@ from ..console import stage
 from ..errors import InputError
 from ..fem.contact import ContactSet, create_contact
 from ..fem.model import FEModel, create_fe_model
-from ..fem.plastic_zone import create_plastic_zone
+from ..fem.plastic_zones import create_plastic_zone
 from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
 from ..geometry.mesh import create_mesh
 from ..integration import integrators

@@ -574,7 +574,7 @@ class _ReducedEngine(_Engine):
 
     def __init__(self, design, method, options, comm):
         super().__init__(design, method, options, comm)
-        from ..fem.plastic_zone import create_plastic_zone
+        from ..fem.plastic_zones import create_plastic_zone
         from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
         from ..methods.reduced import build_reduced_setup
         from ..reduction.plastic_projection import ProjectedPlasticZone
@@ -683,7 +683,7 @@ class _FullEngine(_Engine):
     def __init__(self, design, method, options, comm):
         super().__init__(design, method, options, comm)
         from ..fem.model import create_fe_model
-        from ..fem.plastic_zone import create_plastic_zone
+        from ..fem.plastic_zones import create_plastic_zone
         from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
         from ..geometry.mesh import create_mesh
         from ..methods.options import take
