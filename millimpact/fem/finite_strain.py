@@ -8,7 +8,7 @@ E the Lagrangian logarithmic (Hencky) strain, (lambda_a, N_a) the eigenpairs of 
 
 Constitutive law: additive plasticity in the logarithmic strain space (C. Miehe, N. Apel and
 M. Lambrecht, Comput. Methods Appl. Mech. Engrg. 191, 2002, 5383-5425, sections 2-3): E = E_e + E_p,
-and the small-strain J2 law of :mod:`.plasticity` with E in place of eps. Its stress
+and the small-strain J2 law of :mod:`millimpact.fem.plasticity` with E in place of eps. Its stress
 T = C (E - E_p) is work conjugate to E (T : dE is the power per reference volume), so the radial
 return, the hardening, the strain-rate factor, the consistent moduli dT/dE and the plastic work
 T : dE_p are the small-strain ones, unchanged. Where nothing yields the model is Hencky's

@@ -18,7 +18,7 @@ Outside the zones the bodies stay linear elastic and small-strain: there the str
 elastic ones (< Y/E ~ 0.5 %) and the rotations those of the bodies' vibration, so the geometric
 terms, of the order of the strain times the stress, are below the elastic model's other errors
 (a run reports the zone's largest rotation; the region's are smaller). The contact gap of
-:mod:`.contact` already takes the ball's surface nodes where they are (x + u) against the flat
+:mod:`millimpact.fem.contact` already takes the ball's surface nodes where they are (x + u) against the flat
 face: on the deformed surface.
 """
 
