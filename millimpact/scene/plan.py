@@ -341,7 +341,8 @@ class Plan:
         if self.plastic_radius > 0 or self.strain == "finite":
             rows.append(("strain", self.strain, why.get("strain", "")))
         for body in self.plastic_whole:
-            rows.append((f"plastic_whole_{body}", "yes", why.get(f"plastic_whole_{body}", "")))
+            value = "ball" if body == "ball" else "struck body"
+            rows.append(("plastic_whole", value, why.get(f"plastic_whole_{body}", "")))
         if self.plastic_radius > 0:
             rows.insert(
                 4 if self.h_ball > 0 else 3,

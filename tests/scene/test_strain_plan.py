@@ -39,8 +39,9 @@ def test_the_plan_chooses_the_kinematics_and_the_plastic_bodies(ratio, strain, w
     assert plan.plastic_whole == whole
     rows = {name: (value, why) for name, value, why in plan.table()}
     assert rows["strain"][0] == strain and "contact radius" in rows["strain"][1]
+    assert ("plastic_whole" in rows) == bool(whole)
     if whole:
-        assert "plastic_whole_ball" in rows and "every cell of the ball" in rows["plastic_whole_ball"][1]
+        assert rows["plastic_whole"][0] == "ball" and "every cell of the ball" in rows["plastic_whole"][1]
 
 
 def test_the_scene_overrides_the_kinematics():
