@@ -298,16 +298,11 @@ def test_twice_the_hours_wear_twice_the_depth_on_a_fixed_profile():
     assert b.plate_wear == pytest.approx(2.0 * a.plate_wear, rel=1e-12)
 
 
-def test_the_loop_times_each_cycle_and_each_mill_rerun(tmp_path, monkeypatch):
-    """run_life over 3 cycles with a mill runner that sleeps 0.4 s: one lap of wear and profile
-    update per cycle, one mill re-run (and one read of it) per cycle but the last; each re-run's lap
-    at least its 0.4 s and less than 0.3 s over (the fake's own work is microseconds; room for a
-    loaded machine); the clock's stages and other add up to its total (to round-off)."""
+def _fake_mill(monkeypatch, loop, delay=0.0):
+    """(record, run_mill_on) of a fake mill for ``loop.run_life``: each run on a profile takes
+    ``delay`` s and reads back as _unit_record of that profile (its summary a fixed mill state)."""
     import dataclasses
     import time
-
-    from millimpact.commandkit.timing import StageClock
-    from millimpact.life import loop
 
     summary = {"power": {"measured": {"net_per_metre_W_m": 1e5}}, "toe_deg": -30, "shoulder_deg": 130,
                "impacts_per_revolution": {"all": 1.0}, "energy_per_revolution_J": {"all": 1.0}}
@@ -317,11 +312,24 @@ def test_the_loop_times_each_cycle_and_each_mill_rerun(tmp_path, monkeypatch):
         return dataclasses.replace(_unit_record(lp), summary=summary)
 
     def run_mill_on(lp, cycle):
-        time.sleep(0.4)
+        time.sleep(delay)
         worn["lp"] = lp
-        return tmp_path
+        return Path(".")
 
     monkeypatch.setattr(loop, "read_mill_record", lambda folder, profile: record(worn["lp"]))
+    return record, run_mill_on
+
+
+def test_the_loop_times_each_cycle_and_each_mill_rerun(tmp_path, monkeypatch):
+    """run_life over 3 cycles with a mill runner that sleeps 0.4 s: one lap of wear and profile
+    update per cycle, one mill re-run (and one read of it) per cycle but the last; each re-run's lap
+    at least its 0.4 s and less than 0.3 s over (the fake's own work is microseconds; room for a
+    loaded machine); the clock's stages and other add up to its total (to round-off)."""
+
+    from millimpact.commandkit.timing import StageClock
+    from millimpact.life import loop
+
+    record, run_mill_on = _fake_mill(monkeypatch, loop, delay=0.4)
     lp = _lifter()
     law = WearLaw(abrasion=1e-3, impact=0.0, hardness_Pa=3e9, density_kg_m3=7850.0)
     clock = StageClock()
@@ -357,22 +365,10 @@ def test_a_step_limit_keeps_each_bins_loss_below_its_share_of_the_lifter(monkeyp
     fake mill wears the top corner fastest (_unit_record); at an abrasion constant of 0.5 its
     2000 h step takes 15.5 mm there, more than F = 0.05 of the 180 mm lifter (9 mm): the limit
     binds."""
-    import dataclasses
 
     from millimpact.life import loop
 
-    summary = {"power": {"measured": {"net_per_metre_W_m": 1e5}}, "toe_deg": -30, "shoulder_deg": 130,
-               "impacts_per_revolution": {"all": 1.0}, "energy_per_revolution_J": {"all": 1.0}}
-    worn = {}
-
-    def record(lp):
-        return dataclasses.replace(_unit_record(lp), summary=summary)
-
-    def run_mill_on(lp, cycle):
-        worn["lp"] = lp
-        return Path(".")
-
-    monkeypatch.setattr(loop, "read_mill_record", lambda folder, profile: record(worn["lp"]))
+    record, run_mill_on = _fake_mill(monkeypatch, loop)
     lp = _lifter()
     law = WearLaw(abrasion=0.5, impact=0.0, hardness_Pa=3e9, density_kg_m3=7850.0)
     equal, _, _ = loop.run_life(lp, record(lp), law, 4000.0, 2, (1.0, 1.0), run_mill_on, 0.0625)
