@@ -60,7 +60,8 @@ def log_strain(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     F = np.asarray(F, dtype=float)
     C = np.swapaxes(F, 1, 2) @ F  # batched matmul: 4x faster than the equivalent einsum
     lam, N = np.linalg.eigh(C)
-    if not np.all(lam > 0.0):
+    # det F > 0: C = F^T F is positive for an element turned inside out too
+    if not (np.all(lam > 0.0) and np.all(np.linalg.det(F) > 0.0)):
         raise SolverError(
             "finite strain: a deformation gradient with det F <= 0 or not finite (an element turned inside out, "
             "or the step's iteration diverged): try a smaller time.dt_contact"

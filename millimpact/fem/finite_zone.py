@@ -9,7 +9,7 @@ zone alone, so K, M and every operator built from them stay as they are:
 
 Unlike the small-strain correction, f_c is not zero where nothing yields: it carries the geometric
 nonlinearity (rotations, the stress's change of configuration) wherever Grad u is not. So every
-evaluation maps every zone point (no candidate cells, no compiled pass), each point with a
+evaluation maps every zone point (no candidate cells; compiled, :mod:`.finite_strain_kernel`), each point with a
 non-zero Grad u counts as a nonlinear one (the integrator iterates while any does), and the
 "frozen" force of the committed state is f_c at the committed displacement (not at u = 0): the
 force of the last converged step, which starts the next.
@@ -61,6 +61,10 @@ class FiniteStrainZone(PlasticZone):
         self._committed_sc: np.ndarray | None = None  # its P1 - C eps at the quadrature slots
         self._trial_u: np.ndarray | None = None
         self._trial_sc: np.ndarray | None = None
+        # the compiled pass's force of the trial and the committed state (local arrays): kept in
+        # place of the point corrections, which that pass does not write
+        self._trial_f: np.ndarray | None = None
+        self._committed_f: np.ndarray | None = None
 
     def _define_forms(self, points: np.ndarray, dxz) -> None:
         mesh, cell = self.V.mesh, self.V.mesh.ufl_cell()
@@ -83,16 +87,22 @@ class FiniteStrainZone(PlasticZone):
         """Grad u (n, 3, 3) at zone k's quadrature points for the displacement in ``self.u``."""
         return self._grad.eval(self.cells[k]).reshape(-1, 3, 3)
 
-    def _compiled(self):
-        return None  # the compiled pass is small-strain
+    def _build_pass(self):
+        from .finite_strain_kernel import FiniteStrainPass
+
+        return FiniteStrainPass.build(self.V, self.cells, [z.material for z in self.zones], self.q_degree)
 
     def evaluate(self, u_vec, tangent: bool = True, candidates_only: bool = False) -> int:
-        """The finite-strain update of displacement ``u_vec`` from the committed state: fills the
-        corrections P1 - C eps and (``tangent``) dP1/dF - C, keeps the trial state; returns the
-        number of nonlinear points (this rank): those that yield or whose Grad u is not zero."""
+        """The finite-strain update of displacement ``u_vec`` from the committed state: the
+        correction's force (compiled, :mod:`.finite_strain_kernel`, without the tangent) or the
+        corrections P1 - C eps and (``tangent``) dP1/dF - C at the points (numpy); keeps the trial
+        state; returns the number of nonlinear points (this rank): those that yield or whose
+        Grad u passes GEOMETRIC_FLOOR."""
         if candidates_only:
             raise RuntimeError("a finite-strain zone evaluates every cell (no candidates)")
-        self._compiled_force = None
+        if not tangent and self._compiled() is not None:
+            return self._evaluate_compiled(u_vec)
+        self._compiled_force = self._trial_f = None
         self._set_displacement(u_vec)
         sc = self.stress_correction.x.array.reshape(-1, 9)
         tc = self.tangent_correction.x.array.reshape(-1, 81)
@@ -124,6 +134,29 @@ class FiniteStrainZone(PlasticZone):
         self._trial_sc = self.stress_correction.x.array.copy()
         return n_active
 
+    def _evaluate_compiled(self, u_vec) -> int:
+        """The compiled pass over every zone point: the force correction of ``u_vec`` (kept for
+        :meth:`force_correction`, and as the committed force once committed) and the trial state."""
+        self._set_displacement(u_vec)
+        u = self.u.x.array
+        f = self._compiled_force
+        f = np.zeros_like(u) if f is None or f.size != u.size else f
+        f[:] = 0.0
+        n_active, trial = self._compiled().evaluate_finite(
+            u, self.plastic_strain, self.alpha, f, GEOMETRIC_FLOOR, self.time_step
+        )
+        self._compiled_force, self._trial, self._restricted = f, trial, False
+        self._yielding_cells = np.zeros(0, np.int32)
+        self._trial_u, self._trial_sc, self._trial_f = u.copy(), None, f.copy()
+        return n_active
+
+    def force_correction(self, out=None):
+        """f_c of the last evaluation (N, a PETSc Vec of V): the compiled pass's whole force (no
+        frozen part is added: it is the correction at u itself), else the assembled one."""
+        if self._compiled_force is None:
+            return super().force_correction(out)
+        return self._vector_of(self._compiled_force, out)
+
     def select_candidates(self, stress_fraction: float) -> int:
         raise RuntimeError("a finite-strain zone evaluates every cell (no candidates)")
 
@@ -137,7 +170,7 @@ class FiniteStrainZone(PlasticZone):
             if res is not None:
                 self.plastic_strain[k] = res.plastic_strain.copy()
                 self.alpha[k] = res.alpha.copy()
-        self._committed_u, self._committed_sc = self._trial_u, self._trial_sc
+        self._committed_u, self._committed_sc, self._committed_f = self._trial_u, self._trial_sc, self._trial_f
         self._trial = None
         self.version += 1  # collective: every rank commits every step
         self._prune_cache()
@@ -145,10 +178,12 @@ class FiniteStrainZone(PlasticZone):
     def set_state(self, state) -> None:
         """The committed plastic state of :meth:`get_state`, at zero displacement."""
         super().set_state(state)
-        self._committed_u = self._committed_sc = None
+        self._committed_u = self._committed_sc = self._committed_f = None
 
     def _assemble_frozen_force(self):
         """f_c at the committed displacement (before the first commit, at u = 0)."""
+        if self._committed_f is not None:
+            return self._vector_of(self._committed_f)
         if self._committed_sc is None:
             return self._assemble_unloaded_force()
         self.stress_correction.x.array[:] = self._committed_sc

@@ -210,14 +210,13 @@ class PlasticZone:
         """The compiled pass (:class:`.return_map_kernel.CompiledPass`), built on first use; None
         where it is off (``compiled = False``), cannot be built or the space is not one it handles."""
         if self._kernel is None:
-            from .return_map_kernel import CompiledPass
-
-            self._kernel = (
-                CompiledPass.build(self.V, self.cells, [z.material for z in self.zones], self.q_degree)
-                if self.compiled
-                else None
-            ) or False
+            self._kernel = (self._build_pass() if self.compiled else None) or False
         return self._kernel or None
+
+    def _build_pass(self):
+        from .return_map_kernel import CompiledPass
+
+        return CompiledPass.build(self.V, self.cells, [z.material for z in self.zones], self.q_degree)
 
     def _evaluate_compiled(self, u_vec, restricted: bool) -> int:
         """:meth:`evaluate` without the tangent by the compiled pass: strains, return map and the
@@ -359,11 +358,7 @@ class PlasticZone:
         ``out``: a Vec of V to assemble into (overwritten, and returned), else a new one (a ghosted
         Vec's creation was a third of the assembly's cost, once an iteration)."""
         if self._compiled_force is not None:
-            b = out if out is not None else fem_petsc.create_vector(self._f_form)
-            with b.localForm() as local:
-                local.array[:] = self._compiled_force
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            fem_petsc.set_bc(b, self.bcs, scale=0.0)
+            b = self._vector_of(self._compiled_force, out)
             b.axpy(1.0, self._frozen_force())
             return b
         form = self._candidates_form() if self._restricted else self._f_form
@@ -378,6 +373,17 @@ class PlasticZone:
         fem_petsc.set_bc(b, self.bcs, scale=0.0)
         if self._restricted:
             b.axpy(1.0, self._frozen_force())
+        return b
+
+    def _vector_of(self, local_force: np.ndarray, out=None):
+        """The Vec of V (``out``, else a new one) of a force the compiled pass added up per rank
+        (local array, ghosts included): the ghosts' parts summed into their owners, zero on
+        Dirichlet rows."""
+        b = out if out is not None else fem_petsc.create_vector(self._f_form)
+        with b.localForm() as local:
+            local.array[:] = local_force
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem_petsc.set_bc(b, self.bcs, scale=0.0)
         return b
 
     def frozen_force(self):

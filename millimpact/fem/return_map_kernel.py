@@ -57,7 +57,7 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
                double *stress_out, double *deps_out, double *dg_out, unsigned char *yield_out);
 """
 
-_SOURCE = r"""
+KERNEL_HELPERS_C = r"""
 #include <math.h>
 
 /* sigma_y(alpha) and its slope on the flow table (a_i, s_i, k_i): segment i = the last a_i <= alpha
@@ -69,6 +69,100 @@ static int segment(int n, const double *a, double alpha)
     return i;
 }
 
+/* The radial return of J2 plasticity (plasticity.return_map) from the elastic trial strain e
+   (Mandel, eps - eps_p,n) and the committed alpha: fills the trial stress sig = C e (6); returns 1
+   where the point yields, with the plastic strain increment d (6) and *dg_out (the increment of
+   alpha), 0 where it stays elastic (d = 0, dg = 0), -1 where the consistency equation did not
+   converge. The flow table and tolerances as zone_force's. */
+static int radial_return(const double e[6], double al, double G, double K, int n_pts, const double *a,
+                         const double *s, const double *k, double rate_c, double rate_dg0, double tol,
+                         int max_it, double sig[6], double d[6], double *dg_out)
+{
+    const double s15 = sqrt(1.5);
+    const double tr = e[0] + e[1] + e[2], third = tr / 3.0;
+    double dev[6] = {e[0] - third, e[1] - third, e[2] - third, e[3], e[4], e[5]};
+    double nrm = 0.0;
+    for (int i = 0; i < 6; i++) nrm += dev[i] * dev[i];
+    nrm = sqrt(nrm);
+    const double q_tr = s15 * 2.0 * G * nrm;
+    int i0 = segment(n_pts, a, al);
+    sig[0] = 2.0 * G * dev[0] + K * tr; sig[1] = 2.0 * G * dev[1] + K * tr; sig[2] = 2.0 * G * dev[2] + K * tr;
+    sig[3] = 2.0 * G * dev[3]; sig[4] = 2.0 * G * dev[4]; sig[5] = 2.0 * G * dev[5];
+    for (int i = 0; i < 6; i++) d[i] = 0.0;
+    *dg_out = 0.0;
+    if (!(q_tr - (s[i0] + k[i0] * (al - a[i0])) > tol)) return 0;
+    /* the consistency equation q_tr - 3 G dg - sigma_y(alpha + dg) = 0 (plasticity._consistency) */
+    double dg = (q_tr - (s[i0] + k[i0] * (al - a[i0]))) / (3.0 * G + k[i0]);
+    if (n_pts > 1) {
+        int ok = 0;
+        for (int it = 0; it < max_it; it++) {
+            int i1 = segment(n_pts, a, al + dg);
+            double r = q_tr - 3.0 * G * dg - (s[i1] + k[i1] * (al + dg - a[i1]));
+            if (fabs(r) <= tol) { ok = 1; break; }
+            dg = dg + r / (3.0 * G + k[i1]);
+            if (dg < 0.0) dg = 0.0;
+        }
+        if (!ok) {
+            int i1 = segment(n_pts, a, al + dg);
+            if (fabs(q_tr - 3.0 * G * dg - (s[i1] + k[i1] * (al + dg - a[i1]))) > tol) return -1;
+        }
+    }
+    if (rate_c > 0.0 && dg > rate_dg0) {
+        /* the rate-dependent root lies in [rate_dg0, dg]: Newton kept inside the bracket */
+        double lo = rate_dg0, up = dg, x = dg, r = 0.0;
+        int ok = 0;
+        for (int it = 0; it < 4 * max_it; it++) {
+            int i1 = segment(n_pts, a, al + x);
+            const double rf = 1.0 + rate_c * log(x / rate_dg0);
+            const double sy = s[i1] + k[i1] * (al + x - a[i1]);
+            r = q_tr - 3.0 * G * x - sy * rf;
+            if (fabs(r) <= tol) { ok = 1; break; }
+            if (r > 0.0) lo = x; else up = x;
+            const double nx = x + r / (3.0 * G + k[i1] * rf + sy * rate_c / x);
+            x = (nx > lo && nx < up) ? nx : 0.5 * (lo + up);
+        }
+        if (!ok) return -1;
+        dg = x;
+    }
+    /* d eps_p = sqrt(3/2) dg dev / |dev| */
+    const double scale = s15 * dg / nrm;
+    for (int i = 0; i < 6; i++) d[i] = dev[i] * scale;
+    *dg_out = dg;
+    return 1;
+}
+
+/* grad u at a point: (sum_a u_a (x) grad_X N_a) J^-1, the element's nodal displacements ue, the
+   reference gradients rq (n_nodes, 3) at the point and the cell's J^-1 (Ji, row-major) */
+static void point_grad(int n_nodes, double ue[][3], const double *rq, const double *Ji, double g[3][3])
+{
+    double gr[3][3] = {{0}};
+    for (int n = 0; n < n_nodes; n++)
+        for (int i = 0; i < 3; i++)
+            for (int m = 0; m < 3; m++) gr[i][m] += ue[n][i] * rq[3 * n + m];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            g[i][j] = gr[i][0] * Ji[j] + gr[i][1] * Ji[3 + j] + gr[i][2] * Ji[6 + j];
+}
+
+/* f_a,i += w |det J| S_ij dN_a/dx_j = wd (S J^-T)_ik dN_a/dX_k for a stress (correction) S, any
+   3 x 3 (row i the force's component); cd the cell's block dofs */
+static void add_point_force(int n_nodes, const int *cd, const double *rq, const double *Ji, double wd,
+                            const double S[3][3], double *f)
+{
+    double T[3][3];
+    for (int i = 0; i < 3; i++)
+        for (int m = 0; m < 3; m++)
+            T[i][m] = wd * (S[i][0] * Ji[3 * m] + S[i][1] * Ji[3 * m + 1] + S[i][2] * Ji[3 * m + 2]);
+    for (int n = 0; n < n_nodes; n++) {
+        double *fn = f + 3L * cd[n];
+        const double *rn = rq + 3 * n;
+        for (int i = 0; i < 3; i++) fn[i] += T[i][0] * rn[0] + T[i][1] * rn[1] + T[i][2] * rn[2];
+    }
+}
+
+"""
+
+_SOURCE = KERNEL_HELPERS_C + r"""
 /* One zone's candidate cells (positions pos in the zone's cell list): returns the number of
    yielding points, or -1 - (the point) where the consistency equation did not converge.
    ref_grad (n_q, n_nodes, 3) the reference gradients, weights (n_q), dofs (cells, n_nodes) block
@@ -87,7 +181,7 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
                double rate_c, double rate_dg0, double tol, int max_it, double *f,
                double *stress_out, double *deps_out, double *dg_out, unsigned char *yield_out)
 {
-    const double s2 = sqrt(2.0), s15 = sqrt(1.5);
+    const double s2 = sqrt(2.0);
     int n_yield = 0;
     double ue[64][3];
     for (int ip = 0; ip < n_pos; ip++) {
@@ -99,127 +193,55 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
         for (int q = 0; q < n_q; q++) {
             const long p = (long)c * n_q + q;
             const double *rq = ref_grad + (long)q * n_nodes * 3;
-            /* grad u = (sum_a u_a (x) grad_X N_a) J^-1 */
-            double gr[3][3] = {{0}}, g[3][3];
-            for (int n = 0; n < n_nodes; n++)
-                for (int i = 0; i < 3; i++)
-                    for (int m = 0; m < 3; m++) gr[i][m] += ue[n][i] * rq[3 * n + m];
-            for (int i = 0; i < 3; i++)
-                for (int j = 0; j < 3; j++)
-                    g[i][j] = gr[i][0] * Ji[j] + gr[i][1] * Ji[3 + j] + gr[i][2] * Ji[6 + j];
+            double g[3][3];
+            point_grad(n_nodes, ue, rq, Ji, g);
             const double *ep = eps_p + 6 * p;
             double e[6] = {g[0][0] - ep[0], g[1][1] - ep[1], g[2][2] - ep[2],
                            s2 * 0.5 * (g[1][2] + g[2][1]) - ep[3], s2 * 0.5 * (g[0][2] + g[2][0]) - ep[4],
                            s2 * 0.5 * (g[0][1] + g[1][0]) - ep[5]};
-            const double tr = e[0] + e[1] + e[2], third = tr / 3.0;
-            double dev[6] = {e[0] - third, e[1] - third, e[2] - third, e[3], e[4], e[5]};
-            double nrm = 0.0;
-            for (int i = 0; i < 6; i++) nrm += dev[i] * dev[i];
-            nrm = sqrt(nrm);
-            const double q_tr = s15 * 2.0 * G * nrm;
-            const double al = alpha[p];
-            int i0 = segment(n_pts, a, al);
             const long o = (long)ip * n_q + q;
-            double sig[6] = {2.0 * G * dev[0] + K * tr, 2.0 * G * dev[1] + K * tr, 2.0 * G * dev[2] + K * tr,
-                             2.0 * G * dev[3], 2.0 * G * dev[4], 2.0 * G * dev[5]};
-            if (!(q_tr - (s[i0] + k[i0] * (al - a[i0])) > tol)) {
-                if (stress_out) {
-                    for (int i = 0; i < 6; i++) { stress_out[6 * o + i] = sig[i]; deps_out[6 * o + i] = 0.0; }
-                    dg_out[o] = 0.0;
-                    yield_out[o] = 0;
-                }
-                continue;
-            }
-            n_yield++;
-            /* the consistency equation q_tr - 3 G dg - sigma_y(alpha + dg) = 0 (plasticity._consistency) */
-            double dg = (q_tr - (s[i0] + k[i0] * (al - a[i0]))) / (3.0 * G + k[i0]);
-            if (n_pts > 1) {
-                int ok = 0;
-                for (int it = 0; it < max_it; it++) {
-                    int i1 = segment(n_pts, a, al + dg);
-                    double r = q_tr - 3.0 * G * dg - (s[i1] + k[i1] * (al + dg - a[i1]));
-                    if (fabs(r) <= tol) { ok = 1; break; }
-                    dg = dg + r / (3.0 * G + k[i1]);
-                    if (dg < 0.0) dg = 0.0;
-                }
-                if (!ok) {
-                    int i1 = segment(n_pts, a, al + dg);
-                    if (fabs(q_tr - 3.0 * G * dg - (s[i1] + k[i1] * (al + dg - a[i1]))) > tol)
-                        return -1 - (int)p;
-                }
-            }
-            if (rate_c > 0.0 && dg > rate_dg0) {
-                /* the rate-dependent root lies in [rate_dg0, dg]: Newton kept inside the bracket */
-                double lo = rate_dg0, up = dg, x = dg, r = 0.0;
-                int ok = 0;
-                for (int it = 0; it < 4 * max_it; it++) {
-                    int i1 = segment(n_pts, a, al + x);
-                    const double rf = 1.0 + rate_c * log(x / rate_dg0);
-                    const double sy = s[i1] + k[i1] * (al + x - a[i1]);
-                    r = q_tr - 3.0 * G * x - sy * rf;
-                    if (fabs(r) <= tol) { ok = 1; break; }
-                    if (r > 0.0) lo = x; else up = x;
-                    const double nx = x + r / (3.0 * G + k[i1] * rf + sy * rate_c / x);
-                    x = (nx > lo && nx < up) ? nx : 0.5 * (lo + up);
-                }
-                if (!ok) return -1 - (int)p;
-                dg = x;
-            }
-            /* d eps_p = sqrt(3/2) dg dev / |dev|; the stress correction -C d eps_p (Mandel) */
-            const double scale = s15 * dg / nrm;
-            double d[6];
-            for (int i = 0; i < 6; i++) d[i] = dev[i] * scale;
+            double sig[6], d[6], dg;
+            const int r = radial_return(e, alpha[p], G, K, n_pts, a, s, k, rate_c, rate_dg0, tol, max_it, sig, d, &dg);
+            if (r < 0) return -1 - (int)p;
             if (stress_out) {
-                for (int i = 0; i < 6; i++) {
-                    stress_out[6 * o + i] = sig[i] - 2.0 * G * d[i];
-                    deps_out[6 * o + i] = d[i];
-                }
+                for (int i = 0; i < 6; i++) { stress_out[6 * o + i] = sig[i] - 2.0 * G * d[i]; deps_out[6 * o + i] = d[i]; }
                 dg_out[o] = dg;
-                yield_out[o] = 1;
+                yield_out[o] = (unsigned char)r;
             }
+            if (r == 0) continue;
+            n_yield++;
             const double trd = d[0] + d[1] + d[2], thd = trd / 3.0;
             double sc[6] = {-(2.0 * G * (d[0] - thd) + K * trd), -(2.0 * G * (d[1] - thd) + K * trd),
                             -(2.0 * G * (d[2] - thd) + K * trd), -2.0 * G * d[3], -2.0 * G * d[4],
                             -2.0 * G * d[5]};
-            /* f_a,i += w |det J| sigma_ij dN_a/dx_j = w |det J| (sigma J^-T)_ik dN_a/dX_k, sigma
-               from the Mandel vector */
-            const double wd = weights[q] * det[c];
+            /* sigma from the Mandel vector */
             const double S[3][3] = {{sc[0], sc[5] / s2, sc[4] / s2},
                                     {sc[5] / s2, sc[1], sc[3] / s2},
                                     {sc[4] / s2, sc[3] / s2, sc[2]}};
-            double T[3][3];
-            for (int i = 0; i < 3; i++)
-                for (int m = 0; m < 3; m++)
-                    T[i][m] = wd * (S[i][0] * Ji[3 * m] + S[i][1] * Ji[3 * m + 1] + S[i][2] * Ji[3 * m + 2]);
-            for (int n = 0; n < n_nodes; n++) {
-                double *fn = f + 3L * cd[n];
-                const double *r = rq + 3 * n;
-                for (int i = 0; i < 3; i++) fn[i] += T[i][0] * r[0] + T[i][1] * r[1] + T[i][2] * r[2];
-            }
+            add_point_force(n_nodes, cd, rq, Ji, weights[q] * det[c], S, f);
         }
     }
     return n_yield;
 }
 """
 
-_MODULE = "_millimpact_zone_force_" + hashlib.sha256((_CDEF + _SOURCE).encode()).hexdigest()[:12]
-_loaded = None
+_loaded: dict[str, object] = {}
 
 
 def cache_dir() -> Path:
-    """Where the compiled kernel lives: ``$XDG_CACHE_HOME/millimpact`` (default ``~/.cache``)."""
+    """Where the compiled kernels live: ``$XDG_CACHE_HOME/millimpact`` (default ``~/.cache``)."""
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "millimpact"
 
 
-def _compile(folder: Path) -> Path:
+def _compile(folder: Path, name: str, cdef: str, source: str) -> Path:
     """Compile the module in a private temporary folder and rename it into ``folder`` (atomic:
     a process that finds the library finds it whole)."""
     import cffi
 
     folder.mkdir(parents=True, exist_ok=True)
     ffi = cffi.FFI()
-    ffi.cdef(_CDEF)
-    ffi.set_source(_MODULE, _SOURCE, extra_compile_args=["-O3", "-std=c99"])
+    ffi.cdef(cdef)
+    ffi.set_source(name, source, extra_compile_args=["-O3", "-std=c99"])
     with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
         built = Path(ffi.compile(tmpdir=tmp, verbose=False))
         target = folder / built.name
@@ -227,27 +249,37 @@ def _compile(folder: Path) -> Path:
     return target
 
 
-def load_kernel():
-    """The compiled module (its ``lib.zone_force`` and ``ffi``), compiled on first use; None (and
-    one log line) when it cannot be built here, e.g. without a C compiler."""
-    global _loaded
-    if _loaded is not None:
-        return _loaded or None
+def load_compiled(stem: str, cdef: str, source: str):
+    """The cffi module of C ``source`` (declarations ``cdef``; its ``lib`` and ``ffi``), compiled on
+    first use into :func:`cache_dir` under ``stem`` and the source's hash; None (and one log line)
+    when it cannot be built here, e.g. without a C compiler."""
+    name = f"_millimpact_{stem}_" + hashlib.sha256((cdef + source).encode()).hexdigest()[:12]
+    if name in _loaded:
+        return _loaded[name] or None
     folder = cache_dir()
-    suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
-    path = folder / (_MODULE + suffix)
+    path = folder / (name + importlib.machinery.EXTENSION_SUFFIXES[0])
     try:
         if not path.exists():
-            path = _compile(folder)
-        spec = importlib.util.spec_from_file_location(_MODULE, path)
+            path = _compile(folder, name, cdef, source)
+        spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
-        _loaded = module
+        _loaded[name] = module
     except Exception as exc:  # no compiler, no cffi, an unwritable cache: the numpy path stays
-        log.warning("plastic zone: the compiled return map could not be built (%s); using numpy", exc)
-        _loaded = False
+        log.warning("plastic zone: the compiled %s could not be built (%s); using numpy", stem, exc)
+        _loaded[name] = False
         return None
-    return _loaded
+    return module
+
+
+def load_kernel():
+    """The compiled small-strain pass (its ``lib.zone_force`` and ``ffi``): :func:`load_compiled`."""
+    return load_compiled("zone_force", _CDEF, _SOURCE)
+
+
+def pointer(ffi, arr: np.ndarray, kind: str = "double *"):
+    """A C pointer to a contiguous numpy array's data (the array must outlive the call)."""
+    return ffi.cast(kind, arr.ctypes.data)
 
 
 class ZoneKernelData:
@@ -317,7 +349,7 @@ def zone_force(
     rate_c, rate_dg0 = (0.0, 0.0) if material.rate is None or dt is None else (material.rate[0], material.rate[1] * dt)
 
     def ptr(arr, kind="double *"):
-        return ffi.cast(kind, arr.ctypes.data)
+        return pointer(ffi, arr, kind)
 
     outputs = (
         (ffi.NULL,) * 4

@@ -107,7 +107,7 @@ def test_without_a_buildable_kernel_the_numpy_path_stays(tmp_path, monkeypatch, 
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("")
     monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))
-    monkeypatch.setattr(rk, "_loaded", None)
+    monkeypatch.setattr(rk, "_loaded", {})
     with caplog.at_level("WARNING", logger=rk.__name__):
         assert rk.load_kernel() is None
     assert any("using numpy" in r.getMessage() for r in caplog.records)
