@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import SolverError
 from .plasticity import CONSISTENCY_MAX_ITERATIONS, CONSISTENCY_RTOL, PlasticityError, ReturnMapResult
-from .return_map_kernel import KERNEL_HELPERS_C, CompiledPass, ZoneKernelData, load_compiled, pointer
+from .return_map_kernel import KERNEL_HELPERS_C, CompiledPass, ZoneKernelData, load_compiled, pointer, rate_terms
 
 _CDEF = """
 int finite_zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *ref_grad,
@@ -46,7 +46,9 @@ int finite_zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const dou
                       long *failed);
 """
 
-_SOURCE = KERNEL_HELPERS_C + r"""
+_SOURCE = (
+    KERNEL_HELPERS_C
+    + r"""
 /* Eigenpairs of a symmetric 3 x 3 A (destroyed) by cyclic Jacobi rotations: w the eigenvalues,
    the columns of V the eigenvectors (Golub and Van Loan 8.5.2, the rotation of Numerical Recipes'
    jacobi) */
@@ -187,6 +189,7 @@ int finite_zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const dou
     return n_active;
 }
 """
+)
 
 
 def load_finite_kernel():
@@ -217,7 +220,7 @@ class FiniteStrainPass(CompiledPass):
         ``f`` (local array, ghosts included); returns (the nonlinear points, per body the trial
         state as a :class:`ReturnMapResult` without tangent)."""
         ffi, lib = self.module.ffi, self.module.lib
-        n_active, trial = 0, []
+        n_active, trial = 0, []  # type: tuple[int, list[ReturnMapResult | None]]
         failed = np.zeros(2, dtype=np.int64)
         for kz, (data, material, table) in enumerate(zip(self.data, self.materials, self.tables)):
             n_cells = len(data.det)
@@ -231,16 +234,37 @@ class FiniteStrainPass(CompiledPass):
             eps_p = np.ascontiguousarray(plastic_strain[kz], dtype=float)
             al = np.ascontiguousarray(alpha[kz], dtype=float)
             a, s, k = table
-            rate_c, rate_dg0 = (0.0, 0.0) if material.rate is None or dt is None else (
-                material.rate[0], material.rate[1] * dt)
+            rate_c, rate_dg0 = rate_terms(material, dt)
             n = lib.finite_zone_force(
-                n_cells, pointer(ffi, pos, "int *"), data.n_nodes, data.n_q, pointer(ffi, data.ref_grad),
-                pointer(ffi, data.weights), pointer(ffi, data.dofs, "int *"), pointer(ffi, data.jinv),
-                pointer(ffi, data.det), pointer(ffi, u), pointer(ffi, eps_p), pointer(ffi, al),
-                material.shear_modulus, material.bulk_modulus, len(a), pointer(ffi, a), pointer(ffi, s),
-                pointer(ffi, k), rate_c, rate_dg0, CONSISTENCY_RTOL * material.flow.yield_stress,
-                CONSISTENCY_MAX_ITERATIONS, floor, pointer(ffi, f), pointer(ffi, stress), pointer(ffi, deps),
-                pointer(ffi, dg), pointer(ffi, yielding, "unsigned char *"), pointer(ffi, failed, "long *"),
+                n_cells,
+                pointer(ffi, pos, "int *"),
+                data.n_nodes,
+                data.n_q,
+                pointer(ffi, data.ref_grad),
+                pointer(ffi, data.weights),
+                pointer(ffi, data.dofs, "int *"),
+                pointer(ffi, data.jinv),
+                pointer(ffi, data.det),
+                pointer(ffi, u),
+                pointer(ffi, eps_p),
+                pointer(ffi, al),
+                material.shear_modulus,
+                material.bulk_modulus,
+                len(a),
+                pointer(ffi, a),
+                pointer(ffi, s),
+                pointer(ffi, k),
+                rate_c,
+                rate_dg0,
+                CONSISTENCY_RTOL * material.flow.yield_stress,
+                CONSISTENCY_MAX_ITERATIONS,
+                floor,
+                pointer(ffi, f),
+                pointer(ffi, stress),
+                pointer(ffi, deps),
+                pointer(ffi, dg),
+                pointer(ffi, yielding, "unsigned char *"),
+                pointer(ffi, failed, "long *"),
             )
             if n < 0 and failed[0] == 2:
                 raise SolverError(
@@ -253,7 +277,8 @@ class FiniteStrainPass(CompiledPass):
                 )
             n_active += n
             trial.append(
-                ReturnMapResult(stress, eps_p + deps, al + dg, None, yielding,
-                                np.einsum("pi,pi->p", stress, deps), deps)
+                ReturnMapResult(
+                    stress, eps_p + deps, al + dg, None, yielding, np.einsum("pi,pi->p", stress, deps), deps
+                )
             )
         return n_active, trial

@@ -101,7 +101,7 @@ class FiniteStrainZone(PlasticZone):
         if candidates_only:
             raise RuntimeError("a finite-strain zone evaluates every cell (no candidates)")
         if not tangent and self._compiled() is not None:
-            return self._evaluate_compiled(u_vec)
+            return self._evaluate_finite_pass(u_vec)
         self._compiled_force = self._trial_f = None
         self._set_displacement(u_vec)
         sc = self.stress_correction.x.array.reshape(-1, 9)
@@ -134,7 +134,7 @@ class FiniteStrainZone(PlasticZone):
         self._trial_sc = self.stress_correction.x.array.copy()
         return n_active
 
-    def _evaluate_compiled(self, u_vec) -> int:
+    def _evaluate_finite_pass(self, u_vec) -> int:
         """The compiled pass over every zone point: the force correction of ``u_vec`` (kept for
         :meth:`force_correction`, and as the committed force once committed) and the trial state."""
         self._set_displacement(u_vec)

@@ -162,7 +162,9 @@ static void add_point_force(int n_nodes, const int *cd, const double *rq, const 
 
 """
 
-_SOURCE = KERNEL_HELPERS_C + r"""
+_SOURCE = (
+    KERNEL_HELPERS_C
+    + r"""
 /* One zone's candidate cells (positions pos in the zone's cell list): returns the number of
    yielding points, or -1 - (the point) where the consistency equation did not converge.
    ref_grad (n_q, n_nodes, 3) the reference gradients, weights (n_q), dofs (cells, n_nodes) block
@@ -224,6 +226,7 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
     return n_yield;
 }
 """
+)
 
 _loaded: dict[str, object] = {}
 
@@ -262,6 +265,8 @@ def load_compiled(stem: str, cdef: str, source: str):
         if not path.exists():
             path = _compile(folder, name, cdef, source)
         spec = importlib.util.spec_from_file_location(name, path)
+        if spec is None or spec.loader is None:
+            raise ImportError(f"no module spec for {path}")
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
         _loaded[name] = module
@@ -275,6 +280,12 @@ def load_compiled(stem: str, cdef: str, source: str):
 def load_kernel():
     """The compiled small-strain pass (its ``lib.zone_force`` and ``ffi``): :func:`load_compiled`."""
     return load_compiled("zone_force", _CDEF, _SOURCE)
+
+
+def rate_terms(material, dt: float | None) -> tuple[float, float]:
+    """The kernels' (rate_c, rate_dg0): Johnson-Cook's C and the reference increment rate0 dt, or
+    (0, 0) for a material without a strain-rate factor (or no step)."""
+    return (0.0, 0.0) if material.rate is None or dt is None else (material.rate[0], material.rate[1] * dt)
 
 
 def pointer(ffi, arr: np.ndarray, kind: str = "double *"):
@@ -346,7 +357,7 @@ def zone_force(
     plastic_strain = np.ascontiguousarray(plastic_strain, dtype=float)
     alpha = np.ascontiguousarray(alpha, dtype=float)
     a, s, k = table
-    rate_c, rate_dg0 = (0.0, 0.0) if material.rate is None or dt is None else (material.rate[0], material.rate[1] * dt)
+    rate_c, rate_dg0 = rate_terms(material, dt)
 
     def ptr(arr, kind="double *"):
         return pointer(ffi, arr, kind)
