@@ -47,6 +47,11 @@ import numpy as np
 from ..errors import SolverError
 from .plasticity import J2Material, ReturnMapResult, from_mandel, return_map, to_mandel
 
+#: the error of a point with det F <= 0
+INVERTED = (
+    "finite strain: a deformation gradient with det F <= 0 or not finite (an element turned inside out, "
+    "or the step's iteration diverged): try a smaller time.dt_contact"
+)
 #: the forward-difference step of the numerical tangent (|F| ~ 1; the module docstring)
 TANGENT_STEP = 1e-7
 #: below this |lambda_a - lambda_b| / lambda_b the divided difference of ln takes its series
@@ -62,10 +67,7 @@ def log_strain(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     lam, N = np.linalg.eigh(C)
     # det F > 0: C = F^T F is positive for an element turned inside out too
     if not (np.all(lam > 0.0) and np.all(np.linalg.det(F) > 0.0)):
-        raise SolverError(
-            "finite strain: a deformation gradient with det F <= 0 or not finite (an element turned inside out, "
-            "or the step's iteration diverged): try a smaller time.dt_contact"
-        )
+        raise SolverError(INVERTED)
     E = (N * (0.5 * np.log(lam))[:, None, :]) @ np.swapaxes(N, 1, 2)
     return to_mandel(E), lam, N
 

@@ -33,6 +33,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import SolverError
+from .finite_strain import INVERTED
 from .plasticity import CONSISTENCY_MAX_ITERATIONS, CONSISTENCY_RTOL, PlasticityError, ReturnMapResult
 from .return_map_kernel import KERNEL_HELPERS_C, CompiledPass, ZoneKernelData, load_compiled, pointer, rate_terms
 
@@ -44,6 +45,9 @@ int finite_zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const dou
                       double rate_c, double rate_dg0, double tol, int max_it, double floor, double *f,
                       double *stress_out, double *deps_out, double *dg_out, unsigned char *yield_out,
                       long *failed);
+int finite_zone_energy(int n_pos, const int *pos, int n_nodes, int n_q, const double *ref_grad,
+                       const double *weights, const int *dofs, const double *jinv, const double *det,
+                       const double *u, const double *eps_p, double G, double K, double *energy, long *failed);
 """
 
 _SOURCE = (
@@ -65,7 +69,8 @@ static void sym_eig3(double A[3][3], double w[3], double V[3][3])
                 const double apq = A[p][q];
                 if (apq == 0.0) continue;
                 const double theta = (A[q][q] - A[p][p]) / (2.0 * apq);
-                const double t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                const double t = fabs(theta) > 1e150 ? 0.5 / theta /* theta^2 would overflow */
+                               : (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
                 const double c = 1.0 / sqrt(t * t + 1.0), sn = t * c;
                 for (int r = 0; r < 3; r++) {
                     const double arp = A[r][p], arq = A[r][q];
@@ -82,6 +87,7 @@ static void sym_eig3(double A[3][3], double w[3], double V[3][3])
                     V[r][p] = c * vrp - sn * vrq;
                     V[r][q] = sn * vrp + c * vrq;
                 }
+                A[p][q] = A[q][p] = 0.0; /* zero by the rotation's choice; its rounding would linger */
             }
     }
     for (int i = 0; i < 3; i++) w[i] = A[i][i];
@@ -94,6 +100,168 @@ static double theta(double ma, double mb)
     const double lb = 1.0 + mb, x = (ma - mb) / lb;
     const double ratio = fabs(x) < 1e-5 ? 1.0 - x / 2.0 + x * x / 3.0 : log1p(x) / x;
     return 0.5 * ratio / lb;
+}
+
+/* |D| (the largest absolute row sum, a bound on its eigenvalues) below which E and S are summed
+   as series in D rather than in C's eigenbasis: there at most 10 terms reach 1e-17 */
+#define SERIES_NORM 1e-2
+
+/* A point's kinematics: D = C - I, and either the number of series terms K (> 0) or (K = 0) the
+   eigenpairs (mu, N) of D */
+typedef struct {
+    double D[3][3], mu[3], N[3][3];
+    int K;
+} Kinematics;
+
+static void matmul3(const double A[3][3], const double B[3][3], double C[3][3])
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) C[i][j] = A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j];
+}
+
+/* The log strain of grad u g at a point: D = C - I = g + g^T + g^T g and E = 1/2 ln(I + D), as
+   E = 1/2 sum_{k <= K} (-1)^(k+1) D^k / k where |D| < SERIES_NORM (K the least with |D|^K <= 1e-17,
+   the remainder's bound relative to the first term), else sum_a 1/2 ln(1 + mu_a) N_a (x) N_a;
+   *gmax the largest |g_ij|. Returns -1 where det F <= 0 (an element turned inside out: C = F^T F
+   cannot tell) or g is not finite. */
+static int log_strain_point(const double g[3][3], Kinematics *kin, double E[3][3], double *gmax)
+{
+    double (*D)[3] = kin->D;
+    *gmax = 0.0;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            if (fabs(g[i][j]) > *gmax) *gmax = fabs(g[i][j]);
+            double gtg = 0.0;
+            for (int m = 0; m < 3; m++) gtg += g[m][i] * g[m][j];
+            D[i][j] = g[i][j] + g[j][i] + gtg;
+        }
+    const double detF = (1.0 + g[0][0]) * ((1.0 + g[1][1]) * (1.0 + g[2][2]) - g[1][2] * g[2][1])
+                      - g[0][1] * (g[1][0] * (1.0 + g[2][2]) - g[1][2] * g[2][0])
+                      + g[0][2] * (g[1][0] * g[2][1] - (1.0 + g[1][1]) * g[2][0]);
+    if (!(*gmax < INFINITY) || !(detF > 0.0)) return -1;
+    double dn = 0.0;
+    for (int i = 0; i < 3; i++) {
+        const double row = fabs(D[i][0]) + fabs(D[i][1]) + fabs(D[i][2]);
+        if (row > dn) dn = row;
+    }
+    if (dn < SERIES_NORM) {
+        int K = 1;
+        for (double pw = dn; pw > 1e-17; pw *= dn) K++;
+        kin->K = K;
+        double Pk[3][3], next[3][3];
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) { Pk[i][j] = D[i][j]; E[i][j] = 0.5 * D[i][j]; }
+        for (int k = 2; k <= K; k++) {
+            matmul3(Pk, D, next);
+            const double c = (k % 2 ? 0.5 : -0.5) / k;
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 3; j++) { Pk[i][j] = next[i][j]; E[i][j] += c * next[i][j]; }
+        }
+        return 0;
+    }
+    double A[3][3], h[3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) A[i][j] = D[i][j];
+    kin->K = 0;
+    sym_eig3(A, kin->mu, kin->N);
+    const double *mu = kin->mu;
+    double (*N)[3] = kin->N;
+    for (int a_ = 0; a_ < 3; a_++) {
+        if (!(1.0 + mu[a_] > 0.0)) return -1;
+        h[a_] = 0.5 * log1p(mu[a_]);
+    }
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) E[i][j] = N[i][0] * h[0] * N[j][0] + N[i][1] * h[1] * N[j][1] + N[i][2] * h[2] * N[j][2];
+    return 0;
+}
+
+/* S = T : 2 dE/dC of the stress T conjugate to E = 1/2 ln C. Series (kin->K > 0): the derivative of
+   the log's series, S = sum_{k <= K} (-1)^(k+1) / k Y_k, Y_k = sum_{j < k} D^j T D^(k-1-j), by
+   Y_1 = T, Y_(k+1) = D Y_k + T D^k (its remainder bound |D|^K |T|). Eigenbasis: Daleckii-Krein,
+   S = N (2 theta o (N^T T N)) N^T (finite_strain.second_piola_kirchhoff). */
+static void second_pk_point(const Kinematics *kin, const double T[3][3], double S[3][3])
+{
+    if (kin->K > 0) {
+        double Y[3][3], Dk[3][3], DY[3][3], TD[3][3], next[3][3];
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) { Y[i][j] = S[i][j] = T[i][j]; Dk[i][j] = kin->D[i][j]; }
+        for (int k = 1; k < kin->K; k++) {
+            matmul3(kin->D, Y, DY);
+            matmul3(T, Dk, TD);
+            matmul3(Dk, kin->D, next);
+            const double c = (k % 2 ? -1.0 : 1.0) / (k + 1);
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 3; j++) {
+                    Y[i][j] = DY[i][j] + TD[i][j];
+                    S[i][j] += c * Y[i][j];
+                    Dk[i][j] = next[i][j];
+                }
+        }
+        return;
+    }
+    const double *mu = kin->mu;
+    const double (*N)[3] = (const double (*)[3])kin->N;
+    double TN[3][3], St[3][3], SN[3][3], th[3][3]; /* th symmetric: three divided differences of ln */
+    for (int a_ = 0; a_ < 3; a_++) {
+        th[a_][a_] = 0.5 / (1.0 + mu[a_]);
+        for (int b = a_ + 1; b < 3; b++) th[a_][b] = th[b][a_] = theta(mu[a_], mu[b]);
+    }
+    for (int i = 0; i < 3; i++)
+        for (int b = 0; b < 3; b++) TN[i][b] = T[i][0] * N[0][b] + T[i][1] * N[1][b] + T[i][2] * N[2][b];
+    for (int a_ = 0; a_ < 3; a_++)
+        for (int b = 0; b < 3; b++)
+            St[a_][b] = 2.0 * th[a_][b] * (N[0][a_] * TN[0][b] + N[1][a_] * TN[1][b] + N[2][a_] * TN[2][b]);
+    for (int i = 0; i < 3; i++)
+        for (int b = 0; b < 3; b++) SN[i][b] = N[i][0] * St[0][b] + N[i][1] * St[1][b] + N[i][2] * St[2][b];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) S[i][j] = SN[i][0] * N[j][0] + SN[i][1] * N[j][1] + SN[i][2] * N[j][2];
+}
+
+/* sig = C e (Mandel) of the isotropic moduli (shear G, bulk K) */
+static void elastic_stress(const double e[6], double G, double K, double sig[6])
+{
+    const double tr = e[0] + e[1] + e[2];
+    for (int i = 0; i < 6; i++) sig[i] = 2.0 * G * e[i];
+    for (int i = 0; i < 3; i++) sig[i] += (K - 2.0 * G / 3.0) * tr;
+}
+
+/* int_zone (psi(E - E_p) - 1/2 eps : C : eps) dV over the cells at pos (finite_zone's energy
+   correction; psi Hencky's 1/2 (E - E_p) : C : (E - E_p)); arguments as finite_zone_force's.
+   Writes the sum to *energy; returns 0, or -1 with failed[1] the point where det F <= 0. */
+int finite_zone_energy(int n_pos, const int *pos, int n_nodes, int n_q, const double *ref_grad,
+                       const double *weights, const int *dofs, const double *jinv, const double *det,
+                       const double *u, const double *eps_p, double G, double K, double *energy, long *failed)
+{
+    const double s2 = sqrt(2.0);
+    double ue[64][3], sum = 0.0;
+    for (int ip = 0; ip < n_pos; ip++) {
+        const int c = pos[ip];
+        const int *cd = dofs + (long)c * n_nodes;
+        const double *Ji = jinv + 9L * c;
+        for (int n = 0; n < n_nodes; n++)
+            for (int i = 0; i < 3; i++) ue[n][i] = u[3L * cd[n] + i];
+        for (int q = 0; q < n_q; q++) {
+            const long p = (long)c * n_q + q;
+            const double *rq = ref_grad + (long)q * n_nodes * 3;
+            double g[3][3], E[3][3], gmax, sig[6];
+            Kinematics kin;
+            point_grad(n_nodes, ue, rq, Ji, g);
+            if (log_strain_point(g, &kin, E, &gmax) < 0) { failed[0] = 2; failed[1] = p; return -1; }
+            const double *ep = eps_p + 6 * p;
+            const double e[6] = {E[0][0] - ep[0], E[1][1] - ep[1], E[2][2] - ep[2],
+                                 s2 * E[1][2] - ep[3], s2 * E[0][2] - ep[4], s2 * E[0][1] - ep[5]};
+            const double eps[6] = {g[0][0], g[1][1], g[2][2], s2 * 0.5 * (g[1][2] + g[2][1]),
+                                   s2 * 0.5 * (g[0][2] + g[2][0]), s2 * 0.5 * (g[0][1] + g[1][0])};
+            double psi = 0.0, lin = 0.0;
+            elastic_stress(e, G, K, sig);
+            for (int i = 0; i < 6; i++) psi += 0.5 * e[i] * sig[i];
+            elastic_stress(eps, G, K, sig);
+            for (int i = 0; i < 6; i++) lin += 0.5 * eps[i] * sig[i];
+            sum += weights[q] * det[c] * (psi - lin);
+        }
+    }
+    *energy = sum;
+    return 0;
 }
 
 /* The finite-strain pass over the zone's cells at positions pos (as zone_force's arguments; floor
@@ -122,30 +290,10 @@ int finite_zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const dou
             const long p = (long)c * n_q + q;
             const long o = (long)ip * n_q + q;
             const double *rq = ref_grad + (long)q * n_nodes * 3;
-            double g[3][3], D[3][3], mu[3], N[3][3];
+            double g[3][3], E[3][3], gmax;
+            Kinematics kin;
             point_grad(n_nodes, ue, rq, Ji, g);
-            double gmax = 0.0;
-            for (int i = 0; i < 3; i++)
-                for (int j = 0; j < 3; j++) {
-                    if (fabs(g[i][j]) > gmax) gmax = fabs(g[i][j]);
-                    double gtg = 0.0;
-                    for (int m = 0; m < 3; m++) gtg += g[m][i] * g[m][j];
-                    D[i][j] = g[i][j] + g[j][i] + gtg;
-                }
-            /* det F = det(I + g) > 0: an element not turned inside out (C = F^T F cannot tell) */
-            const double detF = (1.0 + g[0][0]) * ((1.0 + g[1][1]) * (1.0 + g[2][2]) - g[1][2] * g[2][1])
-                              - g[0][1] * (g[1][0] * (1.0 + g[2][2]) - g[1][2] * g[2][0])
-                              + g[0][2] * (g[1][0] * g[2][1] - (1.0 + g[1][1]) * g[2][0]);
-            if (!(gmax < INFINITY) || !(detF > 0.0)) { failed[0] = 2; failed[1] = p; return -1; }
-            sym_eig3(D, mu, N);
-            double h[3];
-            for (int a_ = 0; a_ < 3; a_++) {
-                if (!(1.0 + mu[a_] > 0.0)) { failed[0] = 2; failed[1] = p; return -1; }
-                h[a_] = 0.5 * log1p(mu[a_]);
-            }
-            double E[3][3];
-            for (int i = 0; i < 3; i++)
-                for (int j = 0; j < 3; j++) E[i][j] = N[i][0] * h[0] * N[j][0] + N[i][1] * h[1] * N[j][1] + N[i][2] * h[2] * N[j][2];
+            if (log_strain_point(g, &kin, E, &gmax) < 0) { failed[0] = 2; failed[1] = p; return -1; }
             const double *ep = eps_p + 6 * p;
             double e[6] = {E[0][0] - ep[0], E[1][1] - ep[1], E[2][2] - ep[2],
                            s2 * E[1][2] - ep[3], s2 * E[0][2] - ep[4], s2 * E[0][1] - ep[5]};
@@ -163,17 +311,8 @@ int finite_zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const dou
             const double T[3][3] = {{t6[0], t6[5] / s2, t6[4] / s2},
                                     {t6[5] / s2, t6[1], t6[3] / s2},
                                     {t6[4] / s2, t6[3] / s2, t6[2]}};
-            /* S = N (2 theta o (N^T T N)) N^T */
-            double TN[3][3], St[3][3], SN[3][3], S[3][3];
-            for (int i = 0; i < 3; i++)
-                for (int b = 0; b < 3; b++) TN[i][b] = T[i][0] * N[0][b] + T[i][1] * N[1][b] + T[i][2] * N[2][b];
-            for (int a_ = 0; a_ < 3; a_++)
-                for (int b = 0; b < 3; b++)
-                    St[a_][b] = 2.0 * theta(mu[a_], mu[b]) * (N[0][a_] * TN[0][b] + N[1][a_] * TN[1][b] + N[2][a_] * TN[2][b]);
-            for (int i = 0; i < 3; i++)
-                for (int b = 0; b < 3; b++) SN[i][b] = N[i][0] * St[0][b] + N[i][1] * St[1][b] + N[i][2] * St[2][b];
-            for (int i = 0; i < 3; i++)
-                for (int j = 0; j < 3; j++) S[i][j] = SN[i][0] * N[j][0] + SN[i][1] * N[j][1] + SN[i][2] * N[j][2];
+            double S[3][3];
+            second_pk_point(&kin, T, S);
             /* P1 - C : sym(Grad u) */
             const double tr = g[0][0] + g[1][1] + g[2][2];
             double Pc[3][3];
@@ -267,10 +406,7 @@ class FiniteStrainPass(CompiledPass):
                 pointer(ffi, failed, "long *"),
             )
             if n < 0 and failed[0] == 2:
-                raise SolverError(
-                    "finite strain: a deformation gradient with det F <= 0 or not finite (an element turned "
-                    "inside out, or the step's iteration diverged): try a smaller time.dt_contact"
-                )
+                raise SolverError(INVERTED)
             if n < 0:
                 raise PlasticityError(
                     f"return map: the consistency equation did not converge at point {failed[1]} of zone {kz}"
@@ -282,3 +418,37 @@ class FiniteStrainPass(CompiledPass):
                 )
             )
         return n_active, trial
+
+    def energy(self, u: np.ndarray, plastic_strain: Sequence[np.ndarray]) -> float:
+        """int_zone (psi(E - E_p) - 1/2 eps : C : eps) dV of the displacement ``u`` (local array)
+        with the committed plastic strain, summed over this rank's zone cells (J)."""
+        ffi, lib = self.module.ffi, self.module.lib
+        total, failed = 0.0, np.zeros(2, dtype=np.int64)
+        out = np.zeros(1)
+        for data, material, eps_p in zip(self.data, self.materials, plastic_strain):
+            n_cells = len(data.det)
+            if not n_cells:
+                continue
+            pos = np.arange(n_cells, dtype=np.int32)
+            eps_p = np.ascontiguousarray(eps_p, dtype=float)
+            code = lib.finite_zone_energy(
+                n_cells,
+                pointer(ffi, pos, "int *"),
+                data.n_nodes,
+                data.n_q,
+                pointer(ffi, data.ref_grad),
+                pointer(ffi, data.weights),
+                pointer(ffi, data.dofs, "int *"),
+                pointer(ffi, data.jinv),
+                pointer(ffi, data.det),
+                pointer(ffi, u),
+                pointer(ffi, eps_p),
+                material.shear_modulus,
+                material.bulk_modulus,
+                pointer(ffi, out),
+                pointer(ffi, failed, "long *"),
+            )
+            if code < 0:
+                raise SolverError(INVERTED)
+            total += float(out[0])
+        return total
