@@ -440,10 +440,16 @@ def test_modal_free_phase_continues_the_stepping(setup):
 def test_auto_free_phase_takes_the_cheaper_phase():
     """free_phase = auto steps a free span of at most STEPS_PER_MODAL_COORDINATE free steps per
     modal coordinate (the free modes' measured cost: 15 steps a coordinate on the rig) and takes
-    the modal phase beyond; an asked phase is kept. The plan's numbers: t_c 80 us, dt_free 2 us."""
+    the modal phase beyond (with finite strain, a free step counted as FINITE_FREE_STEP_COST); an
+    asked phase is kept. The plan's numbers: t_c 80 us, dt_free 2 us."""
     from types import SimpleNamespace
 
-    from millimpact.methods.free_phase import FIRST_SPAN_CONTACTS, STEPS_PER_MODAL_COORDINATE, resolve_free_phase
+    from millimpact.methods.free_phase import (
+        FINITE_FREE_STEP_COST,
+        FIRST_SPAN_CONTACTS,
+        STEPS_PER_MODAL_COORDINATE,
+        resolve_free_phase,
+    )
 
     t_c, dt_free = 80e-6, 2e-6
     plan = SimpleNamespace(gap=1e-5, hertz=SimpleNamespace(speed=1.0, contact_time=t_c), dt_free=dt_free)
@@ -456,6 +462,11 @@ def test_auto_free_phase_takes_the_cheaper_phase():
     assert resolve_free_phase("auto", red, plan, t_first / 2)[0] == "step"   # no free span
     for asked in ("modal", "step"):
         assert resolve_free_phase(asked, red, plan, 40e-3 if asked == "step" else t_first) == (asked, "asked")
+    # a finite-strain zone's free step iterates: it counts FINITE_FREE_STEP_COST elastic ones
+    finite = SimpleNamespace(**vars(plan), strain="finite")
+    border = t_first + STEPS_PER_MODAL_COORDINATE * 10 * dt_free / FINITE_FREE_STEP_COST
+    assert resolve_free_phase("auto", red, finite, border * (1 - 1e-9))[0] == "step"
+    assert resolve_free_phase("auto", red, finite, border * (1 + 1e-3))[0] == "modal"
 
 
 def free_rows_mismatch(n_times: int = 40) -> tuple[float, float]:
