@@ -53,6 +53,7 @@ int finite_zone_energy(int n_pos, const int *pos, int n_nodes, int n_q, const do
 _SOURCE = (
     KERNEL_HELPERS_C
     + r"""
+#include <string.h>
 /* Eigenpairs of a symmetric 3 x 3 A (destroyed) by cyclic Jacobi rotations: w the eigenvalues,
    the columns of V the eigenvectors (Golub and Van Loan 8.5.2, the rotation of Numerical Recipes'
    jacobi) */
@@ -105,18 +106,32 @@ static double theta(double ma, double mb)
 /* |D| (the largest absolute row sum, a bound on its eigenvalues) below which E and S are summed
    as series in D rather than in C's eigenbasis: there at most 10 terms reach 1e-17 */
 #define SERIES_NORM 1e-2
+#define SERIES_MAX_TERMS 12
 
 /* A point's kinematics: D = C - I, and either the number of series terms K (> 0) or (K = 0) the
    eigenpairs (mu, N) of D */
 typedef struct {
     double D[3][3], mu[3], N[3][3];
+    double Dk[SERIES_MAX_TERMS][3][3]; /* D^1 ... D^K (series) */
     int K;
 } Kinematics;
 
-static void matmul3(const double A[3][3], const double B[3][3], double C[3][3])
+/* C = A B + X Y for products known to be symmetric (the upper triangle computed, mirrored);
+   X = NULL: C = A B */
+static void symmul3_add(const double A[3][3], const double B[3][3], const double X[3][3], const double Y[3][3],
+                        double C[3][3])
 {
     for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) C[i][j] = A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j];
+        for (int j = i; j < 3; j++) {
+            double v = A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j];
+            if (X) v += X[i][0] * Y[0][j] + X[i][1] * Y[1][j] + X[i][2] * Y[2][j];
+            C[i][j] = C[j][i] = v;
+        }
+}
+
+static void symmul3(const double A[3][3], const double B[3][3], double C[3][3])
+{
+    symmul3_add(A, B, NULL, NULL, C);
 }
 
 /* The log strain of grad u g at a point: D = C - I = g + g^T + g^T g and E = 1/2 ln(I + D), as
@@ -126,52 +141,50 @@ static void matmul3(const double A[3][3], const double B[3][3], double C[3][3])
    cannot tell) or g is not finite. */
 static int log_strain_point(const double g[3][3], Kinematics *kin, double E[3][3], double *gmax)
 {
-    double (*D)[3] = kin->D;
-    *gmax = 0.0;
+    /* local arrays (no aliasing through kin or the outputs: the loops stay in registers) */
+    double D[3][3], gm = 0.0;
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++) {
-            if (fabs(g[i][j]) > *gmax) *gmax = fabs(g[i][j]);
-            double gtg = 0.0;
-            for (int m = 0; m < 3; m++) gtg += g[m][i] * g[m][j];
-            D[i][j] = g[i][j] + g[j][i] + gtg;
+            gm = fmax(gm, fabs(g[i][j]));
+            D[i][j] = g[i][j] + g[j][i] + g[0][i] * g[0][j] + g[1][i] * g[1][j] + g[2][i] * g[2][j];
         }
+    *gmax = gm;
     const double detF = (1.0 + g[0][0]) * ((1.0 + g[1][1]) * (1.0 + g[2][2]) - g[1][2] * g[2][1])
                       - g[0][1] * (g[1][0] * (1.0 + g[2][2]) - g[1][2] * g[2][0])
                       + g[0][2] * (g[1][0] * g[2][1] - (1.0 + g[1][1]) * g[2][0]);
-    if (!(*gmax < INFINITY) || !(detF > 0.0)) return -1;
+    if (!(gm < INFINITY) || !(detF > 0.0)) return -1;
+    memcpy(kin->D, D, sizeof D);
     double dn = 0.0;
-    for (int i = 0; i < 3; i++) {
-        const double row = fabs(D[i][0]) + fabs(D[i][1]) + fabs(D[i][2]);
-        if (row > dn) dn = row;
-    }
+    for (int i = 0; i < 3; i++) dn = fmax(dn, fabs(D[i][0]) + fabs(D[i][1]) + fabs(D[i][2]));
     if (dn < SERIES_NORM) {
         int K = 1;
-        for (double pw = dn; pw > 1e-17; pw *= dn) K++;
+        for (double pw = dn; pw > 1e-17 && K < SERIES_MAX_TERMS; pw *= dn) K++;
         kin->K = K;
-        double Pk[3][3], next[3][3];
+        double Ek[3][3];
+        memcpy(kin->Dk[0], D, sizeof D);
         for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++) { Pk[i][j] = D[i][j]; E[i][j] = 0.5 * D[i][j]; }
+            for (int j = 0; j < 3; j++) Ek[i][j] = 0.5 * D[i][j];
         for (int k = 2; k <= K; k++) {
-            matmul3(Pk, D, next);
+            symmul3(kin->Dk[k - 2], D, kin->Dk[k - 1]); /* powers of D commute: symmetric */
             const double c = (k % 2 ? 0.5 : -0.5) / k;
             for (int i = 0; i < 3; i++)
-                for (int j = 0; j < 3; j++) { Pk[i][j] = next[i][j]; E[i][j] += c * next[i][j]; }
+                for (int j = 0; j < 3; j++) Ek[i][j] += c * kin->Dk[k - 1][i][j];
         }
+        memcpy(E, Ek, sizeof Ek);
         return 0;
     }
-    double A[3][3], h[3];
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) A[i][j] = D[i][j];
+    double A[3][3], h[3], mu[3], N[3][3];
+    memcpy(A, D, sizeof D);
     kin->K = 0;
-    sym_eig3(A, kin->mu, kin->N);
-    const double *mu = kin->mu;
-    double (*N)[3] = kin->N;
+    sym_eig3(A, mu, N);
     for (int a_ = 0; a_ < 3; a_++) {
         if (!(1.0 + mu[a_] > 0.0)) return -1;
         h[a_] = 0.5 * log1p(mu[a_]);
     }
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++) E[i][j] = N[i][0] * h[0] * N[j][0] + N[i][1] * h[1] * N[j][1] + N[i][2] * h[2] * N[j][2];
+    memcpy(kin->mu, mu, sizeof mu);
+    memcpy(kin->N, N, sizeof N);
     return 0;
 }
 
@@ -182,19 +195,16 @@ static int log_strain_point(const double g[3][3], Kinematics *kin, double E[3][3
 static void second_pk_point(const Kinematics *kin, const double T[3][3], double S[3][3])
 {
     if (kin->K > 0) {
-        double Y[3][3], Dk[3][3], DY[3][3], TD[3][3], next[3][3];
+        double Y[3][3], next[3][3];
         for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++) { Y[i][j] = S[i][j] = T[i][j]; Dk[i][j] = kin->D[i][j]; }
+            for (int j = 0; j < 3; j++) Y[i][j] = S[i][j] = T[i][j];
         for (int k = 1; k < kin->K; k++) {
-            matmul3(kin->D, Y, DY);
-            matmul3(T, Dk, TD);
-            matmul3(Dk, kin->D, next);
+            symmul3_add(kin->D, Y, T, kin->Dk[k - 1], next); /* Y_(k+1) = D Y_k + T D^k, symmetric */
             const double c = (k % 2 ? -1.0 : 1.0) / (k + 1);
             for (int i = 0; i < 3; i++)
                 for (int j = 0; j < 3; j++) {
-                    Y[i][j] = DY[i][j] + TD[i][j];
-                    S[i][j] += c * Y[i][j];
-                    Dk[i][j] = next[i][j];
+                    Y[i][j] = next[i][j];
+                    S[i][j] += c * next[i][j];
                 }
         }
         return;
