@@ -535,3 +535,24 @@ def mesh_report(meshdata: MeshData) -> list[tuple[str, str]]:
         ("cache key", i.cache_key[:16]),
     ]
     return rows
+
+
+# --- whole bodies in the zone ----------------------------------------------------------------------
+#: the plan's names of the bodies (``Plan.plastic_whole``) and their (region, zone) cell tags
+_WHOLE_BODY_TAGS = {"ball": (geo.BALL_REGION, geo.BALL_ZONE), "struck": (geo.BLOCK_REGION, geo.BLOCK_ZONE)}
+
+
+def with_whole_bodies_in_zone(md: MeshData, bodies: Iterable[str]) -> MeshData:
+    """The mesh data with the region cells of ``bodies`` ("ball", "struck") tagged as their contact
+    zone's: such a body is finite elements throughout (no region left to reduce, the plastic zone
+    its every cell) on the same mesh and its same sizes. The facet tags are kept (the zone-region
+    interface facets, now inside the zone, tag nothing that the zone's methods read)."""
+    swap = dict(_WHOLE_BODY_TAGS[b] for b in bodies)
+    if not swap:
+        return md
+    values = md.cell_tags.values.copy()
+    for region, zone in swap.items():
+        values[values == region] = zone
+    tags = dolfinx.mesh.meshtags(md.mesh, md.mesh.topology.dim, md.cell_tags.indices.copy(), values)
+    tags.name = md.cell_tags.name  # type: ignore[attr-defined]
+    return md._replace(cell_tags=tags)

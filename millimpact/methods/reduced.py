@@ -38,7 +38,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any, NamedTuple
@@ -53,7 +53,7 @@ from ..fem.contact import ContactSet, create_contact
 from ..fem.model import FEModel, create_fe_model
 from ..fem.plastic_zones import create_plastic_zone
 from ..geometry.builders import BALL_ZONE, BLOCK_ZONE
-from ..geometry.mesh import create_mesh
+from ..geometry.mesh import create_mesh, with_whole_bodies_in_zone
 from ..integration import integrators
 from ..integration.integrators import SeparationStop
 from ..integration.solvers import normalize_options, petsc_options
@@ -196,7 +196,13 @@ def reduced_plan(scene: Scene, plan: Plan) -> tuple[Scene, Plan, float, list[str
             zone = min(zone, PLASTIC_ZONE_CAP * zone_radius_limit(scene))
         scene = scene.with_value("model.zone_radius", zone)
         c_p = plan.plastic_radius
+        # the plan's whole plastic bodies were chosen on its own zone; the reduced zone set here is
+        # not the user's, so the choice (and its reason) stays
+        whole = plan.plastic_whole
+        why = tuple((k, v) for k, v in plan.reasons if k.startswith("plastic_whole_"))
         plan = make_plan(scene)
+        if whole:
+            plan = replace(plan, plastic_whole=whole, reasons=plan.reasons + why)
         notes.append(
             f"contact zone radius {zone * 1e3:.4g} mm = {zone / a:.3g} a_max (reduced methods' default"
             + (
@@ -360,7 +366,7 @@ def build_reduced_setup(
         plan_notes = plan_notes + [f"contact candidates within {cand_radius * 1e3:.4g} mm (-candidate_radius)"]
     t0 = time.perf_counter()
     with stage("meshing (gmsh, or the mesh cache)"):
-        md = create_mesh(scene, plan, comm)
+        md = with_whole_bodies_in_zone(create_mesh(scene, plan, comm), plan.plastic_whole)
     t_mesh = time.perf_counter() - t0
     with stage(f"assembling the P{opt.degree} model and the contact rows"):
         model = create_fe_model(md, plan, opt.degree)

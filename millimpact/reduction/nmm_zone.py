@@ -148,13 +148,22 @@ def create_nmm_zone(
     keep[:, 3:] = ~tangent_fixed[own_v].reshape(-1, 9)
     n_fixed_drop = int(np.count_nonzero(~keep))
     interface_v = part.region_node[own_v]
+    gidx = zm.imap.local_to_global(own_v)
     if remedy == "interface":
         keep[interface_v, 3:] = False
+        # a body wholly in the zone (the plan's whole plastic body) has no interface: its edge
+        # framework's rigid null space goes by three anchors among all its vertices
+        for ball in (True, False):
+            body = is_ball[own_v] == ball
+            if comm.allreduce(int(np.count_nonzero(body & interface_v))) == 0 and comm.allreduce(
+                int(np.count_nonzero(body))
+            ):
+                anchors = _choose_anchors(comm, zm.imap, own_v[body], zm.X[own_v[body]], is_ball[own_v[body]], model)
+                keep[np.isin(gidx, anchors), 3:] = False
     elif remedy == "anchors":
         anchors = _choose_anchors(
             comm, zm.imap, own_v[interface_v], zm.X[own_v[interface_v]], is_ball[own_v[interface_v]], model
         )
-        gidx = zm.imap.local_to_global(own_v)
         keep[np.isin(gidx, anchors), 3:] = False
     n_drop = int(np.count_nonzero(~keep))
     n_q = int(np.count_nonzero(keep))

@@ -174,7 +174,14 @@ def zone_boundary_note(model: FEModel, zone, plan: Plan) -> tuple[dict[str, Any]
     """Whether the zone's boundary stayed elastic: summary keys and, if not, a warning note naming
     a zone radius to use (1.5x the plan's)."""
     tags = {z.cell_tag for z in zone.zones}
-    whole = {"ball": BALL_REGION in tags, "struck": BLOCK_REGION in tags}  # plastic in every cell
+    # plastic in every cell: the region's cells are plastic (full), or none is left (the reduced
+    # methods put a whole plastic body's region into its zone)
+    values = model.meshdata.cell_tags.values
+    left = {r: model.comm.allreduce(int(np.count_nonzero(values == r))) for r in (BALL_REGION, BLOCK_REGION)}
+    whole = {
+        "ball": BALL_REGION in tags or not left[BALL_REGION],
+        "struck": BLOCK_REGION in tags or not left[BLOCK_REGION],
+    }
     interfaces = [tag for tag, body in ((BALL_INTERFACE, "ball"), (BLOCK_INTERFACE, "struck")) if not whole[body]]
     alpha = zone.boundary_plastic_strain(facet_indices(model.meshdata, tuple(interfaces)))
     extents = zone.plastic_extent(plan.impact_point, BOUNDARY_ALPHA_TOL)
@@ -204,7 +211,7 @@ def zone_boundary_note(model: FEModel, zone, plan: Plan) -> tuple[dict[str, Any]
     ]
     notes += [
         f"WARNING: the {'ball' if body == 'ball' else 'struck body'}'s predicted plastic region does not fit the "
-        "contact zone, and this method keeps plasticity in the zone: --method full makes the whole body plastic"
+        "contact zone, and this run keeps plasticity in the zone"
         for body in plan.plastic_whole
         if not whole[body]
     ]

@@ -173,7 +173,7 @@ def whole_plastic_bodies(scene: Scene, h: HertzImpact, zone: float, ball_zone: f
             out.append(body)
             reasons[f"plastic_whole_{body}"] = (
                 f"predicted plastic radius {c * 1e3:.3g} mm > {WHOLE_BODY_SHARE:g} x its zone ({z * 1e3:.3g} mm): "
-                f"every cell of the {'ball' if body == 'ball' else 'struck body'} is plastic (full method)"
+                f"every cell of the {'ball' if body == 'ball' else 'struck body'} is plastic"
             )
     return tuple(out)
 

@@ -276,6 +276,38 @@ def test_nmm_zone_mass_null_space_and_remedies(p2):
     assert ratios["interface"] > 1e-6 and ratios["anchors"] > 1e-6
 
 
+@serial
+def test_a_whole_body_in_the_zone_is_kept_whole_and_its_covers_regular(setup):
+    """A body the plan makes wholly plastic (``with_whole_bodies_in_zone``): its region cells join
+    its zone, so it has no interior left to reduce, and its covers have no interface to take the
+    edge framework's null space (without a remedy: 15 exact zeros per body, 30 here); three
+    anchors among its vertices remove it: no exact zero (below 1e-12 of the largest; exact zeros
+    sit at ~1e-17). The smallest eigenvalue, 4e-10 of the largest, is the whole ball's graded
+    mesh (its coarse far cells' covers beside the contact's fine ones), not a null vector. The
+    other body keeps its interior."""
+    from millimpact.fem.model import create_fe_model
+    from millimpact.geometry import builders as G
+    from millimpact.geometry.mesh import with_whole_bodies_in_zone
+    from millimpact.reduction.nmm_zone import create_nmm_zone
+    from millimpact.reduction.partition import partition_dofs
+
+    scene, plan, md = setup
+    whole = with_whole_bodies_in_zone(md, ["ball"])
+    values = whole.cell_tags.values
+    assert not np.any(values == G.BALL_REGION) and np.count_nonzero(values == G.BLOCK_REGION) == np.count_nonzero(
+        md.cell_tags.values == G.BLOCK_REGION
+    )
+    model = create_fe_model(whole, plan, 2)
+    part = partition_dofs(model)
+    assert len(part.interior["ball"]) == 0 and len(part.interior["block"]) > 0
+    zeros = {}
+    for remedy in ("none", "interface"):
+        P = csr(create_nmm_zone(model, part, remedy=remedy).basis.G)
+        w = np.linalg.eigvalsh((P.T @ csr(model.M) @ P).toarray())
+        zeros[remedy] = int(np.count_nonzero(w < 1e-12 * w[-1]))
+    assert zeros == {"none": 30, "interface": 0}
+
+
 def test_nmm_prolongation_has_no_round_off_entries(p2):
     """P's entries are 1, 1/2 and d_k / (4 h) for the edge vector d; components with
     |d_k| <= DIRECTION_TOL |d| (edges in the symmetry plane, where the P2 node coordinates carry
