@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import SolverError
 from .finite_strain import INVERTED
 from .plasticity import CONSISTENCY_MAX_ITERATIONS, CONSISTENCY_RTOL, PlasticityError, ReturnMapResult
-from .return_map_kernel import KERNEL_HELPERS_C, CompiledPass, ZoneKernelData, load_compiled, pointer, rate_terms
+from .return_map_kernel import KERNEL_HELPERS_C, CompiledPass, cell_arguments, load_compiled, pointer, rate_terms
 
 _CDEF = """
 int finite_zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *ref_grad,
@@ -248,8 +248,7 @@ int finite_zone_energy(int n_pos, const int *pos, int n_nodes, int n_q, const do
         const int c = pos[ip];
         const int *cd = dofs + (long)c * n_nodes;
         const double *Ji = jinv + 9L * c;
-        for (int n = 0; n < n_nodes; n++)
-            for (int i = 0; i < 3; i++) ue[n][i] = u[3L * cd[n] + i];
+        gather_cell(n_nodes, cd, u, ue);
         for (int q = 0; q < n_q; q++) {
             const long p = (long)c * n_q + q;
             const double *rq = ref_grad + (long)q * n_nodes * 3;
@@ -294,8 +293,7 @@ int finite_zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const dou
         const int c = pos[ip];
         const int *cd = dofs + (long)c * n_nodes;
         const double *Ji = jinv + 9L * c;
-        for (int n = 0; n < n_nodes; n++)
-            for (int i = 0; i < 3; i++) ue[n][i] = u[3L * cd[n] + i];
+        gather_cell(n_nodes, cd, u, ue);
         for (int q = 0; q < n_q; q++) {
             const long p = (long)c * n_q + q;
             const long o = (long)ip * n_q + q;
@@ -350,10 +348,9 @@ class FiniteStrainPass(CompiledPass):
     """The finite-strain kernel bound to a zone's bodies (cell data, J2 material, flow table per
     body), for :meth:`.finite_zone.FiniteStrainZone.evaluate` without the tangent."""
 
-    @classmethod
-    def build(cls, V, cells: Sequence[np.ndarray], materials: Sequence, q_degree: int) -> FiniteStrainPass | None:
-        module = load_finite_kernel() if ZoneKernelData.supports(V) else None
-        return None if module is None else cls(module, V, cells, materials, q_degree)
+    @staticmethod
+    def load_module():
+        return load_finite_kernel()
 
     def evaluate_finite(
         self,
@@ -385,15 +382,7 @@ class FiniteStrainPass(CompiledPass):
             a, s, k = table
             rate_c, rate_dg0 = rate_terms(material, dt)
             n = lib.finite_zone_force(
-                n_cells,
-                pointer(ffi, pos, "int *"),
-                data.n_nodes,
-                data.n_q,
-                pointer(ffi, data.ref_grad),
-                pointer(ffi, data.weights),
-                pointer(ffi, data.dofs, "int *"),
-                pointer(ffi, data.jinv),
-                pointer(ffi, data.det),
+                *cell_arguments(ffi, data, pos),
                 pointer(ffi, u),
                 pointer(ffi, eps_p),
                 pointer(ffi, al),
@@ -442,15 +431,7 @@ class FiniteStrainPass(CompiledPass):
             pos = np.arange(n_cells, dtype=np.int32)
             eps_p = np.ascontiguousarray(eps_p, dtype=float)
             code = lib.finite_zone_energy(
-                n_cells,
-                pointer(ffi, pos, "int *"),
-                data.n_nodes,
-                data.n_q,
-                pointer(ffi, data.ref_grad),
-                pointer(ffi, data.weights),
-                pointer(ffi, data.dofs, "int *"),
-                pointer(ffi, data.jinv),
-                pointer(ffi, data.det),
+                *cell_arguments(ffi, data, pos),
                 pointer(ffi, u),
                 pointer(ffi, eps_p),
                 material.shear_modulus,

@@ -131,6 +131,13 @@ static int radial_return(const double e[6], double al, double G, double K, int n
     return 1;
 }
 
+/* the element's nodal displacements ue (n_nodes x 3) from u (3 per block dof cd) */
+static void gather_cell(int n_nodes, const int *cd, const double *u, double ue[][3])
+{
+    for (int n = 0; n < n_nodes; n++)
+        for (int i = 0; i < 3; i++) ue[n][i] = u[3L * cd[n] + i];
+}
+
 /* grad u at a point: (sum_a u_a (x) grad_X N_a) J^-1, the element's nodal displacements ue, the
    reference gradients rq (n_nodes, 3) at the point and the cell's J^-1 (Ji, row-major) */
 static void point_grad(int n_nodes, double ue[][3], const double *rq, const double *Ji, double g[3][3])
@@ -190,8 +197,7 @@ int zone_force(int n_pos, const int *pos, int n_nodes, int n_q, const double *re
         const int c = pos[ip];
         const int *cd = dofs + (long)c * n_nodes;
         const double *Ji = jinv + 9L * c;
-        for (int n = 0; n < n_nodes; n++)
-            for (int i = 0; i < 3; i++) ue[n][i] = u[3L * cd[n] + i];
+        gather_cell(n_nodes, cd, u, ue);
         for (int q = 0; q < n_q; q++) {
             const long p = (long)c * n_q + q;
             const double *rq = ref_grad + (long)q * n_nodes * 3;
@@ -282,6 +288,22 @@ def load_kernel():
     return load_compiled("zone_force", _CDEF, _SOURCE)
 
 
+def cell_arguments(ffi, data: ZoneKernelData, pos: np.ndarray) -> tuple:
+    """The kernels' first nine arguments: the cells at positions ``pos`` (int32, contiguous) and
+    the zone's cell data (n_pos, pos, n_nodes, n_q, ref_grad, weights, dofs, jinv, det)."""
+    return (
+        len(pos),
+        pointer(ffi, pos, "int *"),
+        data.n_nodes,
+        data.n_q,
+        pointer(ffi, data.ref_grad),
+        pointer(ffi, data.weights),
+        pointer(ffi, data.dofs, "int *"),
+        pointer(ffi, data.jinv),
+        pointer(ffi, data.det),
+    )
+
+
 def rate_terms(material, dt: float | None) -> tuple[float, float]:
     """The kernels' (rate_c, rate_dg0): Johnson-Cook's C and the reference increment rate0 dt, or
     (0, 0) for a material without a strain-rate factor (or no step)."""
@@ -370,15 +392,7 @@ def zone_force(
 
     return int(
         lib.zone_force(
-            len(pos),
-            ptr(pos, "int *"),
-            data.n_nodes,
-            data.n_q,
-            ptr(data.ref_grad),
-            ptr(data.weights),
-            ptr(data.dofs, "int *"),
-            ptr(data.jinv),
-            ptr(data.det),
+            *cell_arguments(ffi, data, pos),
             ptr(u),
             ptr(plastic_strain),
             ptr(alpha),
@@ -410,11 +424,16 @@ class CompiledPass:
         self.data = [ZoneKernelData(V, c, points, weights) for c in cells]
         self.tables = [tuple(np.ascontiguousarray(x, dtype=float) for x in m.flow.segments()) for m in self.materials]
 
+    @staticmethod
+    def load_module():
+        """The compiled module this pass calls (None where it cannot be built)."""
+        return load_kernel()
+
     @classmethod
-    def build(cls, V, cells: Sequence[np.ndarray], materials: Sequence, q_degree: int) -> CompiledPass | None:
+    def build(cls, V, cells: Sequence[np.ndarray], materials: Sequence, q_degree: int):
         """The pass for these zones, or None where the space is not one the kernel handles or the
         kernel cannot be built here."""
-        module = load_kernel() if ZoneKernelData.supports(V) else None
+        module = cls.load_module() if ZoneKernelData.supports(V) else None
         return None if module is None else cls(module, V, cells, materials, q_degree)
 
     def evaluate(

@@ -151,7 +151,8 @@ FINITE_STRAIN_CONTACT_SHARE = 0.15
 
 
 #: a plastic body whose predicted plastic radius (Johnson's cavity c) passes this share of its
-#: contact zone's radius is plastic in every cell where the method allows it (the full method): on
+#: contact zone's radius is plastic in every cell (the full method's region cells, the reduced
+#: methods' whole body kept unreduced in the zone): on
 #: the perfectly plastic sphere (docs: plasticity) the plastic region reached the 6.6 mm zone's
 #: boundary at 300 V_y (c = 0.97 of the zone) and stayed 1.1 mm inside it at 183 V_y (c = 0.70)
 WHOLE_BODY_SHARE = 0.85
@@ -159,7 +160,8 @@ WHOLE_BODY_SHARE = 0.85
 
 def whole_plastic_bodies(scene: Scene, h: HertzImpact, zone: float, ball_zone: float, reasons: dict[str, str]):
     """The bodies ("ball", "struck") whose predicted plastic region does not fit their contact zone
-    (c > WHOLE_BODY_SHARE x its radius): the full method makes every cell of them plastic. A zone the
+    (c > WHOLE_BODY_SHARE x its radius): every cell of them is made plastic (the reduced methods keep
+    such a body whole, unreduced, in the zone). A zone the
     scene gives (``model.zone_radius``) is the user's: kept, and a run warns if plasticity reaches
     its boundary."""
     if scene.model.zone_radius is not None:
@@ -300,7 +302,7 @@ class Plan:
     #: the plastic zone's kinematics: ``small`` or ``finite`` strain (:func:`choose_strain`)
     strain: str = "small"
     #: the bodies ("ball", "struck") plastic in every cell, not in their zone alone: their plastic
-    #: region does not fit the zone (:func:`whole_plastic_bodies`; the full method)
+    #: region does not fit the zone (:func:`whole_plastic_bodies`)
     plastic_whole: tuple[str, ...] = ()
 
     @property

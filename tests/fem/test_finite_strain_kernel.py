@@ -1,57 +1,38 @@
 """The compiled finite-strain pass (millimpact/fem/finite_strain_kernel.py) against the numpy path.
 
-A finite-strain zone on a sheared cube (J^-1 not diagonal) is evaluated at large strains (Grad u
-up to ~0.1 and rotations of the same size) by both paths, from a fresh and then from a committed
-plastic state: the same nonlinear points, trial states, force correction and energy correction. The paths compute the
-same equations in a different order (Jacobi on C - I against LAPACK's eigh of C, one C loop
-against FFCx's expression and assembly), so they agree to rounding amplified by the eigenvectors'
-conditioning: 1e-9 of the force's largest entry (observed ~1e-13), 1e-9 of the stresses'.
+A finite-strain zone on a sheared cube (J^-1 not diagonal) is evaluated by both paths, from a
+fresh and then from a committed plastic state: the same nonlinear points, trial states, force
+correction and energy correction. The paths compute the same equations in a different order
+(series in C - I or Jacobi on it against LAPACK's eigh of C, one C loop against FFCx's
+expression and assembly), so they agree to rounding amplified by the eigenvectors' conditioning
+and numpy's lost digits of small strains (its eigenvalues of C = I + 2 eps): 1e-9 of the force's
+largest entry (observed ~1e-13 at large strains), 1e-9 of the stresses'.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from dolfinx import fem, mesh as dmesh
-from mpi4py import MPI
+from dolfinx import fem
 
 from millimpact.errors import SolverError
 from millimpact.fem import finite_strain_kernel as fk
 from millimpact.fem.finite_zone import FiniteStrainZone
-from millimpact.fem.plastic_zone import ZoneMaterial
-from millimpact.fem.plasticity import FlowCurve, J2Material
 
-E, NU = 200e9, 0.3
-LINEAR = J2Material(E, NU, FlowCurve(1e9, 20e9))
-TABULATED = J2Material(E, NU, FlowCurve(380e6, 0.0, ((0.0, 380e6), (2e-4, 450e6), (6e-4, 560e6), (2e-3, 700e6))))
+from test_return_map_kernel import LINEAR, TABULATED, _indent
+from test_return_map_kernel import _zone as _cube_zone
 
 pytestmark = pytest.mark.skipif(fk.load_finite_kernel() is None, reason="no C compiler for the kernel")
 
 
 def _zone(p, material):
-    m = dmesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
-    A = np.array([[1.3, 0.2, 0.0], [0.1, 0.9, 0.3], [0.0, -0.2, 1.1]]) * 1e-2  # 1 cm, sheared
-    m.geometry.x[:] = m.geometry.x @ A.T
-    n = m.topology.index_map(3).size_local + m.topology.index_map(3).num_ghosts
-    mid = dmesh.compute_midpoints(m, 3, np.arange(n, dtype=np.int32))
-    tags = dmesh.meshtags(m, 3, np.arange(n, dtype=np.int32), np.where(mid[:, 2] < 0.6e-2, 3, 4).astype(np.int32))
-    V = fem.VectorFunctionSpace(m, ("Lagrange", p))
-    return FiniteStrainZone(V, tags, [ZoneMaterial(3, material)]), V
+    return _cube_zone(p, material, FiniteStrainZone)
 
 
 def _dent(V, depth):
-    """A displacement with large, uneven strains and rotations (a Vec of its own)."""
-    u = fem.Function(V)
-    u.interpolate(
-        lambda x: np.vstack(
-            [
-                depth * 0.3 * np.sin(200 * x[1]),
-                0.1 * depth * x[0] * 100,
-                -depth * np.exp(-((x[0] - 0.006) ** 2 + (x[1] - 0.005) ** 2) / 2e-5) * (x[2] / 0.01),
-            ]
-        )
-    )
-    return u.vector.copy()
+    """The uneven dent of test_return_map_kernel (large strains and rotations at this depth), as
+    a Vec of its own (a Function's .vector wraps the Function's memory, freed with it)."""
+    return _indent(V, depth).vector.copy()
 
 
 def _both(zone, u):

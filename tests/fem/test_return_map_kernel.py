@@ -27,7 +27,8 @@ TABULATED = J2Material(E, NU, FlowCurve(380e6, 0.0, ((0.0, 380e6), (2e-4, 450e6)
 pytestmark = pytest.mark.skipif(rk.load_kernel() is None, reason="no C compiler for the kernel")
 
 
-def _zone(p, material):
+def _zone(p, material, kind=PlasticZone):
+    """A ``kind`` zone (the lower 0.6 of a sheared 1 cm cube) of ``material``, and its space."""
     m = dmesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
     A = np.array([[1.3, 0.2, 0.0], [0.1, 0.9, 0.3], [0.0, -0.2, 1.1]]) * 1e-2      # 1 cm, sheared
     m.geometry.x[:] = m.geometry.x @ A.T
@@ -35,7 +36,7 @@ def _zone(p, material):
     mid = dmesh.compute_midpoints(m, 3, np.arange(n, dtype=np.int32))
     tags = dmesh.meshtags(m, 3, np.arange(n, dtype=np.int32), np.where(mid[:, 2] < 0.6e-2, 3, 4).astype(np.int32))
     V = fem.VectorFunctionSpace(m, ("Lagrange", p))
-    return PlasticZone(V, tags, [ZoneMaterial(3, material)]), V
+    return kind(V, tags, [ZoneMaterial(3, material)]), V
 
 
 def _indent(V, depth):
