@@ -29,6 +29,7 @@ from ..errors import MillimpactError
 from ..results.output_folder import OutputFolder
 from .adaptive import QUANTITIES, AdaptiveResult, Law, Point, Values, adaptive_table, bilinear_weights
 from .table import check_table_method, define_cases, keep_budget_gb, open_table, table_scene
+from .table_report import percent
 
 #: the table's columns of the law's quantities (e_n, e_t, F_max)
 ROW_KEYS = {"e_n": "restitution_normal", "e_t": "restitution_tangential", "f_max": "peak_normal_force_N"}
@@ -215,30 +216,6 @@ def adaptive_summary(result: AdaptiveResult, tolerance: float, max_cases: int, n
         "angles_deg": result.angles,
         "law": "bilinear in (ln speed, angle) over the grid speeds x angles, held at the nearest edge outside",
     }
-
-
-def percent(x: float) -> str:
-    """A relative error as a percentage, 3 digits."""
-    return f"{100.0 * x:.3g} %"
-
-
-def largest_errors_text(summary: dict[str, Any]) -> str:
-    """The largest checked errors, e.g. ``e_n 0.0041, e_t 0.0012, F_max 1.3 %``."""
-    w = summary["largest_checked_error"]
-    return (
-        f"e_n {w['restitution_normal']:.3g}, e_t {w['restitution_tangential']:.3g}, "
-        f"F_max {percent(w['peak_normal_force_rel'])}"
-    )
-
-
-def summary_line(summary: dict[str, Any]) -> str:
-    """One line: the grid, the checks and the largest checked errors against the tolerance."""
-    return (
-        f"{len(summary['speeds_m_s'])} speeds x {len(summary['angles_deg'])} angles + {summary['checks']} checks = "
-        f"{summary['cases']} cases; largest checked error {largest_errors_text(summary)} (tolerance "
-        f"{summary['tolerance']:g}, F_max {percent(summary['tolerance_peak_force_rel'])}): "
-        + ("reached" if summary["reached"] else f"NOT reached within {summary['max_cases']} cases")
-    )
 
 
 def write_checks(path: Path, result: AdaptiveResult, tolerance: float, grid: set[Point]) -> None:

@@ -156,7 +156,8 @@ def main(args: argparse.Namespace) -> int:
     )  # before any computing
     out = target.shown
     if adaptive:
-        from .table_adaptive import largest_errors_text, run_adaptive_table, summary_line
+        from .table_adaptive import run_adaptive_table
+        from .table_report import largest_errors_text, summary_line
 
         rows, summary = run_adaptive_table(
             args.scene,

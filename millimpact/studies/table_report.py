@@ -204,8 +204,6 @@ def write_table(
         f"# {len(rows)} impacts; the angle is measured from the face normal; SI units (in the column names)",
     ]
     if adaptive is not None:
-        from .table_adaptive import summary_line
-
         head.append(f"# adaptive table (grid and check cases, checks.csv): {summary_line(adaptive)}")
     head += [f"# {n} [{u}]: {d}" for n, u, d in columns]
     tmp = out / ".contact_table.csv.tmp"
@@ -317,3 +315,27 @@ def plot_table(out: Path, base: Scene, rows: Sequence[dict], laws: dict) -> None
     ax.legend(fontsize=8)
     fig.savefig(out / "force_speed.png", dpi=130)
     plt.close(fig)
+
+
+def percent(x: float) -> str:
+    """A relative error as a percentage, 3 digits."""
+    return f"{100.0 * x:.3g} %"
+
+
+def largest_errors_text(summary: dict[str, Any]) -> str:
+    """The largest checked errors, e.g. ``e_n 0.0041, e_t 0.0012, F_max 1.3 %``."""
+    w = summary["largest_checked_error"]
+    return (
+        f"e_n {w['restitution_normal']:.3g}, e_t {w['restitution_tangential']:.3g}, "
+        f"F_max {percent(w['peak_normal_force_rel'])}"
+    )
+
+
+def summary_line(summary: dict[str, Any]) -> str:
+    """One line: the grid, the checks and the largest checked errors against the tolerance."""
+    return (
+        f"{len(summary['speeds_m_s'])} speeds x {len(summary['angles_deg'])} angles + {summary['checks']} checks = "
+        f"{summary['cases']} cases; largest checked error {largest_errors_text(summary)} (tolerance "
+        f"{summary['tolerance']:g}, F_max {percent(summary['tolerance_peak_force_rel'])}): "
+        + ("reached" if summary["reached"] else f"NOT reached within {summary['max_cases']} cases")
+    )

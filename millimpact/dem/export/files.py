@@ -141,7 +141,7 @@ def checked_lines(t: ContactTable, comment: str) -> list[str]:
     a = t.adaptive
     if a is None:
         return []
-    from ...studies.table_adaptive import largest_errors_text, percent
+    from ...studies.table_report import largest_errors_text, percent
 
     state = "reached" if a["reached"] else f"NOT reached (budget of {a['max_cases']} cases spent)"
     return [
