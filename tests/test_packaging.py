@@ -235,8 +235,15 @@ def test_mpi_ranks_share_their_nodes_cores():
     from conftest import mpi_env
     if shutil.which("mpirun") is None:
         pytest.skip("mpirun not installed")
+    # rank 0 prints the gathered rows: two ranks printing themselves interleave their characters
+    # under an unbuffered stdout (PYTHONUNBUFFERED: print writes each field on its own), e.g.
+    # "1 1" and "1 1" arriving as "11 1" and " 1"
     code = ("import os, ctypes, millimpact, numpy\n"
-            "print(ctypes.CDLL('libopenblas.so.0').openblas_get_num_threads(), len(os.sched_getaffinity(0)))")
+            "from mpi4py import MPI\n"
+            "row = (ctypes.CDLL('libopenblas.so.0').openblas_get_num_threads(), len(os.sched_getaffinity(0)))\n"
+            "rows = MPI.COMM_WORLD.gather(row)\n"
+            "if MPI.COMM_WORLD.rank == 0:\n"
+            "    print('\\n'.join(f'{a} {b}' for a, b in rows), flush=True)\n")
     env = _without_blas_choice(mpi_env())
     r = subprocess.run(["mpirun", "-n", "2", sys.executable, "-c", code], capture_output=True, text=True,
                        env=env, timeout=300)
