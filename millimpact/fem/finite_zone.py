@@ -58,9 +58,7 @@ class FiniteStrainZone(PlasticZone):
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
         self._moduli = [small_strain_moduli(z.material) for z in self.zones]
-        self._committed_u: np.ndarray | None = None  # the displacement of the committed state
-        self._committed_sc: np.ndarray | None = None  # its P1 - C eps at the quadrature slots
-        self._trial_u: np.ndarray | None = None
+        self._committed_sc: np.ndarray | None = None  # the committed P1 - C eps per point (numpy path)
         self._trial_sc: np.ndarray | None = None
         # the compiled pass's force of the trial and the committed state (local arrays): kept in
         # place of the point corrections, which that pass does not write
@@ -131,7 +129,6 @@ class FiniteStrainZone(PlasticZone):
             self.tangent_correction.x.scatter_forward()
         self._trial, self._restricted = trial, False
         self._yielding_cells = np.unique(np.concatenate(active_cells)) if active_cells else np.zeros(0, np.int32)
-        self._trial_u = self.u.x.array.copy()
         self._trial_sc = self.stress_correction.x.array.copy()
         return n_active
 
@@ -141,14 +138,15 @@ class FiniteStrainZone(PlasticZone):
         self._set_displacement(u_vec)
         u = self.u.x.array
         f = self._compiled_force
-        f = np.zeros_like(u) if f is None or f.size != u.size else f
+        # a new buffer where the last one became the committed force (commit keeps it, uncopied)
+        f = np.zeros_like(u) if f is None or f.size != u.size or f is self._committed_f else f
         f[:] = 0.0
         n_active, trial = self._compiled().evaluate_finite(
             u, self.plastic_strain, self.alpha, f, GEOMETRIC_FLOOR, self.time_step
         )
         self._compiled_force, self._trial, self._restricted = f, trial, False
         self._yielding_cells = np.zeros(0, np.int32)
-        self._trial_u, self._trial_sc, self._trial_f = u.copy(), None, f.copy()
+        self._trial_sc, self._trial_f = None, f
         return n_active
 
     def force_correction(self, out=None):
@@ -162,7 +160,7 @@ class FiniteStrainZone(PlasticZone):
         raise RuntimeError("a finite-strain zone evaluates every cell (no candidates)")
 
     def commit(self) -> None:
-        """Accept the last evaluated state and its displacement (end of a converged step); the
+        """Accept the last evaluated state and its force (end of a converged step); the
         version is bumped every time (the committed force moves with the displacement)."""
         if self._trial is None:
             return
@@ -171,7 +169,7 @@ class FiniteStrainZone(PlasticZone):
             if res is not None:
                 self.plastic_strain[k] = res.plastic_strain.copy()
                 self.alpha[k] = res.alpha.copy()
-        self._committed_u, self._committed_sc, self._committed_f = self._trial_u, self._trial_sc, self._trial_f
+        self._committed_sc, self._committed_f = self._trial_sc, self._trial_f
         self._trial = None
         self.version += 1  # collective: every rank commits every step
         self._prune_cache()
@@ -179,7 +177,7 @@ class FiniteStrainZone(PlasticZone):
     def set_state(self, state) -> None:
         """The committed plastic state of :meth:`get_state`, at zero displacement."""
         super().set_state(state)
-        self._committed_u = self._committed_sc = self._committed_f = None
+        self._committed_sc = self._committed_f = None
 
     def _assemble_frozen_force(self):
         """f_c at the committed displacement (before the first commit, at u = 0)."""
