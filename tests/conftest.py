@@ -218,3 +218,33 @@ def pytest_sessionfinish(session, exitstatus):
     tmp = DURATIONS.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(dict(sorted(measured.items())), indent=0) + "\n")
     tmp.replace(DURATIONS)
+
+
+# --- the workers' schedule --------------------------------------------------------------------
+#: a module not measured yet (tests/durations.json) counts as this many seconds
+UNMEASURED_MODULE_S = 10.0
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """Whole test modules to the workers, the longest first (tests/durations.json).
+
+    pytest-xdist's default (``--dist load``) sends the collection in file order in chunks of
+    consecutive tests, a quarter of a worker's share at first: a worker whose chunk holds the long
+    tests ends minutes after the other, and a module's fixtures are set up on both workers. Whole
+    modules, the longest first, each to the worker that asks next (the longest-processing-time
+    rule), keep the two workers' ends within about the last module's time, and a module's
+    fixtures are made once. Only for the default; ``--dist`` set to another mode is kept.
+    """
+    if config.getvalue("dist") != "load":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    seconds = _module_seconds(_measured())
+
+    class LongestModuleFirst(LoadFileScheduling):
+        def _assign_work_unit(self, node):
+            module = max(self.workqueue, key=lambda m: seconds.get(m, UNMEASURED_MODULE_S))
+            self.workqueue.move_to_end(module, last=False)
+            super()._assign_work_unit(node)
+
+    return LongestModuleFirst(config, log)
