@@ -8,7 +8,11 @@ tops, 125 mm balls (liner-segment's), the plan's SAG charge (J 0.28, J_B 0.12) a
 
     .venv/bin/python benchmarks/liner_life.py [--cycles 4] [--max-step-depth F] [--revolutions 2] [--warmup 0.6] [--seed 0]
 
-Steps (each skipped when its folder is complete): ``millimpact mill`` on the new liner, then
+No relining limit stops the steps (``--reline-height 0 --reline-plate 0``): the measured state is the
+one after 4000 h, and the plate's 75 mm is an assumption.
+
+Steps (each skipped when its folder is complete; an interrupted life step, run again, continues
+from the mill re-runs it kept): ``millimpact mill`` on the new liner, then
 ``millimpact life --calibrate-height 152:58:4000 --hours 4000 --cycles N``, which runs the mill
 again on each worn profile; then the same constants on a second charge (Yanacocha's, below).
 Reported (life.md): the height and face angles at each step against the first-order decay through
@@ -73,7 +77,7 @@ def main() -> None:
               "--seed", str(a.seed), "--force", "--out", str(mill)], out / "mill.log")
     if not (life / "summary.json").exists():
         _run(["life", *SCENE, "--mill", str(mill), "--calibrate-height", "152:58:4000", "--hours", "4000",
-              "--cycles", str(a.cycles), "--force", "--out", str(life),
+              "--cycles", str(a.cycles), "--reline-height", "0", "--reline-plate", "0", "--force", "--out", str(life),
               *(["--max-step-depth", str(a.max_step_depth)] if a.max_step_depth is not None else [])], out / "life.log")
     transfer = _transfer(out, life, a) if not a.no_transfer else None
     s = json.loads((life / "summary.json").read_text())

@@ -105,11 +105,12 @@ def test_a_folder_that_is_no_mill_run_is_one_line(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path):
+def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path, monkeypatch, capsys):
     """A short SAG run of the small mill (moduli x 0.001), then life over 2 cycles: the second mill
     run is made on the worn profile (its lifters as high as the first step left them, within the
     plate's chord sagitta), profiles.csv holds the three profiles, the calibration reproduces its
-    figure (the new lifter's height loss rate, first-order decay of 50 -> 30 mm in 2000 h)."""
+    figure (the new lifter's height loss rate, first-order decay of 50 -> 30 mm in 2000 h); then
+    what its kept re-runs give a rerun and an interrupted one (_rerun_keeps_and_resumes)."""
     import shutil
 
     if shutil.which("yade") is None:
@@ -156,6 +157,48 @@ def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path):
         expected = [x for x in (np.arange(int(b / rec.bin_m) + 2) + 0.5) * rec.bin_m if a <= x < b]
         assert set(np.round(expected, 9)) <= set(np.round(centres, 9)), name
     assert np.count_nonzero(rec.archard + rec.absorbed == 0) > 0  # some bins are untouched
+    _rerun_keeps_and_resumes(life, [*sets, "--mill", str(mill), "--calibrate-height", "50:30:2000",
+                                    "--reline-height", "5", "-q", "--out", str(life)], s, monkeypatch, capsys)
+
+
+def _rerun_keeps_and_resumes(life, args, first, monkeypatch, capsys):
+    """The mill re-runs a life keeps (mills/cycle-K/, keyed by scene, options, profile and version):
+    the same command again runs no mill and gives the same profiles; a 3-cycle life over 600 h (its
+    first step the 200 h of the 2-cycle one: the same profile) takes cycle-1 and, interrupted (Ctrl-C)
+    in cycle 2's run, writes no summary.json and says what it kept; run again it runs cycle 2 alone;
+    the 2-cycle life after it runs none and drops cycle-2; a kept run whose key differs (another
+    profile's) is run again."""
+    from millimpact import cli
+    from millimpact.dem.mill import run as mill_run
+
+    real, calls, stop = mill_run.run_mill, [], [0]
+
+    def counted(*a, **k):
+        calls.append(a[2].name)
+        if len(calls) == stop[0]:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    monkeypatch.setattr(mill_run, "run_mill", counted)
+    two, three = ["life", "liner-segment", *args], ["life", "liner-segment", *args, "--hours", "600", "--cycles", "3"]
+    two += ["--hours", "400", "--cycles", "2"]
+    assert cli.main(two) == 0 and calls == []
+    assert json.loads((life / "summary.json").read_text())["profiles"] == first["profiles"]
+    stop[0] = 1
+    assert cli.main(three) == 130 and calls == [".cycle-2.partial"]
+    assert "1 finished mill re-run(s) kept in" in capsys.readouterr().err
+    assert json.loads((life / "summary.json").read_text())["profiles"] == first["profiles"]  # not replaced
+    calls.clear()
+    stop[0] = 0
+    assert cli.main(three) == 0 and calls == [".cycle-2.partial"]
+    assert [r["hours"] for r in json.loads((life / "summary.json").read_text())["profiles"]] == [0, 200, 400, 600]
+    calls.clear()
+    assert cli.main(two) == 0 and calls == []
+    assert sorted(p.name for p in (life / "mills").iterdir()) == ["cycle-1"]
+    kept = life / "mills" / "cycle-1" / "summary.json"
+    kept.write_text(kept.read_text().replace('"life_key": "', '"life_key": "x'))
+    stop[0] = 1
+    assert cli.main(two) == 130 and calls == [".cycle-1.partial"]
 
 
 def _record(tmp_path, power_W_m=2.0e5):

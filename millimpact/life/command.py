@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shutil
 from pathlib import Path
 
 from ..errors import InputError
@@ -31,8 +32,9 @@ to calibration.json). --cycles N moves the profile N times over --hours, running
 on each worn profile, until the lifters' height or the plate's thickness reaches its relining
 limit.
 
-Writes DIR/wear.csv, life.json, profiles.csv, wear.png, profiles.png, height_angle.png and, for
-each re-run, mills/cycle-K/.
+Writes DIR/wear.csv, profiles.csv, summary.json, calibration.json, wear.png, profiles.png,
+height_angle.png and, for each re-run, mills/cycle-K/, kept as soon as it is complete: an
+interrupted life run, run again, continues from its finished re-runs.
 
   millimpact life liner-panel --mill out/sag --calibrate-height 152:58:4000
   millimpact life liner-panel --mill out/sag --calibration out/life/calibration.json --cycles 4 --hours 4000
@@ -198,9 +200,16 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"--mill {args.mill}: its summary.json has no options to run the mill again with (--cycles 1)")
     out = args.out if args.out is not None else default_out(Path(args.scene).stem, prefix="life-")
     target = claim_output(out, "life", force=args.force)
-    with target.staged(collective=False) as stage:
-        runner = _mill_runner(scene, rec, stage, args) if args.cycles > 1 else None
+    runner, made = None, list[str]()
+    if args.cycles > 1:
+        mills = target.open(["mills"], note=lambda: kept_mills_note(target)) / "mills"
+        runner = _mill_runner(scene, rec, mills, args, say, made)
+    with target.staged(keep=["mills"] if runner is not None else [], collective=False) as stage:
         summary = life_summary(args, scene, lp, rec, cal, runner, say, clock)
+        if runner is not None:
+            for old in mills.glob("cycle-*"):
+                if old.name not in made:  # an earlier life's re-run that this one did not reach
+                    shutil.rmtree(old)
         with clock.stage("report"):
             write_life_outputs(stage, summary, rec, cal, plots=not args.no_plots)
             (stage / "calibration.json").write_text(cal.to_json() + "\n")
@@ -229,23 +238,57 @@ def wall_times(clock) -> dict:
     }
 
 
-def _mill_runner(scene, rec, stage: Path, args):
-    """run(profile, cycle) -> the folder of a mill run on that worn profile (the first run's options)."""
+def kept_mills_note(target) -> str:
+    """What an interrupted life run leaves: its finished mill re-runs, reused by a rerun."""
+    from ..commandkit.store import kept_note
+
+    n = len(list((target.path / "mills").glob("cycle-*/summary.json")))
+    return kept_note([(n, "mill re-run", f"{target.shown}/mills/")], "the life itself is not written")
+
+
+def _mill_runner(scene, rec, mills: Path, args, say, made: list[str]):
+    """run(profile, cycle) -> the folder of a mill run on that worn profile (the first run's options).
+
+    Each re-run is kept as ``mills/cycle-K/`` with the key of what decides it (the scene, the mill's
+    options, the worn profile, the version; :func:`~millimpact.commandkit.store.piece_key`) in its
+    summary.json, written last: a rerun of an interrupted life takes a cycle whose key matches
+    (the steps before it are the same, so its profile is) and runs the others again. A run is
+    made in a hidden ``.cycle-K.partial`` folder and renamed when complete. ``made`` gets each
+    cycle's folder name.
+    """
+    from dataclasses import asdict, replace
+
+    from .. import __version__
+    from ..commandkit.store import piece_key
     from ..dem.mill.run import run_mill
     from ..dem.mill.setup import MillOptions, plan_mill
+    from ..scene.toml_io import dump_scene
 
     opts = MillOptions(**rec.summary["options"])
     if args.revolutions is not None:
-        from dataclasses import replace
-
         opts = replace(opts, revolutions=args.revolutions)
 
     def run(lp, cycle: int) -> Path:
-        folder = stage / "mills" / f"cycle-{cycle}"
-        folder.mkdir(parents=True)
+        folder = mills / f"cycle-{cycle}"
+        made.append(folder.name)
+        key = piece_key(
+            {"scene": dump_scene(scene), "options": asdict(opts), "profile": asdict(lp), "version": __version__}
+        )
+        try:
+            if json.loads((folder / "summary.json").read_text()).get("life_key") == key:
+                say(f"  life: cycle {cycle}: the mill run on this profile kept in {folder} from an earlier run")
+                return folder
+        except (OSError, ValueError):
+            pass
+        partial = mills / f".cycle-{cycle}.partial"
+        for old in (folder, partial):  # this command's own: another profile's run, or an interrupted one
+            shutil.rmtree(old, ignore_errors=True)
+        partial.mkdir(parents=True)
         setup = plan_mill(scene, opts, profile=lp.mill_profile(scene.ball.radius))
-        summary = run_mill(scene, opts, folder, plots=False, setup=setup, quiet=args.quiet)
-        (folder / "summary.json").write_text(json.dumps(summary, default=str, indent=1) + "\n")
+        summary = run_mill(scene, opts, partial, plots=False, setup=setup, quiet=args.quiet)
+        summary["life_key"] = key
+        (partial / "summary.json").write_text(json.dumps(summary, default=str, indent=1) + "\n")
+        partial.rename(folder)
         return folder
 
     return run
