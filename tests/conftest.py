@@ -87,17 +87,39 @@ def shared_out(tmp_path_factory, name):
 SMALL_RIG = {"model.h_contact": 0.8e-3, "model.h_far": 8e-3, "model.zone_radius": 5e-3}
 
 
+def made_once(tmp_path_factory, name: str, make) -> Path:
+    """The folder ``name`` that ``make(folder)`` fills, made once for the whole run: the test workers
+    share it (it lies in their common temporary root), the first to ask makes it under a lock and
+    the others wait for it. For a session fixture's output that the tests read and never write."""
+    import fcntl
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # each worker's base is a folder of the run's own
+    folder, done = root / "made-once" / name, root / "made-once" / f"{name}.done"
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    with open(root / "made-once" / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            shutil.rmtree(folder, ignore_errors=True)  # a failed attempt's
+            make(folder)
+            done.touch()
+    return folder
+
+
 @pytest.fixture(scope="session")
 def rig_contact_table(tmp_path_factory):
     """The contact table of tests/dem (test_export.py, test_mill_law.py, which built it each):
     paper-rig on :data:`SMALL_RIG`, improved, Coulomb mu = 0.2, speeds 1 and 3 m/s x angles 0 and
     40 deg. Its folder: read it, do not write in it."""
-    out = tmp_path_factory.mktemp("rig-table") / "table"
-    small = [a for k, v in SMALL_RIG.items() for a in ("--set", f"{k}={v!r}")]
-    r = run_cli("table", "paper-rig", "--velocity", "1,3", "--angle", "0,40", *small, "--set", "contact.friction=0.2",
-                "--out", str(out), "-q")
-    assert r.returncode == 0, r.stderr[-3000:]
-    return out
+
+    def make(out):
+        small = [a for k, v in SMALL_RIG.items() for a in ("--set", f"{k}={v!r}")]
+        r = run_cli("table", "paper-rig", "--velocity", "1,3", "--angle", "0,40", *small, "--set",
+                    "contact.friction=0.2", "--out", str(out), "-q")
+        assert r.returncode == 0, r.stderr[-3000:]
+
+    return made_once(tmp_path_factory, "rig-table", make)
 
 
 #: the coarse plastic half-space of tests/methods/test_plastic.py and
@@ -112,10 +134,12 @@ PLASTIC_HALFSPACE = ["hertz-halfspace", "--method", "full", "-q", "--set", "mode
 def plastic_halfspace_run(tmp_path_factory):
     """The run of :data:`PLASTIC_HALFSPACE` with the default options (plastic linearisation
     "elastic"): its folder. Both modules checked this very run (one with figures, one without)."""
-    out = tmp_path_factory.mktemp("plastic-halfspace") / "y1"
-    r = run_cli("run", *PLASTIC_HALFSPACE, "--out", str(out))
-    assert r.returncode == 0, r.stderr[-3000:]
-    return out
+
+    def make(out):
+        r = run_cli("run", *PLASTIC_HALFSPACE, "--out", str(out))
+        assert r.returncode == 0, r.stderr[-3000:]
+
+    return made_once(tmp_path_factory, "plastic-halfspace", make)
 
 
 def small_rig_scene():
