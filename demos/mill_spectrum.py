@@ -24,7 +24,10 @@ checks:
 above it), ``charge.png`` the balls' positions with the shoulder and the toe.
 
     .venv/bin/python demos/mill_spectrum.py            # full size: 200 balls, 2 revolutions (~15 min)
-    .venv/bin/python demos/mill_spectrum.py --small    # 60 balls from rest, 0.3 revolution
+    .venv/bin/python demos/mill_spectrum.py --small    # 60 balls from rest, 0.3 revolution, moduli x 0.001
+
+The reduced size softens the contacts tenfold past the command's default (--stiffness-scale 0.001:
+a contact lasts ~3x longer, so ~3x fewer steps); its energy balance stays within 1 %.
 """
 import argparse
 import csv
@@ -38,11 +41,11 @@ G = 9.81   #: gravity, m/s^2 (the mill script's)
 
 if __name__ == "__main__":
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--small", action="store_true", help="reduced size: 60 balls, 0.3 revolution from rest (~30 s)")
+    p.add_argument("--small", action="store_true", help="reduced size: 60 balls, 0.3 revolution, soft contacts (~15 s)")
     p.add_argument("--out", type=Path, help="output folder (default out/demo-mill-spectrum[-small])")
     args = p.parse_args()
     out = args.out or Path("out") / f"demo-mill-spectrum{'-small' if args.small else ''}"
-    size = (["--balls", 60, "--revolutions", 0.3, "--warmup", 0] if args.small
+    size = (["--balls", 60, "--revolutions", 0.3, "--warmup", 0, "--stiffness-scale", 0.001] if args.small
             else ["--balls", 200, "--revolutions", 2])
 
     millimpact("mill", "liner-panel", *size, "--speed-fraction", 0.75, "--out", out)

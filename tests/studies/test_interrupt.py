@@ -42,6 +42,8 @@ def test_study_interrupt_stops_workers_and_rerun_finishes(tmp_path, sig, code):
             break
         time.sleep(0.5)
     assert len(workers) >= 3 and alive == []                    # no orphaned worker
+    if sig != signal.SIGINT:
+        return  # the rerun's path does not depend on the signal: it runs once, after Ctrl-C
     r = subprocess.run([sys.executable, "-m", "millimpact.cli", *ARGS, "--out", str(out)], cwd=ROOT, env=mpi_env(),
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
