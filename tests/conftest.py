@@ -247,6 +247,9 @@ def pytest_sessionfinish(session, exitstatus):
 # --- the workers' schedule --------------------------------------------------------------------
 #: a module not measured yet (tests/durations.json) counts as this many seconds
 UNMEASURED_MODULE_S = 10.0
+#: modules one worker runs together, in collection order: the demos' reduced studies take their
+#: cases from the studies test_study.py ran before them (shared_out: a worker's own folder)
+SAME_WORKER = {"tests/studies/test_study.py": "studies and demos", "tests/test_demos.py": "studies and demos"}
 
 
 def pytest_xdist_make_scheduler(config, log):
@@ -257,18 +260,26 @@ def pytest_xdist_make_scheduler(config, log):
     tests ends minutes after the other, and a module's fixtures are set up on both workers. Whole
     modules, the longest first, each to the worker that asks next (the longest-processing-time
     rule), keep the two workers' ends within about the last module's time, and a module's
-    fixtures are made once. Only for the default; ``--dist`` set to another mode is kept.
+    fixtures are made once. The modules of :data:`SAME_WORKER` go as one. Only for the default;
+    ``--dist`` set to another mode is kept.
     """
     if config.getvalue("dist") != "load":
         return None
     from xdist.scheduler import LoadFileScheduling
 
-    seconds = _module_seconds(_measured())
+    seconds: dict[str, float] = {}
+    for module, s in _module_seconds(_measured()).items():
+        unit = SAME_WORKER.get(module, module)
+        seconds[unit] = seconds.get(unit, 0.0) + s
 
     class LongestModuleFirst(LoadFileScheduling):
+        def _split_scope(self, nodeid):
+            module = super()._split_scope(nodeid)
+            return SAME_WORKER.get(module, module)
+
         def _assign_work_unit(self, node):
-            module = max(self.workqueue, key=lambda m: seconds.get(m, UNMEASURED_MODULE_S))
-            self.workqueue.move_to_end(module, last=False)
+            unit = max(self.workqueue, key=lambda m: seconds.get(m, UNMEASURED_MODULE_S))
+            self.workqueue.move_to_end(unit, last=False)
             super()._assign_work_unit(node)
 
     return LongestModuleFirst(config, log)
