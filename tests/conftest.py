@@ -252,6 +252,7 @@ UNMEASURED_MODULE_S = 10.0
 SAME_WORKER = {"tests/studies/test_study.py": "studies and demos", "tests/test_demos.py": "studies and demos"}
 
 
+@pytest.hookimpl(optionalhook=True)  # pytest-xdist's hook: a run without xdist (-p no:xdist) has none
 def pytest_xdist_make_scheduler(config, log):
     """Whole test modules to the workers, the longest first (tests/durations.json).
 
