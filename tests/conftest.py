@@ -96,9 +96,10 @@ def made_once(tmp_path_factory, name: str, make) -> Path:
     root = tmp_path_factory.getbasetemp()
     if os.environ.get("PYTEST_XDIST_WORKER"):
         root = root.parent  # each worker's base is a folder of the run's own
-    folder, done = root / "made-once" / name, root / "made-once" / f"{name}.done"
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    with open(root / "made-once" / f"{name}.lock", "w") as lock:
+    base = root / "made-once"
+    base.mkdir(parents=True, exist_ok=True)
+    folder, done = base / name, base / f"{name}.done"
+    with open(base / f"{name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not done.exists():
             shutil.rmtree(folder, ignore_errors=True)  # a failed attempt's
