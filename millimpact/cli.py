@@ -266,12 +266,13 @@ def command_scene(args: argparse.Namespace):
 
 def cmd_mesh(args: argparse.Namespace) -> int:
     scene = command_scene(args)
-    from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf  # gmsh, DOLFINx: once the input is read
     from .scene.plan import make_plan
 
     plan = make_plan(scene)
     out = args.out if args.out is not None else default_out(scene.name, suffix="-mesh")
-    target = claim_output(out, "mesh", force=args.force)  # before meshing
+    target = claim_output(out, "mesh", force=args.force)  # before meshing, and before importing gmsh, DOLFINx
+    from .geometry.mesh import create_mesh, mesh_report, write_mesh_xdmf
+
     with target.staged() as stage:
         md = create_mesh(scene, plan, _comm(), export=stage / "mesh.msh")
         write_mesh_xdmf(md, stage / "mesh.xdmf")

@@ -7,6 +7,7 @@ import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -23,6 +24,19 @@ OUTPUT = {"paper_rig": "summary.json", "plastic_impact": "summary.json", "contac
           "liner_life": "life/summary.json"}
 #: the demos that run Yade (contact_table leaves its round trip out without it)
 NEEDS_YADE = {"mill_spectrum", "damage_map", "liner_life"}
+
+
+#: where ``./dev docs`` keeps its demo runs (docs/_ext/demo_pages.py: ``demo_runs``' default)
+DOCS_RUNS = ROOT / "docs" / "_build" / "demo-runs"
+
+
+def _current_docs_record(demo: str) -> dict | None:
+    """The documentation build's record of ``demo`` when it is current: made from the same demo and
+    package sources (its fingerprint) and its output folder still there; else None."""
+    record = demo_pages.read_record(DOCS_RUNS / demo)
+    if record is None or record.get("fingerprint") != demo_pages.fingerprint(demo):
+        return None
+    return record if Path(record["out"]).is_dir() else None
 
 
 def test_every_demo_is_listed():
@@ -48,13 +62,20 @@ def _build_page(name, runs, tmp_path):
 def test_demo_runs_at_reduced_size_and_makes_its_page(demo, tmp_path, tmp_path_factory):
     if demo in NEEDS_YADE and shutil.which("yade") is None:
         pytest.skip("Yade is not installed (apt-get install yade)")
-    runs = tmp_path / "runs"
-    # the studies: the folder test_study.py uses for the same study, so the case cache serves both
-    out = shared_out(tmp_path_factory, demo[len("study_"):]) if demo.startswith("study_") else tmp_path / "out"
-    try:
-        record = demo_pages.run_demo(demo, runs / demo, out=out)
-    except demo_pages.DemoFailed as e:
-        pytest.fail(str(e))
+    record = _current_docs_record(demo)
+    if record is not None:
+        # the documentation build ran this demo on these very sources (./dev docs, before the tests
+        # in CI): its record is written only when the demo's checks passed, and its fingerprint
+        # hashes the demo and the package, so running it again would repeat the same run
+        runs, out = DOCS_RUNS, Path(record["out"])
+    else:
+        runs = tmp_path / "runs"
+        # the studies: the folder test_study.py uses for the same study, so the case cache serves both
+        out = shared_out(tmp_path_factory, demo[len("study_"):]) if demo.startswith("study_") else tmp_path / "out"
+        try:
+            record = demo_pages.run_demo(demo, runs / demo, out=out)
+        except demo_pages.DemoFailed as e:
+            pytest.fail(str(e))
     assert (out / OUTPUT.get(demo, "study.md")).is_file()
     figures = demo_pages.figures(out)
     assert figures, f"demos/{demo}.py wrote no figure"

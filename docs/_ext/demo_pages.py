@@ -7,12 +7,14 @@ The figures come from the demo's **quick variant** (``--small``, 20-80 s each on
 build when its record is missing or stale: a record ``<demo_runs>/<name>/demo-run.json`` keeps the
 fingerprint (a hash of the demo, ``demos/_common.py`` and the package's sources), the command and
 what it printed; the outputs lie beside it in ``out/``. So a fresh clone's ``./dev docs`` runs the
-ten quick variants once (~6 min) and a rebuild with unchanged sources reuses them. A demo that
+eleven quick variants once, two at a time (``DEMO_JOBS`` says otherwise; ~2 min on 2 cores), and a
+rebuild with unchanged sources reuses them; so does ``tests/test_demos.py``. A demo that
 fails (its own physics checks are asserts) stops the build, with the end of what it printed.
 
 The demos never run at full size here: the full-size figures need minutes to hours (the paper's
-rig and the studies over 40 ms, a mill's two revolutions in Yade). ``tests/test_demos.py`` runs the same quick variants and builds
-their pages with this extension, so a demo or a page that breaks fails the test suite too.
+rig and the studies over 40 ms, a mill's two revolutions in Yade). ``tests/test_demos.py`` runs the same quick variants (or
+takes the build's current records) and builds their pages with this extension, so a demo or a page
+that breaks fails the test suite too.
 
 Config values: ``demo_runs`` (folder of the records, default ``docs/_build/demo-runs``),
 ``demo_names`` (default: every ``demos/*.py`` not starting with ``_``), ``demo_run_missing`` (False:
@@ -95,6 +97,29 @@ def run_demo(name: str, run_dir: Path, out: Path | None = None, timeout: float =
     return record
 
 
+def run_demos(names: list[str], runs: Path, log=print) -> dict[str, dict]:
+    """Run the quick variants of ``names``, DEMO_JOBS at a time (default: up to 2, the cores a
+    small machine has; each demo is one process, the studies two), into ``runs/<name>``; their
+    records. The first failure raises :class:`DemoFailed` once the running demos have ended."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    jobs = max(1, int(os.environ.get("DEMO_JOBS", min(2, os.cpu_count() or 1))))
+
+    def one(name: str) -> dict:
+        log(f"[demos] running the quick variant of demos/{name}.py ...")
+        record = run_demo(name, runs / name)
+        log(f"[demos] demos/{name}.py: {record['wall_time_s']} s")
+        return record
+
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        futures = {name: pool.submit(one, name) for name in names}
+        try:
+            return {name: f.result() for name, f in futures.items()}
+        except BaseException:
+            pool.shutdown(cancel_futures=True)       # the queued ones do not start
+            raise
+
+
 def read_record(run_dir: Path) -> dict | None:
     try:
         return json.loads((Path(run_dir) / RECORD).read_text())
@@ -163,15 +188,14 @@ def write_pages(srcdir: Path, runs: Path, names: list[str], run_missing: bool = 
     variant of each demo whose record is missing or stale when ``run_missing``."""
     pages = Path(srcdir) / "demos"
     pages.mkdir(exist_ok=True)
+    records = {name: read_record(Path(runs) / name) for name in names}
+    stale = [n for n, r in records.items()
+             if r is None or r["fingerprint"] != fingerprint(n) or not Path(r["out"]).is_dir()]
+    if stale and not run_missing:
+        raise DemoFailed(f"demos/{stale[0]}.py: no current record in {Path(runs) / stale[0]} (demo_run_missing is off)")
+    records.update(run_demos(stale, Path(runs), log))
     for name in names:
-        run_dir = Path(runs) / name
-        record = read_record(run_dir)
-        if record is None or record["fingerprint"] != fingerprint(name) or not Path(record["out"]).is_dir():
-            if not run_missing:
-                raise DemoFailed(f"demos/{name}.py: no current record in {run_dir} (demo_run_missing is off)")
-            log(f"[demos] running the quick variant of demos/{name}.py ...")
-            record = run_demo(name, run_dir)
-            log(f"[demos] demos/{name}.py: {record['wall_time_s']} s")
+        record = records[name]
         fig_dir = pages / name
         if fig_dir.exists():
             shutil.rmtree(fig_dir)
