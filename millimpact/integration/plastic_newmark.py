@@ -32,7 +32,9 @@ between full checks; ``plastic_predictor`` (``extrapolated``) starts from the pl
 extrapolated in time; ``plastic_friction_forcing`` (0.1) loosens the Coulomb alternation on
 iterates far from the answer; ``plastic_return_map`` (``compiled``) evaluates the zone in one
 compiled loop (:mod:`millimpact.fem.return_map_kernel`); ``plastic_body_blocks`` (1) solves body by
-body once a step size has iterated a while (:mod:`.body_blocks`). None changes the converged step.
+body once a step size has iterated a while (:mod:`.body_blocks`), and ``plastic_block_lag`` (0.05
+on a finite-strain zone, else 0) keeps a body's last solve while its load moves by less than that
+share of the residual. None changes the converged step beyond the residual tolerance.
 What each saves, measured: docs/development/module-notes.md.
 
 A step that does not converge in ``plastic_max_iterations`` (40 with ``tangent``, 80 otherwise)
@@ -72,6 +74,8 @@ PREDICTORS = ("extrapolated", "frozen")
 #: a step size's operator is split into its bodies' blocks (:mod:`.body_blocks`) once its yielding
 #: steps have needed this many solves beyond their first (the plastic liner's third step size: 10)
 BODY_BLOCKS_AFTER = 20
+#: a step's iterates that contract their residual by less than this stop lagging body loads
+LAG_CONTRACTION = 0.9
 #: the zone's evaluations without tangent (``-impact_plastic_return_map``): one compiled pass for
 #: strains, return map and force (:mod:`millimpact.fem.return_map_kernel`), or the numpy return map
 #: between FFCx's strain and assembly kernels
@@ -144,6 +148,16 @@ class PlasticNewmarkScheme(NewmarkScheme):
         if blocks not in ("0", "1", "true", "false"):
             raise InputError(f"-impact_plastic_body_blocks {blocks!r}: choose 1 or 0")
         self.body_blocks = blocks in ("1", "true")
+        # a body whose load moved by less than this share of the iterate's residual keeps its last
+        # solve (.body_blocks, lagged): default on a finite-strain zone only, where every strained
+        # point changes the load a little at every iteration
+        self.block_lag = float(
+            solvers.get_option("plastic_block_lag", options, 0.05 if getattr(self.zone, "finite", False) else 0.0)
+        )
+        if not 0.0 <= self.block_lag < 1.0:
+            raise InputError(
+                f"-impact_plastic_block_lag {self.block_lag}: must be in [0, 1) (0 = re-solve on any change)"
+            )
         self._later_solves: dict[float, int] = {}  # per step size, solves beyond a step's first
         # the active set of the step's last iteration's contact
         self._iteration_active: np.ndarray | None = None
@@ -185,6 +199,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
         yielding_seen = False
         fresh = self.reuse == 0.0  # a new tangent at the next yielding iteration
         res_prev = None
+        lag = self.block_lag  # the lagged body loads' share of the residual, this step (_solve)
         elastic = self.linearisation == "elastic"
         mixing = AndersonMixing(self.depth, self.comm) if self.linearisation != "tangent" else None
         # A u_k carried by the iteration (elastic linearisation, a direct solve): A G(u_k) is the
@@ -256,6 +271,8 @@ class PlasticNewmarkScheme(NewmarkScheme):
                 break
             # a reused tangent that contracts the residual too slowly is replaced
             fresh = fresh or (res_prev is not None and res > self.reuse * res_prev)
+            if res_prev is not None and res > LAG_CONTRACTION * res_prev:
+                lag = 0.0  # the iterates stall: no lagged load for the rest of the step
             res_prev = res
             if it == self.max_iterations:
                 raise SolverError(
@@ -273,7 +290,7 @@ class PlasticNewmarkScheme(NewmarkScheme):
             if mixing is not None:
                 mixing.bind(ksp)
             fresh = False
-            self._solve(op, ksp, it > 0, step, t_new)
+            self._solve(op, ksp, it > 0, step, t_new, lag * res if np.isfinite(res) else 0.0)
             self.stats.n_solves += 1
             q = self.contact.gap(self.u_pred)
             gap_tol = self.gap_rtol * max(
@@ -376,15 +393,18 @@ class PlasticNewmarkScheme(NewmarkScheme):
         res.array[self.fixed] = 0.0
         return res.norm(), scale
 
-    def _solve(self, op, ksp: PETSc.KSP, later: bool, step: int, t: float) -> None:
+    def _solve(self, op, ksp: PETSc.KSP, later: bool, step: int, t: float, lag: float = 0.0) -> None:
         """u_pred = ksp^-1 self._rhs: by the bodies' blocks when the solve is the elastic
-        operator's and they are built (:meth:`_body_blocks`), else by ``ksp``."""
+        operator's and they are built (:meth:`_body_blocks`), else by ``ksp``. ``lag`` (N): a body
+        whose part of the right-hand side moved by at most this keeps its last solve, and that
+        solve's right-hand side replaces its part of self._rhs, so u_pred solves self._rhs exactly
+        and the iteration's product A u_pred stays known (the residual test sees the difference)."""
         what = "plastic effective-matrix solve"
         blocks = self._body_blocks(op, later) if ksp is op.ksp_u else None
         if blocks is None:
             solvers.solve_checked(ksp, self._rhs, self.u_pred, what, step, t)
         else:
-            self.stats.n_body_solves_skipped += blocks.solve(self._rhs, self.u_pred, what, step, t)
+            self.stats.n_body_solves_skipped += blocks.solve(self._rhs, self.u_pred, what, step, t, lag)
 
     def _body_blocks(self, op, later: bool):
         """The step size's operator solved body by body (:class:`.body_blocks.BodyBlockSolver`),
