@@ -120,7 +120,7 @@ def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path, monkeypatch,
             "liner.mill_radius=0.4", "--set", "ball.radius=0.03", "--set", "contact.friction=0.3"]
     mill = tmp_path / "mill"
     res = run_cli("mill", "liner-segment", *sets, "--charge", "sag", "--rock-top-size", "0.06", "--rock-cutoff",
-                  "0.03", "--stiffness-scale", "0.001", "--revolutions", "0.3", "--warmup", "0.3", "--no-plots",
+                  "0.03", "--stiffness-scale", "0.001", "--revolutions", "0.2", "--warmup", "0.2", "--no-plots",
                   "--out", str(mill), timeout=900)
     assert res.returncode == 0, res.stderr
     life = tmp_path / "life"
