@@ -4,8 +4,8 @@ vibration between impacts (foundations.md section 4).
 The contact lasts ~0.1 ms of the 40 ms run; with the zone kept physical the reduced model is
 still thousands of coordinates, so stepping the free vibration would cost nearly as much as the
 full model. With ``free_phase = "modal"`` (default) the integrator runs while the bodies touch
-(from the start to ``gap / v + 1.5 t_c`` with the contact step only, then in chunks of 2 t_c
-while a contact is active); once they are apart, the motion is the closed-form sum of the
+(from the start with the contact step only until the bodies have been apart for 10 steps, at the
+latest ``gap / v + 1.5 t_c``, then in chunks of 2 t_c while a contact is active); once they are apart, the motion is the closed-form sum of the
 free-vibration modes of the reduced system up to ``free_modes_factor`` times the plan's f_cut
 (with the integrator's mass matrix; :func:`millimpact.reduction.free_modes.compute_free_modes`),
 recorded at once (vectorised over the times) on the integrator's free-step grid. A gap predicted
@@ -39,6 +39,7 @@ from petsc4py import PETSc
 
 from ..fem.contact import ContactSet
 from ..integration import integrators
+from ..integration.dynamics import SeparationStop
 from ..integration.solvers import return_freed_memory
 from ..reduction.free_modes import ModalProjection, compute_free_modes
 from ..reduction.plastic_projection import ProjectedPlasticZone
@@ -52,7 +53,7 @@ log = logging.getLogger(__name__)
 #: are sampled every dt_free = 1 / (10 f_cut) (plan.py), whose Nyquist frequency is 5 f_cut
 FREE_MODES_FACTOR = 4.0
 
-#: the first integrator segment of the modal free phase lasts gap / v + this many t_c (Hertz):
+#: the first integrator segment of the modal free phase lasts at most gap / v + this many t_c (Hertz):
 #: the contact lasts ~t_c (0.99 t_c at the default scene, a few % more on thin blocks), so the
 #: bodies are apart at its end and the switch to the modes needs no second segment (each segment
 #: costs a factorization and the contact operator W)
@@ -70,6 +71,9 @@ STEPS_PER_MODAL_COORDINATE = 10.0
 #: small-strain one solves once. Measured on the plastic rig at 0.3 ms (131 free steps): 55 ms a
 #: free step against the small-strain 19 ms, so 2.9
 FINITE_FREE_STEP_COST = 2.9
+#: the modal phase's first segment ends this many contact steps after the bodies part (a gap that
+#: closes again within them resets the count; one closing later hands the state back to the steps)
+SEPARATED_STEPS = 10
 #: the values of ``free_phase``
 FREE_PHASES = ("auto", "modal", "step")
 
@@ -154,6 +158,11 @@ def integrate_reduced(
     comm = red.comm
     while t < t_end * (1 - 1e-12):
         t_stop = t_end if free_phase == "step" else min(t_end, t_first if not segments else t + chunk)
+        # the modal phase's first segment ends once the bodies have parted (SEPARATED_STEPS steps
+        # without contact after touching), at the latest at t_first: the steps after separation
+        # only step the free vibration the modes give (a finite-strain step iterates: the plastic
+        # rig's 0.3 ms spent a fifth of its zone passes there)
+        parted = SeparationStop(SEPARATED_STEPS) if free_phase == "modal" and stop is None and not segments else None
         # between modal phases the steps are short: one step size (one factorization and one
         # contact operator W instead of two; the modal phase takes the free vibration)
         q, qd, lam, st, mass = _run_steps(
@@ -168,10 +177,13 @@ def integrate_reduced(
             options,
             progress,
             single_size=free_phase == "modal",
-            stop=stop,
+            stop=stop if parted is None else parted,
         )
         _add_stats(stats_sum, st)
-        if math.isfinite(st.stopped_at):  # the stop callback ended the run
+        if parted is not None and math.isfinite(st.stopped_at):  # parted: on to the free modes
+            t_stop = t + st.stopped_at
+            stats_sum["stopped_at"] = math.inf
+        elif math.isfinite(st.stopped_at):  # the stop callback ended the run
             segments.append(("step", t, t + st.stopped_at))
             stats_sum["stopped_at"] = t + st.stopped_at
             t_end = t + st.stopped_at
