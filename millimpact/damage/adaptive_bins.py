@@ -61,6 +61,12 @@ BINS_FROM = ("adaptive", "cases")
 DEFAULT_BINS_FROM = "cases"
 #: the engine's starting grid: START normal speeds x START angles
 START = 3
+#: a check passes within this fraction of the tolerance: the cases' scatter alone (0.0025 in e_n
+#: at most on the plastic rig's table, a quarter of 0.01). The contact table's wider margin
+#: (millimpact.studies.adaptive.CHECK_MARGIN, 0.65) also covers a wide cell's worst point lying
+#: off its centre (2.24-10 m/s x 0-30 deg); a place's bins span a few tens of per cent in v_n, where
+#: the error of linear interpolation of a smooth response peaks at the cell's centre
+BINS_CHECK_MARGIN = 0.8
 #: a group's angles spread less than this (deg, 1.7e-8 rad) are one grid line
 ONE_ANGLE_DEG = 1e-6
 #: the row's columns the engine's law gives (its checked quantities)
@@ -248,6 +254,7 @@ def run_engine(
         batch=batch,
         say=lambda s: say(f"  {s}"),
         law=map_law,
+        margin=BINS_CHECK_MARGIN,
     )
     return result
 
@@ -255,11 +262,11 @@ def run_engine(
 def projected_cases(grid: dict[Point, Values], tolerance: float) -> int:
     """The cases the engine would need from its starting ``grid`` on: each cell split (in halves)
     until the error the engine predicts from the grid's second differences
-    (:func:`millimpact.studies.adaptive.predicted_errors`, ~ h^2) is within CHECK_MARGIN of the
+    (:func:`millimpact.studies.adaptive.predicted_errors`, ~ h^2) is within BINS_CHECK_MARGIN of the
     tolerance, along speed and along angle; the grid those splits make and one check per cell.
     F_max enters as ln F_max (the law's form: :func:`map_law`), an absolute error within 2 x the
     tolerance."""
-    from ..studies.adaptive import CHECK_MARGIN, AdaptiveResult, predicted_errors
+    from ..studies.adaptive import AdaptiveResult, predicted_errors
 
     speeds, angles = sorted({p[0] for p in grid}), sorted({p[1] for p in grid})
     nan = math.nan
@@ -272,7 +279,7 @@ def projected_cases(grid: dict[Point, Values], tolerance: float) -> int:
     pred = [predicted_errors(AdaptiveResult(speeds, angles, g), tolerance) for g in (plain, log_f)]
 
     def parts(e: float) -> int:
-        return 1 if not e > CHECK_MARGIN else 2 ** math.ceil(math.log2(math.sqrt(e / CHECK_MARGIN)))
+        return 1 if not e > BINS_CHECK_MARGIN else 2 ** math.ceil(math.log2(math.sqrt(e / BINS_CHECK_MARGIN)))
 
     cells_v, cells_a = range(len(speeds) - 1), range(max(len(angles) - 1, 1))
     n_v = 1 + sum(max(parts(max(p[(i, j)][0] for p in pred)) for j in cells_a) for i in cells_v)

@@ -166,7 +166,7 @@ def test_the_projection_from_the_starting_grid_never_exceeds_what_the_engine_nee
     to reach the tolerance: equal where the starting grid and its 4 checks suffice, below it where
     cells split (a split cell's check comes on top of its parts'), so a projection above the budget
     stops only an engine that could not have saved cases."""
-    from millimpact.damage.adaptive_bins import map_law, projected_cases
+    from millimpact.damage.adaptive_bins import BINS_CHECK_MARGIN, map_law, projected_cases
     from millimpact.studies.adaptive import adaptive_table
 
     def response(v, a):
@@ -180,7 +180,7 @@ def test_the_projection_from_the_starting_grid_never_exceeds_what_the_engine_nee
         start.update(out if not start else {})
         return out
 
-    engine = adaptive_table(compute, (0.5, 4.0), (0.0, 60.0), 0.02, 1000, START, 2, law=map_law)
+    engine = adaptive_table(compute, (0.5, 4.0), (0.0, 60.0), 0.02, 1000, START, 2, law=map_law, margin=BINS_CHECK_MARGIN)
     projected = projected_cases(start, 0.02)
     assert engine.reached and projected <= engine.cases
     if engine.cases == START * START + (START - 1) ** 2:
