@@ -25,7 +25,7 @@ the small strains' digits (1 + mu loses those of mu below 1e-16; ln(1 + mu) is `
 sums are D times resolvents near I), so the kernel is, if anything, more accurate than numpy's
 ``eigh`` of C at strains near round-off; the two agree to 1e-9 of the force's largest entry at
 the strains of an impact (tests/fem/test_finite_strain_kernel.py). The Gauss-Legendre sums took a
-pass on the plastic rig's 19,068 points (a third of them past |D| = 1e-2) from 9.7 to 5.9 ms
+pass on the plastic rig's 19,068 points (a third of them past |D| = 1e-2) from 9.7 to 6.0 ms
 against the series in D and the Jacobi rotations they replace, the force equal to 3e-15.
 
 Per point the trial state (T, d E_p, d alpha, yielding) is kept, as the numpy path's
