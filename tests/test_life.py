@@ -86,6 +86,8 @@ def test_first_order_decay_rate():
     (["--max-step-depth", "0"], "--max-step-depth 0.0: must lie in (0, 1]"),
     (["--calibrate-height", "58:152:4000"], "needs H0 > H1 > 0 mm"),
     (["--calibrate-mass", "2.6", "--calibrate-height", "152:58:4000"], "give one of them"),
+    (["--calibrate-life", "152:58:4000", "--hours", "1000"], "runs the life to its figure's 4000 h"),
+    (["--calibrate-life", "152:58"], "--calibrate-life '152:58': give H0:H1:HOURS"),
 ])
 def test_bad_life_input_is_one_line_and_exit_2_and_no_folder(tmp_path, args, words):
     mill = tmp_path / "mill"
@@ -157,6 +159,18 @@ def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path, monkeypatch,
         expected = [x for x in (np.arange(int(b / rec.bin_m) + 2) + 0.5) * rec.bin_m if a <= x < b]
         assert set(np.round(expected, 9)) <= set(np.round(centres, 9)), name
     assert np.count_nonzero(rec.archard + rec.absorbed == 0) > 0  # some bins are untouched
+    # --calibrate-life with one cycle holds the first run's rates: the height falls linearly, so the
+    # calibrated rate of height loss is (H0 - H1) / HOURS exactly, and the life ends H1 high at HOURS
+    held = tmp_path / "life-held"
+    res = run_cli("life", "liner-segment", *sets, "--mill", str(mill), "--calibrate-life", "50:30:2000",
+                  "--reline-height", "5", "--no-plots", "--out", str(held), timeout=300)
+    assert res.returncode == 0, res.stderr
+    h = json.loads((held / "summary.json").read_text())
+    assert h["rates"][0]["top"]["mean_mm_per_1000h"] - h["rates"][0]["plate"]["mean_mm_per_1000h"] == pytest.approx(
+        (50 - 30) / 2000 * 1000, rel=1e-9)
+    assert h["profiles"][-1]["hours"] == pytest.approx(2000, rel=1e-12)
+    assert h["profiles"][-1]["lifter_height_mm"] == pytest.approx(30, rel=1e-9)
+    assert json.loads((held / "calibration.json").read_text())["calibrated_on"]["target"] == 30
     _rerun_keeps_and_resumes(life, [*sets, "--mill", str(mill), "--calibrate-height", "50:30:2000",
                                     "--reline-height", "5", "-q", "--out", str(life)], s, monkeypatch, capsys)
 
@@ -276,11 +290,11 @@ def test_metal_flow_is_the_dent_growth_over_1000_hours(tmp_path):
     assert "never added" in flow["is"]
 
 
-def _unit_record(lp: LifterProfile, bin_m: float = 0.002) -> MillRecord:
+def _unit_record(lp: LifterProfile, bin_m: float = 0.002, plate: float = 1.0) -> MillRecord:
     """Bins of ``bin_m`` along one lifter unit of ``lp`` (trailing face from its foot, top, leading
     face from its top corner, the plate to the next lifter; the plate's curvature neglected, as
     worn_profile does): Archard's integral linear along each face (more at the top corner, as the
-    charge wears it), uniform on the top and the plate; no impacts."""
+    charge wears it), uniform on the top and ``plate`` times that on the plate; no impacts."""
     bt, tt, tl, bl = lp.corners()
     pitch = 2.0 * math.pi * lp.mill_radius / lp.n_lifters
     lengths = {"trailing_face": math.dist(bt, tt), "top": lp.top_width, "leading_face": math.dist(tl, bl),
@@ -292,7 +306,7 @@ def _unit_record(lp: LifterProfile, bin_m: float = 0.002) -> MillRecord:
         along = {"trailing_face": u / length, "leading_face": 1.0 - u / length}.get(name, np.full(n, 0.5))
         surface += [name] * n
         position += list(s0 + u)
-        archard += list(1.0 + 2.0 * along)
+        archard += list((1.0 + 2.0 * along) * (plate if name == "plate" else 1.0))
         bounds.append([s0, s0 + length])
         s0 += length
     return MillRecord(folder=Path("."), surface=np.array(surface), position=np.array(position),
@@ -348,7 +362,7 @@ def test_twice_the_hours_wear_twice_the_depth_on_a_fixed_profile():
     assert b.plate_wear == pytest.approx(2.0 * a.plate_wear, rel=1e-12)
 
 
-def _fake_mill(monkeypatch, loop, delay=0.0):
+def _fake_mill(monkeypatch, loop, delay=0.0, plate=1.0):
     """(record, run_mill_on) of a fake mill for ``loop.run_life``: each run on a profile takes
     ``delay`` s and reads back as _unit_record of that profile (its summary a fixed mill state)."""
     import dataclasses
@@ -359,7 +373,7 @@ def _fake_mill(monkeypatch, loop, delay=0.0):
     worn = {}
 
     def record(lp):
-        return dataclasses.replace(_unit_record(lp), summary=summary)
+        return dataclasses.replace(_unit_record(lp, plate=plate), summary=summary)
 
     def run_mill_on(lp, cycle):
         time.sleep(delay)
@@ -433,3 +447,49 @@ def test_a_step_limit_keeps_each_bins_loss_below_its_share_of_the_lifter(monkeyp
         limit = share * 1e3 * before.profile.height_above_plate
         assert before.largest_step_depth_mm <= limit * (1 + 1e-9) or dt == pytest.approx(loop.MIN_STEP_SHARE * 2000.0)
     assert max(s.largest_step_depth_mm for s in steps[:-1]) < max(s.largest_step_depth_mm for s in equal[:-1])
+
+
+def test_a_life_calibration_reaches_its_height_at_its_hours(monkeypatch):
+    """--calibrate-life: the life stepped at provisional constants until the lifter is H1 high
+    (the last step cut there: the height falls linearly within a step), then the constants scaled
+    so that this happens at HOURS. Checked independently of the loop: each rescaled step, redone
+    by hand at the calibrated constants from its profile's own mill record, gives the next profile
+    (to round-off: a factor on the constants only rescales the hours), and the last one is H1 high
+    at HOURS. With the fake mill (its record follows the profile; its plate wears a quarter of its
+    top's rate, so the lifter loses height) the rates change every step."""
+    from millimpact.life import loop
+    from millimpact.life.calibration import Calibration, through_life
+
+    record, run_mill_on = _fake_mill(monkeypatch, loop, plate=0.25)
+    lp = _lifter()
+    law = WearLaw(abrasion=1.0, impact=0.0, hardness_Pa=3e9, density_kg_m3=7850.0)
+    h1, hours = 0.120, 4000.0
+    steps, rates, why = loop.run_life(lp, record(lp), law, hours, 4, (1.0, 1.0), run_mill_on, 0.0625,
+                                      max_step_share=0.2, stop_height=h1)
+    assert why is None and steps[-1].profile.height_above_plate == pytest.approx(h1, rel=1e-12)
+    assert steps[-2].profile.height_above_plate > h1 and len(steps) > 2
+    cal, factor = through_life(Calibration(law, {"h1_mm": 120.0}), steps[-1].hours, hours)
+    steps, rescaled_rates = loop.rescaled(steps, rates, factor)
+    assert steps[-1].hours == pytest.approx(hours, rel=1e-12) and cal.calibrated_on["target"] == 120.0
+    assert cal.law.abrasion == pytest.approx(factor, rel=1e-15)
+    for before, after in zip(steps[:-1], steps[1:]):
+        rec = record(before.profile)
+        depths = surface_depths(rec, depth_rates(rec, cal.law), after.hours - before.hours)
+        mine = worn_profile(before.profile, depths)
+        for f in ("height", "top_width", "top_centre", "trailing_angle_deg", "leading_angle_deg", "plate_wear"):
+            assert getattr(mine, f) == pytest.approx(getattr(after.profile, f), rel=1e-9, abs=1e-12), f
+    top = rescaled_rates[0]["top"]["mean_mm_per_1000h"]
+    assert top == pytest.approx(factor * rates[0]["top"]["mean_mm_per_1000h"], rel=1e-15)
+
+
+def test_a_life_calibration_out_of_reach_is_refused(monkeypatch):
+    """A height the provisional constants do not reach within STOP_BOUND x HOURS: InputError naming
+    the height (the fake mill wears 0.3 um per 1000 h at these constants)."""
+    from millimpact.errors import InputError
+    from millimpact.life import loop
+
+    record, run_mill_on = _fake_mill(monkeypatch, loop)
+    lp = _lifter()
+    law = WearLaw(abrasion=1e-8, impact=0.0, hardness_Pa=3e9, density_kg_m3=7850.0)
+    with pytest.raises(InputError, match="stay above 120 mm"):
+        loop.run_life(lp, record(lp), law, 4000.0, 1, (1.0, 1.0), None, 0.0625, stop_height=0.120)

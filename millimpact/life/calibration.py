@@ -16,6 +16,12 @@ that the model gives the figure:
   Sarcheshmeh's liners follows one), so the new lifter loses height at H0 / tau,
   tau = HOURS / ln(H0 / H1): the model's rate of height loss of the new lifter (its top's mean
   depth rate less the plate's) is set to that;
+- ``--calibrate-life H0:H1:HOURS``: the same figure on the life's own height curve, no decay
+  assumed: the profile is moved and the mill run again (``--cycles``, ``--max-step-depth``) at the
+  constants of ``--calibrate-height`` until the lifters are H1 high, T hours on; a factor on both
+  constants only rescales the hours (every depth is a rate times the hours, every rate linear in
+  the constants), so the constants times T / HOURS wear the same profiles and reach H1 at HOURS
+  (:func:`through_life`);
 - ``--calibrate-mass G_PER_KWH``: the liner's mass lost per kWh of the mill's net power (Brunswick:
   2.6 g/kWh, Orford et al. 2003): the model's mass rate per metre of mill length over the run's net
   power per metre is set to it.
@@ -69,14 +75,14 @@ def read_calibration(path: Path | str) -> Calibration:
     return Calibration(law, data.get("calibrated_on", {}), float(data.get("spread", DEFAULT_SPREAD)))
 
 
-def parse_height_figure(text: str) -> tuple[float, float, float]:
+def parse_height_figure(text: str, option: str = "--calibrate-height") -> tuple[float, float, float]:
     """H0:H1:HOURS (mm, mm, h), checked: H0 > H1 > 0, HOURS > 0."""
     try:
         h0, h1, hours = (float(x) for x in text.split(":"))
     except ValueError:
-        raise InputError(f"--calibrate-height {text!r}: give H0:H1:HOURS, e.g. 152:58:4000 (mm, mm, h)") from None
-    if not (h0 > h1 > 0 and hours > 0 and all(math.isfinite(x) for x in (h0, h1, hours))):
-        raise InputError(f"--calibrate-height {text!r}: needs H0 > H1 > 0 mm and HOURS > 0")
+        raise InputError(f"{option} {text!r}: give H0:H1:HOURS, e.g. 152:58:4000 (mm, mm, h)") from None
+    if not (h0 > h1 > 0 and 0 < hours <= 1e6 and all(math.isfinite(x) for x in (h0, h1, hours))):
+        raise InputError(f"{option} {text!r}: needs H0 > H1 > 0 mm and HOURS in (0, 1e6]")
     return h0, h1, hours
 
 
@@ -128,3 +134,20 @@ def check_same_steel(cal: Calibration, steel: dict, path) -> None:
             f"--calibration {path}: made on another liner steel, {say(theirs)}, than this scene's, {say(ours)}; "
             "calibrate on this steel (--calibrate-height or --calibrate-mass)"
         )
+
+
+def through_life(cal: Calibration, reached_hours: float, hours: float) -> tuple[Calibration, float]:
+    """(the calibration whose constants reach the figure's height at ``hours``, the factor on the
+    constants) from ``cal``, whose life reaches it at ``reached_hours`` (the module docstring,
+    ``--calibrate-life``)."""
+    factor = reached_hours / hours
+    law = cal.law
+    law = WearLaw(law.abrasion * factor, law.impact * factor, law.hardness_Pa, law.density_kg_m3)
+    on = dict(cal.calibrated_on)
+    on.update(
+        what="the lifters' height after the figure's hours on the life's own profile steps",
+        target=on.pop("h1_mm"),
+        first_run_rate_factor=factor,
+        first_run_rate_is="the constants over those that give the first-order decay's rate on the first mill run",
+    )
+    return Calibration(law, on, cal.spread), factor

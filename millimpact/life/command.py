@@ -49,6 +49,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--calibrate-height", metavar="H0:H1:HOURS", help="calibrate on lifters worn from H0 to H1 mm in HOURS"
     )
+    p.add_argument(
+        "--calibrate-life",
+        metavar="H0:H1:HOURS",
+        help="calibrate on lifters worn from H0 to H1 mm in HOURS along this life's own steps (runs to HOURS)",
+    )
     p.add_argument("--calibrate-mass", type=float, metavar="G_PER_KWH", help="calibrate on a liner mass rate (g/kWh)")
     p.add_argument(
         "--impact-ratio", type=float, default=1.0, metavar="R", help="k_i / k_a held by a calibration (default 1)"
@@ -56,7 +61,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--spread", type=float, metavar="S", help="relative spread of the constants (default the file's, 0.3)"
     )
-    p.add_argument("--hours", type=float, default=1000.0, metavar="H", help="hours of operation (default 1000)")
+    p.add_argument(
+        "--hours", type=float, metavar="H", help="hours of operation (default 1000; --calibrate-life: its HOURS)"
+    )
     p.add_argument("--cycles", type=int, default=1, metavar="N", help="profile steps over --hours (default 1)")
     p.add_argument(
         "--max-step-depth",
@@ -81,7 +88,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def check_args(args: argparse.Namespace) -> None:
-    """One line per bad option (InputError), before anything is read or made."""
+    """One line per bad option (InputError), before anything is read or made; sets ``args.hours``
+    when it was not given."""
+    from .calibration import parse_height_figure
+
+    life = getattr(args, "calibrate_life", None)
+    figure_hours = parse_height_figure(life, "--calibrate-life")[2] if life is not None else None
+    if args.hours is None:
+        args.hours = 1000.0 if figure_hours is None else figure_hours
+    elif figure_hours is not None and args.hours != figure_hours:
+        raise InputError(
+            f"--hours {args.hours:g}: --calibrate-life runs the life to its figure's {figure_hours:g} h; "
+            "for other hours pass its calibration.json with --calibration"
+        )
     for name, x, lo, hi in (
         ("--hours", args.hours, 0.0, 1e6),
         ("--impact-ratio", args.impact_ratio, 0.0, 1e6),
@@ -103,6 +122,7 @@ def check_args(args: argparse.Namespace) -> None:
         for o, v in (
             ("--calibration", args.calibration),
             ("--calibrate-height", args.calibrate_height),
+            ("--calibrate-life", life),
             ("--calibrate-mass", args.calibrate_mass),
         )
         if v is not None
@@ -110,8 +130,6 @@ def check_args(args: argparse.Namespace) -> None:
     if len(given) > 1:
         raise InputError(f"{' and '.join(given)}: give one of them (a calibration file, or one figure to calibrate on)")
     if args.calibrate_height is not None:
-        from .calibration import parse_height_figure
-
         parse_height_figure(args.calibrate_height)
     if args.calibrate_mass is not None and not (math.isfinite(args.calibrate_mass) and args.calibrate_mass > 0):
         raise InputError(f"--calibrate-mass {args.calibrate_mass!r}: must be a number > 0 (g/kWh)")
@@ -136,12 +154,16 @@ def calibrate(args, rec, steel: dict):
     law = scaled(DEFAULT_LAW, 1.0, args.impact_ratio)
     rates = place_rates(rec, depth_rates(rec, law))
     on = {"mill": str(rec.folder), "impact_ratio": args.impact_ratio, "liner_steel": steel}
-    if args.calibrate_height is not None:
-        h0, h1, hours = parse_height_figure(args.calibrate_height)
+    life = getattr(args, "calibrate_life", None)
+    if args.calibrate_height is not None or life is not None:
+        # --calibrate-life starts here and is finished on the life's steps (calibration.through_life)
+        h0, h1, hours = parse_height_figure(*((life, "--calibrate-life") if life else (args.calibrate_height,)))
         target = initial_height_rate(h0, h1, hours)
         model = rates["top"]["mean_mm_per_1000h"] - rates["plate"]["mean_mm_per_1000h"]
         what = "lifter height loss of the new lifter (first-order decay), mm per 1000 h"
         on.update(figure=f"lifters {h0:g} -> {h1:g} mm in {hours:g} h", target=target, what=what)
+        if life is not None:
+            on.update(h1_mm=h1, option="--calibrate-life")
     elif args.calibrate_mass is not None:
         power = rec.summary["power"]["measured"]["net_per_metre_W_m"]
         mass = sum(r["mass_kg_per_1000h_per_metre"] for r in rates.values())  # kg per 1000 h per metre
@@ -205,7 +227,7 @@ def main(args: argparse.Namespace) -> int:
         mills = target.open(["mills"], note=lambda: kept_mills_note(target)) / "mills"
         runner = _mill_runner(scene, rec, mills, args, say, made)
     with target.staged(keep=["mills"] if runner is not None else [], collective=False) as stage:
-        summary = life_summary(args, scene, lp, rec, cal, runner, say, clock)
+        summary, cal = life_summary(args, scene, lp, rec, cal, runner, say, clock)
         if runner is not None:
             for old in mills.glob("cycle-*"):
                 if old.name not in made:  # an earlier life's re-run that this one did not reach

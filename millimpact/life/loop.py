@@ -13,23 +13,29 @@ of any surface loses more than F of the lifter's current height above the plate,
 but at least MIN_STEP_SHARE of hours / cycles: a worn lifter's faces meet at its top, where the
 corner bins wear 5-10 times the face's mean, and equal steps would carry a bin past the lifter in
 one step. It stops at the relining criterion: the lifters' height above the plate or the plate's
-thickness at their limits.
+thickness at their limits, or, with ``stop_height`` (a calibration on the life's own height curve,
+:func:`~millimpact.life.calibration.through_life`), where the lifters' height reaches it: within a
+step the height falls linearly in the hours (the top's and the plate's depths are their rates
+times the hours), so the last step is cut where it crosses.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..commandkit.timing import StageClock
+from ..errors import InputError
 from .profile import LifterProfile, worn_profile
 from .wear import MillRecord, WearLaw, depth_rates, place_rates, read_mill_record, surface_depths
 
 #: a step limited by ``max_step_share`` is at least this share of hours / cycles (the mill runs of a
 #: life are at most cycles / MIN_STEP_SHARE)
 MIN_STEP_SHARE = 0.25
+#: with ``stop_height`` the steps run to the height; more than this many times ``hours`` is refused
+STOP_BOUND = 10.0
 
 
 @dataclass
@@ -76,10 +82,13 @@ def run_life(
     say: Callable[[str], None] = lambda s: None,
     clock: StageClock | None = None,
     max_step_share: float | None = None,
+    stop_height: float | None = None,
 ) -> tuple[list[LifeStep], list[dict], str | None]:
     """The steps (the profile at 0, hours/cycles, ...; shorter ones with ``max_step_share``, the
     module docstring), the per-surface rates of each cycle's mill run, and the relining reason if
-    reached. ``run_mill_on(profile, cycle)`` runs the mill on a worn profile and returns its folder
+    reached. With ``stop_height`` (m, the lifters' height above the plate) the steps go on past
+    ``hours`` until that height, the last one cut where it is reached (InputError beyond
+    STOP_BOUND x ``hours``). ``run_mill_on(profile, cycle)`` runs the mill on a worn profile and returns its folder
     (None: one cycle only). ``clock`` gets a lap of ``wear_and_profile`` per cycle, of
     ``mill_reruns`` per re-run and of ``read`` per re-run read."""
     clock = StageClock() if clock is None else clock
@@ -87,14 +96,23 @@ def run_life(
     steps = [LifeStep(0.0, lp, mill_state(first))]
     rates_per_cycle = []
     rec, why = first, None
-    k = 0
-    while steps[-1].hours < hours * (1.0 - 1e-9):
+    k, reached = 0, False
+    end = hours if stop_height is None else STOP_BOUND * hours
+    while steps[-1].hours < end * (1.0 - 1e-9):
         with clock.stage("wear_and_profile"):
             rates = depth_rates(rec, law)
             rates_per_cycle.append(place_rates(rec, rates))
-            dt = step_hours(rec, rates, lp, nominal, hours - steps[-1].hours, max_step_share)
+            dt = step_hours(rec, rates, lp, nominal, end - steps[-1].hours, max_step_share)
             depths = surface_depths(rec, rates, dt)
-            lp = worn_profile(lp, depths)
+            worn = worn_profile(lp, depths)
+            if stop_height is not None and worn.height_above_plate <= stop_height:
+                # the height falls linearly in the hours within the step: cut it where it crosses
+                reached = True
+                drop = lp.height_above_plate - worn.height_above_plate
+                dt *= (lp.height_above_plate - stop_height) / drop
+                depths = surface_depths(rec, rates, dt)
+                worn = worn_profile(lp, depths)
+            lp = worn
         largest = max((float(d.max()) for _, d in depths.values() if d.size), default=0.0)
         steps[-1].largest_step_depth_mm = 1e3 * largest
         say(
@@ -103,7 +121,7 @@ def run_life(
             f"{1e3 * lp.plate_left:.1f} mm"
         )
         why = relined(lp, *reline)
-        last = steps[-1].hours + dt >= hours * (1.0 - 1e-9) or why is not None
+        last = steps[-1].hours + dt >= end * (1.0 - 1e-9) or why is not None or reached
         k += 1
         if not last and run_mill_on is not None:
             with clock.stage("mill_reruns"):
@@ -111,9 +129,27 @@ def run_life(
             with clock.stage("read"):
                 rec = read_mill_record(folder, lp.mill_profile(ball_radius))
         steps.append(LifeStep(steps[-1].hours + dt, lp, {} if last or run_mill_on is None else mill_state(rec)))
-        if why is not None:
+        if why is not None or reached:
             break
+    if stop_height is not None and not reached:
+        raise InputError(
+            f"the lifters stay above {1e3 * stop_height:g} mm for {end:g} h at the first run's constants "
+            f"({1e3 * lp.height_above_plate:.1f} mm then): the figure cannot be reached"
+        )
     return steps, rates_per_cycle, why
+
+
+def rescaled(steps: list[LifeStep], rates_per_cycle: list[dict], factor: float) -> tuple[list, list]:
+    """The life with every wear constant times ``factor``: the same profiles at the hours over
+    ``factor`` (the depths are the rates times the hours, the rates linear in the constants), the
+    rates (mm and kg per 1000 h) times ``factor``."""
+    steps = [replace(s, hours=s.hours / factor) for s in steps]
+    per_1000h = ("mean_mm_per_1000h", "largest_mm_per_1000h", "mass_kg_per_1000h_per_metre")
+    rates = [
+        {surf: {k: (v * factor if k in per_1000h else v) for k, v in r.items()} for surf, r in cyc.items()}
+        for cyc in rates_per_cycle
+    ]
+    return steps, rates
 
 
 def step_hours(

@@ -27,7 +27,8 @@ import math
 from pathlib import Path
 
 from ..errors import InputError
-from .loop import hours_to_reline, run_life
+from .calibration import through_life
+from .loop import hours_to_reline, rescaled, run_life
 from .wear import PLACE_OF, SURFACES, depth_rates
 
 
@@ -52,10 +53,11 @@ def metal_flow(damage: str | None, rpm: float) -> dict | None:
     return out
 
 
-def life_summary(args, scene, lp, rec, cal, runner, say, clock=None) -> dict:
+def life_summary(args, scene, lp, rec, cal, runner, say, clock=None):
     """Run the life (:func:`~millimpact.life.loop.run_life`, its stages timed on ``clock``) and
-    gather summary.json."""
+    gather summary.json: (the summary, the calibration, finished here for ``--calibrate-life``)."""
     reline = (args.reline_height, args.reline_plate)
+    h1 = cal.calibrated_on.get("h1_mm")
     steps, rates, why = run_life(
         lp,
         rec,
@@ -68,7 +70,12 @@ def life_summary(args, scene, lp, rec, cal, runner, say, clock=None) -> dict:
         say,
         clock,
         getattr(args, "max_step_depth", None),
+        stop_height=None if h1 is None else 1e-3 * h1,
     )
+    if h1 is not None:
+        cal, factor = through_life(cal, steps[-1].hours, args.hours)
+        steps, rates = rescaled(steps, rates, factor)
+        say(f"  life: the lifters reach {h1:g} mm at {args.hours:g} h with the constants x {factor:.3f}")
     first = rates[0]
     spread = {
         f"{label}": hours_to_reline(lp, first, reline, f)
@@ -101,7 +108,7 @@ def life_summary(args, scene, lp, rec, cal, runner, say, clock=None) -> dict:
             for s in steps
         ],
         "units": "mm, degrees, hours, kg, kW/m",
-    }
+    }, cal
 
 
 def write_life_outputs(stage: Path, summary: dict, rec, cal, plots: bool = True) -> None:
