@@ -484,7 +484,8 @@ def test_a_life_calibration_reaches_its_height_at_its_hours(monkeypatch):
 
 def test_a_life_calibration_out_of_reach_is_refused(monkeypatch):
     """A height the provisional constants do not reach within STOP_BOUND x HOURS: InputError naming
-    the height (the fake mill wears 0.3 um per 1000 h at these constants)."""
+    the height (the fake mill wears 0.3 um per 1000 h at these constants); a relining limit reached
+    before it: InputError naming the limit."""
     from millimpact.errors import InputError
     from millimpact.life import loop
 
@@ -493,3 +494,8 @@ def test_a_life_calibration_out_of_reach_is_refused(monkeypatch):
     law = WearLaw(abrasion=1e-8, impact=0.0, hardness_Pa=3e9, density_kg_m3=7850.0)
     with pytest.raises(InputError, match="stay above 120 mm"):
         loop.run_life(lp, record(lp), law, 4000.0, 1, (1.0, 1.0), None, 0.0625, stop_height=0.120)
+    # a relining limit met first (the plate's 75 mm at 74 mm) names the limit, not the height
+    record, run_mill_on = _fake_mill(monkeypatch, loop, plate=0.25)
+    law = WearLaw(abrasion=1.0, impact=0.0, hardness_Pa=3e9, density_kg_m3=7850.0)
+    with pytest.raises(InputError, match=r"relining limit \(plate thickness\) before the lifters are 120 mm"):
+        loop.run_life(lp, record(lp), law, 4000.0, 4, (1.0, 74.0), run_mill_on, 0.0625, stop_height=0.120)
