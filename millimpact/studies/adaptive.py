@@ -8,14 +8,20 @@ e_n, e_t and F_max themselves, :func:`interpolate`). A grid fixed in advance com
 law does not need and says nothing about the error between them. Here the grid grows where the
 law is wrong:
 
-1. Start from ``start`` speeds (geometric between the range's ends) x ``start`` angles (linear).
+1. Start from ``start`` speeds (geometric between the range's ends) x ``start`` angles (linear), or
+   from (speeds, angles) counts apart.
 2. Predict each cell's interpolation error from the grid's second differences around it: the
    error of linear interpolation at a cell's midpoint is |f''| h^2 / 8 along each direction, and
    the divided second difference estimates f'' (in ln speed and in angle), in units of the
    tolerance (F_max: relative to its value, in units of 2 ``tolerance``); each cell gets the
    largest of its edges' grid lines in each direction.
-3. Compute the check case at the centre of the cells whose prediction is largest (a batch at a
-   time, so that every rank has a case), and compare it with the law's value there:
+3. Compute the check case at the centre of the open cells, and compare it with the law's value
+   there. Every open cell needs a check unless a split through its centre comes first, so with
+   ``eager`` the checks of all open cells are one batch when the budget pays for them all (the
+   starting grid's cells' centres ride with the grid itself): the ranks then wait once for a
+   batch's slowest case, not once per pair, and each band's reduction is built once. Otherwise,
+   or when the budget is short, the cells whose prediction is largest go first, a batch at a time
+   (``batch``, so that every rank has a case). The comparison:
    ``|e_n - law|``, ``|e_t - law|`` against ``tolerance`` and ``|F_max / law - 1|`` against 2 ``tolerance``,
    each with a margin for the cases' own scatter (``CHECK_MARGIN``: a check passes within 0.65 of
    them; e_t is not compared where the law has none: a cell with a normal-incidence corner).
@@ -216,20 +222,23 @@ def adaptive_table(
     angle_range: tuple[float, float],
     tolerance: float,
     max_cases: int,
-    start: int = 3,
+    start: int | tuple[int, int] = 3,
     batch: int = 2,
     say: Callable[[str], None] = lambda s: None,
     law: Law = interpolate,
     margin: float = CHECK_MARGIN,
+    eager: bool = False,
 ) -> AdaptiveResult:
     """Choose the table's cases (the module docstring); ``compute(points)`` returns each point's
     e_n, e_t and f_max; ``law`` is the law the checks measure (the exported law's own
     interpolation: :func:`interpolate` of e_n, e_t, F_max by default); a check passes within
-    ``margin`` of the tolerance."""
+    ``margin`` of the tolerance; ``eager``: every open cell's check in one batch when the budget
+    pays for them all (step 3)."""
     v0, v1 = speed_range
     a0, a1 = angle_range
-    speeds = [float(x) for x in np.geomspace(v0, v1, start)]
-    angles = [float(x) for x in np.linspace(a0, a1, start)] if a1 > a0 else [float(a0)]
+    n_v, n_a = (start, start) if isinstance(start, int) else start
+    speeds = [float(x) for x in np.geomspace(v0, v1, n_v)]
+    angles = [float(x) for x in np.linspace(a0, a1, n_a)] if a1 > a0 else [float(a0)]
     result = AdaptiveResult(speeds, angles, {}, law=law, margin=margin)
     passed = result.passed
 
@@ -248,7 +257,8 @@ def adaptive_table(
             result.grid.update({p: values[p] for p in todo})
             result.spare.update({p: values[p] for p in extra})
 
-    fill_grid()
+    first = [_centre(c) for c in _all_cells(result)]
+    fill_grid(first if eager and len(speeds) * len(angles) + len(first) <= max_cases else ())
     while True:
         if _recheck(result, tolerance):
             if result.cases + _new_cases(result) > max_cases:
@@ -261,7 +271,8 @@ def adaptive_table(
         if not cells:
             result.reached = True
             return result
-        pick = _batch(cells, batch, result.spare)
+        paid = sum(_centre(c) not in result.spare for _, c, _ in cells)
+        pick = _batch(cells, paid if eager and result.cases + paid <= max_cases else batch, result.spare)
         centres = [_centre(c) for _, c, _ in pick]
         needed = [p for p in centres if p not in result.spare]
         if result.cases + len(needed) > max_cases:
@@ -345,6 +356,12 @@ def _batch(cells: list, batch: int, spare: dict[Point, Values]) -> list:
             pick.append(c)
             paid += not free
     return pick
+
+
+def _all_cells(result: AdaptiveResult) -> list[tuple[Point, Point]]:
+    """Every cell of the grid as it now is."""
+    sv, sa = result.speeds, result.angles
+    return _cells_within(result, ((sv[0], sa[0]), (sv[-1], sa[-1])))
 
 
 def _cells_within(result: AdaptiveResult, cell: tuple[Point, Point]) -> list[tuple[Point, Point]]:

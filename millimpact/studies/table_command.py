@@ -27,9 +27,10 @@ factorizations. Finished cases are kept in DIR/cases/ and a rerun computes only 
 Under mpirun, --ranks-per-case K makes groups of K ranks that take cases from a shared counter.
 
 With --tolerance TOL the table chooses its cases: --velocity V_LOW,V_HIGH and --angle A_LOW,A_HIGH
-give the ranges, a 3 x 3 grid starts the law (the DEM export's: zeta and E* bilinear in ln speed
-and angle), cases at the centres of the cells where the grid's second differences predict the
-largest error check it, and a cell that misses (e_n or e_t off by more than TOL, F_max by 2 TOL relative)
+give the ranges, a 4 x 3 grid starts the law (--start-grid; the DEM export's law: zeta and E*
+bilinear in ln speed and angle), cases at the centres of its cells check it (all in one batch
+while --max-cases pays for them, else those where the grid's second differences predict the
+largest error first), and a cell that misses (e_n or e_t off by more than TOL, F_max by 2 TOL relative)
 gets a new grid line, until every cell passes or --max-cases is spent (then a warning, exit 0).
 The rows say role grid or check; checks.csv holds each check's error, adaptive_points.png shows
 the chosen points.
@@ -45,8 +46,11 @@ Examples:
 MAX_TOLERANCE = 0.5
 #: the most cases --max-cases allows
 MAX_CASES = 10000
-#: an adaptive table starts from START speeds x START angles (START speeds at one angle)
-START = 3
+#: an adaptive table starts from START_SPEEDS speeds x START_ANGLES angles (START_SPEEDS at one angle):
+#: e_n and F_max change more along ln v (yield, F_max ~ v^1.2) than along the angle
+START_SPEEDS, START_ANGLES = 4, 3
+#: the most speeds or angles --start-grid allows
+MAX_START = 20
 
 
 def parse_list(
@@ -110,6 +114,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="with --tolerance: at most N finite-element cases, grid and checks (default 30)",
     )
+    p.add_argument(
+        "--start-grid",
+        metavar="NxM",
+        help=f"with --tolerance: the starting grid, N speeds x M angles, each in [2, {MAX_START}] "
+        f"(default {START_SPEEDS}x{START_ANGLES}; M is unused at one angle)",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
@@ -121,8 +131,9 @@ def command_scene(args: argparse.Namespace):
 
 def adaptive_ranges(
     args: argparse.Namespace, speeds: list[float], angles: list[float], radii: list[float] | None
-) -> tuple[float, int]:
-    """The tolerance and budget of an adaptive table, checked with its ranges (one InputError line)."""
+) -> tuple[float, int, tuple[int, int]]:
+    """The tolerance, budget and starting grid (speeds, angles) of an adaptive table, checked with
+    its ranges (one InputError line)."""
     tol = args.tolerance
     if not (math.isfinite(tol) and 0.0 < tol < MAX_TOLERANCE):
         raise InputError(f"--tolerance {tol:g}: outside (0, {MAX_TOLERANCE:g}) (e_n and e_t; F_max: 2 x, relative)")
@@ -132,12 +143,26 @@ def adaptive_ranges(
         raise InputError(f"--angle {args.angle!r}: with --tolerance, one angle or the range's ends A_LOW,A_HIGH (deg)")
     if radii is not None and len(radii) > 1:
         raise InputError(f"--radius {args.radius!r}: with --tolerance, one ball radius")
-    low = START * (START if len(angles) == 2 else 1)
+    n_v, n_a = start_grid(getattr(args, "start_grid", None))
+    low = n_v * (n_a if len(angles) == 2 else 1)
     n = 30 if args.max_cases is None else args.max_cases
     if not low <= n <= MAX_CASES:
-        grid = f"{START} speeds x {START} angles" if low > START else f"{START} speeds"
+        grid = f"{n_v} speeds x {n_a} angles" if low > n_v else f"{n_v} speeds"
         raise InputError(f"--max-cases {n}: outside [{low}, {MAX_CASES}] (the starting grid is {grid})")
-    return tol, n
+    return tol, n, (n_v, n_a)
+
+
+def start_grid(text: str | None) -> tuple[int, int]:
+    """--start-grid NxM as (speeds, angles), each in [2, MAX_START] (one InputError line otherwise)."""
+    if text is None:
+        return START_SPEEDS, START_ANGLES
+    try:
+        n_v, n_a = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--start-grid {text!r}: give NxM, N speeds x M angles (e.g. 4x3)") from None
+    if not (2 <= n_v <= MAX_START and 2 <= n_a <= MAX_START):
+        raise InputError(f"--start-grid {text!r}: N and M must lie in [2, {MAX_START}]")
+    return n_v, n_a
 
 
 def main(args: argparse.Namespace) -> int:
@@ -147,9 +172,11 @@ def main(args: argparse.Namespace) -> int:
     options = parse_options(args.option)
     adaptive = args.tolerance is not None
     if adaptive:
-        tolerance, max_cases = adaptive_ranges(args, speeds, angles, radii)
+        tolerance, max_cases, start = adaptive_ranges(args, speeds, angles, radii)
     elif args.max_cases is not None:
         raise InputError("--max-cases: only with --tolerance (an adaptive table's budget)")
+    elif args.start_grid is not None:
+        raise InputError("--start-grid: only with --tolerance (an adaptive table's first cases)")
     name = args.scene or "paper-rig"
     target = claim_output(
         args.out if args.out is not None else default_out(Path(name).stem, prefix="table-"), "table", force=args.force
@@ -172,7 +199,7 @@ def main(args: argparse.Namespace) -> int:
             args.set,
             args.ranks_per_case,
             args.quiet,
-            START,
+            start,
         )
         if summary is not None and not args.quiet:
             print(f"  adaptive: {summary_line(summary)}", flush=True)

@@ -129,3 +129,46 @@ def test_a_new_lines_cells_are_checked_from_the_batch_that_computed_it():
     # fewer batches than cases: the lines' batches carry their cells' centres
     line_batches = [c for c in calls[1:] if any(p in res.grid for p in c)]
     assert line_batches and all(any(p not in res.grid for p in c) for c in line_batches)
+
+
+#: the laws above: a kink in speed, errors that cancel at a cell's centre, a curve in the angle
+LAWS = {
+    "kink": lambda v, a: {"e_n": 0.9 - 0.25 * max(math.log(v / 2.0), 0.0), "e_t": 0.6, "f_max": 1e4 * (3 + math.log(v))},
+    "cancelling": lambda v, a: {"e_n": 0.8, "e_t": 0.5, "f_max": 1e4 * (v * math.cos(math.radians(a))) ** 1.2},
+    "angle": lambda v, a: {"e_n": 0.9 - 1e-4 * a**2, "e_t": 0.6, "f_max": 1e4},
+}
+
+
+@pytest.mark.parametrize("name", sorted(LAWS))
+@pytest.mark.parametrize("start", [3, (4, 3)])
+def test_eager_batches_check_every_open_cell_at_once_and_meet_the_tolerance(name, start):
+    """eager (the table's mode): the start grid and its cells' centres are one batch, and each later
+    batch checks every open cell the budget pays for. It reaches the tolerance as the pairwise order
+    does, every check holds against the final law, no case is computed twice, in fewer batches.
+    It may compute more cases (a check a split through its centre would have made needless: on
+    these laws from a 3 x 3 start 41, 197, 34 cases against 41, 164, 25), which is what one
+    barrier a batch costs."""
+    runs = {}
+    for eager in (False, True):
+        compute, calls = _compute(LAWS[name])
+        res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=400, start=start,
+                             eager=eager)
+        runs[eager] = (res, calls)
+        assert res.reached
+        n_v, n_a = (start, start) if isinstance(start, int) else start
+        assert (len(set(res.speeds) & set(np.geomspace(0.5, 10.0, n_v))), len(res.angles) >= n_a) == (n_v, True)
+        assert all(max(res.law_errors(c)["e_n"], res.law_errors(c)["e_t"]) <= 0.01 for c in res.checks)
+        assert all(res.law_errors(c)["f_max"] <= 0.02 for c in res.checks)
+        computed = [p for c in calls for p in c]
+        assert len(computed) == len(set(computed)) == res.cases
+    eager_calls = runs[True][1]
+    assert len(eager_calls[0]) == n_v * n_a + (n_v - 1) * (n_a - 1)
+    assert len(eager_calls) < len(runs[False][1])
+
+
+def test_eager_batches_fall_back_to_pairs_on_a_short_budget():
+    """A budget of 11 cannot pay for the 3 x 3 grid's 4 checks with it: eager computes the grid alone
+    and then a batch of two checks, the pairwise order (the budget test above)."""
+    compute, calls = _compute(LAWS["angle"])
+    res = adaptive_table(compute, (0.5, 10.0), (0.0, 60.0), tolerance=0.01, max_cases=11, eager=True)
+    assert res.stopped_by_budget and [len(c) for c in calls] == [9, 2]

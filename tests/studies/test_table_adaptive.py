@@ -16,7 +16,7 @@ from conftest import run_cli
 
 COARSE = ["--set", "model.h_contact=5.8e-4", "--set", "model.h_far=0.012"]
 #: normal impacts at 2.3-3.3 m/s: one rung of the band ladder ([2.25, 3.375) m/s), one reduction;
-#: 3 grid speeds and 2 checks, which meet 0.01 (measured: e_n 8e-5, F_max 0.19 % off the law)
+#: 4 grid speeds and 3 checks, one batch, which meet 0.01 (measured: e_n 8e-5, F_max 0.19 % off the law)
 RANGE = ["--velocity", "2.3,3.3", "--angle", "0", *COARSE]
 
 
@@ -37,17 +37,17 @@ def adaptive(tmp_path_factory):
 
 
 def test_the_adaptive_table_files(adaptive):
-    """3 grid speeds and their 2 checks reach 0.01: the rows' roles, checks.csv (units in its
+    """4 grid speeds and their 3 checks reach 0.01: the rows' roles, checks.csv (units in its
     header), the summary, the figure; no warning."""
     out, r = adaptive
     assert "warning" not in r.stderr, r.stderr
     summary = _doc(out)["adaptive"]
-    assert summary["reached"] and (summary["grid_cases"], summary["checks"], summary["cases"]) == (3, 2, 5)
+    assert summary["reached"] and (summary["grid_cases"], summary["checks"], summary["cases"]) == (4, 3, 7)
     assert max(summary["largest_checked_error"].values()) <= 0.01
     rows = _doc(out)["rows"]
-    assert sorted(row["role"] for row in rows) == ["check", "check", "grid", "grid", "grid"]
+    assert sorted(row["role"] for row in rows) == ["check"] * 3 + ["grid"] * 4
     checks = _checks(out)
-    assert len(checks) == 2 and all(c["passed"] == "1" for c in checks)
+    assert len(checks) == 3 and all(c["passed"] == "1" for c in checks)
     assert "# error_peak_normal_force_N_rel [-]" in (out / "checks.csv").read_text()
     assert "reached" in (out / "contact_table.csv").read_text().splitlines()[2]
     assert (out / "adaptive_points.png").stat().st_size > 0
@@ -55,7 +55,7 @@ def test_the_adaptive_table_files(adaptive):
 
 def test_a_budget_too_small_says_the_tolerance_is_not_reached(adaptive, tmp_path):
     """A tolerance of 1e-6, below the discretisation's scatter on this mesh (F_max varies ~1e-3
-    about the law), and a budget of 5: the two checks miss, their cells split at the checks' own
+    about the law), and a budget of 7: the three checks miss, their cells split at the checks' own
     points (no new case), and the next checks would pass the budget. Exit 0, one warning line, the
     files say it with the error reached (the missed checks': the split cells are not checked).
     The cases are the fixture's (the same grid and checks): none is computed."""
@@ -64,19 +64,19 @@ def test_a_budget_too_small_says_the_tolerance_is_not_reached(adaptive, tmp_path
     out0, _ = adaptive
     out = tmp_path / "t"
     shutil.copytree(out0, out)      # a rerun of the table's folder: its cases/ serve
-    r = run_cli("table", "hertz-halfspace", *RANGE, "--tolerance", "1e-6", "--max-cases", "5", "--out", str(out))
+    r = run_cli("table", "hertz-halfspace", *RANGE, "--tolerance", "1e-6", "--max-cases", "7", "--out", str(out))
     assert r.returncode == 0, r.stderr[-3000:]
     warnings = [line for line in r.stderr.splitlines() if "warning: tolerance" in line]
-    assert len(warnings) == 1 and "not reached within --max-cases 5" in warnings[0], r.stderr
+    assert len(warnings) == 1 and "not reached within --max-cases 7" in warnings[0], r.stderr
     summary = _doc(out)["adaptive"]
     assert not summary["reached"] and summary["stopped_by_budget"]
-    assert (summary["grid_cases"], summary["checks"], summary["cases"]) == (5, 2, 5)
+    assert (summary["grid_cases"], summary["checks"], summary["cases"]) == (7, 3, 7)
     worst = summary["largest_checked_error"]
     # the reached error is the missed checks' own: above the tolerance (F_max: 2e-6 relative)
     assert worst["restitution_normal"] > 1e-6 or worst["peak_normal_force_rel"] > 2e-6
-    assert "NOT reached within 5 cases" in (out / "contact_table.csv").read_text().splitlines()[2]
+    assert "NOT reached within 7 cases" in (out / "contact_table.csv").read_text().splitlines()[2]
     checks = _checks(out)
-    assert len(checks) == 2 and all(c["passed"] == "0" and c["became_grid"] == "1" for c in checks)
+    assert len(checks) == 3 and all(c["passed"] == "0" and c["became_grid"] == "1" for c in checks)
 
 
 def test_a_case_of_the_adaptive_table_is_the_case_of_a_fixed_table(adaptive, tmp_path):
@@ -103,7 +103,7 @@ def test_a_case_of_the_adaptive_table_is_the_case_of_a_fixed_table(adaptive, tmp
 
 @pytest.mark.mpi
 def test_mpi_adaptive_table_equals_serial(adaptive, tmp_path):
-    """mpirun -n 2 (two groups of one rank, batches of max(2, groups) = 2 checks, as serial): the
+    """mpirun -n 2 (two groups of one rank; the grid and its checks one batch, as serial): the
     same cases chosen and the same rows to 1e-9 relative (each case is the same serial computation;
     test_table's MPI bound)."""
     out, _ = adaptive
@@ -119,7 +119,7 @@ def test_mpi_adaptive_table_equals_serial(adaptive, tmp_path):
 def test_a_hertz_table_needs_the_starting_grid_only_and_its_error_is_exported(tmp_path):
     """Method hertz: e_n = 1 and F_max = Hertz's at every speed and angle, which the exported law
     (zeta = 0 and the materials' E* at every grid point, F_max from the point's own normal speed)
-    reproduces exactly: the 3 x 3 grid and its 4 checks reach the tolerance, the errors at the
+    reproduces exactly: the 4 x 3 grid and its 6 checks reach the tolerance, the errors at the
     law's own precision (its e(zeta) interpolant, ~1e-8: theory/hertz_dashpot.py). The export
     carries the largest checked error into its file's header."""
     out = tmp_path / "h"
@@ -127,7 +127,7 @@ def test_a_hertz_table_needs_the_starting_grid_only_and_its_error_is_exported(tm
                 "--tolerance", "0.01", "-q", "--out", str(out))
     assert r.returncode == 0 and "warning" not in r.stderr, r.stderr[-3000:]
     s = _doc(out)["adaptive"]
-    assert s["reached"] and (s["grid_cases"], s["checks"]) == (9, 4)
+    assert s["reached"] and (s["grid_cases"], s["checks"]) == (12, 6)
     assert max(s["largest_checked_error"].values()) < 1e-8
     for c in _checks(out):
         # a check at the centre of its cell: the geometric mean of the speeds, the mean of the angles
@@ -136,18 +136,21 @@ def test_a_hertz_table_needs_the_starting_grid_only_and_its_error_is_exported(tm
     r = run_cli("export", str(out), "--to", "yade", "-q", "--out", str(tmp_path / "y"))
     assert r.returncode == 0, r.stderr[-3000:]
     head = (tmp_path / "y" / "contact_law_yade.py").read_text().splitlines()[:12]
-    line = [h for h in head if h.startswith("# Interpolation error checked at 4 of the table's cases")]
+    line = [h for h in head if h.startswith("# Interpolation error checked at 6 of the table's cases")]
     assert len(line) == 1 and "tolerance 0.01 (F_max 2 %) reached" in line[0], head
     law = json.loads((tmp_path / "y" / "contact_law.json").read_text())
-    assert law["interpolation_checked"]["reached"] and len(law["points"]) == 9      # the grid's points only
+    assert law["interpolation_checked"]["reached"] and len(law["points"]) == 12      # the grid's points only
 
 
 #: a block of yield stress 3.4 GPa: Thornton's V_y 3.86 m/s, so that the table's elastic part starts
 #: at 1 m/s, where the coarse mesh's F_max scatters by ~1 % (below ~0.8 m/s the contact spans ~1
 #: element and F_max scatters by up to 3.6 %, which a tolerance of 0.01 would chase)
 YIELD_STRESS = 3.4e9
-#: 1-10 m/s at 0 deg: the start grid 1, 3.16, 10 m/s; its upper cell holds V_y (0.82-2.59 V_y)
-KINK_RANGE = ["--velocity", "1,10", "--angle", "0", *COARSE, "--tolerance", "0.01", "--max-cases", "12"]
+#: 1-10 m/s at 0 deg: the start grid 1, 3.16, 10 m/s (--start-grid 3x3); its upper cell holds V_y
+#: (0.82-2.59 V_y). The default 4 speeds (1, 2.15, 4.64, 10) cut the kink's curvature into cells that
+#: each pass (measured: e_n 0.0007, 0.0046, 0.0006 at their centres against 0.65 x 0.01)
+KINK_RANGE = ["--velocity", "1,10", "--angle", "0", *COARSE, "--tolerance", "0.01", "--max-cases", "12",
+              "--start-grid", "3x3"]
 
 
 @pytest.mark.slow
@@ -212,9 +215,14 @@ def test_an_elastic_plastic_table_refines_where_the_block_yields(tmp_path):
     (["--tolerance", "0"], "--tolerance 0: outside (0, 0.5)"),
     (["--tolerance", "0.5"], "--tolerance 0.5: outside (0, 0.5)"),
     (["--tolerance", "nan"], "--tolerance nan: outside (0, 0.5)"),
-    (["--tolerance", "0.01", "--max-cases", "8"], "--max-cases 8: outside [9, 10000] (the starting grid is 3 speeds x 3 angles)"),
-    (["--tolerance", "0.01", "--angle", "0", "--max-cases", "2"], "--max-cases 2: outside [3, 10000] (the starting grid is 3 speeds)"),
+    (["--tolerance", "0.01", "--max-cases", "11"], "--max-cases 11: outside [12, 10000] (the starting grid is 4 speeds x 3 angles)"),
+    (["--tolerance", "0.01", "--angle", "0", "--max-cases", "3"], "--max-cases 3: outside [4, 10000] (the starting grid is 4 speeds)"),
     (["--max-cases", "20"], "--max-cases: only with --tolerance"),
+    (["--start-grid", "3x3"], "--start-grid: only with --tolerance"),
+    (["--tolerance", "0.01", "--start-grid", "1x3"], "--start-grid '1x3': N and M must lie in [2, 20]"),
+    (["--tolerance", "0.01", "--start-grid", "4by3"], "--start-grid '4by3': give NxM"),
+    (["--tolerance", "0.01", "--start-grid", "5x5", "--max-cases", "24"],
+     "--max-cases 24: outside [25, 10000] (the starting grid is 5 speeds x 5 angles)"),
     (["--tolerance", "0.01", "--velocity", "1"], "--velocity '1': with --tolerance, the range's ends"),
     (["--tolerance", "0.01", "--velocity", "3,1"], "--velocity '3,1': with --tolerance, the range's ends"),
 ])
