@@ -58,6 +58,11 @@ def life_summary(args, scene, lp, rec, cal, runner, say, clock=None):
     gather summary.json: (the summary, the calibration, finished here for ``--calibrate-life``)."""
     reline = (args.reline_height, args.reline_plate)
     h1 = cal.calibrated_on.get("h1_mm")
+    if h1 is not None:
+        say(
+            f"  life: steps at the first mill run's decay constants until the lifters are {h1:g} mm high "
+            "(their hours scaled to the figure's after)"
+        )
     steps, rates, why = run_life(
         lp,
         rec,
