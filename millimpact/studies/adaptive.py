@@ -15,16 +15,11 @@ law is wrong:
    the divided second difference estimates f'' (in ln speed and in angle), in units of the
    tolerance (F_max: relative to its value, in units of 2 ``tolerance``); each cell gets the
    largest of its edges' grid lines in each direction.
-3. Compute the check case at the centre of the open cells, and compare it with the law's value
-   there. Every open cell needs a check unless a split through its centre comes first, so with
-   ``eager`` the checks of all open cells are one batch when the budget pays for them all (the
-   starting grid's cells' centres ride with the grid itself): the ranks then wait once for a
-   batch's slowest case, not once per pair, and each band's reduction is built once. Otherwise,
-   or when the budget is short, the cells whose prediction is largest go first, a batch at a time
-   (``batch``, so that every rank has a case). The comparison:
-   ``|e_n - law|``, ``|e_t - law|`` against ``tolerance`` and ``|F_max / law - 1|`` against 2 ``tolerance``,
-   each with a margin for the cases' own scatter (``CHECK_MARGIN``: a check passes within 0.65 of
-   them; e_t is not compared where the law has none: a cell with a normal-incidence corner).
+3. Compute the check at the centre of the open cells: with ``eager`` all in one batch (the start
+   grid's with the grid) while the budget pays for them, one barrier and one reduction per band;
+   else the largest predictions first, ``batch`` at a time. Compare ``|e_n - law|``, ``|e_t - law|``
+   with ``tolerance`` and ``|F_max / law - 1|`` with 2 ``tolerance``, within ``CHECK_MARGIN`` (0.65)
+   of them for the cases' own scatter (e_t not where the law has none: a normal-incidence corner).
 4. A cell that misses is split: a new speed (the geometric mean of its two) where its predicted
    error along speed is the larger, else a new angle (the mean); the new grid line's cases are
    computed, and the new cells are checked in turn: their centres are computed in the same batch
