@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from ..errors import InputError
@@ -141,8 +141,7 @@ def through_life(cal: Calibration, reached_hours: float, hours: float) -> tuple[
     constants) from ``cal``, whose life reaches it at ``reached_hours`` (the module docstring,
     ``--calibrate-life``)."""
     factor = reached_hours / hours
-    law = cal.law
-    law = WearLaw(law.abrasion * factor, law.impact * factor, law.hardness_Pa, law.density_kg_m3)
+    law = replace(cal.law, abrasion=cal.law.abrasion * factor, impact=cal.law.impact * factor)
     on = dict(cal.calibrated_on)
     on.update(
         what="the lifters' height after the figure's hours on the life's own profile steps",

@@ -157,7 +157,10 @@ def calibrate(args, rec, steel: dict):
     life = getattr(args, "calibrate_life", None)
     if args.calibrate_height is not None or life is not None:
         # --calibrate-life starts here and is finished on the life's steps (calibration.through_life)
-        h0, h1, hours = parse_height_figure(*((life, "--calibrate-life") if life else (args.calibrate_height,)))
+        option, figure = (
+            ("--calibrate-life", life) if life is not None else ("--calibrate-height", args.calibrate_height)
+        )
+        h0, h1, hours = parse_height_figure(figure, option)
         target = initial_height_rate(h0, h1, hours)
         model = rates["top"]["mean_mm_per_1000h"] - rates["plate"]["mean_mm_per_1000h"]
         what = "lifter height loss of the new lifter (first-order decay), mm per 1000 h"

@@ -131,12 +131,12 @@ def run_life(
         steps.append(LifeStep(steps[-1].hours + dt, lp, {} if last or run_mill_on is None else mill_state(rec)))
         if why is not None or reached:
             break
-    if stop_height is not None and not reached and why is not None:
-        raise InputError(
-            f"the liner reaches its relining limit ({why}) before the lifters are {1e3 * stop_height:g} mm high: "
-            "lower --reline-height or --reline-plate to calibrate on that height"
-        )
     if stop_height is not None and not reached:
+        if why is not None:
+            raise InputError(
+                f"the liner reaches its relining limit ({why}) before the lifters are {1e3 * stop_height:g} mm "
+                "high: lower --reline-height or --reline-plate to calibrate on that height"
+            )
         raise InputError(
             f"the lifters stay above {1e3 * stop_height:g} mm for {end:g} h at the first run's constants "
             f"({1e3 * lp.height_above_plate:.1f} mm then): the figure cannot be reached"

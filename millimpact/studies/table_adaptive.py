@@ -6,14 +6,11 @@ Each batch the engine asks for (the starting grid, a batch of checks, a new grid
 :func:`~millimpact.studies.table.define_cases` (their bands on the fixed ladder, so a case is the
 same computation, the same key and the same result as in a fixed table), taken from ``cases/``
 when a run computed them before, else spread over the MPI groups of ranks; a group keeps its band's
-reduction from one batch to the next. The engine runs eager: the starting grid (4 speeds x 3
-angles: e_n and F_max change more along ln v than along the angle) comes with its 6 cells' centres
-in one batch, and a batch of checks holds every open cell's check when the budget pays for them
-all, else max(2, groups), so that every group has one. One batch is one barrier, and the cases of
-a band in one batch share a reduction: on the plastic rig (0.5-10 m/s x 0-60 deg, tolerance 0.01,
-2 ranks) the 18 cases of the 3 x 3 grid's pairwise checks came in 4 batches with 12 reduction
-builds; the 4 x 3 grid's in one batch with one build per band. Every rank runs the engine on the same broadcast values, so every rank takes the
-same decisions.
+reduction from one batch to the next. The engine runs eager: the starting grid comes with its
+cells' centres in one batch, and a batch of checks holds every open cell's check when the budget
+pays for them all, else max(2, groups), so that every group has one. One batch is one barrier,
+and the cases of a band in one batch share a reduction (docs: studies, the benchmark). Every rank
+runs the engine on the same broadcast values, so every rank takes the same decisions.
 
 Files, beside the table's (:func:`millimpact.studies.table_report.write_table`, whose rows carry a
 ``role`` column, grid or check): ``checks.csv``, one row per check with the case's values, the
@@ -83,11 +80,12 @@ def run_adaptive_table(
     sets: Sequence[str] = (),
     ranks_per_case: int = 1,
     quiet: bool = False,
-    start: tuple[int, int] = (4, 3),
+    start: tuple[int, int] = (3, 3),
 ) -> tuple[list[dict], dict[str, Any] | None]:
     """Choose and compute the table's cases (module docstring), starting from ``start`` = (speeds,
-    angles), and write the table (rank 0) into ``out``. Returns the rows and the summary
-    (:func:`adaptive_summary`; rank 0, [] and None elsewhere)."""
+    angles; the command's default is table_command's START_SPEEDS, START_ANGLES), and write the
+    table (rank 0) into ``out``. Returns the rows and the summary (:func:`adaptive_summary`; rank
+    0, [] and None elsewhere)."""
     from .table_report import write_table
 
     check_table_method(method, ranks_per_case)
