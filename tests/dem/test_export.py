@@ -295,6 +295,42 @@ def test_mdr_fit_recovers_a_known_mdr_law(tmp_path, monkeypatch):
 
 
 
+#: e_n of the finite-element table of a perfectly plastic liner, [speed, angle] (0.5, 2, 6 m/s x 0,
+#: 40 deg): ``millimpact table paper-rig-plastic --velocity 0.5,2,6 --angle 0,40 --set
+#: contact.friction=0.2 --set block.material=steel-108hb`` (the forged 60 HRC ball of the rig on a
+#: 108 HB carbon-steel block, Y 378 MPa, no hardening; 17 min on one core), 2026-12-04
+PERFECTLY_PLASTIC_E_N = [[0.6716, 0.6763], [0.5227, 0.5158], [0.4077, 0.3947]]
+
+
+@needs_lammps
+def test_mdr_fit_follows_a_perfectly_plastic_table_over_0_5_to_6_m_s(tmp_path, monkeypatch):
+    """mdr, an elastic - perfectly plastic contact, fitted by LAMMPS to the finite-element e_n of a
+    perfectly plastic liner (PERFECTLY_PLASTIC_E_N: its first-yield speed ~0.01 m/s, so 0.5-6 m/s
+    lies well above it and e_n falls as v^(-0.18) to v^(-0.23), the slope of mdr above its own
+    yield speed), follows it within 0.03 at normal incidence over 0.5-6 m/s: at the table's points
+    and at the fit's 63 check speeds a gap between them (the table's e_n interpolated in ln v_n). The
+    reference is the finite-element table; 0.03 is the DEM law's bound over a plastic table's speeds
+    (docs/dem.md). Measured: 0.018 at the points, 0.0275 between them (Y 0.66 GPa, eta_n0 0.48), the
+    full fit of ``millimpact export`` 0.0197 and 0.0278. The bound can fail: on the rig's own table
+    (Cr-Mo, linear hardening, 0.5-6 m/s from 4 to 50 first-yield speeds) the best mdr law is 0.044
+    off, its e_n falling as v^(-0.14) where mdr's falls as v^(-0.24). The oblique points are reported,
+    not fitted (up to 0.053 off: the table's e_n at 40 deg is not its normal impact's at v cos a). One
+    check point a gap and 5 refining passes, as the test above (36 s)."""
+    from millimpact.dem.export import mdr_fit
+    from millimpact.dem.export.lammps import has_mdr, lammps_executable
+
+    if not has_mdr(lammps_executable()):
+        pytest.skip("this LAMMPS has no mdr normal model")
+    t = _steel_ball_table(tmp_path, [0.5, 2.0, 6.0], [0.0, 40.0])
+    t = t._replace(e_n=np.array(PERFECTLY_PLASTIC_E_N))
+    monkeypatch.setattr(mdr_fit, "BETWEEN_POINTS", 1)
+    monkeypatch.setattr(mdr_fit, "REFINE_PASSES", 5)
+    law = mdr_fit.fit_mdr(t, tmp_path / "fit")
+    assert law.fitted[:, 0].all() and not law.fitted[:, 1].any()
+    assert law.worst <= 0.03 and law.worst_between <= 0.03
+    assert law.worst_oblique > law.worst     # the angle dependence no normal law follows
+
+
 @needs_lammps
 def test_lammps_takes_only_the_mdr_damping_class_with_mdr(tmp_path):
     """The reason the fit varies the damping within the mdr class alone (mdr_fit's docstring): with
