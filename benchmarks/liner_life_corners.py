@@ -16,12 +16,10 @@ the lifter's height loss that the calibration fits).
 from __future__ import annotations
 
 import argparse
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
-from liner_life import SCENE
+from liner_life import SCENE, _run
 
 from millimpact.commandkit.settings import command_scene
 from millimpact.life.calibration import read_calibration
@@ -36,9 +34,8 @@ def _provisional_law(out: Path):
     """The constants ``--calibrate-life 152:58:4000`` starts from (the decay rate of the new lifter)."""
     with tempfile.TemporaryDirectory() as tmp:
         cal = Path(tmp) / "cal"
-        subprocess.run([sys.executable, "-m", "millimpact.cli", "life", *SCENE, "--mill", str(out / "mill"),
-                        "--calibrate-height", "152:58:4000", "--cycles", "1", "--reline-height", "0",
-                        "--reline-plate", "0", "--no-plots", "-q", "--out", str(cal)], check=True)
+        _run(["life", *SCENE, "--mill", str(out / "mill"), "--calibrate-height", "152:58:4000", "--cycles", "1",
+              "--reline-height", "0", "--reline-plate", "0", "--no-plots", "-q", "--out", str(cal)], Path(tmp) / "log")
         return read_calibration(cal / "calibration.json").law
 
 

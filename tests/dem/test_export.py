@@ -294,7 +294,6 @@ def test_mdr_fit_recovers_a_known_mdr_law(tmp_path, monkeypatch):
     assert law.worst_oblique >= offset - interp_error - 0.005
 
 
-
 #: e_n of the finite-element table of a perfectly plastic liner, [speed, angle] (0.5, 2, 6 m/s x 0,
 #: 40 deg): ``millimpact table paper-rig-plastic --velocity 0.5,2,6 --angle 0,40 --set
 #: contact.friction=0.2 --set block.material=steel-108hb`` (the forged 60 HRC ball of the rig on a
@@ -308,14 +307,15 @@ def test_mdr_fit_follows_a_perfectly_plastic_table_over_0_5_to_6_m_s(tmp_path, m
     perfectly plastic liner (PERFECTLY_PLASTIC_E_N: its first-yield speed ~0.01 m/s, so 0.5-6 m/s
     lies well above it and e_n falls as v^(-0.18) to v^(-0.23), the slope of mdr above its own
     yield speed), follows it within 0.03 at normal incidence over 0.5-6 m/s: at the table's points
-    and at the fit's 63 check speeds a gap between them (the table's e_n interpolated in ln v_n). The
-    reference is the finite-element table; 0.03 is the DEM law's bound over a plastic table's speeds
-    (docs/dem.md). Measured: 0.018 at the points, 0.0275 between them (Y 0.66 GPa, eta_n0 0.48), the
-    full fit of ``millimpact export`` 0.0197 and 0.0278. The bound can fail: on the rig's own table
-    (Cr-Mo, 0.5-6 m/s from 4 to 50 first-yield speeds) the fitted mdr law is 0.043 off with the
-    steel's hardening and 0.042 without, its e_n falling as v^(-0.14) where mdr's falls as v^(-0.24). The oblique points are reported,
-    not fitted (up to 0.053 off: the table's e_n at 40 deg is not its normal impact's at v cos a). One
-    check point a gap and 5 refining passes, as the test above (36 s)."""
+    and at the 63 speeds a gap where the fitted law is verified (the table's e_n interpolated in
+    ln v_n). The reference is the finite-element table; 0.03 is the DEM law's bound over a plastic
+    table's speeds (docs/dem.md). Measured: 0.018 at the points, 0.0275 between them (Y 0.66 GPa,
+    eta_n0 0.48); the full fit of ``millimpact export`` 0.0197 and 0.0278. The bound can fail: on
+    the rig's own table (Cr-Mo, 0.5-6 m/s from 4 to 50 first-yield speeds) the fitted mdr law is
+    0.043 off with the steel's hardening and 0.042 without, its e_n falling as v^(-0.14) where
+    mdr's falls as v^(-0.24). The oblique points are reported, not fitted (up to 0.053 off: the
+    table's e_n at 40 deg is not its normal impact's at v cos a). One check point a gap and 5
+    refining passes, as the test above (36 s)."""
     from millimpact.dem.export import mdr_fit
     from millimpact.dem.export.lammps import has_mdr, lammps_executable
 
