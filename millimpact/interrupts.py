@@ -23,6 +23,12 @@ unblocked (:func:`children_signals`), so Ctrl-C still reaches them.
 The handler also records the signal, and :func:`raise_if_interrupted` raises it again where a
 result is published and before each time step: an exception a library swallows (a bare
 ``except:`` between two bytecodes) cannot turn an interrupted run into a published one.
+
+One signal, one exception: the waiter interrupts the main thread only for a signal the main thread
+has not answered yet (by the handler or by :func:`raise_if_interrupted`, which may see the record
+before the waiter's hooks are done), and a delivery that lands while the command ends is dropped.
+Before, ``mpirun -n 2`` and Ctrl-C printed a traceback of a second ``Terminated`` raised while the
+command's end joined the waiter (1 of 3 clean-clone suite runs).
 """
 
 from __future__ import annotations
@@ -52,19 +58,48 @@ HANDLER_WAIT_S = 5.0
 ON_SIGNAL: list[Callable[[int], None]] = []
 
 
+class _Deliveries:
+    """What the waiting thread received and what the main thread has answered, under one lock
+    (reentrant: the handler can run in the main thread while it holds it)."""
+
+    def __init__(self) -> None:
+        self.lock = threading.RLock()
+        self.received = 0  # signals the waiting thread took
+        self.answered = 0  # of those, the ones whose exception the main thread has raised
+        self.closing = False  # the command is ending: a late delivery is dropped
+
+
+_DELIVERIES = _Deliveries()
+
+
+def _let_pending_handler_run() -> None:
+    """Nothing: a Python call, at whose start the main thread runs a handler that
+    ``interrupt_main`` has left pending (CPython checks for one on entering a function)."""
+
+
 def on_interrupt_signal(signum: int, frame) -> None:
     """The command's SIGINT and SIGTERM handler: records the signal, then raises
     ``KeyboardInterrupt`` (SIGINT) or :class:`~millimpact.errors.Terminated` (SIGTERM) where the
-    main thread stands."""
-    _PENDING_SIGNALS.append(signum)
+    main thread stands; while the command ends, does nothing."""
+    with _DELIVERIES.lock:
+        if _DELIVERIES.closing:
+            return
+        _PENDING_SIGNALS.append(signum)
+        _DELIVERIES.answered = _DELIVERIES.received
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 def raise_if_interrupted() -> None:
     """Raise the recorded signal's exception again if its first one was lost (no-op otherwise):
-    called before a result is published and between time steps."""
-    if _PENDING_SIGNALS:
-        raise Terminated() if _PENDING_SIGNALS[-1] == signal.SIGTERM else KeyboardInterrupt()
+    called before a result is published and between time steps. A delivery already on its way
+    raises here, from the handler; the ones recorded are answered, so none follows."""
+    with _DELIVERIES.lock:  # the waiter cannot deliver meanwhile
+        _let_pending_handler_run()
+        if not _PENDING_SIGNALS:
+            return
+        _DELIVERIES.answered = _DELIVERIES.received
+        signum = _PENDING_SIGNALS[-1]
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 def pending_signal() -> int | None:
@@ -75,7 +110,9 @@ def pending_signal() -> int | None:
 
 def clear_interrupts() -> None:
     """Forget recorded signals (a command's start and end)."""
-    _PENDING_SIGNALS.clear()
+    with _DELIVERIES.lock:
+        _PENDING_SIGNALS.clear()
+        _DELIVERIES.received = _DELIVERIES.answered = 0
 
 
 def _unraisable(hook):
@@ -102,7 +139,10 @@ def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
         if stop.is_set():
             return
         # recorded here first: raise_if_interrupted sees it even if the handler never runs
-        _PENDING_SIGNALS.append(signum)
+        with _DELIVERIES.lock:
+            _PENDING_SIGNALS.append(signum)
+            _DELIVERIES.received += 1
+            index = _DELIVERIES.received
         for hook in list(ON_SIGNAL):
             try:
                 hook(signum)
@@ -114,7 +154,9 @@ def _wait_and_interrupt(waited: set[int], stop: threading.Event) -> None:
         deadline = time.monotonic() + HANDLER_WAIT_S
         while signal.getsignal(signum) is not on_interrupt_signal and time.monotonic() < deadline:
             time.sleep(0.01)
-        _thread.interrupt_main(signal.Signals(signum))  # runs on_interrupt_signal in the main thread
+        with _DELIVERIES.lock:  # not if the main thread has answered it or the command is ending
+            if not (stop.is_set() or _DELIVERIES.closing or _DELIVERIES.answered >= index):
+                _thread.interrupt_main(signal.Signals(signum))  # runs on_interrupt_signal in the main thread
 
 
 @contextmanager
@@ -142,17 +184,21 @@ def command_signals() -> Iterator[None]:
     try:
         yield
     finally:
+        with _DELIVERIES.lock:  # from here a delivery is dropped (the handler returns)
+            _DELIVERIES.closing = True
+            stop.set()
         sys.unraisablehook = unraisable_hook
         _WAITED.clear()
-        clear_interrupts()  # the record lives as long as the command
-        stop.set()
         if waiter.ident is not None:  # started above: it has one
             signal.pthread_kill(waiter.ident, signal.SIGTERM)  # wakes its sigwait; it ends on `stop`
         waiter.join(timeout=5.0)
-        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-        for s, handler in handlers.items():
+        _let_pending_handler_run()  # a delivery made before `closing` ends here, not after the handlers
+        clear_interrupts()  # the record lives as long as the command
+        for s, handler in handlers.items():  # then a signal still pending is the caller's
             if handler is not None:
                 signal.signal(s, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        _DELIVERIES.closing = False
 
 
 @contextmanager

@@ -205,6 +205,51 @@ def test_a_ctrl_c_inside_a_finalizer_is_not_lost_nor_printed():
     assert r.stdout.strip() == "interrupted" and "Exception ignored" not in r.stderr, (r.stdout, r.stderr)
 
 
+#: a SIGTERM the main thread answers by itself (raise_if_interrupted between two time steps sees
+#: the waiter's record) while the waiter is still in its hooks (under mpirun: the interrupt line and
+#: the lock's release, here a 0.3 s sleep); then the command either goes on a while in its own
+#: cleanup ("stay") or ends at once ("leave"). Prints what each exception was and where.
+ANSWERED_CHILD = """
+import os, signal, sys, time
+from millimpact import interrupts
+from millimpact.interrupts import command_signals, raise_if_interrupted
+
+interrupts.ON_SIGNAL.append(lambda signum: time.sleep(0.3))
+seen = []
+try:
+    with command_signals():
+        os.kill(os.getpid(), signal.SIGTERM)
+        try:
+            for _ in range(500):
+                raise_if_interrupted()
+                time.sleep(0.001)
+        except KeyboardInterrupt as exc:
+            seen.append("step " + type(exc).__name__)
+        if sys.argv[1] == "stay":
+            for _ in range(100):              # 1 s of cleanup
+                time.sleep(0.01)
+except KeyboardInterrupt as exc:
+    seen.append("again " + type(exc).__name__)
+time.sleep(0.5)                              # the waiter, had it gone on, would have delivered by now
+print(" | ".join(seen), flush=True)
+"""
+
+
+@pytest.mark.parametrize("then", ["stay", "leave"])
+def test_a_signal_the_main_thread_answered_raises_once(then):
+    """One SIGTERM, one exception: before, the waiter interrupted the main thread again after its
+    hooks, in the command's cleanup ("stay") or while the command's end joined it ("leave"); under
+    ``mpirun -n 2`` that printed a traceback of a second Terminated (1 of 3 suite runs)."""
+    import subprocess
+    import sys
+
+    from conftest import ROOT, mpi_env
+
+    r = subprocess.run([sys.executable, "-c", ANSWERED_CHILD, then], cwd=ROOT, env=mpi_env(), capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0 and r.stdout.strip() == "step Terminated", (r.stdout, r.stderr[-2000:])
+
+
 def test_every_registered_method_resolves():
     """The registry's table is the only list of methods: each row names a real runner."""
     from millimpact.methods.registry import METHODS, method_runner
