@@ -134,7 +134,7 @@ def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path, monkeypatch,
     assert len(rows) == 3 and rows[0]["hours"] == 0 and rows[2]["hours"] == 400
     # the calibrated constants give back the figure on the first run: top less plate
     first = s["rates"][0]
-    assert first["top"]["mean_mm_per_1000h"] - first["plate"]["mean_mm_per_1000h"] == pytest.approx(
+    assert first["top"]["height_loss_mm_per_1000h"] == pytest.approx(
         initial_height_rate(50, 30, 2000), rel=1e-9)
     second = json.loads((life / "mills" / "cycle-1" / "summary.json").read_text())
     assert second["mill"]["lifter_height_m"] * 1e3 == pytest.approx(rows[1]["lifter_height_mm"], rel=1e-9)
@@ -159,15 +159,15 @@ def test_the_loop_runs_the_mill_again_on_the_worn_profile(tmp_path, monkeypatch,
         expected = [x for x in (np.arange(int(b / rec.bin_m) + 2) + 0.5) * rec.bin_m if a <= x < b]
         assert set(np.round(expected, 9)) <= set(np.round(centres, 9)), name
     assert np.count_nonzero(rec.archard + rec.absorbed == 0) > 0  # some bins are untouched
-    # --calibrate-life with one cycle holds the first run's rates: the height falls linearly, so the
-    # calibrated rate of height loss is (H0 - H1) / HOURS exactly, and the life ends H1 high at HOURS
+    # --calibrate-life with one cycle holds the first run's rates; the life ends H1 high at HOURS. (The
+    # height falls faster than its rate once the chamfers meet on the narrow top: 3.4 of the 10 mm
+    # per 1000 h here; the rest comes off the corners.)
     held = tmp_path / "life-held"
     res = run_cli("life", "liner-segment", *sets, "--mill", str(mill), "--calibrate-life", "50:30:2000",
                   "--reline-height", "5", "--no-plots", "--out", str(held), timeout=300)
     assert res.returncode == 0, res.stderr
     h = json.loads((held / "summary.json").read_text())
-    assert h["rates"][0]["top"]["mean_mm_per_1000h"] - h["rates"][0]["plate"]["mean_mm_per_1000h"] == pytest.approx(
-        (50 - 30) / 2000 * 1000, rel=1e-9)
+    assert 0 < h["rates"][0]["top"]["height_loss_mm_per_1000h"] <= (50 - 30) / 2000 * 1000 * (1 + 1e-9)
     assert h["profiles"][-1]["hours"] == pytest.approx(2000, rel=1e-12)
     assert h["profiles"][-1]["lifter_height_mm"] == pytest.approx(30, rel=1e-9)
     assert json.loads((held / "calibration.json").read_text())["calibrated_on"]["target"] == 30
@@ -322,16 +322,17 @@ def _steel_area(lp: LifterProfile) -> float:
     drop = lp.height + lp.plate_wear
     foot_t = tt[0] - drop * math.tan(math.radians(lp.trailing_angle_deg))
     foot_l = tl[0] + drop * math.tan(math.radians(lp.leading_angle_deg))
-    lifter = 0.5 * ((foot_l - foot_t) + (tl[0] - tt[0])) * drop
+    lifter = 0.5 * ((foot_l - foot_t) + (tl[0] - tt[0])) * drop - lp.chamfer_area()
     return pitch * lp.plate_left + lifter
 
 
 def test_the_profile_update_keeps_the_steel_the_wear_removed():
     """The wear integrated over the unit's surface, sum of depth x bin width, equals the steel the
     updated profile lost (its cross-section's area before less after) within 1 %: the faces move
-    by their depth along their normals, the top and the plate by theirs; what differs is the
-    corners' second-order slivers, ~ d^2 against d x the unit's perimeter (here d ~ 1-3 mm on a 180
-    mm lifter: measured -0.37 %)."""
+    by their depth along their normals, the top and the plate by theirs, and the chamfers take the
+    rest of the lifter's wear by construction; what differs is the plate's (its feet move down
+    the faces) and the bins' ends against the surfaces' (here d ~ 1-3 mm on a 180 mm lifter:
+    measured -0.09 %)."""
     lp = _lifter()
     rec = _unit_record(lp)
     law = WearLaw(abrasion=0.5, impact=0.0, hardness_Pa=3e9, density_kg_m3=7850.0)
@@ -345,6 +346,34 @@ def test_the_profile_update_keeps_the_steel_the_wear_removed():
     # the same in mass: the rates' kg over the hours, per unit of the slice
     mass = float(rates["mass_kg_per_1000h"].sum()) * hours / 1000.0
     assert mass / (7850.0 * rec.slice_m * rec.n_lifters) == pytest.approx(removed, rel=1e-9)
+
+
+def test_a_worn_top_edge_is_cut_and_does_not_turn_its_face():
+    """The trailing face worn d everywhere and 20 d in its last bin at the top corner (as the
+    charge strikes a sharp edge): its angle stays (the line is fitted off the corner), and a
+    chamfer takes the corner's extra steel, its area c^2 cos(alpha) / 2 equal to the extra wear
+    (19 d x the bin) less the sliver the face's offset leaves at the corner (O(d^2): 2 %)."""
+    lp, d, w = _lifter(), 0.001, 0.005
+    L = 0.18 / math.cos(math.radians(20.0))
+    u = (np.arange(int(L / w)) + 0.5) * w
+    dd = np.full(u.size, d)
+    dd[-1] = 20 * d
+    new = worn_profile(lp, {"trailing_face": (u, dd)}, w)
+    assert new.trailing_angle_deg == pytest.approx(20.0, abs=1e-9) and new.leading_angle_deg == 20.0
+    assert new.height == pytest.approx(0.18, abs=1e-12) and new.leading_chamfer == 0.0
+    area = 0.5 * new.trailing_chamfer**2 * math.cos(math.radians(20.0))
+    assert area == pytest.approx(19 * d * w, rel=0.02)
+    # the steel: the outlines' areas differ by the wear integrated (exact by construction, 1e-9)
+    from millimpact.life.profile import _area
+    assert _area(lp.outline()) - _area(new.outline()) == pytest.approx(float(dd.sum()) * w, rel=1e-9)
+    # and the mill's profile has the chamfer as a segment of the trailing face's part: one more
+    # segment a unit, the trailing face the chamfer's chord longer
+    old_p, new_p = lp.mill_profile(0.0625), new.mill_profile(0.0625)
+    assert new_p.segments_per_unit == old_p.segments_per_unit + 1
+    (a0, a1), (b0, b1) = old_p.unit_surfaces()[0], new_p.unit_surfaces()[0]
+    chord = 2 * new.trailing_chamfer * math.sin(math.radians(55.0))
+    assert b1 - b0 == pytest.approx(L - d - new.trailing_chamfer + chord, abs=1e-3)  # the face's foot moves
+    assert [s.part % 4 for s in new_p.segments[:3]] == [0, 0, 1]
 
 
 def test_twice_the_hours_wear_twice_the_depth_on_a_fixed_profile():
@@ -475,7 +504,7 @@ def test_a_life_calibration_reaches_its_height_at_its_hours(monkeypatch):
     for before, after in zip(steps[:-1], steps[1:]):
         rec = record(before.profile)
         depths = surface_depths(rec, depth_rates(rec, cal.law), after.hours - before.hours)
-        mine = worn_profile(before.profile, depths)
+        mine = worn_profile(before.profile, depths, rec.bin_m)
         for f in ("height", "top_width", "top_centre", "trailing_angle_deg", "leading_angle_deg", "plate_wear"):
             assert getattr(mine, f) == pytest.approx(getattr(after.profile, f), rel=1e-9, abs=1e-12), f
     top = rescaled_rates[0]["top"]["mean_mm_per_1000h"]

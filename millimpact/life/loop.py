@@ -14,9 +14,11 @@ but at least MIN_STEP_SHARE of hours / cycles: a worn lifter's faces meet at its
 corner bins wear 5-10 times the face's mean, and equal steps would carry a bin past the lifter in
 one step. It stops at the relining criterion: the lifters' height above the plate or the plate's
 thickness at their limits, or, with ``stop_height`` (a calibration on the life's own height curve,
-:func:`~millimpact.life.calibration.through_life`), where the lifters' height reaches it: within a
-step the height falls linearly in the hours (the top's and the plate's depths are their rates
-times the hours), so the last step is cut where it crosses.
+:func:`~millimpact.life.calibration.through_life`), where the lifters' height reaches it. Then the
+steps are ``cycles`` equal falls of the height instead of equal hours: the wear constants are
+provisional until the end (a factor rescales the hours), so a step's hours follow from the rates,
+found where the profile update's height crosses the step's (regula falsi: the height falls
+linearly in the hours until the chamfers meet on the top).
 """
 
 from __future__ import annotations
@@ -102,16 +104,22 @@ def run_life(
         with clock.stage("wear_and_profile"):
             rates = depth_rates(rec, law)
             rates_per_cycle.append(place_rates(rec, rates))
-            dt = step_hours(rec, rates, lp, nominal, end - steps[-1].hours, max_step_share)
-            depths = surface_depths(rec, rates, dt)
-            worn = worn_profile(lp, depths)
-            if stop_height is not None and worn.height_above_plate <= stop_height:
-                # the height falls linearly in the hours within the step: cut it where it crosses
-                reached = True
-                drop = lp.height_above_plate - worn.height_above_plate
-                dt *= (lp.height_above_plate - stop_height) / drop
+            rates_per_cycle[-1]["top"]["height_loss_mm_per_1000h"] = lifter_height_rate(lp, rec, rates)
+            if stop_height is None:
+                dt = step_hours(rec, rates, lp, nominal, end - steps[-1].hours, max_step_share)
                 depths = surface_depths(rec, rates, dt)
-                worn = worn_profile(lp, depths)
+                worn = worn_profile(lp, depths, rec.bin_m)
+            else:  # equal falls of the height, cycles of them to stop_height
+                h0 = steps[0].profile.height_above_plate
+                target = (
+                    stop_height if k + 1 >= cycles else max(stop_height, h0 - (k + 1) * (h0 - stop_height) / cycles)
+                )
+                dt = _hours_below(lp, rec, rates, target, nominal, end - steps[-1].hours)
+                depths = surface_depths(rec, rates, dt)
+                worn = worn_profile(lp, depths, rec.bin_m)
+                if worn.height_above_plate <= target:  # else out of reach: the loop ends at its bound
+                    dt, depths, worn = _cut_at_height(lp, rec, rates, dt, target)
+                    reached = target <= stop_height * (1.0 + 1e-12)
             lp = worn
         largest = max((float(d.max()) for _, d in depths.values() if d.size), default=0.0)
         steps[-1].largest_step_depth_mm = 1e3 * largest
@@ -144,12 +152,53 @@ def run_life(
     return steps, rates_per_cycle, why
 
 
+def _hours_below(lp: LifterProfile, rec: MillRecord, rates: dict, height: float, hours: float, bound: float) -> float:
+    """Hours (``hours`` doubled until then, at most ``bound``) after which the lifter is below
+    ``height`` (m) at these rates (``bound`` when it never gets there)."""
+    t = min(hours, bound)
+    while worn_profile(lp, surface_depths(rec, rates, t), rec.bin_m).height_above_plate > height and t < bound:
+        t = min(2.0 * t, bound)
+    return t
+
+
+def _cut_at_height(lp: LifterProfile, rec: MillRecord, rates: dict, dt: float, height: float):
+    """(hours, depths, profile) of the step of at most ``dt`` hours that ends with the lifter
+    ``height`` high (m): the height falls linearly in the hours, unless the chamfers meet on the
+    top (:func:`~millimpact.life.profile.worn_profile`), so the linear cut is refined by regula
+    falsi (Illinois) in [0, dt] to 1e-12 of the height."""
+    h0 = lp.height_above_plate
+
+    def at(t):
+        depths = surface_depths(rec, rates, t)
+        worn = worn_profile(lp, depths, rec.bin_m)
+        return worn.height_above_plate - height, depths, worn
+
+    lo, f_lo, hi = 0.0, h0 - height, dt
+    f_hi, depths, worn = at(hi)
+    t = hi * f_lo / (f_lo - f_hi)
+    side = 0
+    for _ in range(100):
+        f, depths, worn = at(t)
+        if abs(f) <= 1e-12 * height:
+            break
+        if f > 0:
+            lo, f_lo = t, f
+            f_hi = 0.5 * f_hi if side == 1 else f_hi
+            side = 1
+        else:
+            hi, f_hi = t, f
+            f_lo = 0.5 * f_lo if side == -1 else f_lo
+            side = -1
+        t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+    return t, depths, worn
+
+
 def rescaled(steps: list[LifeStep], rates_per_cycle: list[dict], factor: float) -> tuple[list, list]:
     """The life with every wear constant times ``factor``: the same profiles at the hours over
     ``factor`` (the depths are the rates times the hours, the rates linear in the constants), the
     rates (mm and kg per 1000 h) times ``factor``."""
     steps = [replace(s, hours=s.hours / factor) for s in steps]
-    per_1000h = ("mean_mm_per_1000h", "largest_mm_per_1000h", "mass_kg_per_1000h_per_metre")
+    per_1000h = ("mean_mm_per_1000h", "largest_mm_per_1000h", "mass_kg_per_1000h_per_metre", "height_loss_mm_per_1000h")
     rates = [
         {surf: {k: (v * factor if k in per_1000h else v) for k, v in r.items()} for surf, r in cyc.items()}
         for cyc in rates_per_cycle
@@ -171,12 +220,20 @@ def step_hours(
     return dt
 
 
+def lifter_height_rate(lp: LifterProfile, rec: MillRecord, rates: dict) -> float:
+    """How fast (mm per 1000 h) the lifter's height above the plate falls on the profile ``lp`` at
+    the bins' ``rates`` (:func:`~millimpact.life.wear.depth_rates`): the top's mean off its corners
+    less the plate's, as :func:`~millimpact.life.profile.worn_profile` moves them (over one hour)."""
+    worn = worn_profile(lp, surface_depths(rec, rates, 1.0), rec.bin_m)
+    return 1e6 * (lp.height_above_plate - worn.height_above_plate)
+
+
 def hours_to_reline(lp: LifterProfile, rates: dict, reline: tuple[float, float], factor: float = 1.0) -> dict:
-    """Hours (from the profile ``lp``) until each criterion at the surfaces' mean rates (mm per
-    1000 h) times ``factor``: the lifter's height above the plate falls at the top's rate less the
-    plate's; the plate thins at the plate's."""
-    top, plate = rates["top"]["mean_mm_per_1000h"] * factor, rates["plate"]["mean_mm_per_1000h"] * factor
-    h_rate = top - plate
+    """Hours (from the profile ``lp``) until each criterion at the rates (mm per 1000 h) times
+    ``factor``: the lifter's height above the plate falls at the top's ``height_loss`` rate
+    (:func:`lifter_height_rate`); the plate thins at the plate's mean."""
+    plate = rates["plate"]["mean_mm_per_1000h"] * factor
+    h_rate = rates["top"]["height_loss_mm_per_1000h"] * factor
     out: dict = {
         "lifter_height_h": 1000.0 * (1e3 * lp.height_above_plate - reline[0]) / h_rate if h_rate > 0 else math.inf,
         "plate_thickness_h": 1000.0 * (1e3 * lp.plate_left - reline[1]) / plate if plate > 0 else math.inf,

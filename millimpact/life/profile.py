@@ -11,10 +11,19 @@ Wear moves each surface inward along its normal (:func:`worn_profile`): the top 
 each face by a depth that varies linearly along it, the least-squares line of its bins' depths
 against the position along the face, so a face that wears more near its top turns: its new line
 passes through the top corner moved by d_top and the root moved by d_root, and its angle grows by
-atan((d_top - d_root) / L) for a face of length L; the plate by its mean depth. The new top
-corners are where the new faces meet the new top. This is the measured shape of worn SAG lifters:
-the leading face's angle grows as the lifter loses height (Yahyaei & Banisi, Minerals Eng. 23
-(2010) 1213-1219: 14 to 47 degrees while the height fell from 152 to 58 mm in 4000 h).
+atan((d_top - d_root) / L) for a face of length L; the plate by its mean depth. This is the
+measured shape of worn SAG lifters: the leading face's angle grows as the lifter loses height
+(Yahyaei & Banisi, Minerals Eng. 23 (2010) 1213-1219: 14 to 47 degrees while the height fell from
+152 to 58 mm in 4000 h).
+
+The top corners: the charge strikes and slides over a lifter's top edges far more than over its
+faces (a sharp edge's bin wears 1.4-11 times its face's mean, benchmarks/liner_life_corners.py), so
+the bins at a corner (the chamfer's and, on each side, the one next to it) are left out of the
+lines and the top's mean: they cut the corner instead. A corner's cut is a chamfer of equal legs c
+along the face and the top from the sharp corner where the new lines meet (area c^2 cos(alpha) / 2
+for a face at alpha); the two chamfers together take what the lines did not (the lifter's area
+lost equals the wear integrated over its bins), shared in proportion to each corner's old chamfer
+area plus its bins' wear. Fed to the mill, a chamfer is a segment of its face.
 """
 
 from __future__ import annotations
@@ -44,6 +53,8 @@ class LifterProfile:
     leading_angle_deg: float
     plate_thickness: float  #: the new plate's thickness (m)
     plate_wear: float = 0.0  #: d_p (m)
+    trailing_chamfer: float = 0.0  #: the leg (m) of the cut at the trailing top corner (0: sharp)
+    leading_chamfer: float = 0.0  #: the leg (m) of the cut at the leading top corner
 
     @classmethod
     def from_liner(cls, liner) -> LifterProfile:
@@ -80,22 +91,78 @@ class LifterProfile:
     def mill_profile(self, ball_radius: float) -> MillProfile:
         """The mill's profile of this lifter round the shell (InputError when the feet overlap)."""
         p = outline_profile(
-            self.mill_radius, self.mill_radius + self.plate_wear, self.n_lifters, self.corners(), ball_radius
+            self.mill_radius,
+            self.mill_radius + self.plate_wear,
+            self.n_lifters,
+            self.corners(),
+            ball_radius,
+            (self.trailing_chamfer, self.leading_chamfer),
         )
         if p is None:
             raise InputError("the worn lifters' feet overlap: the profile cannot be built")
         return p
 
+    def outline(self) -> list[tuple[float, float]]:
+        """The lifter's outline (m, local frame) from the trailing face's point at eta = 0 to the
+        leading face's, through the chamfers' ends where a corner is cut."""
+        bt, tt, tl, bl = self.corners()
+        pts = [bt]
+        for corner, foot, other, c in ((tt, bt, tl, self.trailing_chamfer), (tl, bl, tt, self.leading_chamfer)):
+            if c > 0:
+                ends = [_towards(corner, foot, c), _towards(corner, other, c)]
+                pts += ends if corner is tt else ends[::-1]
+            else:
+                pts.append(corner)
+        return pts + [bl]
+
+    def chamfer_area(self) -> float:
+        """The steel the two chamfers cut from the sharp outline (m^2 per metre of lifter)."""
+        return 0.5 * (
+            self.trailing_chamfer**2 * math.cos(math.radians(self.trailing_angle_deg))
+            + self.leading_chamfer**2 * math.cos(math.radians(self.leading_angle_deg))
+        )
+
     def record(self) -> dict:
-        """profiles.csv's columns of this profile (mm, degrees)."""
+        """profiles.csv's columns of this profile (mm, degrees): the top's width is its flat part,
+        between the chamfers."""
         return {
             "lifter_height_mm": 1e3 * self.height_above_plate,
-            "top_width_mm": 1e3 * self.top_width,
+            "top_width_mm": 1e3 * (self.top_width - self.trailing_chamfer - self.leading_chamfer),
             "trailing_face_angle_deg": self.trailing_angle_deg,
             "leading_face_angle_deg": self.leading_angle_deg,
             "plate_thickness_mm": 1e3 * self.plate_left,
             "top_centre_mm": 1e3 * self.top_centre,
+            "trailing_chamfer_mm": 1e3 * self.trailing_chamfer,
+            "leading_chamfer_mm": 1e3 * self.leading_chamfer,
         }
+
+    @classmethod
+    def from_record(cls, p: dict) -> LifterProfile:
+        """The outline of a profiles.csv row (mill radius, lifters and plate left at 1 and 0)."""
+        ct, cl = 1e-3 * p.get("trailing_chamfer_mm", 0.0), 1e-3 * p.get("leading_chamfer_mm", 0.0)
+        return cls(
+            1.0,
+            1,
+            1e-3 * p["lifter_height_mm"],
+            1e-3 * p["top_width_mm"] + ct + cl,
+            1e-3 * p["top_centre_mm"],
+            p["trailing_face_angle_deg"],
+            p["leading_face_angle_deg"],
+            1.0,
+            trailing_chamfer=ct,
+            leading_chamfer=cl,
+        )
+
+
+def _towards(p: tuple[float, float], q: tuple[float, float], dist: float) -> tuple[float, float]:
+    """The point ``dist`` from p towards q."""
+    d = math.dist(p, q)
+    return (p[0] + dist * (q[0] - p[0]) / d, p[1] + dist * (q[1] - p[1]) / d)
+
+
+def _area(pts: list[tuple[float, float]]) -> float:
+    """A closed polygon's area (m^2, shoelace)."""
+    return 0.5 * abs(sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(pts, pts[1:] + pts[:1])))
 
 
 def _face_fit(u: np.ndarray, d: np.ndarray, length: float) -> tuple[float, float]:
@@ -115,29 +182,59 @@ def _line_at_height(p: tuple[float, float], q: tuple[float, float], eta: float) 
     return p[0] + (eta - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
 
 
-def worn_profile(lp: LifterProfile, depth: dict[str, tuple[np.ndarray, np.ndarray]]) -> LifterProfile:
+def _bin_width(depth: dict) -> float:
+    """The bins' width (m): the least spacing of positions on one surface."""
+    gaps = [float(np.min(np.diff(np.sort(u)))) for u, _ in depth.values() if np.size(u) > 1]
+    gaps = [g for g in gaps if g > 0]
+    return min(gaps) if gaps else 0.0
+
+
+def _split(u: np.ndarray, d: np.ndarray, corner: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """(positions, depths) of the bins off a corner, and the sum of the depths of those on it."""
+    return u[~corner], d[~corner], float(d[corner].sum())
+
+
+def worn_profile(
+    lp: LifterProfile, depth: dict[str, tuple[np.ndarray, np.ndarray]], bin_m: float | None = None
+) -> LifterProfile:
     """The profile after wear: ``depth[surface] = (positions along the surface from its start in the
     direction of the profile (m), depths there (m))`` for the surfaces ``trailing_face``, ``top``,
-    ``leading_face``, ``plate`` (the module docstring)."""
+    ``leading_face``, ``plate`` (the module docstring), as the mill's profile of ``lp`` runs: a
+    chamfer is part of its face. ``bin_m``: the bins' width (default: the positions' spacing)."""
+    empty = (np.zeros(0), np.zeros(0))
+    w = bin_m or _bin_width(depth)
     _, tt, tl, _ = lp.corners()
     h = lp.height
+    a_t, a_l = math.radians(lp.trailing_angle_deg), math.radians(lp.leading_angle_deg)
     # the faces' feet on the worn plate (eta = -d_p, the plate's curvature across a foot neglected)
     drop = h + lp.plate_wear
-    bt = (tt[0] - drop * math.tan(math.radians(lp.trailing_angle_deg)), -lp.plate_wear)
-    bl = (tl[0] + drop * math.tan(math.radians(lp.leading_angle_deg)), -lp.plate_wear)
-    top = depth.get("top", (np.zeros(0), np.zeros(0)))[1]
+    bt = (tt[0] - drop * math.tan(a_t), -lp.plate_wear)
+    bl = (tl[0] + drop * math.tan(a_l), -lp.plate_wear)
+    lt, ll = math.dist(bt, tt), math.dist(tl, bl)
+    ct, cl = lp.trailing_chamfer, lp.leading_chamfer
+    chord_l = 2.0 * cl * math.sin(0.5 * (0.5 * math.pi + a_l))  # the leading chamfer's length
+    # positions from each sharp corner's side: the trailing face from its foot (its chamfer beyond
+    # lt - ct), the top from the trailing sharp corner, the leading face from its sharp corner
+    u, d = (np.asarray(x, float) for x in depth.get("trailing_face", empty))
+    face_t, dface_t, corner_t = _split(u, d, u > lt - ct - w)
+    u, d = (np.asarray(x, float) for x in depth.get("top", empty))
+    u = u + ct
+    top_at_t, top_at_l = u < ct + w, u > lp.top_width - cl - w
+    _, _, corner_t2 = _split(u, d, top_at_t)
+    _, _, corner_l2 = _split(u, d, top_at_l & ~top_at_t)
+    top = d[~(top_at_t | top_at_l)] if np.any(~(top_at_t | top_at_l)) else d
+    u, d = (np.asarray(x, float) for x in depth.get("leading_face", empty))
+    on_face = u >= chord_l
+    u = np.where(on_face, u - chord_l + cl, 0.0)
+    face_l, dface_l, corner_l = _split(u, d, ~on_face | (u < cl + w))
+    removed = w * sum(float(np.sum(depth.get(k, empty)[1])) for k in ("trailing_face", "top", "leading_face"))
+    grown = (w * (corner_t + corner_t2), w * (corner_l + corner_l2))
+
     d_top = max(float(np.mean(top)), 0.0) if top.size else 0.0
-    plate = depth.get("plate", (np.zeros(0), np.zeros(0)))[1]
-    d_plate = max(float(np.mean(plate)), 0.0) if plate.size else 0.0
-    new_h = h - d_top
-    # the trailing face runs from its foot up to its top corner, the leading one from its top corner down
-    lt = math.dist(bt, tt)
-    u, d = depth.get("trailing_face", (np.zeros(0), np.zeros(0)))
-    root_t, top_t = _face_fit(u, d, lt)
-    ll = math.dist(tl, bl)
-    u, d = depth.get("leading_face", (np.zeros(0), np.zeros(0)))
-    top_l, root_l = _face_fit(u, d, ll)
-    a_t, a_l = math.radians(lp.trailing_angle_deg), math.radians(lp.leading_angle_deg)
+    plate = depth.get("plate", empty)[1]
+    d_plate = max(float(np.mean(plate)), 0.0) if np.size(plate) else 0.0
+    root_t, top_t = _face_fit(face_t, dface_t, lt)
+    top_l, root_l = _face_fit(face_l, dface_l, ll)
     n_t, n_l = (-math.cos(a_t), math.sin(a_t)), (math.cos(a_l), math.sin(a_l))  # outward normals
 
     def moved(p, n, dist):
@@ -145,12 +242,39 @@ def worn_profile(lp: LifterProfile, depth: dict[str, tuple[np.ndarray, np.ndarra
 
     pt, qt = moved(bt, n_t, root_t), moved(tt, n_t, top_t)
     pl, ql = moved(bl, n_l, root_l), moved(tl, n_l, top_l)
-    z_t, z_l = _line_at_height(pt, qt, new_h), _line_at_height(pl, ql, new_h)
-    if z_l - z_t < MIN_TOP_WIDTH:
-        mid = 0.5 * (z_t + z_l)
-        z_t, z_l = mid - 0.5 * MIN_TOP_WIDTH, mid + 0.5 * MIN_TOP_WIDTH
     ang_t = math.degrees(math.atan2(qt[0] - pt[0], qt[1] - pt[1]))
     ang_l = math.degrees(math.atan2(pl[0] - ql[0], ql[1] - pl[1]))
+    old_area = _area([bt, tt, tl, bl]) - lp.chamfer_area()
+    base = -lp.plate_wear
+    new_h = h - d_top
+    for _ in range(20):  # the chamfers must fit on the top and the faces; else the top falls more
+        z_t, z_l = _line_at_height(pt, qt, new_h), _line_at_height(pl, ql, new_h)
+        if z_l - z_t < MIN_TOP_WIDTH:
+            mid = 0.5 * (z_t + z_l)
+            z_t, z_l = mid - 0.5 * MIN_TOP_WIDTH, mid + 0.5 * MIN_TOP_WIDTH
+        sharp = [
+            (_line_at_height(pt, qt, base), base),
+            (z_t, new_h),
+            (z_l, new_h),
+            (_line_at_height(pl, ql, base), base),
+        ]
+        cut = _area(sharp) - (old_area - removed)
+        share = (0.5 * ct**2 * math.cos(a_t) + grown[0], 0.5 * cl**2 * math.cos(a_l) + grown[1])
+        total = sum(share)
+        if cut <= 0 or total <= 0:
+            legs = (0.0, 0.0)
+            break
+        cos_t, cos_l = math.cos(math.radians(ang_t)), math.cos(math.radians(ang_l))
+        legs = (math.sqrt(2 * cut * share[0] / total / cos_t), math.sqrt(2 * cut * share[1] / total / cos_l))
+        room = z_l - z_t - MIN_TOP_WIDTH
+        if legs[0] + legs[1] <= room:
+            break
+        # the chamfers would meet: the corners' steel lowers the top instead (area over the top's width)
+        fit = max(room, 0.0) / (legs[0] + legs[1])
+        new_h -= (cut * (1.0 - fit**2)) / max(z_l - z_t, MIN_TOP_WIDTH)
+    if legs[0] + legs[1] > max(z_l - z_t - MIN_TOP_WIDTH, 0.0):  # still too wide after the falls
+        fit = max(z_l - z_t - MIN_TOP_WIDTH, 0.0) / (legs[0] + legs[1])
+        legs = (legs[0] * fit, legs[1] * fit)
     return replace(
         lp,
         height=new_h,
@@ -159,4 +283,6 @@ def worn_profile(lp: LifterProfile, depth: dict[str, tuple[np.ndarray, np.ndarra
         trailing_angle_deg=ang_t,
         leading_angle_deg=ang_l,
         plate_wear=lp.plate_wear + d_plate,
+        trailing_chamfer=legs[0],
+        leading_chamfer=legs[1],
     )

@@ -180,20 +180,10 @@ def _figures(stage: Path, summary: dict, rec, rates) -> None:
     cmap = plt.get_cmap("viridis")
     hmax = max(p["hours"] for p in profiles) or 1.0
     for p in profiles:
-        lp = LifterProfile(
-            1.0,
-            1,
-            1e-3 * (p["lifter_height_mm"] - 0.0),
-            1e-3 * p["top_width_mm"],
-            1e-3 * p["top_centre_mm"],
-            p["trailing_face_angle_deg"],
-            p["leading_face_angle_deg"],
-            1.0,
-        )
-        bt, tt, tl, bl = lp.corners()
+        outline = LifterProfile.from_record(p).outline()
         ax.plot(
-            [1e3 * q[0] for q in (bt, tt, tl, bl)],
-            [1e3 * q[1] for q in (bt, tt, tl, bl)],
+            [1e3 * q[0] for q in outline],
+            [1e3 * q[1] for q in outline],
             color=cmap(p["hours"] / hmax),
             label=f"{p['hours']:.0f} h",
         )

@@ -23,7 +23,8 @@ the tangent at theta_k: the two differ by ~ (base/2)^2 / (2 R), under 2 mm for t
 Every segment carries its ``place`` (``plate``, ``lifter_face``, ``lifter_top``: the places of
 :data:`millimpact.dem.impacts.PLACES`) and a ``part`` number: the plate between two lifters is one
 part, each face and each top another, so a ball rolling from one chord of the plate onto the next
-does not count as a new impact.
+does not count as a new impact. A worn lifter's top corners may be cut by chamfers
+(:func:`outline_profile`); a chamfer is a segment of its face's part.
 """
 
 from __future__ import annotations
@@ -92,10 +93,11 @@ class MillProfile:
 
     @functools.cached_property
     def _unit_starts(self) -> tuple[list[float], float]:
-        starts, s = [], 0.0
+        starts, s, part = [], 0.0, None
         for seg in self.segments:
-            if seg.place == "lifter_face" and seg.part % 4 == 0:  # a unit's first segment
+            if seg.part % 4 == 0 and seg.part != part:  # a unit's first segment
                 s = 0.0
+            part = seg.part
             starts.append(s)
             s += seg.length
         return starts, s
@@ -132,7 +134,9 @@ class MillProfile:
         """[start, end] (m) of the trailing face, top, leading face and plate along a lifter's unit
         (:meth:`unit_starts`)."""
         starts, total = self.unit_starts()
-        ends = [starts[1], starts[2], starts[3], total]
+        n = self.segments_per_unit
+        ends = [starts[k + 1] for k in range(n - 1) if self.segments[k + 1].part != self.segments[k].part][:3]
+        ends.append(total)
         return [[0.0 if k == 0 else ends[k - 1], ends[k]] for k in range(4)]
 
     @property
@@ -194,21 +198,51 @@ def build_profile(liner: LinerShape, ball_radius: float) -> MillProfile:
     return profile
 
 
+def _chamfer(corner: Point2, along_face: Point2, along_top: Point2, leg: float) -> tuple[Point2, Point2]:
+    """The ends of a chamfer with legs ``leg`` (m) cut at ``corner``: one on the face (towards
+    ``along_face``), one on the top (towards ``along_top``)."""
+
+    def towards(q: Point2) -> Point2:
+        d = math.dist(corner, q)
+        return (corner[0] + leg * (q[0] - corner[0]) / d, corner[1] + leg * (q[1] - corner[1]) / d)
+
+    return towards(along_face), towards(along_top)
+
+
 def outline_profile(
-    axis: float, radius: float, n: int, corners: tuple[Point2, ...], ball_radius: float
+    axis: float,
+    radius: float,
+    n: int,
+    corners: tuple[Point2, ...],
+    ball_radius: float,
+    chamfers: tuple[float, float] = (0.0, 0.0),
 ) -> MillProfile | None:
     """The closed profile of n lifters of one outline round a plate of ``radius`` (m), in the
     lifter's local frame (zeta across, positive leading; eta up from the new plate, the mill's axis
     at (0, ``axis``)): ``corners`` = (a point of the trailing face, the trailing top corner, the
     leading top corner, a point of the leading face); each face runs from its top corner through
-    its point to the plate. None when the lifters' feet overlap. A worn liner's plate lies deeper
-    than the new one's (radius > axis)."""
+    its point to the plate. ``chamfers`` (m): the legs of a cut at the trailing and leading top
+    corner, equal along the face and the top (none at 0); a chamfer's segment belongs to its face's
+    part. None when the lifters' feet overlap. A worn liner's plate lies deeper than the new one's
+    (radius > axis)."""
     R = radius
     h = max(corners[1][1], corners[2][1])
     pitch = 2.0 * math.pi / n
     foot_t = _foot_on_circle(axis, R, corners[1], corners[0])
     foot_l = _foot_on_circle(axis, R, corners[2], corners[3])
-    outline = [foot_t, corners[1], corners[2], foot_l]
+    # (point, the part offset of the segment that starts there): 0 trailing face, 1 top, 2 leading face
+    outline: list[tuple[Point2, int]] = [(foot_t, 0)]
+    if chamfers[0] > 0:
+        on_face, on_top = _chamfer(corners[1], foot_t, corners[2], chamfers[0])
+        outline += [(on_face, 0), (on_top, 1)]
+    else:
+        outline.append((corners[1], 1))
+    if chamfers[1] > 0:
+        on_face, on_top = _chamfer(corners[2], foot_l, corners[1], chamfers[1])
+        outline += [(on_top, 2), (on_face, 2)]
+    else:
+        outline.append((corners[2], 2))
+    outline.append((foot_l, 3))
     half_t = math.atan2(-foot_t[0], axis - foot_t[1])  # angles of the feet from the centre line
     half_l = math.atan2(foot_l[0], axis - foot_l[1])
     if half_t + half_l >= pitch:
@@ -226,15 +260,14 @@ def outline_profile(
     segments: list[ProfileSegment] = []
     part = 0
     for k in range(n):
-        pts = [to_global(k, z, e) for z, e in outline]
-        segments.append(ProfileSegment(pts[0], pts[1], "lifter_face", k, part))
-        segments.append(ProfileSegment(pts[1], pts[2], "lifter_top", k, part + 1))
-        segments.append(ProfileSegment(pts[2], pts[3], "lifter_face", k, part + 2))
+        pts = [to_global(k, z, e) for (z, e), _ in outline]
+        for (p, q), (_, off) in zip(zip(pts, pts[1:]), outline):
+            segments.append(ProfileSegment(p, q, "lifter_top" if off == 1 else "lifter_face", k, part + off))
         part += 3
         # the plate from this lifter's leading foot to the next lifter's trailing foot
         a0 = k * pitch + half_l
         arc = [a0 + gap * i / n_chords for i in range(n_chords + 1)]
-        ring = [pts[3]] + [(R * math.cos(a), R * math.sin(a)) for a in arc[1:-1]] + [to_global(k + 1, *foot_t)]
+        ring = [pts[-1]] + [(R * math.cos(a), R * math.sin(a)) for a in arc[1:-1]] + [to_global(k + 1, *foot_t)]
         mid = a0 + 0.5 * gap
         for i, (p, q) in enumerate(zip(ring, ring[1:])):
             a_mid = a0 + gap * (i + 0.5) / n_chords
