@@ -1,83 +1,93 @@
-"""How much of each profile step's face turn comes from the lifter's top corners.
+"""What a lifter's top corners take in each step of a life: the edges' wear against the faces'.
 
-    .venv/bin/python benchmarks/liner_life_corners.py OUT [--cycles 4] [--max-step-depth F]
+    .venv/bin/python benchmarks/liner_life_corners.py OUT [--cycles 4]
 
 OUT is a folder of ``benchmarks/liner_life.py`` (finished or interrupted: its first mill run and
-the mill re-runs its life kept). The steps are redone as the life made them (the constants of
-``--calibrate-life`` before its rescale, which changes the hours and not the profiles). Each
-step's turn of the trailing and leading faces is printed twice: as the life takes it, the face's
-least-squares line of every bin's depth against the position along it
-(:func:`millimpact.life.profile.worn_profile`), and with the face's bin at the top corner left
-out. A face turns by atan((d_top - d_root) / L) (L its length), so a bin at the face's top end
-with many times the face's mean depth turns it most; that ratio is printed too, and the top's
-mean depth without its two end bins as a share of its mean (the top's fall less the plate's is
-the lifter's height loss that the calibration fits).
+the mill re-runs its life kept). The life's steps are redone as ``millimpact life
+--calibrate-life 152:58:4000 --cycles N`` made them (equal falls of the height, the kept runs in
+order; the profiles do not depend on the constants' scale, only the hours do). Per mill run it
+prints the profile it ran on (height, face angles, chamfer legs, flat top), each face's turn in
+the step that follows, the mean depth of the bins at each top corner (the chamfer's and the one
+beside it on each side, :func:`millimpact.life.profile.corner_bins`) over its face's mean, and the
+share of the lifter's wear the corners take (what cuts the chamfers; it is left out of the face
+lines and the top's mean).
 """
 from __future__ import annotations
 
 import argparse
-import tempfile
+import math
 from pathlib import Path
 
-from liner_life import SCENE, _run
+import numpy as np
+from liner_life import SCENE
 
 from millimpact.commandkit.settings import command_scene
-from millimpact.life.calibration import read_calibration
-from millimpact.life.loop import step_hours
-from millimpact.life.profile import LifterProfile, worn_profile
+from millimpact.life.calibration import DEFAULT_LAW
+from millimpact.life.loop import run_life
+from millimpact.life.profile import LifterProfile, corner_bins
 from millimpact.life.wear import depth_rates, read_mill_record, surface_depths
 
-FACES = ("trailing_face", "leading_face")
+
+class _NotKept(Exception):
+    """The life's next mill run is not in OUT yet."""
 
 
-def _provisional_law(out: Path):
-    """The constants ``--calibrate-life 152:58:4000`` starts from (the decay rate of the new lifter)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        cal = Path(tmp) / "cal"
-        _run(["life", *SCENE, "--mill", str(out / "mill"), "--calibrate-height", "152:58:4000", "--cycles", "1",
-              "--reline-height", "0", "--reline-plate", "0", "--no-plots", "-q", "--out", str(cal)], Path(tmp) / "log")
-        return read_calibration(cal / "calibration.json").law
-
-
-def _without_corner(depths: dict) -> dict:
-    """The depths with each face's bin at the top corner left out (the trailing face's last, the
-    leading face's first: each face runs in the profile's direction)."""
-    out = dict(depths)
-    u, d = depths["trailing_face"]
-    out["trailing_face"] = (u[:-1], d[:-1])
-    u, d = depths["leading_face"]
-    out["leading_face"] = (u[1:], d[1:])
-    return out
+def _corner_figures(lp: LifterProfile, rec) -> tuple[float, float, float]:
+    """(the trailing corner's mean bin depth over the trailing face's, the same leading, the
+    corners' share of the lifter's wear) of the run ``rec`` on the profile ``lp``."""
+    depths = surface_depths(rec, depth_rates(rec, DEFAULT_LAW), 1.0)
+    bt, tt, tl, bl = lp.corners()
+    bins = corner_bins(lp, depths, rec.bin_m, (math.dist(bt, tt), math.dist(tl, bl)))
+    ratios = [
+        bins.corners[k] / max(bins.corner_bins[k], 1) / max(float(np.mean(face[1])), 1e-30)
+        for k, face in enumerate((bins.trailing_face, bins.leading_face))
+    ]
+    lifter = sum(float(depths[s][1].sum()) for s in ("trailing_face", "top", "leading_face"))
+    return ratios[0], ratios[1], sum(bins.corners) / max(lifter, 1e-30)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path, help="a folder of benchmarks/liner_life.py")
     ap.add_argument("--cycles", type=int, default=4)
-    ap.add_argument("--max-step-depth", type=float, default=None)
     a = ap.parse_args()
     scene = command_scene(SCENE[0], [s for s in SCENE[1:] if s != "--set"])
-    law = _provisional_law(a.out)
-    lp, r, t = LifterProfile.from_liner(scene.liner), scene.ball.radius, 0.0
-    mills = sorted((a.out / "life" / "mills").glob("cycle-*"), key=lambda p: int(p.name.split("-")[1]))
-    print("| step from (h) | height (mm) | trailing / leading face (deg) | step (h) | turn, trailing / leading "
-          "(deg) | without the corner bins | corner bin / face mean, trailing / leading | top's mean depth without "
-          "its two end bins |")
-    print("|---|---|---|---|---|---|---|---|")
-    for folder in [a.out / "mill", *mills]:
-        rec = read_mill_record(folder, lp.mill_profile(r))
-        rates = depth_rates(rec, law)
-        dt = step_hours(rec, rates, lp, 4000.0 / a.cycles, 1e9, a.max_step_depth)
-        depths = surface_depths(rec, rates, dt)
-        new, cut = worn_profile(lp, depths), worn_profile(lp, _without_corner(depths))
-        ratio = [depths[f][1][i] / max(depths[f][1].mean(), 1e-30) for f, i in zip(FACES, (-1, 0))]
-        top = depths["top"][1]
-        print(f"| {t:.0f} | {1e3 * lp.height_above_plate:.1f} | {lp.trailing_angle_deg:.1f} / {lp.leading_angle_deg:.1f} "
-              f"| {dt:.0f} | {new.trailing_angle_deg - lp.trailing_angle_deg:+.1f} / "
-              f"{new.leading_angle_deg - lp.leading_angle_deg:+.1f} | {cut.trailing_angle_deg - lp.trailing_angle_deg:+.1f} / "
-              f"{cut.leading_angle_deg - lp.leading_angle_deg:+.1f} | {ratio[0]:.1f} / {ratio[1]:.1f} | "
-              f"{top[1:-1].mean() / top.mean():.2f} |")
-        lp, t = new, t + dt
+    r = scene.ball.radius
+    profiles = [LifterProfile.from_liner(scene.liner)]
+    folders = [a.out / "mill"]
+    kept = sorted((a.out / "life" / "mills").glob("cycle-*"), key=lambda p: int(p.name.split("-")[1]))
+
+    def run_mill_on(lp, cycle):
+        profiles.append(lp)
+        if cycle > len(kept):
+            raise _NotKept
+        folders.append(kept[cycle - 1])
+        return kept[cycle - 1]
+
+    first = read_mill_record(folders[0], profiles[0].mill_profile(r))
+    finished = False
+    try:
+        steps, _, _ = run_life(profiles[0], first, DEFAULT_LAW, 4000.0, a.cycles, (0.0, 0.0), run_mill_on, r,
+                               stop_height=0.058)
+        profiles.append(steps[-1].profile)
+        finished = True
+    except _NotKept:
+        pass
+    print("| height (mm) | faces, trailing / leading (deg) | chamfers (mm) | flat top (mm) | turn in the step (deg) "
+          "| corner bins / face mean, trailing / leading | corners' share of the lifter's wear |")
+    print("|---|---|---|---|---|---|---|")
+    for k, lp in enumerate(profiles):
+        q = lp.record()
+        row = (f"| {q['lifter_height_mm']:.1f} | {lp.trailing_angle_deg:.1f} / {lp.leading_angle_deg:.1f} | "
+               f"{q['trailing_chamfer_mm']:.1f} / {q['leading_chamfer_mm']:.1f} | {q['top_width_mm']:.1f} |")
+        if k < len(folders):
+            nxt = profiles[k + 1]
+            rt, rl, share = _corner_figures(lp, read_mill_record(folders[k], lp.mill_profile(r)))
+            row += (f" {nxt.trailing_angle_deg - lp.trailing_angle_deg:+.1f} / "
+                    f"{nxt.leading_angle_deg - lp.leading_angle_deg:+.1f} | {rt:.1f} / {rl:.1f} | {share:.2f} |")
+        else:
+            row += " (the life's end) | | |" if finished else " (its mill run not kept yet) | | |"
+        print(row)
 
 
 if __name__ == "__main__":

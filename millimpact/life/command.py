@@ -137,13 +137,11 @@ def check_args(args: argparse.Namespace) -> None:
         raise InputError(f"--revolutions {args.revolutions!r}: must lie in (0, 1000]")
 
 
-def calibrate(args, rec, steel: dict, lp=None):
+def calibrate(args, rec, steel: dict):
     """The calibration the command uses: the file (refused when made on another steel than the
     scene's liner ``steel``, :func:`~millimpact.life.calibration.liner_steel`), the default, or one
-    fitted on a figure (a height's on the lifter ``lp`` of the run ``rec``: its top off the corners,
-    :func:`~millimpact.life.loop.lifter_height_rate`)."""
+    fitted on a figure."""
     from .calibration import DEFAULT_LAW, DEFAULT_SPREAD, Calibration, initial_height_rate, parse_height_figure, scaled
-    from .loop import lifter_height_rate
     from .wear import depth_rates, place_rates
 
     if args.calibration is not None:
@@ -164,7 +162,7 @@ def calibrate(args, rec, steel: dict, lp=None):
         )
         h0, h1, hours = parse_height_figure(figure, option)
         target = initial_height_rate(h0, h1, hours)
-        model = lifter_height_rate(lp, rec, depth_rates(rec, law))
+        model = rates["top"]["mean_mm_per_1000h"] - rates["plate"]["mean_mm_per_1000h"]
         what = "lifter height loss of the new lifter (first-order decay), mm per 1000 h"
         on.update(figure=f"lifters {h0:g} -> {h1:g} mm in {hours:g} h", target=target, what=what)
         if life is not None:
@@ -222,7 +220,7 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"--mill {args.mill}: a mill of {rec.n_lifters} lifters, not this scene's {lp.n_lifters}")
     from .calibration import liner_steel
 
-    cal = calibrate(args, rec, liner_steel(scene.liner.material), lp)
+    cal = calibrate(args, rec, liner_steel(scene.liner.material))
     if args.cycles > 1 and "options" not in rec.summary:
         raise InputError(f"--mill {args.mill}: its summary.json has no options to run the mill again with (--cycles 1)")
     out = args.out if args.out is not None else default_out(Path(args.scene).stem, prefix="life-")

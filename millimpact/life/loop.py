@@ -104,7 +104,6 @@ def run_life(
         with clock.stage("wear_and_profile"):
             rates = depth_rates(rec, law)
             rates_per_cycle.append(place_rates(rec, rates))
-            rates_per_cycle[-1]["top"]["height_loss_mm_per_1000h"] = lifter_height_rate(lp, rec, rates)
             if stop_height is None:
                 dt = step_hours(rec, rates, lp, nominal, end - steps[-1].hours, max_step_share)
                 depths = surface_depths(rec, rates, dt)
@@ -198,7 +197,7 @@ def rescaled(steps: list[LifeStep], rates_per_cycle: list[dict], factor: float) 
     ``factor`` (the depths are the rates times the hours, the rates linear in the constants), the
     rates (mm and kg per 1000 h) times ``factor``."""
     steps = [replace(s, hours=s.hours / factor) for s in steps]
-    per_1000h = ("mean_mm_per_1000h", "largest_mm_per_1000h", "mass_kg_per_1000h_per_metre", "height_loss_mm_per_1000h")
+    per_1000h = ("mean_mm_per_1000h", "largest_mm_per_1000h", "mass_kg_per_1000h_per_metre")
     rates = [
         {surf: {k: (v * factor if k in per_1000h else v) for k, v in r.items()} for surf, r in cyc.items()}
         for cyc in rates_per_cycle
@@ -220,20 +219,13 @@ def step_hours(
     return dt
 
 
-def lifter_height_rate(lp: LifterProfile, rec: MillRecord, rates: dict) -> float:
-    """How fast (mm per 1000 h) the lifter's height above the plate falls on the profile ``lp`` at
-    the bins' ``rates`` (:func:`~millimpact.life.wear.depth_rates`): the top's mean off its corners
-    less the plate's, as :func:`~millimpact.life.profile.worn_profile` moves them (over one hour)."""
-    worn = worn_profile(lp, surface_depths(rec, rates, 1.0), rec.bin_m)
-    return 1e6 * (lp.height_above_plate - worn.height_above_plate)
-
-
 def hours_to_reline(lp: LifterProfile, rates: dict, reline: tuple[float, float], factor: float = 1.0) -> dict:
-    """Hours (from the profile ``lp``) until each criterion at the rates (mm per 1000 h) times
-    ``factor``: the lifter's height above the plate falls at the top's ``height_loss`` rate
-    (:func:`lifter_height_rate`); the plate thins at the plate's mean."""
-    plate = rates["plate"]["mean_mm_per_1000h"] * factor
-    h_rate = rates["top"]["height_loss_mm_per_1000h"] * factor
+    """Hours (from the profile ``lp``) until each criterion at the surfaces' mean rates (mm per
+    1000 h) times ``factor``: the lifter's height above the plate falls at the top's rate less the
+    plate's (the top's corners included: they wear first, and the top falls once they meet); the
+    plate thins at the plate's."""
+    top, plate = rates["top"]["mean_mm_per_1000h"] * factor, rates["plate"]["mean_mm_per_1000h"] * factor
+    h_rate = top - plate
     out: dict = {
         "lifter_height_h": 1000.0 * (1e3 * lp.height_above_plate - reline[0]) / h_rate if h_rate > 0 else math.inf,
         "plate_thickness_h": 1000.0 * (1e3 * lp.plate_left - reline[1]) / plate if plate > 0 else math.inf,

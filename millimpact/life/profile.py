@@ -189,9 +189,46 @@ def _bin_width(depth: dict) -> float:
     return min(gaps) if gaps else 0.0
 
 
-def _split(u: np.ndarray, d: np.ndarray, corner: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """(positions, depths) of the bins off a corner, and the sum of the depths of those on it."""
-    return u[~corner], d[~corner], float(d[corner].sum())
+@dataclass(frozen=True)
+class CornerBins:
+    """A lifter's bins split at its top corners (:func:`corner_bins`): each face's bins off its
+    corner as (position from the face's root for the trailing face, from its sharp top corner for
+    the leading face (m), depth), the top's depths off both corners, and the sum of the depths
+    on each corner (trailing, leading: the chamfer's bins and the one beside it on each side) and
+    how many bins each holds."""
+
+    trailing_face: tuple[np.ndarray, np.ndarray]
+    leading_face: tuple[np.ndarray, np.ndarray]
+    top: np.ndarray
+    corners: tuple[float, float]
+    corner_bins: tuple[int, int]
+
+
+def corner_bins(lp: LifterProfile, depth: dict, w: float, lengths: tuple[float, float]) -> CornerBins:
+    """``depth`` (:func:`worn_profile`'s) split at the corners of ``lp``, bins ``w`` wide, its faces
+    ``lengths`` (trailing, leading; m) long from the plate to the sharp corner."""
+    empty = (np.zeros(0), np.zeros(0))
+    (lt, _), ct, cl = lengths, lp.trailing_chamfer, lp.leading_chamfer
+    chord_l = 2.0 * cl * math.sin(0.5 * (0.5 * math.pi + math.radians(lp.leading_angle_deg)))
+    u, d = (np.asarray(x, float) for x in depth.get("trailing_face", empty))
+    at_t = u > lt - ct - w  # the trailing face from its foot, its chamfer beyond lt - ct
+    face_t, sum_t = (u[~at_t], d[~at_t]), float(d[at_t].sum())
+    u, d = (np.asarray(x, float) for x in depth.get("top", empty))
+    u = u + ct  # from the trailing sharp corner
+    top_at_t, top_at_l = u < ct + w, (u > lp.top_width - cl - w) & ~(u < ct + w)
+    middle = ~(top_at_t | top_at_l)
+    top = d[middle] if np.any(middle) else d
+    sum_t += float(d[top_at_t].sum())
+    sum_l = float(d[top_at_l].sum())
+    u, d = (np.asarray(x, float) for x in depth.get("leading_face", empty))
+    on_face = u >= chord_l  # the leading face's part starts with its chamfer
+    u = np.where(on_face, u - chord_l + cl, 0.0)  # from the leading sharp corner
+    at_l = ~on_face | (u < cl + w)
+    counts = (
+        int(np.count_nonzero(at_t) + np.count_nonzero(top_at_t)),
+        int(np.count_nonzero(top_at_l) + np.count_nonzero(at_l)),
+    )
+    return CornerBins(face_t, (u[~at_l], d[~at_l]), top, (sum_t, sum_l + float(d[at_l].sum())), counts)
 
 
 def worn_profile(
@@ -212,29 +249,14 @@ def worn_profile(
     bl = (tl[0] + drop * math.tan(a_l), -lp.plate_wear)
     lt, ll = math.dist(bt, tt), math.dist(tl, bl)
     ct, cl = lp.trailing_chamfer, lp.leading_chamfer
-    chord_l = 2.0 * cl * math.sin(0.5 * (0.5 * math.pi + a_l))  # the leading chamfer's length
-    # positions from each sharp corner's side: the trailing face from its foot (its chamfer beyond
-    # lt - ct), the top from the trailing sharp corner, the leading face from its sharp corner
-    u, d = (np.asarray(x, float) for x in depth.get("trailing_face", empty))
-    face_t, dface_t, corner_t = _split(u, d, u > lt - ct - w)
-    u, d = (np.asarray(x, float) for x in depth.get("top", empty))
-    u = u + ct
-    top_at_t, top_at_l = u < ct + w, u > lp.top_width - cl - w
-    _, _, corner_t2 = _split(u, d, top_at_t)
-    _, _, corner_l2 = _split(u, d, top_at_l & ~top_at_t)
-    top = d[~(top_at_t | top_at_l)] if np.any(~(top_at_t | top_at_l)) else d
-    u, d = (np.asarray(x, float) for x in depth.get("leading_face", empty))
-    on_face = u >= chord_l
-    u = np.where(on_face, u - chord_l + cl, 0.0)
-    face_l, dface_l, corner_l = _split(u, d, ~on_face | (u < cl + w))
+    bins = corner_bins(lp, depth, w, (lt, ll))
     removed = w * sum(float(np.sum(depth.get(k, empty)[1])) for k in ("trailing_face", "top", "leading_face"))
-    grown = (w * (corner_t + corner_t2), w * (corner_l + corner_l2))
-
-    d_top = max(float(np.mean(top)), 0.0) if top.size else 0.0
+    grown = (w * bins.corners[0], w * bins.corners[1])
+    d_top = max(float(np.mean(bins.top)), 0.0) if bins.top.size else 0.0
     plate = depth.get("plate", empty)[1]
     d_plate = max(float(np.mean(plate)), 0.0) if np.size(plate) else 0.0
-    root_t, top_t = _face_fit(face_t, dface_t, lt)
-    top_l, root_l = _face_fit(face_l, dface_l, ll)
+    root_t, top_t = _face_fit(*bins.trailing_face, lt)
+    top_l, root_l = _face_fit(*bins.leading_face, ll)
     n_t, n_l = (-math.cos(a_t), math.sin(a_t)), (math.cos(a_l), math.sin(a_l))  # outward normals
 
     def moved(p, n, dist):
