@@ -6,15 +6,16 @@ The sources we could read give the lifters only; the mill around them is assumed
 a 32 ft (9.75 m) shell, 4.8 m to the plates' inner face, 64 lifter rows (0.47 m apart), 100 mm
 tops, 125 mm balls (liner-segment's), the plan's SAG charge (J 0.28, J_B 0.12) at 75 % of critical.
 
-    .venv/bin/python benchmarks/liner_life.py [--cycles 4] [--max-step-depth F] [--revolutions 2] [--warmup 0.6] [--seed 0]
+    .venv/bin/python benchmarks/liner_life.py [--cycles 4] [--revolutions 2] [--warmup 0.6] [--seed 0]
 
 No relining limit stops the steps (``--reline-height 0 --reline-plate 0``): the measured state is the
 one after 4000 h, and the plate's 75 mm is an assumption.
 
 Steps (each skipped when its folder is complete; an interrupted life step, run again, continues
 from the mill re-runs it kept): ``millimpact mill`` on the new liner, then
-``millimpact life --calibrate-life 152:58:4000 --cycles N``, which runs the mill again on each worn
-profile until the lifters are 58 mm high and scales the constants so that this is at 4000 h (the
+``millimpact life --calibrate-life 152:58:4000 --cycles N``, which moves the profile in N equal
+falls of the lifters' height to 58 mm, running the mill again on each worn profile, and scales the
+constants so that the last is at 4000 h (the
 measured height is the calibration's one number; the face angle is predicted); then the same
 constants on a second charge (Yanacocha's, below).
 Reported (life.md, life_vs_measured.png): the height and face angles at each step against the first-order decay through
@@ -93,8 +94,6 @@ def _figure(profiles: list[dict], tau: float, path: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cycles", type=int, default=4)
-    ap.add_argument("--max-step-depth", type=float, default=None,
-                    help="life's --max-step-depth: steps shortened so no bin loses more than F of the lifter")
     ap.add_argument("--revolutions", type=float, default=0.4)
     ap.add_argument("--warmup", type=float, default=0.6)
     ap.add_argument("--seed", type=int, default=0, help="the mill's seed (another charge: a replicate)")
@@ -109,8 +108,8 @@ def main() -> None:
               "--seed", str(a.seed), "--force", "--out", str(mill)], out / "mill.log")
     if not (life / "summary.json").exists():
         _run(["life", *SCENE, "--mill", str(mill), "--calibrate-life", "152:58:4000",
-              "--cycles", str(a.cycles), "--reline-height", "0", "--reline-plate", "0", "--force", "--out", str(life),
-              *(["--max-step-depth", str(a.max_step_depth)] if a.max_step_depth is not None else [])], out / "life.log")
+              "--cycles", str(a.cycles), "--reline-height", "0", "--reline-plate", "0", "--force", "--out", str(life)],
+             out / "life.log")
     transfer = _transfer(out, life, a) if not a.no_transfer else None
     s = json.loads((life / "summary.json").read_text())
     tau = 4000 / math.log(152 / 58)

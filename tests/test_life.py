@@ -88,6 +88,7 @@ def test_first_order_decay_rate():
     (["--calibrate-mass", "2.6", "--calibrate-height", "152:58:4000"], "give one of them"),
     (["--calibrate-life", "152:58:4000", "--hours", "1000"], "runs the life to its figure's 4000 h"),
     (["--calibrate-life", "152:58"], "--calibrate-life '152:58': give H0:H1:HOURS"),
+    (["--calibrate-life", "152:58:4000", "--max-step-depth", "1"], "not with --calibrate-life"),
 ])
 def test_bad_life_input_is_one_line_and_exit_2_and_no_folder(tmp_path, args, words):
     mill = tmp_path / "mill"

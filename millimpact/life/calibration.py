@@ -17,8 +17,9 @@ that the model gives the figure:
   tau = HOURS / ln(H0 / H1): the model's rate of height loss of the new lifter (its top's mean
   depth rate less the plate's) is set to that;
 - ``--calibrate-life H0:H1:HOURS``: the same figure on the life's own height curve, no decay
-  assumed: the profile is moved and the mill run again (``--cycles``, ``--max-step-depth``) at the
-  constants of ``--calibrate-height`` until the lifters are H1 high, T hours on; a factor on both
+  assumed: the profile is moved and the mill run again in ``--cycles`` equal falls of the height
+  (:func:`~millimpact.life.loop.run_life`) at the constants of ``--calibrate-height`` until the
+  lifters are H1 high, T hours on; a factor on both
   constants only rescales the hours (every depth is a rate times the hours, every rate linear in
   the constants), so the constants times T / HOURS wear the same profiles and reach H1 at HOURS
   (:func:`through_life`);

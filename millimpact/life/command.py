@@ -69,7 +69,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--max-step-depth",
         type=float,
         metavar="F",
-        help="shorten a step so no bin loses more than F of the lifter's height (0 < F <= 1; default: equal steps)",
+        help="shorten a step so no bin loses more than F of the lifter's height (0 < F <= 1; default: equal steps; "
+        "not with --calibrate-life)",
     )
     p.add_argument(
         "--revolutions", type=float, metavar="R", help="revolutions of each re-run mill (default: the given run's)"
@@ -115,6 +116,11 @@ def check_args(args: argparse.Namespace) -> None:
         math.isfinite(args.max_step_depth) and 0.0 < args.max_step_depth <= 1.0
     ):
         raise InputError(f"--max-step-depth {args.max_step_depth!r}: must lie in (0, 1]")
+    if args.max_step_depth is not None and life is not None:
+        raise InputError(
+            f"--max-step-depth {args.max_step_depth:g}: not with --calibrate-life, whose steps are --cycles equal "
+            "falls of the lifters' height"
+        )
     if args.spread is not None and not (math.isfinite(args.spread) and 0.0 <= args.spread < 1.0):
         raise InputError(f"--spread {args.spread!r}: must lie in [0, 1)")
     given = [
