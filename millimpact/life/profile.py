@@ -178,7 +178,10 @@ def _face_fit(u: np.ndarray, d: np.ndarray, length: float) -> tuple[float, float
 
 
 def _line_at_height(p: tuple[float, float], q: tuple[float, float], eta: float) -> float:
-    """zeta where the line through p and q crosses the height eta."""
+    """zeta where the line through p and q crosses the height eta (p's zeta for a line that has
+    turned flat: a step far too long for its rates, which only a search for a step's hours meets)."""
+    if abs(q[1] - p[1]) < 1e-12:
+        return p[0]
     return p[0] + (eta - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
 
 
@@ -286,7 +289,8 @@ def worn_profile(
         if cut <= 0 or total <= 0:
             legs = (0.0, 0.0)
             break
-        cos_t, cos_l = math.cos(math.radians(ang_t)), math.cos(math.radians(ang_l))
+        # a face turned past 90 degrees (a step far too long) still gives a cut
+        cos_t, cos_l = (max(math.cos(math.radians(a)), 1e-6) for a in (ang_t, ang_l))
         legs = (math.sqrt(2 * cut * share[0] / total / cos_t), math.sqrt(2 * cut * share[1] / total / cos_l))
         room = z_l - z_t - MIN_TOP_WIDTH
         if legs[0] + legs[1] <= room:
