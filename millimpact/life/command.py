@@ -302,8 +302,11 @@ def _mill_runner(scene, rec, mills: Path, args, say, made: list[str]):
     def run(lp, cycle: int) -> Path:
         folder = mills / f"cycle-{cycle}"
         made.append(folder.name)
+        # the profile to a nanometre (a nano-degree): a step's profile found by a search for its hours
+        # differs at round-off with the constants' scale, which does not change the run
+        profile = {k: round(v, 9) if isinstance(v, float) else v for k, v in asdict(lp).items()}
         key = piece_key(
-            {"scene": dump_scene(scene), "options": asdict(opts), "profile": asdict(lp), "version": __version__}
+            {"scene": dump_scene(scene), "options": asdict(opts), "profile": profile, "version": __version__}
         )
         try:
             if json.loads((folder / "summary.json").read_text()).get("life_key") == key:
