@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..dem.mill.geometry import MillProfile, lifter_count, outline_profile
+from ..dem.mill.geometry import MillProfile, chamfer_ends, lifter_count, outline_profile
 from ..errors import InputError
 
 #: the least top width a worn lifter keeps (m): faces that would meet leave a ridge this wide
@@ -109,7 +109,7 @@ class LifterProfile:
         pts = [bt]
         for corner, foot, other, c in ((tt, bt, tl, self.trailing_chamfer), (tl, bl, tt, self.leading_chamfer)):
             if c > 0:
-                ends = [_towards(corner, foot, c), _towards(corner, other, c)]
+                ends = list(chamfer_ends(corner, foot, other, c))
                 pts += ends if corner is tt else ends[::-1]
             else:
                 pts.append(corner)
@@ -152,12 +152,6 @@ class LifterProfile:
             trailing_chamfer=ct,
             leading_chamfer=cl,
         )
-
-
-def _towards(p: tuple[float, float], q: tuple[float, float], dist: float) -> tuple[float, float]:
-    """The point ``dist`` from p towards q."""
-    d = math.dist(p, q)
-    return (p[0] + dist * (q[0] - p[0]) / d, p[1] + dist * (q[1] - p[1]) / d)
 
 
 def _area(pts: list[tuple[float, float]]) -> float:

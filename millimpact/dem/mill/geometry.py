@@ -198,7 +198,7 @@ def build_profile(liner: LinerShape, ball_radius: float) -> MillProfile:
     return profile
 
 
-def _chamfer(corner: Point2, along_face: Point2, along_top: Point2, leg: float) -> tuple[Point2, Point2]:
+def chamfer_ends(corner: Point2, along_face: Point2, along_top: Point2, leg: float) -> tuple[Point2, Point2]:
     """The ends of a chamfer with legs ``leg`` (m) cut at ``corner``: one on the face (towards
     ``along_face``), one on the top (towards ``along_top``)."""
 
@@ -233,12 +233,12 @@ def outline_profile(
     # (point, the part offset of the segment that starts there): 0 trailing face, 1 top, 2 leading face
     outline: list[tuple[Point2, int]] = [(foot_t, 0)]
     if chamfers[0] > 0:
-        on_face, on_top = _chamfer(corners[1], foot_t, corners[2], chamfers[0])
+        on_face, on_top = chamfer_ends(corners[1], foot_t, corners[2], chamfers[0])
         outline += [(on_face, 0), (on_top, 1)]
     else:
         outline.append((corners[1], 1))
     if chamfers[1] > 0:
-        on_face, on_top = _chamfer(corners[2], foot_l, corners[1], chamfers[1])
+        on_face, on_top = chamfer_ends(corners[2], foot_l, corners[1], chamfers[1])
         outline += [(on_top, 2), (on_face, 2)]
     else:
         outline.append((corners[2], 2))
